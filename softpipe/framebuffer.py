@@ -1,0 +1,127 @@
+"""The framebuffer: float RGBA color and float depth, per sample.
+
+Row 0 is the top of the image, as pillow and numpy expect; the rasterizer
+flipped y once when it emitted the fragments. Colors are linear floats and
+unclamped until they become 8 bits in :meth:`Framebuffer.to_uint8`, the one
+place that conversion happens: ``round(clamp(c, 0, 1)·255)``, rounding half to
+even.
+"""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Sequence, Union
+
+import numpy as np
+
+from .sampling import CENTER, SamplePattern
+
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES"]
+
+#: Largest width or height, in pixels.
+MAX_DIMENSION = 16384
+#: Largest width × height × samples (about 1.3 GB of color and depth).
+MAX_TOTAL_SAMPLES = 1 << 26
+
+
+def _check_size(width, height, samples: int) -> None:
+    for name, v in (("width", width), ("height", height)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise TypeError(f"Framebuffer {name} must be an integer, got {type(v).__name__} {v!r}")
+        if v <= 0:
+            raise ValueError(f"Framebuffer {name} must be at least 1, got {v}")
+        if v > MAX_DIMENSION:
+            raise ValueError(f"Framebuffer {name} {v} exceeds the limit MAX_DIMENSION = {MAX_DIMENSION}")
+    if width * height * samples > MAX_TOTAL_SAMPLES:
+        raise ValueError(f"Framebuffer {width}×{height}×{samples} samples = {width * height * samples} exceeds "
+                         f"the limit MAX_TOTAL_SAMPLES = {MAX_TOTAL_SAMPLES}")
+
+
+class Framebuffer:
+    """Color (RGBA float32) and depth (float32) buffers, one value per sample.
+
+    Parameters
+    ----------
+    width, height : int
+        Size in pixels (limits: :data:`MAX_DIMENSION`, :data:`MAX_TOTAL_SAMPLES`).
+    pattern : SamplePattern
+        Where the samples of a pixel are; one centre sample by default.
+
+    Attributes
+    ----------
+    color : float32 [H, W, 4]
+        For one sample per pixel, the color buffer itself (writable).
+    depth : float32 [H, W]
+        For one sample per pixel, the depth buffer itself.
+    samples_color : float32 [H, W, S, 4], samples_depth : float32 [H, W, S]
+        Every sample.
+
+    A new framebuffer is cleared to opaque black, (0, 0, 0, 1), and depth 1.0.
+    """
+
+    def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER):
+        if not isinstance(pattern, SamplePattern):
+            raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
+        _check_size(width, height, len(pattern))
+        self.width, self.height, self.pattern = int(width), int(height), pattern
+        s = len(pattern)
+        self.samples_color = np.empty((self.height, self.width, s, 4), dtype=np.float32)
+        self.samples_depth = np.empty((self.height, self.width, s), dtype=np.float32)
+        self.clear()
+
+    @property
+    def samples(self) -> int:
+        return len(self.pattern)
+
+    def clear(self, color: Sequence[float] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0) -> "Framebuffer":
+        """Set every sample to ``color`` (RGB or RGBA) and ``depth``."""
+        c = np.asarray(color, dtype=np.float32).reshape(-1)
+        if c.size == 3:
+            c = np.append(c, np.float32(1.0))
+        if c.size != 4 or not np.all(np.isfinite(c)):
+            raise ValueError(f"clear color must be 3 or 4 finite numbers, got {color!r}")
+        if not 0.0 <= float(depth) <= 1.0:
+            raise ValueError(f"clear depth must be in [0, 1], got {depth!r}")
+        self.samples_color[...] = c
+        self.samples_depth[...] = np.float32(depth)
+        return self
+
+    @property
+    def color(self) -> np.ndarray:
+        """[H, W, 4]: the buffer itself for one sample, else the box-filtered resolve."""
+        if self.samples == 1:
+            return self.samples_color[:, :, 0, :]
+        return self.samples_color.mean(axis=2, dtype=np.float64).astype(np.float32)
+
+    @property
+    def depth(self) -> np.ndarray:
+        """[H, W]: the buffer itself for one sample, else the nearest sample's depth."""
+        if self.samples == 1:
+            return self.samples_depth[:, :, 0]
+        return self.samples_depth.min(axis=2)
+
+    def to_uint8(self, alpha: bool = True) -> np.ndarray:
+        """The color as 8-bit [H, W, 4] (or [H, W, 3]): round(clamp(c, 0, 1)·255), half to even."""
+        c = np.clip(self.color[..., : 4 if alpha else 3].astype(np.float64), 0.0, 1.0)
+        return np.rint(c * 255.0).astype(np.uint8)
+
+    def to_image(self, alpha: bool = False):
+        """A pillow Image (RGB by default, RGBA with ``alpha=True``)."""
+        from PIL import Image
+        return Image.fromarray(self.to_uint8(alpha), "RGBA" if alpha else "RGB")
+
+    def save(self, path: Union[str, Path], alpha: bool = False) -> Path:
+        """Write a PNG (RGB by default); returns the path."""
+        path = Path(path)
+        if path.parent and not path.parent.exists():
+            path.parent.mkdir(parents=True, exist_ok=True)
+        self.to_image(alpha).save(path, format="PNG")
+        return path
+
+    def _repr_png_(self) -> bytes:
+        buf = io.BytesIO()
+        self.to_image().save(buf, format="PNG")
+        return buf.getvalue()
+
+    def __repr__(self) -> str:
+        return f"Framebuffer({self.width}×{self.height}, {self.samples} sample{'s' if self.samples > 1 else ''})"

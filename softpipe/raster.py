@@ -1,0 +1,226 @@
+"""Stage 3: the rasterizer — which samples each triangle covers, and where.
+
+It answers exactly three questions per covered sample: which pixel and sample,
+which triangle, and the barycentrics (and from them the depth). Shading is a
+later stage. The rules are OpenGL's, as Mesa implements them (DESIGN.md):
+
+1. **Snapping.** Window coordinates become fixed point with 8 subpixel bits:
+   ``X = round_half_even((x_w − ½)·256)``, so pixel i's centre is at ``256·i``
+   (:func:`snap`).
+2. **Edge functions**, exact in 64-bit integers. For the edge a→b and a sample
+   p: ``E(p) = (X_b − X_a)(P_y − Y_a) − (Y_b − Y_a)(P_x − X_a)``. E_k is the
+   edge opposite corner k, so E_0 + E_1 + E_2 = twice the snapped area, and
+   ``b_k = E_k / area`` are the barycentrics. A triangle with snapped area 0
+   produces nothing. Clockwise triangles are turned around (every E negated).
+3. **The fill rule** (:func:`owns_samples_on_edge`). A sample strictly inside
+   all three edges is covered; a sample exactly on an edge is covered only if
+   that edge owns it: left edges and bottom horizontal edges, in OpenGL window
+   coordinates (y up). Two triangles sharing an edge never both cover, and never
+   both miss, a sample on it.
+4. **Depth** is interpolated linearly in window space at the sample:
+   ``z = b_0 z_0 + b_1 z_1 + b_2 z_2``.
+
+The one y flip of softpipe happens here, when a fragment is emitted: window row
+``y`` (y up) becomes image row ``height − 1 − y`` (row 0 at the top).
+
+The kernels are plain loops compiled by numba; with ``NUMBA_DISABLE_JIT=1`` they
+run as Python and a debugger can step through the edge functions.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numba import prange
+
+from .assembly import Primitives
+from .sampling import CENTER, SUBPIXEL, SamplePattern
+
+__all__ = ["Fragments", "rasterize", "count_fragments", "snap", "edge_function", "owns_samples_on_edge"]
+
+
+@dataclass
+class Fragments:
+    """The rasterizer's output: one row per covered sample, in primitive order.
+
+    Attributes
+    ----------
+    x, y : int32 [F]
+        The pixel: column, and image row (row 0 at the top).
+    sample : int32 [F]
+        Index of the sample in the pattern.
+    depth : float64 [F]
+        Window-space depth at the sample.
+    bary : float64 [F, 3]
+        Window-space (linear) barycentrics of the sample w.r.t. the triangle's corners.
+    triangle : int32 [F]
+        Row in :class:`~softpipe.assembly.Primitives`.
+    primitive_id : int64 [F]
+        The input primitive the triangle came from.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    sample: np.ndarray
+    depth: np.ndarray
+    bary: np.ndarray
+    triangle: np.ndarray
+    primitive_id: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    def __repr__(self) -> str:
+        return f"Fragments({len(self)} covered samples from {len(np.unique(self.triangle))} triangles)"
+
+
+# ------------------------------------------------------- the rules, one by one
+
+@numba.njit(cache=True)
+def snap(v):
+    """Window coordinate → fixed point, 1/256 pixel, round half to even; centre of pixel i ↦ 256·i.
+
+    Computed as rint(v·256) − 128, which equals round((v − ½)·256) exactly:
+    v·256 is exact in floating point, while v − ½ could round.
+    """
+    return np.int64(np.rint(v * SUBPIXEL)) - SUBPIXEL // 2
+
+
+@numba.njit(cache=True)
+def edge_function(xa, ya, xb, yb, px, py):
+    """Twice the signed area of (a, b, p): positive when p is left of a→b (y up)."""
+    return (xb - xa) * (py - ya) - (yb - ya) * (px - xa)
+
+
+@numba.njit(cache=True)
+def owns_samples_on_edge(dx, dy):
+    """The fill rule for a counter-clockwise triangle's edge with direction (dx, dy), y up.
+
+    Going counter-clockwise, a left edge runs downward (dy < 0) and the bottom
+    horizontal edge runs to the right (dy = 0, dx > 0): those own their samples.
+    """
+    return dy < 0 or (dy == 0 and dx > 0)
+
+
+@numba.njit(cache=True)
+def _setup(window, t):
+    """Triangle setup: snapped corners, orientation sign, and twice the (positive) area."""
+    x0, y0 = snap(window[t, 0, 0]), snap(window[t, 0, 1])
+    x1, y1 = snap(window[t, 1, 0]), snap(window[t, 1, 1])
+    x2, y2 = snap(window[t, 2, 0]), snap(window[t, 2, 1])
+    area = edge_function(x0, y0, x1, y1, x2, y2)
+    sign = np.int64(1) if area > 0 else np.int64(-1)
+    return x0, y0, x1, y1, x2, y2, sign, area * sign
+
+
+@numba.njit(cache=True)
+def _bias(xa, ya, xb, yb, sign):
+    """0 for an edge that owns the samples on it, −1 otherwise (E + bias ≥ 0 ⇔ covered)."""
+    return np.int64(0) if owns_samples_on_edge(sign * (xb - xa), sign * (yb - ya)) else np.int64(-1)
+
+
+@numba.njit(cache=True)
+def _box(x0, x1, x2, lo_off, hi_off, size):
+    """Pixels whose samples may lie inside [min, max] of the snapped corners (clamped)."""
+    lo = min(x0, x1, x2) - hi_off
+    hi = max(x0, x1, x2) - lo_off
+    first = -((-lo) // SUBPIXEL)            # ceil(lo / 256)
+    last = hi // SUBPIXEL                   # floor(hi / 256)
+    return max(first, 0), min(last, size - 1)
+
+
+@numba.njit(cache=True)
+def _cover_triangle(window, t, width, height, offsets, out_x, out_y, out_s, out_depth, out_bary, start, emit):
+    """Visit every covered sample of triangle t; write them from ``start`` if ``emit``. Returns the count."""
+    x0, y0, x1, y1, x2, y2, sign, area = _setup(window, t)
+    if area == 0:
+        return 0
+    b0 = _bias(x1, y1, x2, y2, sign)        # edge opposite corner 0
+    b1 = _bias(x2, y2, x0, y0, sign)
+    b2 = _bias(x0, y0, x1, y1, sign)
+    ox_lo, ox_hi = offsets[:, 0].min(), offsets[:, 0].max()
+    oy_lo, oy_hi = offsets[:, 1].min(), offsets[:, 1].max()
+    i_first, i_last = _box(x0, x1, x2, ox_lo, ox_hi, width)
+    j_first, j_last = _box(y0, y1, y2, oy_lo, oy_hi, height)
+    z0, z1, z2 = window[t, 0, 2], window[t, 1, 2], window[t, 2, 2]
+    inv_area = 1.0 / area
+    n = 0
+    for j in range(j_first, j_last + 1):
+        for i in range(i_first, i_last + 1):
+            for s in range(offsets.shape[0]):
+                px = i * SUBPIXEL + offsets[s, 0]
+                py = j * SUBPIXEL + offsets[s, 1]
+                e0 = sign * edge_function(x1, y1, x2, y2, px, py)
+                e1 = sign * edge_function(x2, y2, x0, y0, px, py)
+                e2 = sign * edge_function(x0, y0, x1, y1, px, py)
+                if e0 + b0 < 0 or e1 + b1 < 0 or e2 + b2 < 0:
+                    continue
+                if emit:
+                    k = start + n
+                    w0, w1, w2 = e0 * inv_area, e1 * inv_area, e2 * inv_area
+                    out_x[k] = i
+                    out_y[k] = height - 1 - j   # the y flip: window row → image row
+                    out_s[k] = s
+                    out_bary[k, 0] = w0
+                    out_bary[k, 1] = w1
+                    out_bary[k, 2] = w2
+                    z = w0 * z0 + w1 * z1 + w2 * z2
+                    out_depth[k] = min(max(z, 0.0), 1.0)
+                n += 1
+    return n
+
+
+@numba.njit(cache=True, parallel=True)
+def _count_kernel(window, width, height, offsets, counts):
+    dummy_i = np.empty(0, np.int32)
+    dummy_f = np.empty(0, np.float64)
+    dummy_b = np.empty((0, 3), np.float64)
+    for t in prange(window.shape[0]):
+        counts[t] = _cover_triangle(window, t, width, height, offsets,
+                                    dummy_i, dummy_i, dummy_i, dummy_f, dummy_b, 0, False)
+
+
+@numba.njit(cache=True, parallel=True)
+def _emit_kernel(window, first, last, starts, width, height, offsets, out_x, out_y, out_s, out_depth, out_bary,
+                 out_tri):
+    for t in prange(first, last):
+        begin = starts[t]
+        n = _cover_triangle(window, t, width, height, offsets, out_x, out_y, out_s, out_depth, out_bary,
+                            begin, True)
+        for k in range(begin, begin + n):
+            out_tri[k] = t
+
+
+def count_fragments(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER) -> np.ndarray:
+    """How many samples each triangle covers (int64 [P]); the rasterizer's first pass."""
+    counts = np.zeros(len(prims), dtype=np.int64)
+    if len(prims):
+        _count_kernel(prims.window, width, height, pattern.offsets, counts)
+    return counts
+
+
+def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
+              first: int = 0, last: int | None = None, counts: np.ndarray | None = None) -> Fragments:
+    """The covered samples of triangles ``first:last`` (all by default), in primitive order.
+
+    Within a triangle, fragments come row by row from the bottom of the window
+    (y up), left to right, sample by sample.
+    """
+    last = len(prims) if last is None else last
+    if counts is None:
+        counts = count_fragments(prims, width, height, pattern)
+    starts = np.zeros(len(prims) + 1, dtype=np.int64)
+    np.cumsum(counts, out=starts[1:])
+    starts -= starts[first]
+    total = int(starts[last]) if len(prims) else 0
+    x = np.empty(total, np.int32)
+    y = np.empty(total, np.int32)
+    s = np.empty(total, np.int32)
+    depth = np.empty(total, np.float64)
+    bary = np.empty((total, 3), np.float64)
+    tri = np.empty(total, np.int32)
+    if total:
+        _emit_kernel(prims.window, first, last, starts, width, height, pattern.offsets, x, y, s, depth, bary, tri)
+    return Fragments(x=x, y=y, sample=s, depth=depth, bary=bary, triangle=tri,
+                     primitive_id=prims.primitive_id[tri] if total else np.zeros(0, np.int64))
