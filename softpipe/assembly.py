@@ -67,6 +67,8 @@ class Primitives:
         ``"outside"`` (entirely outside the clip volume), ``"culled"``.
     input_count : int
         Number of triangles the topology produced.
+    culled_window : float64 [C, 3, 3]
+        Window coordinates of the triangles culled for their facing (kept for pictures).
     """
 
     window: np.ndarray
@@ -78,6 +80,7 @@ class Primitives:
     clipped: np.ndarray
     dropped: Dict[str, np.ndarray] = field(default_factory=dict)
     input_count: int = 0
+    culled_window: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
     def __len__(self) -> int:
         return len(self.window)
@@ -244,7 +247,7 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
     dropped["culled"] = np.unique(key[~keep])
     return Primitives(window=window[keep], inv_w=(1.0 / w)[keep], varyings=cvar[keep], layout=layout,
                       primitive_id=key[keep], front_facing=front[keep], clipped=clipped[keep],
-                      dropped=dropped, input_count=len(tri))
+                      dropped=dropped, input_count=len(tri), culled_window=window[~keep])
 
 
 def _front_facing(window: np.ndarray, key: np.ndarray, n_input: int, front_face: str) -> np.ndarray:

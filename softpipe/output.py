@@ -25,7 +25,7 @@ from .framebuffer import Framebuffer
 from .fragment import ShadedFragments
 from .raster import Fragments
 
-__all__ = ["MergeState", "merge", "DEPTH_FUNCS", "BLEND_FACTORS", "VERDICTS"]
+__all__ = ["MergeState", "MergeResult", "merge", "DEPTH_FUNCS", "BLEND_FACTORS", "VERDICTS"]
 
 #: OpenGL's eight depth compare functions: the fragment passes if ``z_frag OP z_stored``.
 DEPTH_FUNCS = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always")
@@ -125,38 +125,76 @@ def blend_factor(code, channel_src, channel_dst, src_alpha, dst_alpha):
 
 
 @numba.njit(cache=True)
-def _merge_kernel(x, y, s, depth, color, discarded, func, depth_write, src_f, dst_f, fb_color, fb_depth, verdict):
+def _merge_kernel(x, y, s, depth, color, discarded, func, depth_write, src_f, dst_f, fb_color, fb_depth, verdict,
+                  after):
+    record = after.shape[0] > 0
     for k in range(x.shape[0]):
-        if discarded[k]:
-            verdict[k] = DISCARDED
-            continue
         i, j, m = x[k], y[k], s[k]
-        z = np.float32(depth[k])
-        if func >= 0:
-            if not depth_passes(func, z, fb_depth[j, i, m]):
-                verdict[k] = DEPTH_FAILED
-                continue
-            if depth_write:
-                fb_depth[j, i, m] = z
-        if src_f < 0:
+        verdict[k] = _merge_one(k, i, j, m, depth, color, discarded, func, depth_write, src_f, dst_f,
+                                fb_color, fb_depth)
+        if record:
             for c in range(4):
-                fb_color[j, i, m, c] = color[k, c]
-        else:
-            sa, da = color[k, 3], fb_color[j, i, m, 3]
-            for c in range(4):
-                src, dst = color[k, c], fb_color[j, i, m, c]
-                fb_color[j, i, m, c] = (src * blend_factor(src_f, src, dst, sa, da)
-                                        + dst * blend_factor(dst_f, src, dst, sa, da))
-        verdict[k] = WRITTEN
+                after[k, c] = fb_color[j, i, m, c]
 
 
-def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Framebuffer) -> np.ndarray:
-    """Apply the fragments to the framebuffer in order; returns each one's verdict code (int8 [F])."""
+@numba.njit(cache=True)
+def _merge_one(k, i, j, m, depth, color, discarded, func, depth_write, src_f, dst_f, fb_color, fb_depth):
+    """One fragment through the merger; returns its verdict."""
+    if discarded[k]:
+        return DISCARDED
+    z = np.float32(depth[k])
+    if func >= 0:
+        if not depth_passes(func, z, fb_depth[j, i, m]):
+            return DEPTH_FAILED
+        if depth_write:
+            fb_depth[j, i, m] = z
+    if src_f < 0:
+        for c in range(4):
+            fb_color[j, i, m, c] = color[k, c]
+    else:
+        sa, da = color[k, 3], fb_color[j, i, m, 3]
+        for c in range(4):
+            src, dst = color[k, c], fb_color[j, i, m, c]
+            fb_color[j, i, m, c] = (src * blend_factor(src_f, src, dst, sa, da)
+                                    + dst * blend_factor(dst_f, src, dst, sa, da))
+    return WRITTEN
+
+
+@dataclass
+class MergeResult:
+    """What the output merger did: a verdict per fragment, and (when recorded) the color after it.
+
+    Attributes
+    ----------
+    verdict : int8 [F]
+        Index into :data:`VERDICTS` ("written", "depth-failed", "discarded").
+    color_after : float32 [F, 4] or None
+        The sample's color right after each fragment was merged.
+    """
+
+    verdict: np.ndarray
+    color_after: Optional[np.ndarray] = None
+
+    def __len__(self) -> int:
+        return len(self.verdict)
+
+    def __repr__(self) -> str:
+        counts = np.bincount(self.verdict, minlength=len(VERDICTS)) if len(self.verdict) else [0] * len(VERDICTS)
+        return "MergeResult(" + ", ".join(f"{n}: {int(c)}" for n, c in zip(VERDICTS, counts)) + ")"
+
+
+def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Framebuffer,
+          record: bool = False) -> MergeResult:
+    """Apply the fragments to the framebuffer in order.
+
+    With ``record``, also keep each sample's color right after its fragment (for pixel history).
+    """
     verdict = np.empty(len(frags), dtype=np.int8)
+    after = np.empty((len(frags) if record else 0, 4), dtype=np.float32)
     if len(frags):
         func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
         src_f, dst_f = state.blend_factors()
         _merge_kernel(frags.x, frags.y, frags.sample, frags.depth, shaded.color, shaded.discarded, func,
                       bool(state.depth_write) and func >= 0, src_f, dst_f, fb.samples_color, fb.samples_depth,
-                      verdict)
-    return verdict
+                      verdict, after)
+    return MergeResult(verdict, after if record else None)

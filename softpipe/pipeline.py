@@ -3,15 +3,26 @@
     vertex → assembly → raster → fragment → output
     (vertex.py, assembly.py, raster.py, fragment.py, output.py)
 
-:func:`draw` is the entry point. Triangles are rasterized, shaded and merged in
-batches of whole triangles holding at most :data:`MAX_FRAGMENTS_PER_BATCH`
-fragments (one triangle larger than that is a batch of its own), so memory stays
-bounded however much a draw covers; batches go in primitive order, so the
-result is the same as one batch.
+:func:`draw` is the entry point. :class:`DrawCall` holds one draw's inputs and
+runs it either all at once (:meth:`DrawCall.run`) or one stage at a time
+(:meth:`DrawCall.steps`, a generator of :class:`Stage`), which is how a notebook
+steps through a draw; ``draw(..., trace=True)`` keeps every stage's output in a
+:class:`~softpipe.trace.Trace`.
+
+Triangles are rasterized, shaded and merged in batches of whole triangles
+holding at most :data:`MAX_FRAGMENTS_PER_BATCH` fragments (one triangle larger
+than that is a batch of its own), so memory stays bounded however much a draw
+covers; batches go in primitive order, so the result is the same as one batch.
+
+Set ``SOFTPIPE_DEBUG=vertex,assembly,raster,fragment,output`` (or ``all``) to
+print what passes through those stages, as Mesa's per-stage debug switches do.
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Optional, Tuple, Union
+import os
+import sys
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
@@ -24,9 +35,33 @@ from .shader import make_uniforms
 from .transforms import Viewport
 from .vertex import run_vertex_stage
 
-__all__ = ["draw", "MAX_FRAGMENTS_PER_BATCH"]
+__all__ = ["draw", "DrawCall", "Stage", "MAX_FRAGMENTS_PER_BATCH", "STAGES"]
 
 MAX_FRAGMENTS_PER_BATCH = 1 << 22
+STAGES = ("vertex", "assembly", "raster", "fragment", "output")
+
+
+@dataclass
+class Stage:
+    """One stage's result while stepping through a draw.
+
+    ``name`` is one of :data:`STAGES`; ``output`` is that stage's data type
+    (VertexOut, Primitives, Fragments, ShadedFragments, MergeResult); ``batch``
+    counts the fragment batches (raster, fragment and output repeat per batch).
+    """
+
+    name: str
+    output: Any
+    batch: int = 0
+
+    def __repr__(self) -> str:
+        return f"Stage({self.name!r}, batch {self.batch}: {self.output!r})"
+
+
+def _debug_stages() -> set:
+    value = os.environ.get("SOFTPIPE_DEBUG", "")
+    names = {s.strip() for s in value.split(",") if s.strip()}
+    return set(STAGES) if "all" in names else names
 
 
 def _batches(counts: np.ndarray, limit: int):
@@ -41,13 +76,74 @@ def _batches(counts: np.ndarray, limit: int):
         yield first, len(counts)
 
 
+class DrawCall:
+    """One draw: its inputs, checked, and the stages that run it.
+
+    The parameters are those of :func:`draw`.
+    """
+
+    def __init__(self, framebuffer: Framebuffer, positions, indices=None,
+                 varyings: Optional[Mapping[str, Any]] = None, vertex_shader: Optional[Callable] = None,
+                 fragment_shader: Optional[Callable] = None, uniforms: Optional[Mapping[str, Any]] = None, *,
+                 attributes: Optional[Mapping[str, Any]] = None, topology: str = "triangles",
+                 interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
+                 depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
+                 front_face: str = "ccw", viewport: Optional[Viewport] = None):
+        if not isinstance(framebuffer, Framebuffer):
+            raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
+        viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
+        if not isinstance(viewport, Viewport):
+            raise TypeError(f"viewport must be a softpipe.Viewport, got {type(viewport).__name__}")
+        self.framebuffer, self.viewport = framebuffer, viewport
+        self.positions, self.indices, self.varyings, self.attributes = positions, indices, varyings, attributes
+        self.vertex_shader, self.fragment_shader = vertex_shader, fragment_shader
+        self.uniforms = make_uniforms(uniforms)
+        self.topology, self.interpolation, self.cull, self.front_face = topology, interpolation, cull, front_face
+        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend)
+
+    def steps(self, record: bool = False) -> Iterator[Stage]:
+        """Run the draw one stage at a time, yielding each stage's result as it is made.
+
+        The framebuffer is updated by each "output" stage; a draw stepped to the
+        end leaves it exactly as :meth:`run` would. ``record`` keeps each
+        fragment's color after merging (for pixel history).
+        """
+        debug = _debug_stages()
+        fb = self.framebuffer
+        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
+        vout.layout = vout.layout.with_qualifiers(self.interpolation)
+        yield self._emit(Stage("vertex", vout), debug)
+        prims = assemble(vout, self.topology, self.indices, viewport=self.viewport, cull=self.cull,
+                         front_face=self.front_face)
+        yield self._emit(Stage("assembly", prims), debug)
+        counts = count_fragments(prims, fb.width, fb.height, fb.pattern)
+        for batch, (first, last) in enumerate(_batches(counts, MAX_FRAGMENTS_PER_BATCH)):
+            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts)
+            yield self._emit(Stage("raster", frags, batch), debug)
+            shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, fb.pattern, fb.height)
+            yield self._emit(Stage("fragment", shaded, batch), debug)
+            merged = merge(frags, shaded, self.state, fb, record=record)
+            yield self._emit(Stage("output", merged, batch), debug)
+
+    def run(self, trace: bool = False):
+        """Run every stage; returns a :class:`~softpipe.trace.Trace` if ``trace``, else None."""
+        if not trace:
+            for _ in self.steps():
+                pass
+            return None
+        from .trace import Trace
+        return Trace.record(self)
+
+    @staticmethod
+    def _emit(stage: Stage, debug: set) -> Stage:
+        if stage.name in debug:
+            print(f"[softpipe {stage.name}] {stage.output!r}", file=sys.stderr)
+        return stage
+
+
 def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[Mapping[str, Any]] = None,
          vertex_shader: Optional[Callable] = None, fragment_shader: Optional[Callable] = None,
-         uniforms: Optional[Mapping[str, Any]] = None, *, attributes: Optional[Mapping[str, Any]] = None,
-         topology: str = "triangles", interpolation: Optional[Mapping[str, str]] = None,
-         depth_test: Optional[str] = "less", depth_write: bool = True,
-         blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none", front_face: str = "ccw",
-         viewport: Optional[Viewport] = None) -> None:
+         uniforms: Optional[Mapping[str, Any]] = None, *, trace: bool = False, **state):
     """Draw triangles into ``framebuffer``.
 
     Parameters
@@ -65,32 +161,23 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         interpolated varying ``color``.
     uniforms : dict, optional
         Values every shader invocation sees (:func:`softpipe.shader.make_uniforms`).
+    trace : bool
+        Keep every stage's output and return it as a :class:`~softpipe.trace.Trace`.
     attributes : dict name → [N, k] array, optional
         Extra vertex-shader inputs.
     topology : "triangles" | "triangle_strip" | "triangle_fan"
     interpolation : dict varying name → "smooth" | "noperspective" | "flat"
     depth_test : compare function (see :data:`softpipe.output.DEPTH_FUNCS`) or None
-    depth_write : bool
-    blend : None, "alpha", "additive" or (src_factor, dst_factor)
-    cull : "none" | "back" | "front"
-    front_face : "ccw" | "cw"
+        (default "less")
+    depth_write : bool (default True)
+    blend : None, "alpha", "additive" or (src_factor, dst_factor) (default None)
+    cull : "none" | "back" | "front" (default "none")
+    front_face : "ccw" | "cw" (default "ccw")
     viewport : Viewport, optional; the whole framebuffer by default
+
+    Returns
+    -------
+    None, or a Trace when ``trace=True``.
     """
-    if not isinstance(framebuffer, Framebuffer):
-        raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
-    state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend)
-    viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
-    if not isinstance(viewport, Viewport):
-        raise TypeError(f"viewport must be a softpipe.Viewport, got {type(viewport).__name__}")
-    u = make_uniforms(uniforms)
-
-    vout = run_vertex_stage(positions, varyings, vertex_shader, u, attributes)
-    vout.layout = vout.layout.with_qualifiers(interpolation)
-    prims = assemble(vout, topology, indices, viewport=viewport, cull=cull, front_face=front_face)
-
-    w, h, pattern = framebuffer.width, framebuffer.height, framebuffer.pattern
-    counts = count_fragments(prims, w, h, pattern)
-    for first, last in _batches(counts, MAX_FRAGMENTS_PER_BATCH):
-        frags = rasterize(prims, w, h, pattern, first, last, counts)
-        shaded = run_fragment_stage(frags, prims, fragment_shader, u, pattern, h)
-        merge(frags, shaded, state, framebuffer)
+    call = DrawCall(framebuffer, positions, indices, varyings, vertex_shader, fragment_shader, uniforms, **state)
+    return call.run(trace=trace)

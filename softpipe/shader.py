@@ -36,11 +36,18 @@ so a breakpoint in a shader stops there.
 """
 from __future__ import annotations
 
+import hashlib
+import importlib
+import importlib.util
 import inspect
+import os
 import math
 import re
+import sys
+import types
 from collections import namedtuple
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Dict, Mapping, NamedTuple, Sequence, Tuple
 
 import numba
@@ -103,7 +110,44 @@ def _uniform_value(name: str, value: Any):
     return np.ascontiguousarray(arr, dtype=np.float64)
 
 
-_UNIFORM_CLASSES: Dict[Tuple[str, ...], type] = {}
+def _uniforms_class_name(names: Sequence[str]) -> str:
+    """A module attribute name that spells out the field names (length-prefixed, unambiguous)."""
+    return "Uniforms_" + "_".join(f"{len(n)}{n}" for n in names)
+
+
+def _names_from_class_name(attr: str) -> list:
+    rest, names = attr[len("Uniforms_"):], []
+    while rest:
+        digits = len(rest) - len(rest.lstrip("0123456789"))
+        if digits == 0:
+            raise AttributeError(attr)
+        n = int(rest[:digits])
+        names.append(rest[digits:digits + n])
+        rest = rest[digits + n + 1:]
+    return names
+
+
+def _uniforms_class(names: Sequence[str]) -> type:
+    """The namedtuple class for a set of uniform names, one per set, as a module attribute.
+
+    numba's on-disk cache finds a kernel by its argument types, and a namedtuple
+    type is its class: the class must be the same in every process, which it
+    is when pickle can find it here by name (see ``__getattr__``).
+    """
+    attr = _uniforms_class_name(names)
+    cls = globals().get(attr)
+    if cls is None:
+        cls = namedtuple(attr, list(names) or ["empty"])
+        cls.__module__ = __name__
+        globals()[attr] = cls
+    return cls
+
+
+def __getattr__(attr: str):
+    # Unpickling a cached kernel's signature asks for Uniforms_… classes by name.
+    if attr.startswith("Uniforms_"):
+        return _uniforms_class(_names_from_class_name(attr))
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
 def make_uniforms(uniforms: Mapping[str, Any] | None):
@@ -121,11 +165,7 @@ def make_uniforms(uniforms: Mapping[str, Any] | None):
     for n in names:
         if not isinstance(n, str) or not n.isidentifier():
             raise ValueError(f"uniform name {n!r} is not a valid Python identifier")
-    cls = _UNIFORM_CLASSES.get(names)
-    if cls is None:
-        # numba needs one class per set of names; an empty set still needs a field.
-        cls = namedtuple("Uniforms", names or ("empty",))
-        _UNIFORM_CLASSES[names] = cls
+    cls = _uniforms_class(names)
     if not names:
         return cls(0.0)
     return cls(*(_uniform_value(n, uniforms[n]) for n in names))
@@ -203,20 +243,114 @@ def _tuple_expr(array: str, index: str, offset: int, size: int) -> str:
 _KERNELS: Dict[Any, Any] = {}
 
 
-def _compile_source(source: str, namespace: Dict[str, Any], entry: str, name: str):
-    """exec the generated module and jit its entry point (numba is the shader compiler)."""
-    code = compile(source, f"<softpipe {name}>", "exec")
-    exec(code, namespace)
-    fn = namespace[entry]
-    fn.__softpipe_source__ = source
-    if numba.config.DISABLE_JIT:
-        return fn
-    return numba.njit(fn, nogil=True)
+def _cache_dir() -> Path:
+    """Where generated kernel modules (and numba's cache of them) live."""
+    root = os.environ.get("SOFTPIPE_CACHE_DIR")
+    if root:
+        return Path(root)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "softpipe" / "kernels"
 
 
-def kernel_source(kernel: Callable) -> str:
-    """The generated Python source of a shading loop (for reading and debugging)."""
-    return python_function(kernel).__softpipe_source__
+_PACKAGE_HASH: list = []
+
+
+def _package_hash() -> str:
+    """A hash of softpipe's own sources: a generated kernel inlines them, so it depends on them."""
+    if not _PACKAGE_HASH:
+        h = hashlib.sha256()
+        pkg = Path(__file__).parent
+        for f in sorted(pkg.rglob("*.py")):
+            h.update(str(f.relative_to(pkg)).encode())
+            h.update(f.read_bytes())
+        _PACKAGE_HASH.append(h.hexdigest()[:16])
+    return _PACKAGE_HASH[0]
+
+
+def _importable(shader: Callable) -> Tuple[str, str] | None:
+    """(module, name) if the shader is one of softpipe's own module-level functions.
+
+    Only these are cached on disk: numba cannot see when a user's shader (or a
+    function it calls in another file) changes, so user shaders are compiled
+    once per process instead of risking a stale kernel.
+    """
+    f = python_function(shader)
+    mod, name = getattr(f, "__module__", None) or "", getattr(f, "__qualname__", None) or ""
+    if not mod.startswith("softpipe.") or "." in name or "<" in name:
+        return None
+    try:
+        if python_function(getattr(importlib.import_module(mod), name)) is not f:
+            return None
+    except (ImportError, AttributeError):
+        return None
+    return mod, name
+
+
+_HEADER = ("# Generated by softpipe.shader: the loop that runs one shader over a batch.\n"
+           "import numba\n"
+           "from collections import namedtuple\n"
+           "from softpipe.shader import FragInfo, jit_function\n")
+
+
+def _module_source(body: str, shader: Callable, preamble: str, cached: bool) -> str:
+    """The generated module: header, the shader as global ``shader``, namedtuples, then ``body``.
+
+    Functions in ``body`` are decorated ``@JIT``; the shader is imported by
+    name when the module is a cached file, and injected as ``_shader_py`` otherwise.
+    """
+    where = _importable(shader) if cached else None
+    imp = f"from {where[0]} import {where[1]} as _shader_py\n" if where else ""
+    jit = f"JIT = numba.njit(cache={bool(where)}, nogil=True)\n"
+    return _HEADER + imp + "shader = jit_function(_shader_py)\n" + jit + preamble + "\n\n" + body
+
+
+def _compile_module(body: str, shader: Callable, preamble: str, kind: str):
+    """The generated module for a shader: a cached file for softpipe's own shaders, else exec'd."""
+    if _importable(shader) is not None and not numba.config.DISABLE_JIT:
+        source = _module_source(body, shader, preamble, cached=True)
+        digest = hashlib.sha256((source + _package_hash() + numba.__version__).encode()).hexdigest()[:20]
+        try:
+            return _load_cached(source, f"softpipe_{kind}_{digest}")
+        except OSError:
+            pass  # an unwritable cache directory: compile in memory instead
+    source = _module_source(body, shader, preamble, cached=False)
+    return _exec_module(source, shader, kind)
+
+
+def _exec_module(source: str, shader: Callable, kind: str, python: bool = False):
+    """exec a generated module; with ``python``, numba is left out entirely (for debugging)."""
+    module = types.ModuleType(f"softpipe_{kind}_loop")
+    module._shader_py = python_function(shader)
+    if python:
+        # The same source, run as plain Python: JIT and jit_function become no-ops.
+        source = source.replace("shader = jit_function(_shader_py)", "shader = _shader_py")
+        source = source.replace("JIT = numba.njit(cache=False, nogil=True)", "JIT = lambda f: f")
+    exec(compile(source, f"<softpipe {kind} loop for {shader_name(shader)}>", "exec"), module.__dict__)
+    module.__softpipe_source__ = source
+    return module
+
+
+def _load_cached(source: str, module_name: str):
+    directory = _cache_dir()
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / f"{module_name}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)   # atomic: a concurrent process never sees half a file
+    spec = importlib.util.spec_from_file_location(module_name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
+    spec.loader.exec_module(module)
+    module.__softpipe_source__ = source
+    return module
+
+
+def kernel_source(kind: str, shader: Callable, layout: "VaryingLayout") -> str:
+    """The generated Python source of a fragment (``kind="fragment"``) loop, to read it."""
+    if kind != "fragment":
+        raise ValueError("kernel_source: only kind='fragment' is supported")
+    return fragment_module(shader, layout).__softpipe_source__
 
 
 def _describe_compile_error(kind: str, shader: Callable, err: Exception) -> ShaderError:
@@ -230,7 +364,7 @@ def _describe_compile_error(kind: str, shader: Callable, err: Exception) -> Shad
         where = "<unknown file>"
     text = str(err)
     locs = re.findall(r'File "([^"]+)", line (\d+)', text)
-    shader_locs = [f"{p}:{n}" for p, n in locs if "<softpipe" not in p]
+    shader_locs = [f"{p}:{n}" for p, n in locs if "<softpipe" not in p and "softpipe_" not in p]
     detail = text.strip().splitlines()
     summary = next((l.strip() for l in detail if l.strip() and not l.startswith("-")), text)
     at = f" (at {shader_locs[0]})" if shader_locs else ""
@@ -238,101 +372,123 @@ def _describe_compile_error(kind: str, shader: Callable, err: Exception) -> Shad
                        f"{at}: {summary}\n--- numba said ---\n{text}")
 
 
+def _namedtuple_line(var: str, typename: str, names: Sequence[str]) -> str:
+    return f"{var} = namedtuple({typename!r}, {list(names)!r})\n"
+
+
 def vertex_kernel(shader: Callable, attr_sizes: Sequence[Tuple[str, int]], out_layout: VaryingLayout):
     """The compiled loop that runs ``shader`` over every vertex."""
     key = ("vertex", python_function(shader), tuple(attr_sizes), out_layout.fields)
-    kern = _KERNELS.get(key)
-    if kern is not None:
-        return kern
-    names = [n for n, _ in attr_sizes]
-    args = ", ".join(f"a_{n}" for n in names)
+    module = _KERNELS.get(key)
+    if module is None:
+        names = [n for n, _ in attr_sizes]
+        attr_exprs = ", ".join(_tuple_expr(f"a_{n}", "i", 0, s) if s > 1 else f"a_{n}[i, 0]"
+                               for n, s in attr_sizes)
+        lines = [
+            "@JIT",
+            f"def vertex_loop({', '.join(f'a_{n}' for n in names)}, uniforms, out_position, out_varyings):",
+            "    for i in range(out_position.shape[0]):",
+            f"        attributes = Attributes({attr_exprs})",
+            "        clip, v = shader(attributes, uniforms)",
+        ]
+        lines += [f"        out_position[i, {c}] = clip[{c}]" for c in range(4)]
+        for j, (n, off, size, _) in enumerate(out_layout.fields):
+            if size == 1:
+                lines.append(f"        out_varyings[i, {off}] = v[{j}]  # {n}")
+            else:
+                lines += [f"        out_varyings[i, {off + c}] = v[{j}][{c}]  # {n}.{'xyzw'[c]}"
+                          for c in range(size)]
+        module = _compile_module("\n".join(lines) + "\n", shader,
+                                 _namedtuple_line("Attributes", "Attributes", names), "vertex")
+        _KERNELS[key] = module
+    return module.vertex_loop
+
+
+_FRAGMENT_ARGS = "triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id"
+
+
+def _fragment_body(layout: VaryingLayout) -> str:
+    """Source of ``fragment_inputs`` (interpolation) and ``fragment_loop`` (runs the shader)."""
     lines = [
-        f"def vertex_loop({args}, uniforms, out_position, out_varyings):",
-        f"    for i in range(out_position.shape[0]):",
+        "@JIT",
+        f"def fragment_inputs(i, {_FRAGMENT_ARGS}):",
+        '    """The varyings and FragInfo of fragment i, exactly as the shader receives them."""',
+        "    t = triangle[i]",
+        "    b0 = bary[i, 0]",
+        "    b1 = bary[i, 1]",
+        "    b2 = bary[i, 2]",
     ]
-    attr_exprs = ", ".join(_tuple_expr(f"a_{n}", "i", 0, s) if s > 1 else f"a_{n}[i, 0]" for n, s in attr_sizes)
-    lines.append(f"        attributes = Attributes({attr_exprs})")
-    lines.append(f"        clip, v = shader(attributes, uniforms)")
-    for c in range(4):
-        lines.append(f"        out_position[i, {c}] = clip[{c}]")
-    for j, (n, off, size, _) in enumerate(out_layout.fields):
-        if size == 1:
-            lines.append(f"        out_varyings[i, {off}] = v[{j}]  # {n}")
-        else:
-            for c in range(size):
-                lines.append(f"        out_varyings[i, {off + c}] = v[{j}][{c}]  # {n}.{'xyzw'[c]}")
-    source = "\n".join(lines) + "\n"
-    namespace = {"shader": jit_function(shader), "Attributes": namedtuple("Attributes", names)}
-    kern = _compile_source(source, namespace, "vertex_loop", "vertex loop")
-    _KERNELS[key] = kern
-    return kern
-
-
-def fragment_kernel(shader: Callable, layout: VaryingLayout):
-    """The compiled loop that interpolates varyings and runs ``shader`` per fragment.
-
-    Interpolation (DESIGN.md): ``smooth`` is perspective-correct, weights
-    b_i/w_i renormalized; ``noperspective`` uses the window-space barycentrics
-    b_i directly; ``flat`` takes the provoking vertex's value, which primitive
-    assembly has copied to every corner.
-    """
-    key = ("fragment", python_function(shader), layout.fields)
-    kern = _KERNELS.get(key)
-    if kern is not None:
-        return kern
-    lines = [
-        "def fragment_loop(triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, uniforms, out_color):",
-        "    for i in range(triangle.shape[0]):",
-        "        t = triangle[i]",
-        "        b0 = bary[i, 0]",
-        "        b1 = bary[i, 1]",
-        "        b2 = bary[i, 2]",
-    ]
-    quals = {q for *_, q in layout.fields}
-    if "smooth" in quals:
+    if any(q == "smooth" for *_, q in layout.fields):
         lines += [
-            "        q0 = b0 * inv_w[t, 0]",
-            "        q1 = b1 * inv_w[t, 1]",
-            "        q2 = b2 * inv_w[t, 2]",
-            "        qs = q0 + q1 + q2",
-            "        p0 = q0 / qs",
-            "        p1 = q1 / qs",
-            "        p2 = q2 / qs",
+            "    q0 = b0 * inv_w[t, 0]",      # perspective-correct weights: b_k / w_k, renormalized
+            "    q1 = b1 * inv_w[t, 1]",
+            "    q2 = b2 * inv_w[t, 2]",
+            "    qs = q0 + q1 + q2",
+            "    p0 = q0 / qs",
+            "    p1 = q1 / qs",
+            "    p2 = q2 / qs",
         ]
     exprs = []
     for n, off, size, q in layout.fields:
         comps = []
-        for c in range(size):
-            k = off + c
+        for k in range(off, off + size):
             if q == "flat":
                 comps.append(f"corner[t, 2, {k}]")
             elif q == "smooth":
                 comps.append(f"p0 * corner[t, 0, {k}] + p1 * corner[t, 1, {k}] + p2 * corner[t, 2, {k}]")
             else:
                 comps.append(f"b0 * corner[t, 0, {k}] + b1 * corner[t, 1, {k}] + b2 * corner[t, 2, {k}]")
-        var = f"v_{n}"
-        if size == 1:
-            lines.append(f"        {var} = {comps[0]}  # {q}")
-        else:
-            lines.append(f"        {var} = ({', '.join(comps)})  # {q}")
-        exprs.append(var)
+        value = comps[0] if size == 1 else f"({', '.join(comps)})"
+        lines.append(f"    v_{n} = {value}  # {q}")
+        exprs.append(f"v_{n}")
     lines += [
-        f"        varyings = Varyings({', '.join(exprs)})",
-        "        frag = FragInfo(frag_x[i], frag_y[i], depth[i], front[t], prim_id[t])",
+        f"    varyings = Varyings({', '.join(exprs) or '0.0'})",
+        "    frag = FragInfo(frag_x[i], frag_y[i], depth[i], front[t], prim_id[t])",
+        "    return varyings, frag",
+        "",
+        "",
+        "@JIT",
+        f"def fragment_loop({_FRAGMENT_ARGS}, uniforms, out_color):",
+        "    for i in range(triangle.shape[0]):",
+        f"        varyings, frag = fragment_inputs(i, {_FRAGMENT_ARGS})",
         "        c = shader(varyings, uniforms, frag)",
         "        out_color[i, 0] = c[0]",
         "        out_color[i, 1] = c[1]",
         "        out_color[i, 2] = c[2]",
         "        out_color[i, 3] = c[3]",
     ]
-    source = "\n".join(lines) + "\n"
-    names = list(layout.names) or ["none"]
-    if not layout.fields:
-        source = source.replace("Varyings()", "Varyings(0.0)")
-    namespace = {"shader": jit_function(shader), "Varyings": namedtuple("Varyings", names), "FragInfo": FragInfo}
-    kern = _compile_source(source, namespace, "fragment_loop", "fragment loop")
-    _KERNELS[key] = kern
-    return kern
+    return "\n".join(lines) + "\n"
+
+
+def _fragment_preamble(layout: VaryingLayout) -> str:
+    return _namedtuple_line("Varyings", "Varyings", list(layout.names) or ["none"])
+
+
+def fragment_module(shader: Callable, layout: VaryingLayout):
+    """The generated module holding ``fragment_inputs`` and ``fragment_loop`` for a shader and layout.
+
+    Interpolation (DESIGN.md): ``smooth`` is perspective-correct, weights
+    b_k/w_k renormalized; ``noperspective`` uses the window-space barycentrics
+    b_k directly; ``flat`` takes the provoking vertex's value, which primitive
+    assembly has copied to every corner.
+    """
+    key = ("fragment", python_function(shader), layout.fields)
+    module = _KERNELS.get(key)
+    if module is None:
+        module = _compile_module(_fragment_body(layout), shader, _fragment_preamble(layout), "fragment")
+        _KERNELS[key] = module
+    return module
+
+
+def fragment_kernel(shader: Callable, layout: VaryingLayout):
+    """The compiled loop that interpolates varyings and runs ``shader`` per fragment."""
+    return fragment_module(shader, layout).fragment_loop
+
+
+def python_fragment_module(shader: Callable, layout: VaryingLayout):
+    """The same generated module as plain Python (no numba), for stepping through one fragment."""
+    source = _module_source(_fragment_body(layout), shader, _fragment_preamble(layout), cached=False)
+    return _exec_module(source, shader, "fragment", python=True)
 
 
 def probe_vertex_shader(shader: Callable, attributes, uniforms) -> Tuple[Tuple[float, ...], Any]:

@@ -21,7 +21,7 @@ import numpy as np
 __all__ = [
     "identity", "translate", "scale", "rotate_x", "rotate_y", "rotate_z", "rotate",
     "compose", "look_at", "normal_matrix", "perspective", "frustum", "orthographic",
-    "Viewport",
+    "Viewport", "opencv_camera",
 ]
 
 
@@ -210,6 +210,45 @@ def orthographic(left: float, right: float, bottom: float, top: float, near: flo
     m[1, 1], m[1, 3] = 2 / (t - b), -(t + b) / (t - b)
     m[2, 2], m[2, 3] = -2 / (f - n), -(f + n) / (f - n)
     return m
+
+
+def opencv_camera(K, R, t, width: int, height: int, near: float, far: float) -> tuple[np.ndarray, np.ndarray]:
+    """softpipe's (view, projection) for a camera given OpenCV-style.
+
+    OpenCV: a world point X maps to the camera frame as ``X_c = R X + t`` (x right,
+    y down, z forward), and to pixels as ``u = fx·x_c/z_c + cx``,
+    ``v = fy·y_c/z_c + cy`` (plus skew ``s·y_c/z_c`` in u), with the centre of the
+    top-left pixel at (0, 0) and v growing downward.
+
+    softpipe (OpenGL): the eye looks down −Z with y up, so the view matrix is
+    ``diag(1, −1, −1) · [R | t]``; pixel centres sit at +½, so the principal point
+    moves by ½ pixel; and window y grows upward, which the projection's second
+    row absorbs. Rendering with the returned matrices and the default viewport
+    puts every point at image column u and image row v (row 0 at the top), as
+    OpenCV's ``projectPoints`` would (``docs/conventions.md`` derives it).
+    """
+    K = np.asarray(K, dtype=np.float64)
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    if K.shape != (3, 3):
+        raise ValueError(f"opencv_camera: K must be 3×3, got shape {K.shape}")
+    if R.shape != (3, 3):
+        raise ValueError(f"opencv_camera: R must be 3×3, got shape {R.shape}")
+    if t.shape != (3,):
+        raise ValueError(f"opencv_camera: t must have 3 components, got shape {t.shape}")
+    if not 0.0 < near < far:
+        raise ValueError(f"opencv_camera: need 0 < near < far, got near={near}, far={far}")
+    fx, s, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
+    w, h = float(width), float(height)
+    view = np.eye(4)
+    view[:3, :3], view[:3, 3] = R, t
+    view = np.diag([1.0, -1.0, -1.0, 1.0]) @ view
+    proj = np.zeros((4, 4))
+    proj[0, 0], proj[0, 1], proj[0, 2] = 2 * fx / w, -2 * s / w, 1.0 - 2 * (cx + 0.5) / w
+    proj[1, 1], proj[1, 2] = 2 * fy / h, 2 * (cy + 0.5) / h - 1.0
+    proj[2, 2], proj[2, 3] = -(far + near) / (far - near), -2 * far * near / (far - near)
+    proj[3, 2] = -1.0
+    return view, proj
 
 
 class Viewport:

@@ -1,0 +1,181 @@
+"""Pictures of every stage of a traced draw, and a labelled contact sheet.
+
+Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
+
+``vertices``    every vertex with w > 0 as a dot at its window position
+``primitives``  wireframe of the triangles that reach the rasterizer (white);
+                pieces made by clipping (cyan) over the outline of the triangle
+                they were cut from (orange); triangles culled for facing (red)
+``coverage``    each covered pixel colored by the primitive id of its last fragment
+``depth``       the depth buffer after the draw (near = white, cleared = black)
+``overdraw``    fragments per pixel as a heat map (black 0, blue 1, … white many)
+``final``       the color buffer after the draw
+
+The pictures are for looking, not for the pipeline: the wireframes use a
+simple line drawer here, not the rasterizer.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Dict
+
+import numpy as np
+
+__all__ = ["stage_pictures", "contact_sheet", "save_stage_pictures", "PICTURES"]
+
+PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
+
+WHITE = (235, 235, 235)
+CYAN = (60, 200, 230)
+ORANGE = (250, 150, 40)
+RED = (230, 50, 50)
+YELLOW = (250, 230, 80)
+
+
+def _to_image_xy(window_xy: np.ndarray, height: int) -> np.ndarray:
+    """Window (y up) → image (row 0 at the top) continuous coordinates."""
+    out = np.array(window_xy, dtype=np.float64)
+    out[..., 1] = height - out[..., 1]
+    return out
+
+
+def draw_segments(img: np.ndarray, a: np.ndarray, b: np.ndarray, color) -> None:
+    """Draw line segments a[k]→b[k] (image coordinates, [K, 2]) into ``img``, vectorized DDA."""
+    h, w = img.shape[:2]
+    if len(a) == 0:
+        return
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    a, b = np.clip(a[ok], -4 * max(w, h), 4 * max(w, h)), np.clip(b[ok], -4 * max(w, h), 4 * max(w, h))
+    steps = np.ceil(np.abs(b - a).max(axis=1)).astype(np.int64) + 1
+    seg = np.repeat(np.arange(len(a)), steps)
+    start = np.repeat(np.cumsum(steps) - steps, steps)
+    t = (np.arange(len(seg)) - start) / np.maximum(np.repeat(steps, steps) - 1, 1)
+    p = a[seg] + (b[seg] - a[seg]) * t[:, None]
+    x, y = np.floor(p[:, 0]).astype(np.int64), np.floor(p[:, 1]).astype(np.int64)
+    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    img[y[inside], x[inside]] = color
+
+
+def _wire(img, window_tris: np.ndarray, height: int, color) -> None:
+    if len(window_tris) == 0:
+        return
+    p = _to_image_xy(window_tris[:, :, :2], height)
+    for k in range(3):
+        draw_segments(img, p[:, k], p[:, (k + 1) % 3], color)
+
+
+def _id_colors(ids: np.ndarray) -> np.ndarray:
+    """A stable, well-spread color per integer id (golden-ratio hues)."""
+    hue = (ids.astype(np.float64) * 0.6180339887498949) % 1.0
+    k = (np.array([5.0, 3.0, 1.0])[None, :] + hue[:, None] * 6.0) % 6.0
+    rgb = 1.0 - np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0) * 0.75
+    return (rgb * 255).astype(np.uint8)
+
+
+def _heat(counts: np.ndarray) -> np.ndarray:
+    """Black → blue → green → yellow → red → white for 0, 1, 2, 3, 4, ≥ 6 fragments."""
+    stops = np.array([[0, 0, 0], [40, 60, 220], [40, 200, 80], [240, 220, 40], [230, 50, 40], [255, 140, 140],
+                      [255, 255, 255]], dtype=np.float64)
+    c = np.clip(counts.astype(np.float64), 0, len(stops) - 1)
+    lo = np.floor(c).astype(int)
+    hi = np.minimum(lo + 1, len(stops) - 1)
+    f = (c - lo)[..., None]
+    return (stops[lo] * (1 - f) + stops[hi] * f).astype(np.uint8)
+
+
+def stage_pictures(trace) -> Dict[str, np.ndarray]:
+    """The pictures listed in the module docstring, for a :class:`~softpipe.trace.Trace`."""
+    h, w = trace.height, trace.width
+    f, prims = trace.fragments, trace.primitives
+    fb = trace.call.framebuffer
+    pics: Dict[str, np.ndarray] = {}
+
+    img = np.zeros((h, w, 3), np.uint8)
+    pos = trace.vertex.position
+    vis = pos[:, 3] > 0
+    if vis.any():
+        ndc = pos[vis, :3] / pos[vis, 3:4]
+        win = trace.call.viewport.apply(ndc)
+        p = np.floor(_to_image_xy(win[:, :2], h)).astype(np.int64)
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                x, y = p[:, 0] + dx, p[:, 1] + dy
+                ok = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+                img[y[ok], x[ok]] = YELLOW
+    pics["vertices"] = img
+
+    img = np.zeros((h, w, 3), np.uint8)
+    _wire(img, _cut_outlines(trace), h, ORANGE)
+    _wire(img, prims.window[~prims.clipped], h, WHITE)
+    _wire(img, prims.window[prims.clipped], h, CYAN)
+    _wire(img, prims.culled_window, h, RED)
+    pics["primitives"] = img
+
+    img = np.zeros((h, w, 3), np.uint8)
+    if len(f):
+        img[f.y, f.x] = _id_colors(f.primitive_id)    # fancy assignment: the last fragment wins
+    pics["coverage"] = img
+
+    depth = fb.depth
+    g = np.where(depth < 1.0, 1.0 - depth, 0.0)
+    if (depth < 1.0).any():                            # stretch the used range for contrast
+        lo, hi = depth[depth < 1.0].min(), depth[depth < 1.0].max()
+        g = np.where(depth < 1.0, 0.25 + 0.75 * (hi - depth) / max(hi - lo, 1e-12), 0.0)
+    pics["depth"] = np.repeat((g * 255).astype(np.uint8)[..., None], 3, axis=2)
+
+    counts = np.zeros((h, w), np.int64)
+    if len(f):
+        np.add.at(counts, (f.y, f.x), 1)
+    pics["overdraw"] = _heat(counts)
+
+    pics["final"] = fb.to_uint8(alpha=False)
+    return pics
+
+
+def _cut_outlines(trace) -> np.ndarray:
+    """Window coordinates of the input triangles that clipping cut, where all corners have w > 0."""
+    prims = trace.primitives
+    ids = np.unique(prims.primitive_id[prims.clipped])
+    if len(ids) == 0:
+        return np.zeros((0, 3, 3))
+    from .assembly import triangle_indices
+    tri = triangle_indices(trace.call.topology, trace.call.indices, len(trace.vertex.position))[ids]
+    pos = trace.vertex.position[tri]
+    ok = (pos[:, :, 3] > 0).all(axis=1)
+    pos = pos[ok]
+    ndc = pos[:, :, :3] / pos[:, :, 3:4]
+    return trace.call.viewport.apply(ndc.reshape(-1, 3)).reshape(-1, 3, 3)
+
+
+def contact_sheet(pictures: Dict[str, np.ndarray], columns: int = 3, label_height: int = 18,
+                  background=(24, 24, 28)):
+    """One labelled pillow Image with every picture, in order, ``columns`` per row."""
+    from PIL import Image, ImageDraw
+    names = list(pictures)
+    h, w = next(iter(pictures.values())).shape[:2]
+    rows = -(-len(names) // columns)
+    gap = 4
+    sheet = Image.new("RGB", (columns * (w + gap) + gap, rows * (h + label_height + gap) + gap), background)
+    draw = ImageDraw.Draw(sheet)
+    for k, name in enumerate(names):
+        r, c = divmod(k, columns)
+        x0, y0 = gap + c * (w + gap), gap + r * (h + label_height + gap)
+        draw.text((x0 + 2, y0 + 3), name, fill=(230, 230, 230))
+        sheet.paste(Image.fromarray(pictures[name]), (x0, y0 + label_height))
+    return sheet
+
+
+def save_stage_pictures(trace, directory) -> Dict[str, Path]:
+    """Write each stage picture as ``NN-name.png`` and ``contact-sheet.png`` into ``directory``."""
+    from PIL import Image
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    pics = stage_pictures(trace)
+    paths = {}
+    for k, (name, img) in enumerate(pics.items()):
+        path = directory / f"{k + 1:02d}-{name}.png"
+        Image.fromarray(img).save(path)
+        paths[name] = path
+    paths["contact-sheet"] = directory / "contact-sheet.png"
+    contact_sheet(pics).save(paths["contact-sheet"])
+    return paths

@@ -1,0 +1,213 @@
+"""A draw's trace: every stage's output kept, and questions asked of it.
+
+``trace = softpipe.draw(fb, ..., trace=True)`` runs the draw as usual (the same
+stages, the same pixels) and keeps:
+
+``vertex``      the vertex stage's :class:`~softpipe.vertex.VertexOut`
+``primitives``  assembly's :class:`~softpipe.assembly.Primitives` (with what was dropped and why)
+``fragments``   the rasterizer's :class:`~softpipe.raster.Fragments`, all batches
+``shaded``      the fragment shader's :class:`~softpipe.fragment.ShadedFragments`
+``merged``      the output merger's :class:`~softpipe.output.MergeResult` (verdicts, color after each)
+``before``      a copy of the framebuffer's color and depth before the draw
+
+and answers: :meth:`Trace.pixel_history` (every fragment that touched a pixel,
+in order), :meth:`Trace.fragment_inputs` and :meth:`Trace.debug_fragment`
+(re-run the fragment shader as plain Python on exactly one fragment's inputs,
+so a breakpoint in the shader stops there). :mod:`softpipe.pictures` draws it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, List, Optional
+
+import numpy as np
+
+from . import shader as _shader
+from .fragment import ShadedFragments, default_fragment_shader, window_coordinates
+from .output import VERDICTS, MergeResult
+from .raster import Fragments
+
+__all__ = ["Trace", "PixelEvent", "PixelHistory"]
+
+
+def _concat(parts, cls, fields):
+    return cls(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in fields})
+
+
+@dataclass
+class PixelEvent:
+    """One fragment at one pixel: what it was and what the merger did with it."""
+
+    index: int                  # row in the trace's fragments
+    primitive_id: int
+    triangle: int
+    sample: int
+    depth: float
+    varyings: Any               # namedtuple, as the shader received them
+    color: tuple                # the shader's output (RGBA), NaN alpha = discarded
+    verdict: str                # "written", "depth-failed", "discarded"
+    color_after: tuple          # the sample's color after this fragment
+
+
+class PixelHistory(list):
+    """The :class:`PixelEvent` list of one pixel; prints as a table."""
+
+    def __init__(self, x: int, y: int, events: List[PixelEvent], before: tuple):
+        super().__init__(events)
+        self.x, self.y, self.before = x, y, before
+
+    def __str__(self) -> str:
+        def fmt(v):
+            if isinstance(v, tuple):
+                return "(" + ", ".join(f"{c:.4g}" for c in v) + ")"
+            return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+        head = f"pixel ({self.x}, {self.y}): {len(self)} fragment(s); color before the draw {fmt(self.before)}"
+        if not self:
+            return head
+        names = list(self[0].varyings._fields)
+        cols = ["#", "prim", "sample", "depth"] + names + ["shader output", "depth test", "color after"]
+        rows = [[str(e.index), str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
+                + [fmt(getattr(e.varyings, n)) for n in names]
+                + [fmt(e.color), e.verdict, fmt(e.color_after)] for e in self]
+        widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(cols)]
+        line = lambda r: "  ".join(v.ljust(w) for v, w in zip(r, widths))  # noqa: E731
+        return "\n".join([head, line(cols), line(["-" * w for w in widths])] + [line(r) for r in rows])
+
+    def _repr_pretty_(self, p, cycle):
+        p.text(str(self))
+
+
+class Trace:
+    """Every stage's output of one draw; see the module docstring."""
+
+    def __init__(self, call, vertex, primitives, fragments: Fragments, shaded: ShadedFragments,
+                 merged: MergeResult, before_color: np.ndarray, before_depth: np.ndarray):
+        self.call = call
+        self.vertex, self.primitives = vertex, primitives
+        self.fragments, self.shaded, self.merged = fragments, shaded, merged
+        self.before_color, self.before_depth = before_color, before_depth
+        fb = call.framebuffer
+        self.width, self.height, self.pattern = fb.width, fb.height, fb.pattern
+
+    @classmethod
+    def record(cls, call) -> "Trace":
+        """Run ``call`` (a :class:`~softpipe.pipeline.DrawCall`) and keep what every stage made."""
+        fb = call.framebuffer
+        before_color, before_depth = fb.samples_color.copy(), fb.samples_depth.copy()
+        out = {"raster": [], "fragment": [], "output": []}
+        vertex = primitives = None
+        for stage in call.steps(record=True):
+            if stage.name == "vertex":
+                vertex = stage.output
+            elif stage.name == "assembly":
+                primitives = stage.output
+            else:
+                out[stage.name].append(stage.output)
+        frag_fields = ("x", "y", "sample", "depth", "bary", "triangle", "primitive_id")
+        if out["raster"]:
+            fragments = _concat(out["raster"], Fragments, frag_fields)
+            shaded = _concat(out["fragment"], ShadedFragments, ("color", "discarded"))
+            merged = _concat(out["output"], MergeResult, ("verdict", "color_after"))
+        else:
+            empty = np.zeros(0)
+            fragments = Fragments(empty.astype(np.int32), empty.astype(np.int32), empty.astype(np.int32),
+                                  empty, np.zeros((0, 3)), empty.astype(np.int32), empty.astype(np.int64))
+            shaded = ShadedFragments(np.zeros((0, 4), np.float32), np.zeros(0, bool))
+            merged = MergeResult(np.zeros(0, np.int8), np.zeros((0, 4), np.float32))
+        return cls(call, vertex, primitives, fragments, shaded, merged, before_color, before_depth)
+
+    # ------------------------------------------------------------- questions
+
+    def __len__(self) -> int:
+        return len(self.fragments)
+
+    def __repr__(self) -> str:
+        return (f"Trace({self.vertex!r}; {self.primitives!r}; {self.fragments!r}; {self.shaded!r}; "
+                f"{self.merged!r})")
+
+    @property
+    def verdicts(self) -> np.ndarray:
+        """Each fragment's verdict as a string array."""
+        return np.array(VERDICTS)[self.merged.verdict] if len(self) else np.array([], dtype=str)
+
+    def written(self) -> np.ndarray:
+        """Boolean [F]: fragments whose color was written."""
+        return self.merged.verdict == 0
+
+    def at(self, x: int, y: int) -> np.ndarray:
+        """Indices of the fragments at pixel (x, y) (image coordinates, row 0 at the top), in order."""
+        self._check_pixel(x, y)
+        return np.nonzero((self.fragments.x == x) & (self.fragments.y == y))[0]
+
+    def _check_pixel(self, x, y):
+        if not (0 <= x < self.width and 0 <= y < self.height):
+            raise ValueError(f"pixel ({x}, {y}) is outside the {self.width}×{self.height} framebuffer")
+
+    @property
+    def fragment_shader(self):
+        return self.call.fragment_shader or default_fragment_shader(self.primitives.layout)
+
+    def fragment_inputs(self, index: int):
+        """(varyings, uniforms, frag) of fragment ``index``, exactly as the compiled shader received them.
+
+        Computed by the same generated interpolation code, run as plain Python.
+        """
+        module = _shader.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        return self._inputs(module, index)
+
+    def _inputs(self, module, index: int):
+        f, p = self.fragments, self.primitives
+        if not 0 <= index < len(f):
+            raise IndexError(f"fragment index {index} out of range for {len(f)} fragments")
+        k = slice(index, index + 1)
+        fx, fy = window_coordinates(Fragments(f.x[k], f.y[k], f.sample[k], f.depth[k], f.bary[k], f.triangle[k],
+                                              f.primitive_id[k]), self.pattern, self.height)
+        varyings, frag = module.fragment_inputs(0, f.triangle[k], fx, fy, f.depth[k], f.bary[k], p.inv_w,
+                                                p.varyings, p.front_facing, p.primitive_id)
+        return varyings, self.call.uniforms, frag
+
+    def debug_fragment(self, x: int, y: int, which: int = -1, sample: Optional[int] = None):
+        """Re-run the fragment shader as plain Python on one fragment of pixel (x, y).
+
+        ``which`` picks among the pixel's fragments in order (default: the last).
+        Put a breakpoint (``breakpoint()``) in your shader: it stops here, on
+        this fragment. Returns the shader's RGBA, which equals what the compiled
+        shader produced for that fragment.
+        """
+        idx = self.at(x, y)
+        if sample is not None:
+            idx = idx[self.fragments.sample[idx] == sample]
+        if len(idx) == 0:
+            raise ValueError(f"no fragment reached pixel ({x}, {y})")
+        index = int(idx[which])
+        varyings, uniforms, frag = self.fragment_inputs(index)
+        return _shader.python_function(self.fragment_shader)(varyings, uniforms, frag)
+
+    def pixel_history(self, x: int, y: int) -> PixelHistory:
+        """Every fragment that touched pixel (x, y), in order, with what happened to it."""
+        idx = self.at(x, y)
+        module = _shader.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        f, s, m = self.fragments, self.shaded, self.merged
+        events = []
+        for k in idx:
+            varyings, _, _ = self._inputs(module, int(k))
+            events.append(PixelEvent(
+                index=int(k), primitive_id=int(f.primitive_id[k]), triangle=int(f.triangle[k]),
+                sample=int(f.sample[k]), depth=float(f.depth[k]), varyings=varyings,
+                color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
+                color_after=tuple(float(c) for c in m.color_after[k])))
+        before = tuple(float(c) for c in self.before_color[y, x, 0])
+        return PixelHistory(x, y, events, before)
+
+    # ------------------------------------------------------------- pictures
+
+    def pictures(self):
+        """Every stage as a picture: a dict of name → [H, W, 3] uint8 (see :mod:`softpipe.pictures`)."""
+        from .pictures import stage_pictures
+        return stage_pictures(self)
+
+    def save_pictures(self, directory) -> dict:
+        """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""
+        from .pictures import save_stage_pictures
+        return save_stage_pictures(self, directory)
