@@ -41,12 +41,14 @@ class ShadedFragments:
 
     color: np.ndarray
     discarded: np.ndarray
+    invocations: int = -1
 
     def __len__(self) -> int:
         return len(self.color)
 
     def __repr__(self) -> str:
-        return f"ShadedFragments({len(self)} fragments, {int(self.discarded.sum())} discarded)"
+        return (f"ShadedFragments({len(self)} fragments, {self.invocations} shader invocations, "
+                f"{int(self.discarded.sum())} discarded)")
 
 
 def color_rgb(varyings, uniforms, frag):
@@ -74,30 +76,71 @@ def default_fragment_shader(layout) -> Callable:
                      f"the varyings are {list(layout.names)}")
 
 
-def window_coordinates(frags: Fragments, pattern, height: int):
-    """The sample's window position as gl_FragCoord: x right, y up, pixel centres at +½."""
-    pos = pattern.positions
-    fx = frags.x + pos[frags.sample, 0]
-    fy = (height - 1 - frags.y) + pos[frags.sample, 1]
-    return fx.astype(np.float64), fy.astype(np.float64)
+def pixel_runs(frags: Fragments) -> np.ndarray:
+    """Index of the first fragment of each run of one triangle's samples in one pixel.
+
+    The rasterizer emits those samples consecutively, so a multisampled draw
+    shades each run once.
+    """
+    if len(frags) == 0:
+        return np.zeros(0, dtype=np.int64)
+    new = np.ones(len(frags), dtype=bool)
+    new[1:] = ((frags.triangle[1:] != frags.triangle[:-1]) | (frags.x[1:] != frags.x[:-1])
+               | (frags.y[1:] != frags.y[:-1]))
+    return np.nonzero(new)[0]
+
+
+def window_coordinates(frags: Fragments, pattern, height: int, shading: str = "sample"):
+    """Where each fragment is shaded, as gl_FragCoord: x right, y up, pixel centres at +½.
+
+    The sample's position; with multisampling, the pixel centre ("center") or
+    the centroid of the run's covered samples ("centroid").
+    """
+    row = (height - 1 - frags.y).astype(np.float64)
+    if shading == "center":
+        return frags.x + 0.5, row + 0.5
+    pos = pattern.positions[frags.sample]
+    if shading == "centroid" and len(frags):
+        heads = pixel_runs(frags)
+        sizes = np.diff(np.append(heads, len(frags)))
+        mean = np.add.reduceat(pos, heads, axis=0) / sizes[:, None]
+        pos = np.repeat(mean, sizes, axis=0)
+    return frags.x + pos[:, 0], row + pos[:, 1]
 
 
 def run_fragment_stage(frags: Fragments, prims: Primitives, fragment_shader: Optional[Callable], uniforms,
-                       pattern, height: int) -> ShadedFragments:
-    """Shade every fragment. See the module docstring."""
+                       pattern, height: int, shading: str = "sample") -> ShadedFragments:
+    """Shade the fragments: every one (``shading="sample"``), or once per pixel run (multisampling).
+
+    With multisampling the rasterizer has put the shading position's
+    barycentrics in every fragment of a run; the first one is shaded and its
+    color goes to all the run's samples.
+    """
     shader = fragment_shader or default_fragment_shader(prims.layout)
     n = len(frags)
-    color = np.empty((n, 4), dtype=np.float32)
     if n == 0:
-        return ShadedFragments(color, np.zeros(0, dtype=bool))
-    fx, fy = window_coordinates(frags, pattern, height)
-    if fragment_shader is not None:
+        return ShadedFragments(np.empty((0, 4), np.float32), np.zeros(0, dtype=bool), 0)
+    fx, fy = window_coordinates(frags, pattern, height, shading)
+    if shading == "sample":
+        shaded = _shade(shader, fragment_shader is not None, frags, prims, uniforms, fx, fy)
+        return ShadedFragments(shaded, np.isnan(shaded[:, 3]), n)
+    heads = pixel_runs(frags)
+    sub = Fragments(*(a[heads] for a in (frags.x, frags.y, frags.sample, frags.depth, frags.bary,
+                                          frags.triangle, frags.primitive_id)))
+    shaded = _shade(shader, fragment_shader is not None, sub, prims, uniforms, fx[heads], fy[heads])
+    color = np.repeat(shaded, np.diff(np.append(heads, n)), axis=0)
+    return ShadedFragments(color, np.isnan(color[:, 3]), len(heads))
+
+
+def _shade(shader, probe: bool, frags: Fragments, prims: Primitives, uniforms, fx, fy) -> np.ndarray:
+    color = np.empty((len(frags), 4), dtype=np.float32)
+    if probe:
         _probe(shader, frags, prims, uniforms, fx, fy)
     kernel = _shader.fragment_kernel(shader, prims.layout)
-    _shader.run_compiled("fragment", shader, kernel, frags.triangle, fx, fy, frags.depth, frags.bary,
-                         prims.inv_w, prims.varyings, prims.front_facing, prims.primitive_id, uniforms, color)
-    discarded = np.isnan(color[:, 3])
-    return ShadedFragments(color, discarded)
+    _shader.run_compiled("fragment", shader, kernel, frags.triangle, np.ascontiguousarray(fx),
+                         np.ascontiguousarray(fy), frags.depth, np.ascontiguousarray(frags.bary), prims.inv_w,
+                         prims.varyings, prims.front_facing, prims.primitive_id, uniforms, color)
+    return color
 
 
 def _probe(shader, frags, prims, uniforms, fx, fy) -> None:

@@ -91,7 +91,35 @@ class Framebuffer:
         """[H, W, 4]: the buffer itself for one sample, else the box-filtered resolve."""
         if self.samples == 1:
             return self.samples_color[:, :, 0, :]
-        return self.samples_color.mean(axis=2, dtype=np.float64).astype(np.float32)
+        return self.resolve("box")
+
+    def resolve(self, filter: str = "box") -> np.ndarray:
+        """The samples resolved to one color per pixel, [H, W, 4] float32.
+
+        ``"box"``: the average of the pixel's samples (the notes' "sum divided
+        by s²", FORMULAS §24). ``"tent"``: every sample within one pixel of the
+        pixel's centre, weighted by (1 − |dx|)(1 − |dy|), so neighbouring
+        pixels' samples contribute too (a softer result).
+        """
+        if filter == "box":
+            return self.samples_color.mean(axis=2, dtype=np.float64).astype(np.float32)
+        if filter != "tent":
+            raise ValueError(f"resolve filter must be 'box' or 'tent', got {filter!r}")
+        pos = self.pattern.positions                       # y up within the pixel
+        acc = np.zeros((self.height, self.width, 4))
+        wsum = np.zeros((self.height, self.width, 1))
+        padded = np.pad(self.samples_color.astype(np.float64), ((1, 1), (1, 1), (0, 0), (0, 0)), mode="edge")
+        for di in (-1, 0, 1):          # neighbour column offset
+            for dj in (-1, 0, 1):      # neighbour row offset in the image (row down = window y − 1)
+                for s, (sx, sy) in enumerate(pos):
+                    dx = di + sx - 0.5
+                    dy = -dj + sy - 0.5
+                    w = max(0.0, 1 - abs(dx)) * max(0.0, 1 - abs(dy))
+                    if w == 0.0:
+                        continue
+                    acc += w * padded[1 + dj:1 + dj + self.height, 1 + di:1 + di + self.width, s]
+                    wsum += w
+        return (acc / wsum).astype(np.float32)
 
     @property
     def depth(self) -> np.ndarray:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 
@@ -30,7 +31,7 @@ from .assembly import assemble
 from .fragment import run_fragment_stage
 from .framebuffer import Framebuffer
 from .output import MergeState, merge
-from .raster import count_fragments, rasterize
+from .raster import SHADING_POSITIONS, count_fragments, rasterize
 from .shader import make_uniforms
 from .transforms import Viewport
 from .vertex import run_vertex_stage
@@ -88,7 +89,7 @@ class DrawCall:
                  attributes: Optional[Mapping[str, Any]] = None, topology: str = "triangles",
                  interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
                  depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
-                 front_face: str = "ccw", viewport: Optional[Viewport] = None):
+                 front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample"):
         if not isinstance(framebuffer, Framebuffer):
             raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
         viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
@@ -100,6 +101,11 @@ class DrawCall:
         self.uniforms = make_uniforms(uniforms)
         self.topology, self.interpolation, self.cull, self.front_face = topology, interpolation, cull, front_face
         self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend)
+        if sample_shading not in SHADING_POSITIONS:
+            raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {sample_shading!r}")
+        self.sample_shading = sample_shading
+        #: seconds spent in each stage by the last run: vertex, assembly, setup, raster, fragment, output
+        self.timings: dict = {}
 
     def steps(self, record: bool = False) -> Iterator[Stage]:
         """Run the draw one stage at a time, yielding each stage's result as it is made.
@@ -110,20 +116,45 @@ class DrawCall:
         """
         debug = _debug_stages()
         fb = self.framebuffer
+        clock = self._clock()
         vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
         vout.layout = vout.layout.with_qualifiers(self.interpolation)
+        clock("vertex")
         yield self._emit(Stage("vertex", vout), debug)
+        clock(None)
         prims = assemble(vout, self.topology, self.indices, viewport=self.viewport, cull=self.cull,
                          front_face=self.front_face)
+        clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
+        clock(None)
         counts = count_fragments(prims, fb.width, fb.height, fb.pattern)
+        clock("setup")
         for batch, (first, last) in enumerate(_batches(counts, MAX_FRAGMENTS_PER_BATCH)):
-            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts)
+            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading)
+            clock("raster")
             yield self._emit(Stage("raster", frags, batch), debug)
-            shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, fb.pattern, fb.height)
+            clock(None)
+            shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, fb.pattern, fb.height,
+                                        self.sample_shading)
+            clock("fragment")
             yield self._emit(Stage("fragment", shaded, batch), debug)
+            clock(None)
             merged = merge(frags, shaded, self.state, fb, record=record)
+            clock("output")
             yield self._emit(Stage("output", merged, batch), debug)
+            clock(None)
+
+    def _clock(self):
+        """A stopwatch that adds the time since its last call to ``self.timings[name]`` (None: skip)."""
+        self.timings = {}
+        last = [time.perf_counter()]
+
+        def lap(name):
+            now = time.perf_counter()
+            if name is not None:
+                self.timings[name] = self.timings.get(name, 0.0) + (now - last[0])
+            last[0] = now
+        return lap
 
     def run(self, trace: bool = False):
         """Run every stage; returns a :class:`~softpipe.trace.Trace` if ``trace``, else None."""
@@ -174,6 +205,10 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     cull : "none" | "back" | "front" (default "none")
     front_face : "ccw" | "cw" (default "ccw")
     viewport : Viewport, optional; the whole framebuffer by default
+    sample_shading : "sample" | "center" | "centroid"
+        With a multisample framebuffer: shade every sample (supersampling, the
+        default), or once per pixel and primitive at the pixel centre or at the
+        centroid of its covered samples (multisampling).
 
     Returns
     -------

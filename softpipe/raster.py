@@ -37,7 +37,14 @@ from numba import prange
 from .assembly import Primitives
 from .sampling import CENTER, SUBPIXEL, SamplePattern
 
-__all__ = ["Fragments", "rasterize", "count_fragments", "snap", "edge_function", "owns_samples_on_edge"]
+__all__ = ["Fragments", "rasterize", "count_fragments", "snap", "edge_function", "owns_samples_on_edge",
+           "SHADING_POSITIONS"]
+
+#: Where a fragment's barycentrics (its shading inputs) are taken: every sample on
+#: its own (ordinary and supersampled rendering), or once per pixel at its centre
+#: or at the centroid of its covered samples (multisampling).
+SHADING_POSITIONS = ("sample", "center", "centroid")
+SHADE_SAMPLE, SHADE_CENTER, SHADE_CENTROID = 0, 1, 2
 
 
 @dataclass
@@ -131,8 +138,24 @@ def _box(x0, x1, x2, lo_off, hi_off, size):
 
 
 @numba.njit(cache=True)
-def _cover_triangle(window, t, width, height, offsets, out_x, out_y, out_s, out_depth, out_bary, start, emit):
-    """Visit every covered sample of triangle t; write them from ``start`` if ``emit``. Returns the count."""
+def _covered(x0, y0, x1, y1, x2, y2, sign, b0, b1, b2, px, py):
+    """The three oriented edge functions at (px, py), and whether the fill rule covers it."""
+    e0 = sign * edge_function(x1, y1, x2, y2, px, py)
+    e1 = sign * edge_function(x2, y2, x0, y0, px, py)
+    e2 = sign * edge_function(x0, y0, x1, y1, px, py)
+    return e0, e1, e2, e0 + b0 >= 0 and e1 + b1 >= 0 and e2 + b2 >= 0
+
+
+@numba.njit(cache=True)
+def _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s, out_depth, out_bary, start,
+                    emit):
+    """Visit every covered sample of triangle t; write them from ``start`` if ``emit``. Returns the count.
+
+    Depth is always the sample's. The barycentrics written are the sample's
+    (``mode`` SHADE_SAMPLE), the pixel centre's (SHADE_CENTER) or those of the
+    centroid of the pixel's covered samples (SHADE_CENTROID): where a
+    multisampled fragment is shaded.
+    """
     x0, y0, x1, y1, x2, y2, sign, area = _setup(window, t)
     if area == 0:
         return 0
@@ -148,25 +171,45 @@ def _cover_triangle(window, t, width, height, offsets, out_x, out_y, out_s, out_
     n = 0
     for j in range(j_first, j_last + 1):
         for i in range(i_first, i_last + 1):
+            # which samples of pixel (i, j) are covered: a bit mask, and their centroid
+            mask = np.int64(0)
+            count = 0
+            sum_x = np.int64(0)
+            sum_y = np.int64(0)
             for s in range(offsets.shape[0]):
                 px = i * SUBPIXEL + offsets[s, 0]
                 py = j * SUBPIXEL + offsets[s, 1]
-                e0 = sign * edge_function(x1, y1, x2, y2, px, py)
-                e1 = sign * edge_function(x2, y2, x0, y0, px, py)
-                e2 = sign * edge_function(x0, y0, x1, y1, px, py)
-                if e0 + b0 < 0 or e1 + b1 < 0 or e2 + b2 < 0:
+                if _covered(x0, y0, x1, y1, x2, y2, sign, b0, b1, b2, px, py)[3]:
+                    mask |= np.int64(1) << s
+                    count += 1
+                    sum_x += px
+                    sum_y += py
+            if count == 0 or not emit:
+                n += count
+                continue
+            c0, c1, c2 = 0.0, 0.0, 0.0
+            if mode == SHADE_CENTER:
+                c0, c1, c2, _ = _covered(x0, y0, x1, y1, x2, y2, sign, b0, b1, b2, i * SUBPIXEL, j * SUBPIXEL)
+            elif mode == SHADE_CENTROID:
+                c0, c1, c2, _ = _covered(x0, y0, x1, y1, x2, y2, sign, b0, b1, b2, sum_x / count, sum_y / count)
+            for s in range(offsets.shape[0]):
+                if not (mask >> s) & 1:
                     continue
-                if emit:
-                    k = start + n
-                    w0, w1, w2 = e0 * inv_area, e1 * inv_area, e2 * inv_area
-                    out_x[k] = i
-                    out_y[k] = height - 1 - j   # the y flip: window row → image row
-                    out_s[k] = s
-                    out_bary[k, 0] = w0
-                    out_bary[k, 1] = w1
-                    out_bary[k, 2] = w2
-                    z = w0 * z0 + w1 * z1 + w2 * z2
-                    out_depth[k] = min(max(z, 0.0), 1.0)
+                px = i * SUBPIXEL + offsets[s, 0]
+                py = j * SUBPIXEL + offsets[s, 1]
+                e0, e1, e2, _ = _covered(x0, y0, x1, y1, x2, y2, sign, b0, b1, b2, px, py)
+                w0, w1, w2 = e0 * inv_area, e1 * inv_area, e2 * inv_area
+                k = start + n
+                out_x[k] = i
+                out_y[k] = height - 1 - j   # the y flip: window row → image row
+                out_s[k] = s
+                z = w0 * z0 + w1 * z1 + w2 * z2
+                out_depth[k] = min(max(z, 0.0), 1.0)
+                if mode != SHADE_SAMPLE:
+                    w0, w1, w2 = c0 * inv_area, c1 * inv_area, c2 * inv_area
+                out_bary[k, 0] = w0
+                out_bary[k, 1] = w1
+                out_bary[k, 2] = w2
                 n += 1
     return n
 
@@ -177,16 +220,16 @@ def _count_kernel(window, width, height, offsets, counts):
     dummy_f = np.empty(0, np.float64)
     dummy_b = np.empty((0, 3), np.float64)
     for t in prange(window.shape[0]):
-        counts[t] = _cover_triangle(window, t, width, height, offsets,
+        counts[t] = _cover_triangle(window, t, width, height, offsets, SHADE_SAMPLE,
                                     dummy_i, dummy_i, dummy_i, dummy_f, dummy_b, 0, False)
 
 
 @numba.njit(cache=True, parallel=True)
-def _emit_kernel(window, first, last, starts, width, height, offsets, out_x, out_y, out_s, out_depth, out_bary,
-                 out_tri):
+def _emit_kernel(window, first, last, starts, width, height, offsets, mode, out_x, out_y, out_s, out_depth,
+                 out_bary, out_tri):
     for t in prange(first, last):
         begin = starts[t]
-        n = _cover_triangle(window, t, width, height, offsets, out_x, out_y, out_s, out_depth, out_bary,
+        n = _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s, out_depth, out_bary,
                             begin, True)
         for k in range(begin, begin + n):
             out_tri[k] = t
@@ -201,12 +244,19 @@ def count_fragments(prims: Primitives, width: int, height: int, pattern: SampleP
 
 
 def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
-              first: int = 0, last: int | None = None, counts: np.ndarray | None = None) -> Fragments:
+              first: int = 0, last: int | None = None, counts: np.ndarray | None = None,
+              shading: str = "sample") -> Fragments:
     """The covered samples of triangles ``first:last`` (all by default), in primitive order.
 
     Within a triangle, fragments come row by row from the bottom of the window
-    (y up), left to right, sample by sample.
+    (y up), left to right, sample by sample, so the samples one triangle covers
+    in one pixel are consecutive. ``shading`` says where the barycentrics are
+    taken: at each "sample", the pixel "center", or the "centroid" of the
+    pixel's covered samples (see :data:`SHADING_POSITIONS`).
     """
+    if shading not in SHADING_POSITIONS:
+        raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {shading!r}")
+    mode = SHADING_POSITIONS.index(shading)
     last = len(prims) if last is None else last
     if counts is None:
         counts = count_fragments(prims, width, height, pattern)
@@ -221,6 +271,7 @@ def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern
     bary = np.empty((total, 3), np.float64)
     tri = np.empty(total, np.int32)
     if total:
-        _emit_kernel(prims.window, first, last, starts, width, height, pattern.offsets, x, y, s, depth, bary, tri)
+        _emit_kernel(prims.window, first, last, starts, width, height, pattern.offsets, mode, x, y, s, depth, bary,
+                     tri)
     return Fragments(x=x, y=y, sample=s, depth=depth, bary=bary, triangle=tri,
                      primitive_id=prims.primitive_id[tri] if total else np.zeros(0, np.int64))

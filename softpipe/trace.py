@@ -89,6 +89,7 @@ class Trace:
         self.before_color, self.before_depth = before_color, before_depth
         fb = call.framebuffer
         self.width, self.height, self.pattern = fb.width, fb.height, fb.pattern
+        self._frag_coords = None
 
     @classmethod
     def record(cls, call) -> "Trace":
@@ -108,6 +109,7 @@ class Trace:
         if out["raster"]:
             fragments = _concat(out["raster"], Fragments, frag_fields)
             shaded = _concat(out["fragment"], ShadedFragments, ("color", "discarded"))
+            shaded.invocations = sum(p.invocations for p in out["fragment"])
             merged = _concat(out["output"], MergeResult, ("verdict", "color_after"))
         else:
             empty = np.zeros(0)
@@ -160,10 +162,10 @@ class Trace:
         f, p = self.fragments, self.primitives
         if not 0 <= index < len(f):
             raise IndexError(f"fragment index {index} out of range for {len(f)} fragments")
-        k = slice(index, index + 1)
-        fx, fy = window_coordinates(Fragments(f.x[k], f.y[k], f.sample[k], f.depth[k], f.bary[k], f.triangle[k],
-                                              f.primitive_id[k]), self.pattern, self.height)
-        varyings, frag = module.fragment_inputs(0, f.triangle[k], fx, fy, f.depth[k], f.bary[k], p.inv_w,
+        if self._frag_coords is None:
+            self._frag_coords = window_coordinates(f, self.pattern, self.height, self.call.sample_shading)
+        fx, fy = self._frag_coords
+        varyings, frag = module.fragment_inputs(index, f.triangle, fx, fy, f.depth, f.bary, p.inv_w,
                                                 p.varyings, p.front_facing, p.primitive_id)
         return varyings, self.call.uniforms, frag
 
