@@ -134,17 +134,16 @@ def run_fragment_stage(frags: Fragments, prims: Primitives, fragment_shader: Opt
 
 def _shade(shader, probe: bool, frags: Fragments, prims: Primitives, uniforms, fx, fy) -> np.ndarray:
     color = np.empty((len(frags), 4), dtype=np.float32)
-    if probe:
-        _probe(shader, frags, prims, uniforms, fx, fy)
     kernel = _shader.fragment_kernel(shader, prims.layout)
-    _shader.run_compiled("fragment", shader, kernel, frags.triangle, np.ascontiguousarray(fx),
+    explain = (lambda: _probe(shader, frags, prims, uniforms, fx, fy)) if probe else None
+    _shader.run_compiled("fragment", shader, kernel, explain, frags.triangle, np.ascontiguousarray(fx),
                          np.ascontiguousarray(fy), frags.depth, np.ascontiguousarray(frags.bary), prims.inv_w,
                          prims.varyings, prims.front_facing, prims.primitive_id, uniforms, color)
     return color
 
 
 def _probe(shader, frags, prims, uniforms, fx, fy) -> None:
-    """Run the shader on the first fragment in Python, for a clear error before numba's."""
+    """Run the shader on the first fragment in Python: when numba fails, its error is clearer."""
     t = int(frags.triangle[0])
     values = prims.layout.unpack(prims.varyings[t, 2])
     import collections

@@ -14,7 +14,8 @@ Vertex shader::
 given as ``attributes=``); a field is a float for an ``[N]`` array and a tuple of
 k floats for ``[N, k]``. It returns the clip position (x, y, z, w) and a
 namedtuple (any namedtuple class) of varyings; each varying is a float or a
-tuple of 2–4 floats.
+tuple of 2–4 floats. softpipe learns the varyings' names and sizes by running
+the vertex shader once as plain Python, on the first vertex.
 
 Fragment shader::
 
@@ -524,10 +525,17 @@ def probe_fragment_shader(shader: Callable, varyings, uniforms, frag) -> None:
                           f"(or DISCARD), got {out!r}")
 
 
-def run_compiled(kind: str, shader: Callable, kernel: Callable, *args) -> None:
-    """Call a generated loop; turn numba's typing errors into a ShaderError naming the shader."""
+def run_compiled(kind: str, shader: Callable, kernel: Callable, explain: Callable | None, *args) -> None:
+    """Call a generated loop; turn numba's errors into a ShaderError naming the shader.
+
+    When numba cannot compile the shader, ``explain`` (if given) first runs it
+    once as plain Python, whose error (a wrong return value, a Python
+    exception) is usually the clearer one.
+    """
     try:
         kernel(*args)
     except (numba.core.errors.TypingError, numba.core.errors.LoweringError,
             numba.core.errors.UnsupportedError) as e:
+        if explain is not None:
+            explain()
         raise _describe_compile_error(kind, shader, e) from None

@@ -144,7 +144,7 @@ def _run_shader(vertex_shader: Callable, inputs: Dict[str, np.ndarray], uniforms
     kernel = _shader.vertex_kernel(vertex_shader, sizes, layout)
     position = np.empty((n, 4), dtype=np.float64)
     packed = np.empty((n, layout.width), dtype=np.float64)
-    _shader.run_compiled("vertex", vertex_shader, kernel, *inputs.values(), uniforms, position, packed)
+    _shader.run_compiled("vertex", vertex_shader, kernel, None, *inputs.values(), uniforms, position, packed)
     return VertexOut(position, packed, layout)
 
 
