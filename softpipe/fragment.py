@@ -21,7 +21,7 @@ import numpy as np
 
 from . import shader as _shader
 from .assembly import Primitives
-from .raster import Fragments
+from .raster import Fragments, barycentric_gradients
 from .shader import FragInfo
 
 __all__ = ["ShadedFragments", "run_fragment_stage", "color_rgb", "color_rgba"]
@@ -138,8 +138,16 @@ def _shade(shader, probe: bool, frags: Fragments, prims: Primitives, uniforms, f
     explain = (lambda: _probe(shader, frags, prims, uniforms, fx, fy)) if probe else None
     _shader.run_compiled("fragment", shader, kernel, explain, frags.triangle, np.ascontiguousarray(fx),
                          np.ascontiguousarray(fy), frags.depth, np.ascontiguousarray(frags.bary), prims.inv_w,
-                         prims.varyings, prims.front_facing, prims.primitive_id, uniforms, color)
+                         prims.varyings, prims.front_facing, prims.primitive_id, _gradients(shader, prims),
+                         uniforms, color)
     return color
+
+
+def _gradients(shader, prims: Primitives) -> np.ndarray:
+    """Barycentric gradients when the shader asks for derivatives (else an empty placeholder)."""
+    if _shader.wants_derivatives(shader):
+        return barycentric_gradients(prims)
+    return np.zeros((0, 2, 3))
 
 
 def _probe(shader, frags, prims, uniforms, fx, fy) -> None:

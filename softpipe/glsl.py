@@ -56,11 +56,14 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Tuple, Union
+from typing import TYPE_CHECKING, Optional, Tuple, Union
 
 from numba import types
 from numba.core.errors import TypingError
 from numba.extending import overload, register_jitable
+
+if TYPE_CHECKING:  # only for the annotations
+    import numpy as np
 
 Vec2 = Tuple[float, float]
 Vec3 = Tuple[float, float, float]
@@ -284,7 +287,7 @@ def _absent(ty) -> bool:
     return ty is None or isinstance(ty, (types.Omitted, types.NoneType))
 
 
-def vec2(x, y=None) -> Vec2:
+def vec2(x: Union[float, Vec], y: Optional[float] = None) -> Vec2:
     """``vec2(x, y)``, ``vec2(s)`` = (s, s), or ``vec2(v)`` = v's first two components."""
     if y is None:
         if isinstance(x, tuple):
@@ -293,7 +296,7 @@ def vec2(x, y=None) -> Vec2:
     return (float(x), float(y))
 
 
-def vec3(x, y=None, z=None) -> Vec3:
+def vec3(x: Union[float, Vec], y: Optional[float] = None, z: Optional[float] = None) -> Vec3:
     """``vec3(x, y, z)``, ``vec3(s)``, ``vec3(v)`` (xyz of a vec3/vec4), ``vec3(v2, z)``."""
     if y is None:
         if isinstance(x, tuple):
@@ -304,7 +307,8 @@ def vec3(x, y=None, z=None) -> Vec3:
     return (float(x), float(y), float(z))
 
 
-def vec4(x, y=None, z=None, w=None) -> Vec4:
+def vec4(x: Union[float, Vec], y: Optional[float] = None, z: Optional[float] = None,
+         w: Optional[float] = None) -> Vec4:
     """``vec4(x, y, z, w)``, ``vec4(s)``, ``vec4(v4)``, ``vec4(v3, w)``, ``vec4(v2, z, w)``."""
     if y is None:
         if isinstance(x, tuple):
@@ -366,61 +370,61 @@ def _ov_vec4(x, y=None, z=None, w=None):
 # --------------------------------------------------------------------------
 
 @_componentwise
-def add(a, b):
+def add(a: VecOrScalar, b: VecOrScalar) -> VecOrScalar:
     """a + b, per component (GLSL ``a + b``); either may be a scalar."""
     return a + b
 
 
 @_componentwise
-def sub(a, b):
+def sub(a: VecOrScalar, b: VecOrScalar) -> VecOrScalar:
     """a − b, per component (GLSL ``a - b``); either may be a scalar."""
     return a - b
 
 
 @_componentwise
-def mul(a, b):
+def mul(a: VecOrScalar, b: VecOrScalar) -> VecOrScalar:
     """a · b, per component (GLSL ``a * b`` on vectors: colors multiply per channel)."""
     return a * b
 
 
 @_componentwise
-def div(a, b):
+def div(a: VecOrScalar, b: VecOrScalar) -> VecOrScalar:
     """a / b, per component (GLSL ``a / b``). Division by zero is the caller's to avoid."""
     return a / b
 
 
 @_componentwise
-def scale(v, s):
+def scale(v: Vec, s: float) -> Vec:
     """The vector v times the scalar s (GLSL ``v * s``)."""
     return v * s
 
 
 @_componentwise
-def neg(v):
+def neg(v: VecOrScalar) -> VecOrScalar:
     """−v (GLSL ``-v``)."""
     return -v
 
 
 @_componentwise
-def vabs(v):
+def vabs(v: VecOrScalar) -> VecOrScalar:
     """|v| per component (GLSL ``abs``)."""
     return abs(v)
 
 
 @_componentwise
-def vmin(a, b):
+def vmin(a: VecOrScalar, b: VecOrScalar) -> VecOrScalar:
     """The smaller of a and b per component (GLSL ``min``)."""
     return min(a, b)
 
 
 @_componentwise
-def vmax(a, b):
+def vmax(a: VecOrScalar, b: VecOrScalar) -> VecOrScalar:
     """The larger of a and b per component (GLSL ``max``)."""
     return max(a, b)
 
 
 @_componentwise
-def clamp(x, lo, hi):
+def clamp(x: VecOrScalar, lo: VecOrScalar, hi: VecOrScalar) -> VecOrScalar:
     """min(max(x, lo), hi) per component (GLSL ``clamp``); NaN gives ``lo``."""
     # Builtin min/max, not conditional expressions: numba turns these into
     # branch-free selects (measured 12x faster in a loop), with Python's exact
@@ -429,25 +433,25 @@ def clamp(x, lo, hi):
 
 
 @_componentwise
-def saturate(x):
+def saturate(x: VecOrScalar) -> VecOrScalar:
     """clamp(x, 0, 1) (HLSL's name): a color or weight limited to [0, 1]."""
     return min(1.0, max(0.0, x))
 
 
 @_componentwise
-def mix(a, b, t):
+def mix(a: VecOrScalar, b: VecOrScalar, t: VecOrScalar) -> VecOrScalar:
     """a·(1 − t) + b·t (GLSL ``mix``, in that form, so that t = 0 and t = 1 are exact)."""
     return a * (1.0 - t) + b * t
 
 
 @_componentwise
-def step(edge, x):
+def step(edge: VecOrScalar, x: VecOrScalar) -> VecOrScalar:
     """0 if x < edge else 1 (GLSL ``step``)."""
     return 0.0 if x < edge else 1.0
 
 
 @_componentwise
-def smoothstep(edge0, edge1, x):
+def smoothstep(edge0: VecOrScalar, edge1: VecOrScalar, x: VecOrScalar) -> VecOrScalar:
     """Hermite 0→1 as x goes edge0→edge1: t²(3 − 2t), t = clamp((x − e0)/(e1 − e0), 0, 1)."""
     if edge1 == edge0:  # GLSL: undefined; take the step, never divide by zero
         return 0.0 if x < edge0 else 1.0
@@ -456,7 +460,7 @@ def smoothstep(edge0, edge1, x):
 
 
 @_componentwise
-def pow_(x, y):
+def pow_(x: VecOrScalar, y: VecOrScalar) -> VecOrScalar:
     """xʸ per component for x > 0; x ≤ 0 counts as 0: 0⁰ = 1, 0ʸ = 0 (y > 0), +inf (y < 0).
 
     GLSL leaves x < 0 undefined; this form is the clamped power (x)₊ʸ of the
@@ -492,17 +496,17 @@ def _smaller(a, b):
 
 
 @_reduction(_plus)
-def hsum(v):
+def hsum(v: Vec) -> float:
     """The sum of v's components, left to right: ((x + y) + z) + w."""
 
 
 @_reduction(_larger)
-def max_component(v):
+def max_component(v: Vec) -> float:
     """The largest component of v (e.g. the brightest channel of a color)."""
 
 
 @_reduction(_smaller)
-def min_component(v):
+def min_component(v: Vec) -> float:
     """The smallest component of v."""
 
 
@@ -511,13 +515,13 @@ def min_component(v):
 # --------------------------------------------------------------------------
 
 @register_jitable
-def dot(a, b):
+def dot(a: Vec, b: Vec) -> float:
     """a · b = Σ aᵢbᵢ, summed left to right."""
     return hsum(mul(a, b))
 
 
 @register_jitable
-def cross(a, b):
+def cross(a: Vec3, b: Vec3) -> Vec3:
     """a × b, for vec3."""
     return (a[1] * b[2] - a[2] * b[1],
             a[2] * b[0] - a[0] * b[2],
@@ -525,19 +529,19 @@ def cross(a, b):
 
 
 @register_jitable
-def length(v):
+def length(v: Vec) -> float:
     """|v| = √(v·v)."""
     return math.sqrt(dot(v, v))
 
 
 @register_jitable
-def distance(a, b):
+def distance(a: Vec, b: Vec) -> float:
     """|a − b|."""
     return length(sub(a, b))
 
 
 @register_jitable
-def normalize(v):
+def normalize(v: Vec) -> Vec:
     """v / |v|; the zero vector (or a NaN one) gives the zero vector instead of NaN."""
     n = length(v)
     if n > 0.0:
@@ -546,7 +550,7 @@ def normalize(v):
 
 
 @register_jitable
-def faceforward(N, I, Nref):
+def faceforward(N: Vec, I: Vec, Nref: Vec) -> Vec:
     """N if Nref·I < 0 else −N (GLSL): N turned to face against the incident I."""
     if dot(Nref, I) < 0.0:
         return scale(N, 1.0)
@@ -554,7 +558,7 @@ def faceforward(N, I, Nref):
 
 
 @register_jitable
-def reflect(I, N):
+def reflect(I: Vec, N: Vec) -> Vec:
     """I − 2(N·I)N (GLSL ``reflect``): I mirrored about the unit normal N.
 
     I is the *incident* direction (pointing at the surface). FORMULAS §16's
@@ -564,7 +568,7 @@ def reflect(I, N):
 
 
 @register_jitable
-def refract(I, N, eta):
+def refract(I: Vec, N: Vec, eta: float) -> Vec:
     """The refracted direction (GLSL ``refract``), or the zero vector on total internal reflection.
 
     I is the unit incident direction (pointing at the surface), N the unit normal
@@ -585,7 +589,7 @@ def refract(I, N, eta):
 # --------------------------------------------------------------------------
 
 @register_jitable
-def mat4_mul_vec4(M, v):
+def mat4_mul_vec4(M: np.ndarray, v: Vec4) -> Vec4:
     """M @ v for a 4×4 array M and a vec4 v, as a vec4 of floats."""
     return (float(M[0, 0] * v[0] + M[0, 1] * v[1] + M[0, 2] * v[2] + M[0, 3] * v[3]),
             float(M[1, 0] * v[0] + M[1, 1] * v[1] + M[1, 2] * v[2] + M[1, 3] * v[3]),
@@ -594,7 +598,7 @@ def mat4_mul_vec4(M, v):
 
 
 @register_jitable
-def mat3_mul_vec3(M, v):
+def mat3_mul_vec3(M: np.ndarray, v: Vec3) -> Vec3:
     """M₃ @ v for a 3×3 array M, or the upper-left 3×3 of a 4×4 one (directions, normals)."""
     return (float(M[0, 0] * v[0] + M[0, 1] * v[1] + M[0, 2] * v[2]),
             float(M[1, 0] * v[0] + M[1, 1] * v[1] + M[1, 2] * v[2]),

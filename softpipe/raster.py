@@ -38,7 +38,7 @@ from .assembly import Primitives
 from .sampling import CENTER, SUBPIXEL, SamplePattern
 
 __all__ = ["Fragments", "rasterize", "count_fragments", "snap", "edge_function", "owns_samples_on_edge",
-           "SHADING_POSITIONS"]
+           "SHADING_POSITIONS", "barycentric_gradients"]
 
 #: Where a fragment's barycentrics (its shading inputs) are taken: every sample on
 #: its own (ordinary and supersampled rendering), or once per pixel at its centre
@@ -233,6 +233,28 @@ def _emit_kernel(window, first, last, starts, width, height, offsets, mode, out_
                             begin, True)
         for k in range(begin, begin + n):
             out_tri[k] = t
+
+
+def barycentric_gradients(prims: Primitives) -> np.ndarray:
+    """∂b_k/∂x and ∂b_k/∂y of each triangle's window-space barycentrics, per pixel: [P, 2, 3].
+
+    From the snapped corners: E_k changes by −(Y_b − Y_a)·256 per pixel in x and
+    (X_b − X_a)·256 in y, and b_k = E_k / area. Zero for zero-area triangles.
+    (These are what make screen-space derivatives, e.g. for mipmapping, exact.)
+    """
+    w = prims.window
+    X = np.rint(w[:, :, 0] * SUBPIXEL).astype(np.int64) - SUBPIXEL // 2
+    Y = np.rint(w[:, :, 1] * SUBPIXEL).astype(np.int64) - SUBPIXEL // 2
+    area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (Y[:, 1] - Y[:, 0]) * (X[:, 2] - X[:, 0])
+    sign = np.where(area > 0, 1, -1)
+    out = np.zeros((len(w), 2, 3))
+    ok = area != 0
+    scale = np.where(ok, SUBPIXEL / np.where(ok, np.abs(area), 1), 0.0)
+    for k in range(3):
+        a, b = (k + 1) % 3, (k + 2) % 3            # edge a→b is opposite corner k
+        out[:, 0, k] = -sign * (Y[:, b] - Y[:, a]) * scale
+        out[:, 1, k] = sign * (X[:, b] - X[:, a]) * scale
+    return out
 
 
 def count_fragments(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER) -> np.ndarray:

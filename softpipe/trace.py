@@ -90,6 +90,7 @@ class Trace:
         fb = call.framebuffer
         self.width, self.height, self.pattern = fb.width, fb.height, fb.pattern
         self._frag_coords = None
+        self._grad = None
 
     @classmethod
     def record(cls, call) -> "Trace":
@@ -151,7 +152,8 @@ class Trace:
         return self.call.fragment_shader or default_fragment_shader(self.primitives.layout)
 
     def fragment_inputs(self, index: int):
-        """(varyings, uniforms, frag) of fragment ``index``, exactly as the compiled shader received them.
+        """The shader's arguments for fragment ``index``: (varyings, uniforms, frag[, derivatives]),
+        exactly as the compiled shader received them.
 
         Computed by the same generated interpolation code, run as plain Python.
         """
@@ -165,9 +167,12 @@ class Trace:
         if self._frag_coords is None:
             self._frag_coords = window_coordinates(f, self.pattern, self.height, self.call.sample_shading)
         fx, fy = self._frag_coords
-        varyings, frag = module.fragment_inputs(index, f.triangle, fx, fy, f.depth, f.bary, p.inv_w,
-                                                p.varyings, p.front_facing, p.primitive_id)
-        return varyings, self.call.uniforms, frag
+        if self._grad is None:
+            from .fragment import _gradients
+            self._grad = _gradients(self.fragment_shader, p)
+        out = module.fragment_inputs(index, f.triangle, fx, fy, f.depth, f.bary, p.inv_w, p.varyings,
+                                     p.front_facing, p.primitive_id, self._grad)
+        return (out[0], self.call.uniforms) + tuple(out[1:])
 
     def debug_fragment(self, x: int, y: int, which: int = -1, sample: Optional[int] = None):
         """Re-run the fragment shader as plain Python on one fragment of pixel (x, y).
@@ -183,8 +188,7 @@ class Trace:
         if len(idx) == 0:
             raise ValueError(f"no fragment reached pixel ({x}, {y})")
         index = int(idx[which])
-        varyings, uniforms, frag = self.fragment_inputs(index)
-        return _shader.python_function(self.fragment_shader)(varyings, uniforms, frag)
+        return _shader.python_function(self.fragment_shader)(*self.fragment_inputs(index))
 
     def pixel_history(self, x: int, y: int) -> PixelHistory:
         """Every fragment that touched pixel (x, y), in order, with what happened to it."""
@@ -193,7 +197,7 @@ class Trace:
         f, s, m = self.fragments, self.shaded, self.merged
         events = []
         for k in idx:
-            varyings, _, _ = self._inputs(module, int(k))
+            varyings = self._inputs(module, int(k))[0]
             events.append(PixelEvent(
                 index=int(k), primitive_id=int(f.primitive_id[k]), triangle=int(f.triangle[k]),
                 sample=int(f.sample[k]), depth=float(f.depth[k]), varyings=varyings,

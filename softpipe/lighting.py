@@ -1,0 +1,458 @@
+"""The lighting equations of FORMULAS.md, as numba functions on tuples.
+
+One implementation shared by every built-in program: a Gouraud shader calls
+these per vertex, a Phong shader per fragment, and a user's shader may call them
+too. Each function is ``@njit(cache=True)``; under ``NUMBA_DISABLE_JIT=1`` (or via
+``.py_func``) it is the same code as plain Python, with bit-identical results.
+
+Names, as in FORMULAS.md (all vectors in eye space, unit length unless said)
+---------------------------------------------------------------------------
+P        the surface point, in eye space (the eye is at the origin)
+N        the surface normal, on the viewer's side
+L        from P toward the light
+V        from P toward the eye: V = normalize(−P) in eye space
+H        the half vector normalize(L + V)                               (§6)
+R        L mirrored about N: R = 2(N·L)N − L                            (§5)
+H′       the transmitted half vector of the Hall model                 (§14)
+B        1 if N·L > 0, else 0: no light from below the surface          (§4)
+(x)₊     max(0, x)
+ke, ka, kd, ks, kt   the material's emission, ambient, diffuse, specular and
+         transmission colors (``MaterialUniform`` fields)
+n, n′    the shininess and the transmission shininess
+I_a, I_d, I_s        a light's ambient, diffuse and specular colors;
+         I_a,global the global ambient light (``Lighting.global_ambient``)
+f_att, f_spot        the attenuation (§7) and spotlight (§8) factors
+η        a ratio of refractive indices, defined where used
+m        Beckmann's roughness (Cook-Torrance, §26)
+
+Colors are RGB 3-tuples multiplied per channel. Lights arrive packed in eye
+space, one row per light (``softpipe.material.pack_lights``; columns ``LIGHT_*``).
+
+Conventions
+-----------
+* Results are not clamped. OpenGL clamps a lit color to [0, 1]; here the output
+  merger clamps once, at conversion to 8 bits, so a Gouraud shader that wants
+  OpenGL's look should ``saturate`` the color before it is interpolated.
+* 0⁰ = 1: with shininess n = 0 (the notes' "planet") the specular lobe (N·H)₊⁰
+  or (R·V)₊⁰ is 1 wherever B = 1, including where the dot product clamps to 0;
+  where B = 0 there is no specular term at all. The planet material has ks = 0,
+  so nothing shows.
+* No NaN from geometry: zero vectors normalize to zero (a light exactly at P,
+  L = −V, …), every division is guarded, and ``pow`` only sees bases ≥ 0.
+"""
+from __future__ import annotations
+
+import math
+from typing import Tuple
+
+import numpy as np
+from numba import njit
+
+from softpipe.glsl import add, dot, length, mul, normalize, pow_, scale, sub
+from softpipe.material import (
+    LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL, LIGHT_KIND,
+    LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION,
+    LIGHT_SPOT_EXPONENT, MaterialUniform,
+)
+
+Vec3 = Tuple[float, float, float]
+Color = Tuple[float, float, float]
+
+__all__ = [
+    "BLINN_PHONG", "PHONG",
+    "positive_power", "b_factor", "half_vector",
+    "emission", "ambient", "lambert", "phong_specular", "blinn_phong_specular",
+    "attenuation", "spot_factor", "light_at", "light_vec3", "opengl_lighting",
+    "transmitted_half_vector", "hall_transmission", "hall_local",
+    "fresnel_rs_rp", "fresnel", "fresnel_schlick",
+    "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting",
+    "gooch",
+]
+
+BLINN_PHONG = 0  # specular_model: (N·H)₊ⁿ, §6 (OpenGL's choice, §10)
+PHONG = 1        # specular_model: (R·V)₊ⁿ, §5
+
+ZERO3 = (0.0, 0.0, 0.0)
+
+# f_att's denominator a + b·r + c·r² is 0 only for a = 0 at r = 0 (a light exactly
+# on the surface); it is floored here so that f_att stays finite.
+MIN_ATTENUATION_DENOMINATOR = 1e-12
+
+
+# --------------------------------------------------------------------------
+# Building blocks
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def positive_power(x: float, n: float) -> float:
+    """(x)₊ⁿ with 0⁰ = 1: the specular lobe's power (§5, §6)."""
+    return pow_(x, n)
+
+
+@njit(cache=True)
+def b_factor(N: Vec3, L: Vec3) -> float:
+    """B = 1 if N·L > 0 else 0 (FORMULAS §4)."""
+    return 1.0 if dot(N, L) > 0.0 else 0.0
+
+
+@njit(cache=True)
+def half_vector(L: Vec3, V: Vec3) -> Vec3:
+    """H = (L + V)/|L + V| (FORMULAS notation); the zero vector when L = −V."""
+    return normalize(add(L, V))
+
+
+# --------------------------------------------------------------------------
+# The OpenGL / Blinn-Phong family (§1–§10)
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def emission(ke: Color) -> Color:
+    """I = ke (FORMULAS §1)."""
+    return (ke[0], ke[1], ke[2])
+
+
+@njit(cache=True)
+def ambient(ka: Color, Ia: Color) -> Color:
+    """I = ka · I_a (FORMULAS §2)."""
+    return mul(ka, Ia)
+
+
+@njit(cache=True)
+def lambert(kd: Color, Id: Color, N: Vec3, L: Vec3) -> Color:
+    """I = kd · I_d · B · (N·L) (FORMULAS §3, with B of §4)."""
+    n_dot_l = dot(N, L)
+    if n_dot_l <= 0.0:  # B = 0: the light is below the surface
+        return ZERO3
+    return scale(mul(kd, Id), n_dot_l)
+
+
+@njit(cache=True)
+def phong_specular(ks: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, n: float) -> Color:
+    """I = ks · I_s · B · (R·V)₊ⁿ, R = 2(N·L)N − L (FORMULAS §5)."""
+    n_dot_l = dot(N, L)
+    if n_dot_l <= 0.0:  # B = 0
+        return ZERO3
+    R = sub(scale(N, 2.0 * n_dot_l), L)
+    return scale(mul(ks, Is), positive_power(dot(R, V), n))
+
+
+@njit(cache=True)
+def blinn_phong_specular(ks: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, n: float) -> Color:
+    """I = ks · I_s · B · (N·H)₊ⁿ, H = normalize(L + V) (FORMULAS §6)."""
+    if dot(N, L) <= 0.0:  # B = 0
+        return ZERO3
+    H = half_vector(L, V)
+    return scale(mul(ks, Is), positive_power(dot(N, H), n))
+
+
+@njit(cache=True)
+def attenuation(a: float, b: float, c: float, r: float) -> float:
+    """f_att = 1/(a + b·r + c·r²) at distance r (FORMULAS §7); finite even for a = r = 0."""
+    d = a + b * r + c * r * r
+    if d < MIN_ATTENUATION_DENOMINATOR:
+        d = MIN_ATTENUATION_DENOMINATOR
+    return 1.0 / d
+
+
+@njit(cache=True)
+def spot_factor(L: Vec3, S: Vec3, cos_cutoff: float, e: float) -> float:
+    """f_spot = (−L·S)ᵉ if −L·S ≥ cos β, else 0 (FORMULAS §8).
+
+    ``cos_cutoff`` = cos β ≤ −1 (β = 180°) means "not a spotlight": f_spot = 1.
+    Inside the cone −L·S ≥ cos β ≥ 0 (β ≤ 90°), so the power has a base ≥ 0.
+    """
+    if cos_cutoff <= -1.0:
+        return 1.0
+    cos_angle = -dot(L, S)
+    if cos_angle < cos_cutoff:
+        return 0.0
+    return positive_power(cos_angle, e)
+
+
+@njit(cache=True)
+def light_vec3(lights: np.ndarray, j: int, column: int) -> Vec3:
+    """The three values at ``lights[j, column:column + 3]``: a color, a position or a direction."""
+    return (lights[j, column], lights[j, column + 1], lights[j, column + 2])
+
+
+@njit(cache=True)
+def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
+    """(L, f_att · f_spot) for packed light j at the eye-space point P (FORMULAS §7–§9).
+
+    A directional light stores L itself (w = 0) and has f_att = f_spot = 1.
+    """
+    position = light_vec3(lights, j, LIGHT_POSITION)  # for a directional light: L itself
+    if lights[j, LIGHT_KIND] == LIGHT_DIRECTIONAL:
+        return position, 1.0
+    to_light = sub(position, P)
+    r = length(to_light)
+    L = normalize(to_light)
+    f_att = attenuation(lights[j, LIGHT_ATTENUATION], lights[j, LIGHT_ATTENUATION + 1],
+                        lights[j, LIGHT_ATTENUATION + 2], r)
+    f_spot = spot_factor(L, light_vec3(lights, j, LIGHT_SPOT_DIRECTION),
+                         lights[j, LIGHT_SPOT_COS_CUTOFF], lights[j, LIGHT_SPOT_EXPONENT])
+    return L, f_att * f_spot
+
+
+@njit(cache=True)
+def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global_ambient: Color,
+                    lights: np.ndarray, specular_model: int) -> Color:
+    """The OpenGL lighting equation, summed over all lights (FORMULAS §10).
+
+    I = ke + ka·I_a,global
+        + Σ_j f_att,j · f_spot,j · [ ka·I_a,j + B_j·( kd·I_d,j·(N·L_j) + ks·I_s,j·spec_j ) ]
+
+    with spec_j = (N·H_j)₊ⁿ for ``specular_model`` = BLINN_PHONG (0, OpenGL's) or
+    (R_j·V)₊ⁿ for PHONG (1).
+
+    Parameters
+    ----------
+    P, N, V
+        Eye-space point, unit normal (on the viewer's side) and unit vector to the eye.
+    material
+        A :class:`~softpipe.material.MaterialUniform`.
+    global_ambient
+        I_a,global.
+    lights
+        The packed eye-space lights, [num_lights, LIGHT_COLUMNS] float64.
+    specular_model
+        BLINN_PHONG or PHONG.
+    """
+    m = material
+    color = add(emission(m.ke), ambient(m.ka, global_ambient))
+    for j in range(lights.shape[0]):
+        L, f = light_at(P, lights, j)
+        Ia = light_vec3(lights, j, LIGHT_AMBIENT)
+        Id = light_vec3(lights, j, LIGHT_DIFFUSE)
+        Is = light_vec3(lights, j, LIGHT_SPECULAR)
+        if specular_model == PHONG:
+            specular = phong_specular(m.ks, Is, N, L, V, m.shininess)
+        else:
+            specular = blinn_phong_specular(m.ks, Is, N, L, V, m.shininess)
+        term = add(add(ambient(m.ka, Ia), lambert(m.kd, Id, N, L)), specular)
+        color = add(color, scale(term, f))
+    return color
+
+
+# --------------------------------------------------------------------------
+# Hall (§13, §14): the local terms
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def transmitted_half_vector(L: Vec3, V: Vec3, eta: float) -> Vec3:
+    """H′ = normalize((V + η·L)/(η − 1)) (FORMULAS §14), L toward the light.
+
+    η = η₂/η₁ with the view ray passing from medium η₁ (the viewer's side) into
+    η₂ (the far side, where the transmitted light comes from); for a viewer in
+    air and a glass surface η = 1.5. H′ is the normal of the microfacet that
+    refracts the light's ray (direction −L) into V, by Snell's law (§17): it
+    satisfies η₂·(−L)_tangential = η₁·V_tangential. It points to the light's side,
+    so the lobe is (−N·H′)₊ⁿ′. Such a facet exists only when the ray really
+    crosses it, (L·H′)(V·H′) < 0 — refraction bends a ray by at most 90° − θ_c;
+    :func:`hall_transmission` checks that.
+
+    **note:** FORMULAS §14 writes V − η·L; that is this formula with L the
+    direction the light *travels* (−L here). With L toward the light, as in the
+    notation of FORMULAS, the sign is +. η = 1 (no refraction) gives the zero vector.
+    """
+    if eta == 1.0:
+        return ZERO3
+    return normalize(scale(add(V, scale(L, eta)), 1.0 / (eta - 1.0)))
+
+
+@njit(cache=True)
+def hall_transmission(kt: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, eta: float, n_t: float) -> Color:
+    """Hall's specular transmission of a light: kt · I_s · (−N·H′)₊ⁿ′ (FORMULAS §13, §14).
+
+    Only for a light behind the surface (N·L < 0), the counterpart of B; none when
+    η = 1, and none when no facet can refract the light into V (the ray would have
+    to be bent further than Snell's law allows: (L·H′)(V·H′) ≥ 0).
+    """
+    if dot(N, L) >= 0.0 or eta == 1.0:
+        return ZERO3
+    Ht = transmitted_half_vector(L, V, eta)
+    if dot(L, Ht) * dot(V, Ht) >= 0.0:
+        return ZERO3
+    return scale(mul(kt, Is), positive_power(-dot(N, Ht), n_t))
+
+
+@njit(cache=True)
+def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global_ambient: Color,
+               lights: np.ndarray, eta: float) -> Color:
+    """The local terms of the Hall model (FORMULAS §13), summed over all lights.
+
+    I = ka·I_a
+        + Σ_j f_j·[ ks·I_s,j·B_j·(N·H_j)₊ⁿ          (specular reflection of lights)
+                  + kt·I_s,j·B′_j·(−N·H′_j)₊ⁿ′      (specular transmission, §14)
+                  + kd·I_d,j·B_j·(N·L_j) ]          (diffuse)
+
+    The material's RGB ks, kt, kd, ka are Hall's products k_s·F_s, k_t·F_t,
+    k_d·F_d and k_a·F_d (a coefficient times a color). I_a is the global ambient
+    plus each light's ambient (times f_j), as in §10; f_j = f_att·f_spot; B′_j = 1
+    for a light behind the surface (N·L_j < 0). η is as in
+    :func:`transmitted_half_vector` (``material.ior`` for a viewer in air); n′ is
+    ``material.transmission_shininess``. The reflected and transmitted rays
+    (k_r, k_t terms with T^d) belong to a ray tracer and are not included.
+    """
+    m = material
+    color = ambient(m.ka, global_ambient)
+    for j in range(lights.shape[0]):
+        L, f = light_at(P, lights, j)
+        Ia = light_vec3(lights, j, LIGHT_AMBIENT)
+        Id = light_vec3(lights, j, LIGHT_DIFFUSE)
+        Is = light_vec3(lights, j, LIGHT_SPECULAR)
+        reflected = add(blinn_phong_specular(m.ks, Is, N, L, V, m.shininess), lambert(m.kd, Id, N, L))
+        transmitted = hall_transmission(m.kt, Is, N, L, V, eta, m.transmission_shininess)
+        term = add(add(ambient(m.ka, Ia), reflected), transmitted)
+        color = add(color, scale(term, f))
+    return color
+
+
+# --------------------------------------------------------------------------
+# Fresnel (§20)
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def fresnel_rs_rp(cos_i: float, n1: float, n2: float) -> Tuple[float, float]:
+    """(R_s, R_p), the reflectances for s- and p-polarized light (FORMULAS §20).
+
+    Light in medium n1 meets medium n2 at incidence angle θ₁, cos θ₁ = ``cos_i``
+    (its sign is ignored). Beyond the critical angle (§19) both are 1.
+    """
+    c1 = min(abs(cos_i), 1.0)
+    sin2_t = (n1 / n2) ** 2 * (1.0 - c1 * c1)  # Snell (§17): sin θ₂ = (n1/n2) sin θ₁
+    if sin2_t >= 1.0:
+        return 1.0, 1.0
+    c2 = math.sqrt(1.0 - sin2_t)
+    # Both denominators are > 0 here: they vanish only when c1 = c2 = 0, i.e. sin2_t = 1.
+    rs = (n1 * c1 - n2 * c2) / (n1 * c1 + n2 * c2)
+    rp = (n1 * c2 - n2 * c1) / (n1 * c2 + n2 * c1)
+    return rs * rs, rp * rp
+
+
+@njit(cache=True)
+def fresnel(cos_i: float, n1: float, n2: float) -> float:
+    """F_R = (R_s + R_p)/2, the exact Fresnel reflectance of unpolarized light (FORMULAS §20).
+
+    F_T = 1 − F_R. ((n1 − n2)/(n1 + n2))² at normal incidence (0.04 for glass in
+    air), 1 beyond the critical angle.
+    """
+    rs, rp = fresnel_rs_rp(cos_i, n1, n2)
+    return 0.5 * (rs + rp)
+
+
+@njit(cache=True)
+def fresnel_schlick(cos_i: float, n1: float, n2: float) -> float:
+    """Schlick's *approximation* of F_R: R₀ + (1 − R₀)(1 − cos θ)⁵, R₀ = ((n1 − n2)/(n1 + n2))².
+
+    Labelled an approximation (FORMULAS §20 allows it). Going into a less dense
+    medium (n1 > n2) it uses the transmitted angle's cosine, and is 1 beyond the
+    critical angle, as the exact form.
+    """
+    r0 = ((n1 - n2) / (n1 + n2)) ** 2
+    c = min(abs(cos_i), 1.0)
+    if n1 > n2:
+        sin2_t = (n1 / n2) ** 2 * (1.0 - c * c)
+        if sin2_t >= 1.0:
+            return 1.0
+        c = math.sqrt(1.0 - sin2_t)
+    return r0 + (1.0 - r0) * (1.0 - c) ** 5
+
+
+# --------------------------------------------------------------------------
+# Cook-Torrance and Gooch (§26)
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def beckmann_d(n_dot_h: float, m: float) -> float:
+    """Beckmann's D = exp(−tan²α/m²)/(π m² cos⁴α), cos α = N·H (FORMULAS §26); 0 for N·H ≤ 0.
+
+    This D is normalized: ∫ D cos α dω = 1 over the hemisphere.
+    """
+    c2 = n_dot_h * n_dot_h
+    if n_dot_h <= 0.0 or c2 == 0.0:  # c2 underflows for N·H < 1e-154
+        return 0.0
+    tan2 = (1.0 - c2) / c2
+    e = math.exp(-tan2 / (m * m))
+    denominator = math.pi * m * m * c2 * c2
+    if e == 0.0 or denominator == 0.0:  # far out in the tail: D = 0, never 0/0
+        return 0.0
+    return e / denominator
+
+
+@njit(cache=True)
+def geometry_g(n_dot_h: float, n_dot_v: float, n_dot_l: float, v_dot_h: float) -> float:
+    """G = min(1, 2(N·H)(N·V)/(V·H), 2(N·H)(N·L)/(V·H)) (FORMULAS §26); 0 if V·H ≤ 0."""
+    if v_dot_h <= 0.0:  # only when L = −V: no reflection toward V
+        return 0.0
+    return min(1.0, 2.0 * n_dot_h * n_dot_v / v_dot_h, 2.0 * n_dot_h * n_dot_l / v_dot_h)
+
+
+@njit(cache=True)
+def cook_torrance(N: Vec3, L: Vec3, V: Vec3, m: float, n1: float, n2: float) -> float:
+    """The Cook-Torrance specular BRDF f_s = D·G·F / (π (N·L)(N·V)) (FORMULAS §26).
+
+    The chosen form, stated: the original paper's π in the denominator, with
+    FORMULAS §26's Beckmann D (which includes its own 1/π, :func:`beckmann_d`),
+    G as given (:func:`geometry_g`), and F the exact Fresnel reflectance (§20) at
+    cos θ = V·H from medium n1 (the viewer's) into n2 (the surface). Later texts
+    write 4 for π with the same D; their f_s is π/4 times this one.
+    0 when L or V is below the surface.
+    """
+    n_dot_l = dot(N, L)
+    n_dot_v = dot(N, V)
+    if n_dot_l <= 0.0 or n_dot_v <= 0.0:
+        return 0.0
+    H = half_vector(L, V)
+    n_dot_h = dot(N, H)
+    v_dot_h = dot(V, H)
+    D = beckmann_d(n_dot_h, m)
+    G = geometry_g(n_dot_h, n_dot_v, n_dot_l, v_dot_h)
+    F = fresnel(v_dot_h, n1, n2)
+    denominator = math.pi * n_dot_l * n_dot_v
+    if denominator == 0.0:  # the product underflowed at a grazing angle
+        return 0.0
+    return D * G * F / denominator
+
+
+@njit(cache=True)
+def cook_torrance_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform,
+                           global_ambient: Color, lights: np.ndarray) -> Color:
+    """§10 with Cook-Torrance in place of the Phong lobe, summed over all lights.
+
+    I = ke + ka·I_a,global
+        + Σ_j f_j·[ ka·I_a,j + B_j·(N·L_j)·( kd·I_d,j + ks·I_s,j·f_s,j ) ]
+
+    f_s from :func:`cook_torrance` with m = ``material.roughness``, F from air
+    (n1 = 1) into ``material.ior``: a material with ior = 1 has no specular term.
+    The diffuse term is §3's (no 1/π), so switching from §10 keeps its brightness.
+    """
+    mt = material
+    color = add(emission(mt.ke), ambient(mt.ka, global_ambient))
+    for j in range(lights.shape[0]):
+        L, f = light_at(P, lights, j)
+        Ia = light_vec3(lights, j, LIGHT_AMBIENT)
+        Id = light_vec3(lights, j, LIGHT_DIFFUSE)
+        Is = light_vec3(lights, j, LIGHT_SPECULAR)
+        term = ambient(mt.ka, Ia)
+        n_dot_l = dot(N, L)
+        if n_dot_l > 0.0:  # B_j = 1
+            f_s = cook_torrance(N, L, V, mt.roughness, 1.0, mt.ior)
+            lit = add(mul(mt.kd, Id), scale(mul(mt.ks, Is), f_s))
+            term = add(term, scale(lit, n_dot_l))
+        color = add(color, scale(term, f))
+    return color
+
+
+@njit(cache=True)
+def gooch(N: Vec3, L: Vec3, kd: Color, k_blue: Color, k_yellow: Color, alpha: float, beta: float) -> Color:
+    """Gooch's cool-to-warm shading (FORMULAS §26).
+
+    k_cool = k_blue + α·kd, k_warm = k_yellow + β·kd, t = (1 + N·L)/2,
+    I = t·k_warm + (1 − t)·k_cool: warm where N faces the light, cool away from it.
+    The paper's values: k_blue = (0, 0, 0.4), k_yellow = (0.4, 0.4, 0), α = 0.2, β = 0.6.
+    """
+    k_cool = add(k_blue, scale(kd, alpha))
+    k_warm = add(k_yellow, scale(kd, beta))
+    t = (1.0 + dot(N, L)) / 2.0
+    return add(scale(k_warm, t), scale(k_cool, 1.0 - t))
