@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Dict, Optional
 
+import numba
 import numpy as np
 
 from .shader import VaryingLayout
@@ -186,78 +187,167 @@ def _columns(layout: VaryingLayout, qualifier: str) -> np.ndarray:
     return np.array(cols, dtype=np.int64)
 
 
+ACCEPTED, NON_FINITE, OUTSIDE, CUT, CULLED = 0, 1, 2, 3, 4
+
+
+@numba.njit(cache=True)
+def _to_window(x, y, z, w, vp):
+    """Divide by w and apply the viewport (vp = x, y, width/2, height/2, near, (far − near)/2)."""
+    return (vp[0] + (x / w + 1.0) * vp[2],
+            vp[1] + (y / w + 1.0) * vp[3],
+            vp[4] + (z / w + 1.0) * vp[5])
+
+
+@numba.njit(cache=True)
+def _signed_area(ax, ay, bx, by, cx, cy):
+    return (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+
+
+@numba.njit(cache=True, parallel=True)
+def _classify(pos, tri, planes, vp, cull, ccw_front, status, front):
+    """Per input triangle: ACCEPTED, NON_FINITE, OUTSIDE, CUT or CULLED, and its facing."""
+    for t in numba.prange(tri.shape[0]):
+        finite = True
+        for c in range(3):
+            for k in range(4):
+                finite = finite and np.isfinite(pos[tri[t, c], k])
+        if not finite:
+            status[t] = NON_FINITE
+            continue
+        all_in, out_of_one = True, False
+        for p in range(planes.shape[0]):
+            n_out = 0
+            for c in range(3):
+                v = tri[t, c]
+                d = (planes[p, 0] * pos[v, 0] + planes[p, 1] * pos[v, 1] + planes[p, 2] * pos[v, 2]
+                     + planes[p, 3] * pos[v, 3] + planes[p, 4])
+                if d < 0:
+                    n_out += 1
+            all_in = all_in and n_out == 0
+            out_of_one = out_of_one or n_out == 3
+        if out_of_one:
+            status[t] = OUTSIDE
+        elif not all_in:
+            status[t] = CUT           # facing comes from the clipped polygon, later
+        else:
+            a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+            ax, ay, _ = _to_window(pos[a, 0], pos[a, 1], pos[a, 2], pos[a, 3], vp)
+            bx, by, _ = _to_window(pos[b, 0], pos[b, 1], pos[b, 2], pos[b, 3], vp)
+            cx, cy, _ = _to_window(pos[c, 0], pos[c, 1], pos[c, 2], pos[c, 3], vp)
+            area = _signed_area(ax, ay, bx, by, cx, cy)
+            front[t] = area > 0 if ccw_front else area < 0
+            status[t] = CULLED if (cull == 1 and not front[t]) or (cull == 2 and front[t]) else ACCEPTED
+
+
+@numba.njit(cache=True, parallel=True)
+def _emit_accepted(pos, var, tri, status, offset, vp, flat, window, inv_w, out_var, key):
+    """Write the accepted triangles at their output rows (primitive order kept by ``offset``)."""
+    for t in numba.prange(tri.shape[0]):
+        if status[t] != ACCEPTED:
+            continue
+        o = offset[t]
+        key[o] = t
+        for c in range(3):
+            v = tri[t, c]
+            x, y, z = _to_window(pos[v, 0], pos[v, 1], pos[v, 2], pos[v, 3], vp)
+            window[o, c, 0], window[o, c, 1], window[o, c, 2] = x, y, z
+            inv_w[o, c] = 1.0 / pos[v, 3]
+            for k in range(var.shape[1]):
+                out_var[o, c, k] = var[v, k]
+            for k in flat:                       # the provoking (last) vertex's value on every corner
+                out_var[o, c, k] = var[tri[t, 2], k]
+
+
+@numba.njit(cache=True)
+def _windows_of(clip, vp):
+    out = np.empty((clip.shape[0], 3))
+    for n in range(clip.shape[0]):
+        out[n, 0], out[n, 1], out[n, 2] = _to_window(clip[n, 0], clip[n, 1], clip[n, 2], clip[n, 3], vp)
+    return out
+
+
+def _viewport_params(viewport: Viewport) -> np.ndarray:
+    return np.array([viewport.x, viewport.y, viewport.width / 2, viewport.height / 2, viewport.near,
+                     (viewport.far - viewport.near) / 2], dtype=np.float64)
+
+
+def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status):
+    """Clip the triangles that cross a plane; returns {t: (window [n,3,3], inv_w [n,3], var [n,3,K], front)}."""
+    flat, nopersp = _columns(layout, "flat"), _columns(layout, "noperspective")
+    pieces = {}
+    for t in cut_ids:
+        corners = vout.position[tri[t]]
+        cvar = vout.varyings[tri[t]].copy()
+        if len(flat):
+            cvar[:, flat] = cvar[2, flat]
+        ppos, pvar = _clip_polygon(list(corners), list(cvar), planes, nopersp)
+        if len(ppos) < 3:
+            status[t] = OUTSIDE
+            continue
+        fan = [(0, k, k + 1) for k in range(1, len(ppos) - 1)]
+        clip = np.array([[ppos[i] for i in f] for f in fan])                 # [n, 3, 4]
+        win = _windows_of(clip.reshape(-1, 4), vp).reshape(-1, 3, 3)
+        total = sum(_signed_area(*w[0, :2], *w[1, :2], *w[2, :2]) for w in win)
+        front = total > 0 if ccw_front else total < 0
+        if (cull == 1 and not front) or (cull == 2 and front):
+            status[t] = CULLED
+            continue
+        pieces[int(t)] = (win, 1.0 / clip[:, :, 3], np.array([[pvar[i] for i in f] for f in fan]), front)
+    return pieces
+
+
 def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
-             viewport: Viewport, cull: str = "none", front_face: str = "ccw") -> Primitives:
-    """Primitive assembly: see the module docstring for the steps and their order."""
+             viewport: Viewport, cull: str = "none", front_face: str = "ccw",
+             keep_culled: bool = True) -> Primitives:
+    """Primitive assembly: see the module docstring for the steps and their order.
+
+    ``keep_culled`` keeps the window coordinates of culled triangles (for pictures).
+    """
     if cull not in CULL_MODES:
         raise ValueError(f"cull must be one of {CULL_MODES}, got {cull!r}")
     if front_face not in FRONT_FACES:
         raise ValueError(f"front_face must be one of {FRONT_FACES}, got {front_face!r}")
     tri = triangle_indices(topology, indices, len(vout.position))
-    layout = vout.layout
-    pos = vout.position[tri]                      # [T, 3, 4]
-    var = vout.varyings[tri]                      # [T, 3, K]
-    flat = _columns(layout, "flat")
-    if len(flat):
-        var[:, :, flat] = var[:, 2:3, flat]       # the provoking vertex's value on every corner
-    ids = np.arange(len(tri), dtype=np.int64)
-    dropped: Dict[str, np.ndarray] = {}
+    layout, n = vout.layout, len(tri)
+    planes, vp = _planes(viewport), _viewport_params(viewport)
+    cull_code, ccw_front = CULL_MODES.index(cull), front_face == "ccw"
+    status = np.empty(n, np.int8)
+    front = np.zeros(n, bool)
+    if n:
+        _classify(vout.position, tri, planes, vp, cull_code, ccw_front, status, front)
+    pieces = _clip_cut(vout, tri, np.nonzero(status == CUT)[0], planes, vp, layout, cull_code, ccw_front, status)
 
-    finite = np.isfinite(pos).all(axis=(1, 2))
-    dropped["non-finite"] = ids[~finite]
+    counts = (status == ACCEPTED).astype(np.int64)
+    for t, (win, _, _, f) in pieces.items():
+        counts[t] = len(win)
+        front[t] = f
+    offset = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=offset[1:])
+    total = int(offset[-1])
+    k = layout.width
+    window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
+    out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
+    if n:
+        _emit_accepted(vout.position, vout.varyings, tri, status, offset, vp, _columns(layout, "flat"),
+                       window, inv_w, out_var, key)
+    clipped = np.zeros(total, bool)
+    for t, (win, iw, pv, _) in pieces.items():
+        rows = slice(offset[t], offset[t] + len(win))
+        window[rows], inv_w[rows], out_var[rows], key[rows], clipped[rows] = win, iw, pv, t, True
 
-    planes = _planes(viewport)
-    dist = pos @ planes[:, :4].T + planes[:, 4]   # [T, 3, planes]
-    inside = dist >= 0
-    accept = finite & inside.all(axis=(1, 2))
-    reject = ~finite | (~inside).all(axis=1).any(axis=1)
-    cut = ~accept & ~reject
-
-    out_pos, out_var, out_key = [pos[accept]], [var[accept]], [ids[accept]]
-    nopersp = _columns(layout, "noperspective")
-    outside = list(ids[reject & finite])
-    for t in ids[cut]:
-        ppos, pvar = _clip_polygon(list(pos[t]), list(var[t]), planes, nopersp)
-        if len(ppos) < 3:
-            outside.append(t)
-            continue
-        for k in range(1, len(ppos) - 1):
-            out_pos.append(np.stack([ppos[0], ppos[k], ppos[k + 1]])[None])
-            out_var.append(np.stack([pvar[0], pvar[k], pvar[k + 1]])[None])
-            out_key.append(np.array([t]))
-    dropped["outside"] = np.array(sorted(outside), dtype=np.int64)
-
-    key = np.concatenate(out_key)
-    order = np.argsort(key, kind="stable")       # pieces stay where their triangle was
-    key = key[order]
-    cpos = np.concatenate(out_pos)[order]
-    cvar = np.concatenate(out_var)[order]
-    clipped = np.isin(key, ids[cut])
-
-    w = cpos[:, :, 3]
-    ndc = cpos[:, :, :3] / w[:, :, None]
-    window = viewport.apply(ndc.reshape(-1, 3)).reshape(-1, 3, 3)
-    front = _front_facing(window, key, len(tri), front_face)
-
-    keep = np.ones(len(key), dtype=bool)
-    if cull == "back":
-        keep = front
-    elif cull == "front":
-        keep = ~front
-    dropped["culled"] = np.unique(key[~keep])
-    return Primitives(window=window[keep], inv_w=(1.0 / w)[keep], varyings=cvar[keep], layout=layout,
-                      primitive_id=key[keep], front_facing=front[keep], clipped=clipped[keep],
-                      dropped=dropped, input_count=len(tri), culled_window=window[~keep])
+    ids = np.arange(n, dtype=np.int64)
+    dropped = {"non-finite": ids[status == NON_FINITE], "outside": ids[status == OUTSIDE],
+               "culled": ids[status == CULLED]}
+    culled_window = np.zeros((0, 3, 3))
+    if keep_culled and len(dropped["culled"]):
+        culled_window = _culled_windows(vout, tri, dropped["culled"], vp)
+    return Primitives(window=window, inv_w=inv_w, varyings=out_var, layout=layout, primitive_id=key,
+                      front_facing=front[key], clipped=clipped, dropped=dropped, input_count=n,
+                      culled_window=culled_window)
 
 
-def _front_facing(window: np.ndarray, key: np.ndarray, n_input: int, front_face: str) -> np.ndarray:
-    """Facing from the signed window-space area of each input triangle (y up).
-
-    A clipped triangle's pieces add up to its clipped polygon, so every piece
-    gets the polygon's facing (a thin piece cannot flip on rounding).
-    """
-    x, y = window[:, :, 0], window[:, :, 1]
-    area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
-    total = np.bincount(key, weights=area, minlength=n_input)[key] if len(key) else area
-    ccw = total > 0
-    return ccw if front_face == "ccw" else (total < 0)
+def _culled_windows(vout, tri, culled, vp) -> np.ndarray:
+    """Window coordinates of culled triangles whose corners are all in front of the eye."""
+    corners = vout.position[tri[culled]]
+    corners = corners[(corners[:, :, 3] > W_MIN).all(axis=1)]
+    return _windows_of(corners.reshape(-1, 4), vp).reshape(-1, 3, 3)

@@ -160,3 +160,21 @@ def _probe(shader, frags, prims, uniforms, fx, fy) -> None:
     frag = FragInfo(float(fx[0]), float(fy[0]), float(frags.depth[0]), bool(prims.front_facing[t]),
                     int(prims.primitive_id[t]))
     _shader.probe_fragment_shader(shader, V(*args), uniforms, frag)
+
+
+def shade_visible(prims: Primitives, vis, edges, plane, fb, fragment_shader: Optional[Callable], uniforms) -> None:
+    """The fast path's shading: run the shader on the samples in ``vis`` (see softpipe.visibility)."""
+    import numba
+
+    from .visibility import in_bands
+    shader = fragment_shader or default_fragment_shader(prims.layout)
+    kernel = _shader.visible_kernel(shader, prims.layout)
+    pattern = fb.pattern
+    args = (vis, edges, plane, pattern.offsets, pattern.positions, prims.inv_w, prims.varyings, prims.front_facing,
+            prims.primitive_id, _gradients(shader, prims), uniforms, fb.samples_color)
+    try:
+        kernel(0, 0, *args)      # compile (or load) once, in this thread, where errors are reported clearly
+    except (numba.core.errors.TypingError, numba.core.errors.LoweringError,
+            numba.core.errors.UnsupportedError) as e:
+        raise _shader._describe_compile_error("fragment", shader, e) from None
+    in_bands(kernel, fb.height, numba.get_num_threads(), *args)

@@ -30,15 +30,21 @@ import numpy as np
 from .assembly import assemble
 from .fragment import run_fragment_stage
 from .framebuffer import Framebuffer
-from .output import MergeState, merge
+from .fragment import shade_visible
+from .output import DEPTH_FUNCS, MergeState, merge
 from .raster import SHADING_POSITIONS, count_fragments, rasterize
-from .shader import make_uniforms
+from .shader import make_uniforms, may_discard
 from .transforms import Viewport
 from .vertex import run_vertex_stage
+from .visibility import visibility_pass
 
 __all__ = ["draw", "DrawCall", "Stage", "MAX_FRAGMENTS_PER_BATCH", "STAGES"]
 
 MAX_FRAGMENTS_PER_BATCH = 1 << 22
+#: path="auto" takes the fast path from this many framebuffer samples on
+#: (small draws, such as most tests, keep to the reference path and its compile costs).
+FAST_PATH_MIN_SAMPLES = 128 * 128
+PATHS = ("auto", "reference", "fast")
 STAGES = ("vertex", "assembly", "raster", "fragment", "output")
 
 
@@ -89,7 +95,8 @@ class DrawCall:
                  attributes: Optional[Mapping[str, Any]] = None, topology: str = "triangles",
                  interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
                  depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
-                 front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample"):
+                 front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
+                 path: str = "auto"):
         if not isinstance(framebuffer, Framebuffer):
             raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
         viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
@@ -104,6 +111,9 @@ class DrawCall:
         if sample_shading not in SHADING_POSITIONS:
             raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {sample_shading!r}")
         self.sample_shading = sample_shading
+        if path not in PATHS:
+            raise ValueError(f"path must be one of {PATHS}, got {path!r}")
+        self.path = path
         #: seconds spent in each stage by the last run: vertex, assembly, setup, raster, fragment, output
         self.timings: dict = {}
 
@@ -158,12 +168,53 @@ class DrawCall:
 
     def run(self, trace: bool = False):
         """Run every stage; returns a :class:`~softpipe.trace.Trace` if ``trace``, else None."""
-        if not trace:
-            for _ in self.steps():
-                pass
+        if trace:
+            from .trace import Trace
+            return Trace.record(self)
+        if self.uses_fast_path():
+            self._run_fast()
             return None
-        from .trace import Trace
-        return Trace.record(self)
+        for _ in self.steps():
+            pass
+        return None
+
+    def fast_path_blocker(self) -> Optional[str]:
+        """Why this draw cannot take the visibility fast path, or None if it can."""
+        if self.state.blend is not None:
+            return "blending is on (the result depends on every fragment, not only the last)"
+        if self.sample_shading != "sample":
+            return f"sample_shading={self.sample_shading!r} (multisampling shades per pixel run)"
+        if self.fragment_shader is not None and may_discard(self.fragment_shader):
+            return "the fragment shader may return DISCARD"
+        return None
+
+    def uses_fast_path(self) -> bool:
+        """Does :meth:`run` (without a trace) take the fast path? See :mod:`softpipe.visibility`."""
+        if self.path == "reference":
+            return False
+        blocker = self.fast_path_blocker()
+        if self.path == "fast":
+            if blocker:
+                raise ValueError(f"path='fast' is not possible for this draw: {blocker}")
+            return True
+        fb = self.framebuffer
+        return blocker is None and fb.width * fb.height * fb.samples >= FAST_PATH_MIN_SAMPLES
+
+    def _run_fast(self) -> None:
+        fb = self.framebuffer
+        clock = self._clock()
+        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
+        vout.layout = vout.layout.with_qualifiers(self.interpolation)
+        clock("vertex")
+        prims = assemble(vout, self.topology, self.indices, viewport=self.viewport, cull=self.cull,
+                         front_face=self.front_face, keep_culled=False)
+        clock("assembly")
+        func = -1 if self.state.depth_test is None else DEPTH_FUNCS.index(self.state.depth_test)
+        vis, edges, plane = visibility_pass(prims, fb, func, bool(self.state.depth_write) and func >= 0)
+        clock("raster")
+        if len(prims):
+            shade_visible(prims, vis, edges, plane, fb, self.fragment_shader, self.uniforms)
+        clock("fragment")
 
     @staticmethod
     def _emit(stage: Stage, debug: set) -> Stage:
@@ -209,6 +260,13 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         With a multisample framebuffer: shade every sample (supersampling, the
         default), or once per pixel and primitive at the pixel centre or at the
         centroid of its covered samples (multisampling).
+    path : "auto" | "reference" | "fast"
+        "reference" rasterizes, shades and merges every fragment in order;
+        "fast" finds the visible samples first and shades only those
+        (:mod:`softpipe.visibility`; not for blending, discard or
+        multisampling); "auto" (default) takes the fast path when it can and
+        the framebuffer has at least FAST_PATH_MIN_SAMPLES samples. Both give
+        the same bytes.
 
     Returns
     -------

@@ -18,7 +18,9 @@ later stage. The rules are OpenGL's, as Mesa implements them (DESIGN.md):
    coordinates (y up). Two triangles sharing an edge never both cover, and never
    both miss, a sample on it.
 4. **Depth** is interpolated linearly in window space at the sample:
-   ``z = b_0 z_0 + b_1 z_1 + b_2 z_2``.
+   ``z = b_0 z_0 + b_1 z_1 + b_2 z_2``, evaluated as
+   ``z_0 + (E_1 (z_1 − z_0) + E_2 (z_2 − z_0)) / area`` so that a fast path
+   stepping the integer E's along a row computes the very same float.
 
 The one y flip of softpipe happens here, when a fragment is emitted: window row
 ``y`` (y up) becomes image row ``height − 1 − y`` (row 0 at the top).
@@ -166,7 +168,7 @@ def _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s
     oy_lo, oy_hi = offsets[:, 1].min(), offsets[:, 1].max()
     i_first, i_last = _box(x0, x1, x2, ox_lo, ox_hi, width)
     j_first, j_last = _box(y0, y1, y2, oy_lo, oy_hi, height)
-    z0, z1, z2 = window[t, 0, 2], window[t, 1, 2], window[t, 2, 2]
+    z0, dz1, dz2 = window[t, 0, 2], window[t, 1, 2] - window[t, 0, 2], window[t, 2, 2] - window[t, 0, 2]
     inv_area = 1.0 / area
     n = 0
     for j in range(j_first, j_last + 1):
@@ -203,7 +205,7 @@ def _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s
                 out_x[k] = i
                 out_y[k] = height - 1 - j   # the y flip: window row → image row
                 out_s[k] = s
-                z = w0 * z0 + w1 * z1 + w2 * z2
+                z = z0 + (e1 * dz1 + e2 * dz2) * inv_area     # = b0 z0 + b1 z1 + b2 z2
                 out_depth[k] = min(max(z, 0.0), 1.0)
                 if mode != SHADE_SAMPLE:
                     w0, w1, w2 = c0 * inv_area, c1 * inv_area, c2 * inv_area

@@ -63,6 +63,8 @@ from typing import Any, Callable, Dict, Mapping, NamedTuple, Sequence, Tuple
 import numba
 import numpy as np
 
+from .sampling import SUBPIXEL
+
 __all__ = ["FragInfo", "DISCARD", "ShaderError", "make_uniforms", "VaryingLayout", "QUALIFIERS"]
 
 #: The fragment's fixed-function inputs (``gl_FragCoord`` and friends).
@@ -414,7 +416,9 @@ def vertex_kernel(shader: Callable, attr_sizes: Sequence[Tuple[str, int]], out_l
     return module.vertex_loop
 
 
-_FRAGMENT_ARGS = "triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, bary_grad"
+_TRIANGLE_ARGS = "inv_w, corner, front, prim_id, bary_grad"
+_FRAGMENT_ARGS = "triangle, frag_x, frag_y, depth, bary, " + _TRIANGLE_ARGS
+SUBPIXEL_UNITS = SUBPIXEL
 
 #: The 4th argument of a fragment shader that asks for it: ``derivatives.dx.uv`` is ∂uv/∂x.
 Derivatives = namedtuple("Derivatives", ["dx", "dy"])
@@ -461,12 +465,8 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
     """Source of ``fragment_inputs`` (interpolation) and ``fragment_loop`` (runs the shader)."""
     lines = [
         "@JIT",
-        f"def fragment_inputs(i, {_FRAGMENT_ARGS}):",
-        '    """The varyings and FragInfo of fragment i, exactly as the shader receives them."""',
-        "    t = triangle[i]",
-        "    b0 = bary[i, 0]",
-        "    b1 = bary[i, 1]",
-        "    b2 = bary[i, 2]",
+        f"def interpolate(t, b0, b1, b2, fx, fy, z, {_TRIANGLE_ARGS}):",
+        '    """The varyings and FragInfo at barycentrics (b0, b1, b2) of triangle t."""',
     ]
     if any(q == "smooth" for *_, q in layout.fields):
         lines += [
@@ -493,7 +493,7 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         exprs.append(f"v_{n}")
     lines += [
         f"    varyings = Varyings({', '.join(exprs) or '0.0'})",
-        "    frag = FragInfo(frag_x[i], frag_y[i], depth[i], front[t], prim_id[t])",
+        "    frag = FragInfo(fx, fy, z, front[t], prim_id[t])",
     ]
     if derivatives:
         if not any(q == "smooth" for *_, q in layout.fields):
@@ -503,18 +503,59 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
     else:
         lines.append("    return varyings, frag")
     inputs = "varyings, frag, derivatives" if derivatives else "varyings, frag"
+    call = f"shader({inputs.replace('varyings, frag', 'varyings, uniforms, frag')})"
     lines += [
+        "",
+        "",
+        "@JIT",
+        f"def fragment_inputs(i, {_FRAGMENT_ARGS}):",
+        '    """The varyings and FragInfo of fragment i, exactly as the shader receives them."""',
+        "    return interpolate(triangle[i], bary[i, 0], bary[i, 1], bary[i, 2], frag_x[i], frag_y[i], depth[i],",
+        f"                       {_TRIANGLE_ARGS})",
         "",
         "",
         "@JIT",
         f"def fragment_loop({_FRAGMENT_ARGS}, uniforms, out_color):",
         "    for i in range(triangle.shape[0]):",
         f"        {inputs} = fragment_inputs(i, {_FRAGMENT_ARGS})",
-        f"        c = shader({inputs.replace('varyings, frag', 'varyings, uniforms, frag')})",
+        f"        c = {call}",
         "        out_color[i, 0] = c[0]",
         "        out_color[i, 1] = c[1]",
         "        out_color[i, 2] = c[2]",
         "        out_color[i, 3] = c[3]",
+        "",
+        "",
+        "@JIT",
+        f"def visible_loop(row_lo, row_hi, vis, edges, plane, offsets, positions, {_TRIANGLE_ARGS}, uniforms,",
+        "                 out_color):",
+        '    """Shade the samples the visibility pass kept (visibility.py), rows row_lo:row_hi.',
+        "",
+        "    Barycentrics, depth and position are recomputed exactly as the rasterizer computes them.",
+        '    """',
+        "    height, width, samples = vis.shape[0], vis.shape[1], vis.shape[2]",
+        "    for row in range(row_lo, row_hi):",
+        "        j = height - 1 - row",
+        "        for i in range(width):",
+        "            for s in range(samples):",
+        "                t = vis[row, i, s]",
+        "                if t < 0:",
+        "                    continue",
+        f"                px = i * {SUBPIXEL_UNITS} + offsets[s, 0]",
+        f"                py = j * {SUBPIXEL_UNITS} + offsets[s, 1]",
+        "                e0 = edges[t, 0, 0] * px + edges[t, 0, 1] * py + edges[t, 0, 2]",
+        "                e1 = edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2]",
+        "                e2 = edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2]",
+        "                inv_area = plane[t, 3]",
+        "                z = plane[t, 0] + (e1 * plane[t, 1] + e2 * plane[t, 2]) * inv_area",
+        "                z = min(max(z, 0.0), 1.0)",
+        f"                {inputs} = interpolate(t, e0 * inv_area, e1 * inv_area, e2 * inv_area,",
+        "                                       i + positions[s, 0], j + positions[s, 1], z,",
+        f"                                       {_TRIANGLE_ARGS})",
+        f"                c = {call}",
+        "                out_color[row, i, s, 0] = c[0]",
+        "                out_color[row, i, s, 1] = c[1]",
+        "                out_color[row, i, s, 2] = c[2]",
+        "                out_color[row, i, s, 3] = c[3]",
     ]
     return "\n".join(lines) + "\n"
 
@@ -547,6 +588,33 @@ def _fragment_module(shader: Callable, layout: VaryingLayout, derivatives: bool)
 def fragment_kernel(shader: Callable, layout: VaryingLayout):
     """The compiled loop that interpolates varyings and runs ``shader`` per fragment."""
     return fragment_module(shader, layout).fragment_loop
+
+
+def visible_kernel(shader: Callable, layout: VaryingLayout):
+    """The compiled loop that shades the samples a visibility pass kept (softpipe.visibility)."""
+    return fragment_module(shader, layout).visible_loop
+
+
+def may_discard(shader: Callable, _seen=None) -> bool:
+    """Does the shader (or a Python function it calls) name ``DISCARD``? Decides the fast path.
+
+    A shader that discards must say so by returning softpipe.DISCARD; this
+    looks for that name in its code and, recursively, in the functions it calls.
+    """
+    seen = set() if _seen is None else _seen
+    f = python_function(shader)
+    code = getattr(f, "__code__", None)
+    if code is None or code in seen:
+        return False
+    seen.add(code)
+    names = set(code.co_names)
+    for const in code.co_consts:          # nested functions and lambdas
+        if hasattr(const, "co_names"):
+            names |= set(const.co_names)
+    if "DISCARD" in names:
+        return True
+    glob = getattr(f, "__globals__", {})
+    return any(callable(glob.get(n)) and may_discard(glob[n], seen) for n in names if n in glob)
 
 
 def python_fragment_module(shader: Callable, layout: VaryingLayout):

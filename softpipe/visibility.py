@@ -1,0 +1,202 @@
+"""The fast path: tiled rasterization with early depth, then shading of the visible samples only.
+
+For a draw whose result depends only on which fragment is written last at
+each sample (no blending, no discard, per-sample shading), the pipeline can
+skip shading every fragment:
+
+1. **Setup** (:func:`setup_triangles`): each triangle's snapped edge functions
+   as ``E_k(p) = A_k·p_x + B_k·p_y + C_k`` (oriented, exact int64), its fill-rule
+   biases, depth plane and pixel bounding box — the same numbers the reference
+   rasterizer (``raster.py``) computes.
+2. **Binning** (:func:`bin_triangles`): each 64×64 tile gets the list of
+   triangles whose box touches it, in primitive order.
+3. **Visibility** (:func:`raster_tiles`): tiles run in parallel; inside a tile,
+   triangles in order; each row's covered span comes from solving the three
+   edge inequalities exactly in integers, then the depth test runs per sample
+   and the visibility buffer keeps the last triangle that passed. Depth is
+   computed by the same expression as in the reference rasterizer, so the
+   depth buffer is identical.
+4. **Shading** (``shader.visible_kernel``): the fragment shader runs once per
+   sample whose visibility entry is set, with the barycentrics, depth and
+   window position recomputed exactly as the reference path computes them.
+
+The result is the same bytes as the reference path (rasterize every fragment,
+shade it, merge in order), because there the final color of a sample is the
+shader's output for the last fragment that passed the depth test. Tests hold
+the two paths to identical color and depth.
+"""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+from numba import prange
+
+from .output import depth_passes
+from .raster import snap
+from .sampling import SUBPIXEL
+
+__all__ = ["TILE", "setup_triangles", "bin_triangles", "raster_tiles", "visibility_pass"]
+
+TILE = 64
+
+
+@numba.njit(cache=True, parallel=True)
+def setup_triangles(window, width, height, offsets, edges, bias, plane, box):
+    """Per triangle: oriented edge coefficients [T, 3, 3] (A, B, C), biases [T, 3],
+    depth plane [T, 4] (z0, z1 − z0, z2 − z0, 1/area) and pixel box [T, 4]
+    (i0, i1, j0, j1; empty when i0 > i1)."""
+    ox_lo, ox_hi = offsets[:, 0].min(), offsets[:, 0].max()
+    oy_lo, oy_hi = offsets[:, 1].min(), offsets[:, 1].max()
+    for t in prange(window.shape[0]):
+        x = (snap(window[t, 0, 0]), snap(window[t, 1, 0]), snap(window[t, 2, 0]))
+        y = (snap(window[t, 0, 1]), snap(window[t, 1, 1]), snap(window[t, 2, 1]))
+        area = (x[1] - x[0]) * (y[2] - y[0]) - (y[1] - y[0]) * (x[2] - x[0])
+        sign = np.int64(1) if area > 0 else np.int64(-1)
+        for k in range(3):
+            a, b = (k + 1) % 3, (k + 2) % 3            # edge a→b, opposite corner k
+            dx, dy = sign * (x[b] - x[a]), sign * (y[b] - y[a])
+            edges[t, k, 0] = -dy
+            edges[t, k, 1] = dx
+            edges[t, k, 2] = dy * x[a] - dx * y[a]
+            bias[t, k] = 0 if (dy < 0 or (dy == 0 and dx > 0)) else -1
+        z0 = window[t, 0, 2]
+        plane[t, 0] = z0
+        plane[t, 1] = window[t, 1, 2] - z0
+        plane[t, 2] = window[t, 2, 2] - z0
+        plane[t, 3] = 1.0 / (area * sign) if area != 0 else 0.0
+        if area == 0:
+            box[t, 0], box[t, 1], box[t, 2], box[t, 3] = 1, 0, 1, 0
+            continue
+        lo_x, hi_x = min(x[0], x[1], x[2]) - ox_hi, max(x[0], x[1], x[2]) - ox_lo
+        lo_y, hi_y = min(y[0], y[1], y[2]) - oy_hi, max(y[0], y[1], y[2]) - oy_lo
+        box[t, 0] = max(-((-lo_x) // SUBPIXEL), 0)
+        box[t, 1] = min(hi_x // SUBPIXEL, width - 1)
+        box[t, 2] = max(-((-lo_y) // SUBPIXEL), 0)
+        box[t, 3] = min(hi_y // SUBPIXEL, height - 1)
+
+
+@numba.njit(cache=True)
+def bin_triangles(box, tiles_x, tiles_y):
+    """Triangles per tile, in primitive order: (starts [tiles + 1], items)."""
+    n_tiles = tiles_x * tiles_y
+    counts = np.zeros(n_tiles + 1, np.int64)
+    for t in range(box.shape[0]):
+        if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
+            continue
+        for ty in range(box[t, 2] // TILE, box[t, 3] // TILE + 1):
+            for tx in range(box[t, 0] // TILE, box[t, 1] // TILE + 1):
+                counts[ty * tiles_x + tx + 1] += 1
+    starts = np.cumsum(counts)
+    items = np.empty(starts[-1], np.int32)
+    fill = starts[:-1].copy()
+    for t in range(box.shape[0]):
+        if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
+            continue
+        for ty in range(box[t, 2] // TILE, box[t, 3] // TILE + 1):
+            for tx in range(box[t, 0] // TILE, box[t, 1] // TILE + 1):
+                tile = ty * tiles_x + tx
+                items[fill[tile]] = t
+                fill[tile] += 1
+    return starts, items
+
+
+@numba.njit(cache=True)
+def _span(edges, bias, t, px0, py, i_lo, i_hi):
+    """The pixels i in [i_lo, i_hi] whose sample (256·i + px0, py) every edge covers.
+
+    E_k = A·(256 i + px0) + B·py + C + bias ≥ 0 is linear in i; each edge bounds i
+    from one side, solved exactly with floor division.
+    """
+    for k in range(3):
+        a = edges[t, k, 0] * SUBPIXEL
+        r = edges[t, k, 0] * px0 + edges[t, k, 1] * py + edges[t, k, 2] + bias[t, k]   # E at i = 0
+        if a > 0:                      # r + a·i ≥ 0  ⇔  i ≥ ceil(−r / a)
+            i_lo = max(i_lo, -(r // a))
+        elif a < 0:                    # i ≤ floor(r / −a)
+            i_hi = min(i_hi, r // (-a))
+        elif r < 0:
+            return 1, 0
+    return i_lo, i_hi
+
+
+@numba.njit(cache=True, parallel=True)
+def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
+                 depth, vis):
+    """The visibility pass over all tiles (parallel); see the module docstring."""
+    n_tiles = starts.shape[0] - 1
+    for tile in prange(n_tiles):
+        tx, ty = tile % tiles_x, tile // tiles_x
+        x_lo, x_hi = tx * TILE, min(tx * TILE + TILE, width) - 1
+        y_lo, y_hi = ty * TILE, min(ty * TILE + TILE, height) - 1
+        for k in range(starts[tile], starts[tile + 1]):
+            t = items[k]
+            i0, i1 = max(box[t, 0], x_lo), min(box[t, 1], x_hi)
+            j0, j1 = max(box[t, 2], y_lo), min(box[t, 3], y_hi)
+            z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
+            a1, a2 = edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
+            for s in range(offsets.shape[0]):
+                ox, oy = offsets[s, 0], offsets[s, 1]
+                for j in range(j0, j1 + 1):
+                    py = j * SUBPIXEL + oy
+                    lo, hi = _span(edges, bias, t, ox, py, i0, i1)
+                    if lo > hi:
+                        continue
+                    px = lo * SUBPIXEL + ox
+                    e1 = edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2]
+                    e2 = edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2]
+                    row = height - 1 - j
+                    for i in range(lo, hi + 1):
+                        z = z0 + (e1 * dz1 + e2 * dz2) * inv_area     # = the reference's depth
+                        z = np.float32(min(max(z, 0.0), 1.0))
+                        if depth_passes(func, z, depth[row, i, s]):
+                            if depth_write:
+                                depth[row, i, s] = z
+                            vis[row, i, s] = t
+                        e1 += a1
+                        e2 += a2
+
+
+def visibility_pass(prims, fb, func: int, depth_write: bool):
+    """Setup, binning and the tiled visibility pass; returns (vis, edges, plane) for shading.
+
+    ``vis`` is int32 [H, W, S]: the triangle whose fragment was written last at
+    each sample by this draw, or −1. The framebuffer's depth is updated.
+    """
+    w, h, offsets = fb.width, fb.height, fb.pattern.offsets
+    n = len(prims)
+    edges = np.empty((n, 3, 3), np.int64)
+    bias = np.empty((n, 3), np.int64)
+    plane = np.empty((n, 4), np.float64)
+    box = np.empty((n, 4), np.int64)
+    vis = np.full((h, w, len(offsets)), -1, np.int32)
+    if n == 0:
+        return vis, edges, plane
+    setup_triangles(prims.window, w, h, offsets, edges, bias, plane, box)
+    tiles_x, tiles_y = -(-w // TILE), -(-h // TILE)
+    starts, items = bin_triangles(box, tiles_x, tiles_y)
+    previous = numba.get_parallel_chunksize()
+    numba.set_parallel_chunksize(1)     # tiles differ in work: hand them out one at a time
+    try:
+        raster_tiles(edges, bias, plane, box, starts, items, tiles_x, w, h, offsets, func, depth_write,
+                     fb.samples_depth, vis)
+    finally:
+        numba.set_parallel_chunksize(previous)
+    return vis, edges, plane
+
+
+def in_bands(kernel, height: int, threads: int, *args) -> None:
+    """Run a nogil row kernel ``kernel(row_lo, row_hi, *args)`` over the rows in parallel bands.
+
+    Python threads rather than a numba ``prange``: the kernel is compiled per
+    shader, and a parallel kernel costs seconds to compile; bands of rows are
+    disjoint, so the result does not depend on the thread count.
+    """
+    threads = max(1, min(threads, height))
+    if threads == 1:
+        kernel(0, height, *args)
+        return
+    bounds = np.linspace(0, height, threads * 4 + 1).astype(int)
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda k: kernel(bounds[k], bounds[k + 1], *args), range(len(bounds) - 1)))

@@ -1,0 +1,312 @@
+"""Bad input to softpipe.draw and softpipe.Framebuffer: the right exception, with a message that
+names the argument and says what was expected."""
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import softpipe
+from softpipe import ShaderError
+from softpipe.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
+
+TRI = np.array([[-1.0, -1.0, 0.0, 1.0], [1.0, -1.0, 0.0, 1.0], [-1.0, 1.0, 0.0, 1.0]])
+RGB = {"color": np.ones((3, 3))}
+
+
+def draw(positions=TRI, indices=None, varyings=RGB, **kw):
+    softpipe.draw(softpipe.Framebuffer(4, 4), positions, indices, varyings, **kw)
+
+
+# ---------------------------------------------------------------- positions
+
+def test_positions_with_three_columns_and_no_vertex_shader():
+    with pytest.raises(ValueError, match=r"positions must have shape \[N, 4\], got \[3, 3\]"):
+        draw(TRI[:, :3])
+
+
+def test_positions_one_dimensional():
+    with pytest.raises(ValueError, match=r"positions must have shape \[N, 4\], got \[12\]"):
+        draw(TRI.reshape(-1))
+
+
+def test_positions_of_strings_or_bools():
+    with pytest.raises(TypeError, match=r"positions must be a numeric \(float or int\) array, got dtype <U"):
+        draw(TRI.astype(str))
+    with pytest.raises(TypeError, match=r"positions must be a numeric \(float or int\) array, got dtype bool"):
+        draw(TRI > 0)
+    with pytest.raises(TypeError, match=r"positions must be a numeric"):
+        draw(TRI.astype(complex))
+
+
+def test_ragged_positions():
+    with pytest.raises(TypeError, match=r"positions must be a numeric array, got list"):
+        draw([[0, 0, 0, 1], [1, 0, 0]])
+
+
+def passthrough(attributes, uniforms):
+    p = attributes.position
+    return (p[0], p[1], p[2], 1.0), softpipe.vertex.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+
+
+def test_positions_with_five_columns_for_a_vertex_shader():
+    with pytest.raises(ValueError, match=r"positions must have shape \[N, 2\] or \[N, 3\] or \[N, 4\], got \[3, 5\]"):
+        draw(np.ones((3, 5)), varyings=None, vertex_shader=passthrough)
+
+
+# ------------------------------------------------------------------ indices
+
+def test_index_out_of_range():
+    with pytest.raises(ValueError, match=r"indices\[4\] = 3 is out of range for 3 vertices"):
+        draw(indices=[0, 1, 2, 0, 3, 1])
+
+
+def test_negative_index():
+    with pytest.raises(ValueError, match=r"indices\[1\] = -1 is out of range for 3 vertices"):
+        draw(indices=[0, -1, 2])
+
+
+def test_float_or_bool_indices():
+    with pytest.raises(TypeError, match=r"indices must be an integer array, got dtype float64"):
+        draw(indices=[0, 1, 2.0])
+    with pytest.raises(TypeError, match=r"indices must be an integer array, got dtype bool"):
+        draw(indices=[True, False, True])
+
+
+def test_list_length_not_a_multiple_of_three():
+    with pytest.raises(ValueError, match=r"a triangle list needs a multiple of 3 vertices, got 4"):
+        draw(indices=[0, 1, 2, 0])
+    with pytest.raises(ValueError, match=r"a triangle list needs a multiple of 3 vertices, got 2"):
+        draw(TRI[:2], varyings={"color": np.ones((2, 3))})
+
+
+@pytest.mark.xfail(strict=True, reason="BUG: the message 'a triangle list needs a multiple of 3 vertices, got 4' "
+                                       "names neither indices nor positions")
+@pytest.mark.parametrize("argument", ["indices", "positions"])
+def test_list_length_error_names_the_argument(argument):
+    with pytest.raises(ValueError, match=argument):
+        if argument == "indices":
+            draw(indices=[0, 1, 2, 0])
+        else:
+            draw(TRI[:2], varyings={"color": np.ones((2, 3))})
+
+
+def test_indices_with_three_dimensions():
+    with pytest.raises(ValueError, match=r"indices must have shape \[M\] or \[M, 3\], got \[1, 1, 3\]"):
+        draw(indices=np.zeros((1, 1, 3), int))
+
+
+@pytest.mark.xfail(strict=True, reason="BUG: _check_indices accepts any 2-D shape and flattens it, so [3, 2] "
+                                       "indices silently draw two triangles")
+def test_indices_of_shape_m_by_2():
+    with pytest.raises(ValueError, match=r"indices must have shape \[M\] or \[M, 3\], got \[3, 2\]"):
+        draw(indices=np.array([[0, 1], [2, 0], [1, 2]]))
+
+
+def test_strip_indices_must_be_one_dimensional():
+    with pytest.raises(ValueError, match=r"indices for a triangle_strip must be 1-D, got shape \[1, 3\]"):
+        draw(indices=np.array([[0, 1, 2]]), topology="triangle_strip")
+
+
+# --------------------------------------------------------- fixed-function state
+
+def test_unknown_topology():
+    with pytest.raises(ValueError, match=r"topology must be one of \('triangles', 'triangle_strip', "
+                                         r"'triangle_fan'\), got 'points'"):
+        draw(topology="points")
+
+
+def test_unknown_depth_compare_function():
+    with pytest.raises(ValueError, match=r"depth_test must be one of \('never', 'less', .*'always'\) or None, "
+                                         r"got 'less_equal'"):
+        draw(depth_test="less_equal")
+
+
+def test_depth_write_must_be_a_bool():
+    with pytest.raises(TypeError, match=r"depth_write must be True or False, got 1"):
+        draw(depth_write=1)
+
+
+def test_unknown_blend_mode_and_factor():
+    with pytest.raises(ValueError, match=r"blend must be None, one of \('alpha', 'additive'\) or a \(src, dst\) "
+                                         r"pair .*got 'multiply'"):
+        draw(blend="multiply")
+    with pytest.raises(ValueError, match=r"unknown blend factor 'src'; expected one of \('zero', 'one', "):
+        draw(blend=("src", "one"))
+    with pytest.raises(ValueError, match=r"blend must be None, a preset name or a \(src_factor, dst_factor\) pair, "
+                                         r"got \('one',\)"):
+        draw(blend=("one",))
+
+
+def test_unknown_cull_mode_and_front_face():
+    with pytest.raises(ValueError, match=r"cull must be one of \('none', 'back', 'front'\), got 'both'"):
+        draw(cull="both")
+    with pytest.raises(ValueError, match=r"front_face must be one of \('ccw', 'cw'\), got 'left'"):
+        draw(front_face="left")
+
+
+def test_viewport_and_framebuffer_types():
+    with pytest.raises(TypeError, match=r"viewport must be a softpipe.Viewport, got tuple"):
+        draw(viewport=(0, 0, 4, 4))
+    with pytest.raises(TypeError, match=r"framebuffer must be a softpipe.Framebuffer, got ndarray"):
+        softpipe.draw(np.zeros((4, 4, 4)), TRI, varyings=RGB)
+
+
+# ----------------------------------------------------------------- varyings
+
+def test_varyings_with_the_wrong_number_of_rows():
+    with pytest.raises(ValueError, match=r"varyings\['color'\] has 2 rows but positions has 3"):
+        draw(varyings={"color": np.ones((2, 3))})
+
+
+def test_varyings_of_the_wrong_shape_or_type():
+    with pytest.raises(ValueError, match=r"varyings\['color'\] must have shape \[N, 1\] or .*\[N, 4\] or \[N\], "
+                                         r"got \[3, 5\]"):
+        draw(varyings={"color": np.ones((3, 5))})
+    with pytest.raises(TypeError, match=r"varyings\['color'\] must be a numeric"):
+        draw(varyings={"color": np.full((3, 3), "red")})
+    with pytest.raises(TypeError, match=r"varyings must be a dict of name → \[N, k\] array, got list"):
+        draw(varyings=[np.ones((3, 3))])
+    with pytest.raises(ValueError, match=r"varying name 'my color' is not a valid identifier"):
+        draw(varyings={"my color": np.ones((3, 3))})
+
+
+def test_bad_interpolation_qualifier():
+    with pytest.raises(ValueError, match=r"interpolation\['color'\] must be one of \('smooth', 'noperspective', "
+                                         r"'flat'\), got 'linear'"):
+        draw(interpolation={"color": "linear"})
+
+
+def test_interpolation_of_an_unknown_varying():
+    with pytest.raises(ValueError, match=r"interpolation names varying 'colour', but the varyings are \['color'\]"):
+        draw(interpolation={"colour": "flat"})
+
+
+def test_no_fragment_shader_and_no_color_varying():
+    with pytest.raises(ValueError, match=r"no fragment_shader was given and there is no varying named 'color'.*"
+                                         r"the varyings are \['colour'\]"):
+        draw(varyings={"colour": np.ones((3, 3))})
+    with pytest.raises(ValueError, match=r"no fragment_shader was given and there is no varying named 'color'"):
+        draw(varyings=None)
+    with pytest.raises(ValueError, match=r"the varying 'color' must be RGB or RGBA, got 2 components"):
+        draw(varyings={"color": np.ones((3, 2))})
+
+
+@pytest.mark.xfail(strict=True, reason="BUG: the missing 'color' varying is only noticed when the fragment stage "
+                                       "runs, so the same call succeeds when the triangle is clipped or culled away")
+def test_no_color_varying_is_an_error_even_when_nothing_is_visible():
+    with pytest.raises(ValueError, match=r"no varying named 'color'"):
+        draw(TRI + [0, 0, 5, 0], varyings={"colour": np.ones((3, 3))})     # beyond the far plane
+
+
+def test_attributes_without_a_vertex_shader_and_varyings_with_one():
+    with pytest.raises(ValueError, match=r"attributes= are inputs of a vertex shader, but no vertex_shader"):
+        draw(attributes={"normal": np.ones((3, 3))})
+    with pytest.raises(ValueError, match=r"varyings= cannot be combined with a vertex_shader"):
+        draw(TRI[:, :3], vertex_shader=passthrough)
+
+
+# -------------------------------------------------------------- framebuffer
+
+@pytest.mark.parametrize("w, h, exc, message", [
+    (0, 4, ValueError, r"Framebuffer width must be at least 1, got 0"),
+    (4, -3, ValueError, r"Framebuffer height must be at least 1, got -3"),
+    (4.5, 4, TypeError, r"Framebuffer width must be an integer, got float 4.5"),
+    (4.0, 4, TypeError, r"Framebuffer width must be an integer, got float 4.0"),
+    (4, "4", TypeError, r"Framebuffer height must be an integer, got str '4'"),
+    (True, 4, TypeError, r"Framebuffer width must be an integer, got bool True"),
+])
+def test_framebuffer_size_must_be_a_positive_integer(w, h, exc, message):
+    with pytest.raises(exc, match=message):
+        softpipe.Framebuffer(w, h)
+
+
+@pytest.mark.parametrize("w, h, message", [
+    (100000, 100000, rf"Framebuffer width 100000 exceeds the limit MAX_DIMENSION = {MAX_DIMENSION}"),
+    (16384, 16384, rf"Framebuffer 16384×16384×1 samples = 268435456 exceeds the limit "
+                   rf"MAX_TOTAL_SAMPLES = {MAX_TOTAL_SAMPLES}"),
+])
+def test_absurd_framebuffer_fails_before_allocating(w, h, message):
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=message):
+            softpipe.Framebuffer(w, h)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 1 << 20, f"{peak} bytes were allocated before the size was refused"
+
+
+# ------------------------------------------------------------------ uniforms
+
+def test_uniforms_must_be_a_dict():
+    with pytest.raises(TypeError, match=r"uniforms must be a dict of name → value, got list"):
+        draw(uniforms=[("gain", 1.0)])
+    with pytest.raises(TypeError, match=r"uniform 'tint': cannot pass a str to a shader"):
+        draw(uniforms={"tint": "red"})
+    with pytest.raises(ValueError, match=r"uniform name 'a b' is not a valid Python identifier"):
+        draw(uniforms={"a b": 1.0})
+
+
+# ------------------------------------------------------------------- shaders
+
+def python_helper(x):
+    return 2.0 * x
+
+
+def uses_python_helper(varyings, uniforms, frag):
+    """Runs in Python, but numba cannot call a plain Python function."""
+    return (python_helper(frag.x), 0.0, 0.0, 1.0)
+
+
+def raises_on_the_right(varyings, uniforms, frag):
+    if frag.x > 2.0:
+        raise ValueError("this fragment is on the right")
+    return (1.0, 0.0, 0.0, 1.0)
+
+
+def returns_rgb(varyings, uniforms, frag):
+    return (1.0, 0.0, 0.0)
+
+
+def test_fragment_shader_numba_cannot_compile():
+    with pytest.raises(ShaderError, match=r"fragment shader test_errors\.uses_python_helper defined at "
+                                          r".*test_errors\.py:\d+ could not be compiled by numba") as info:
+        draw(fragment_shader=uses_python_helper)
+    assert "python_helper" in str(info.value)
+
+
+@pytest.mark.xfail(strict=True, reason="BUG: since the shader is no longer probed before the compiled loop runs, "
+                                       "an exception raised inside a fragment shader escapes as the bare "
+                                       "ValueError/ZeroDivisionError, without naming the shader")
+def test_fragment_shader_that_raises():
+    with pytest.raises(ShaderError, match=r"fragment shader test_errors\.raises_on_the_right.*"
+                                          r"this fragment is on the right"):
+        draw(fragment_shader=raises_on_the_right)
+
+
+def test_fragment_shader_returning_three_components():
+    with pytest.raises(ShaderError, match=r"fragment shader test_errors\.returns_rgb must return an RGBA tuple "
+                                          r"of 4 floats"):
+        draw(fragment_shader=returns_rgb)
+
+
+def vertex_shader_that_raises(attributes, uniforms):
+    raise RuntimeError("no vertices today")
+
+
+def vertex_shader_with_2d_clip(attributes, uniforms):
+    return (0.0, 0.0), softpipe.vertex.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+
+
+def test_vertex_shader_errors_name_the_shader():
+    with pytest.raises(ShaderError, match=r"vertex shader test_errors\.vertex_shader_that_raises raised "
+                                          r"RuntimeError: no vertices today"):
+        draw(TRI[:, :3], varyings=None, vertex_shader=vertex_shader_that_raises)
+    with pytest.raises(ShaderError, match=r"vertex shader test_errors\.vertex_shader_with_2d_clip: clip position "
+                                          r"must be a tuple of 4 floats"):
+        draw(TRI[:, :3], varyings=None, vertex_shader=vertex_shader_with_2d_clip)
+
+
+def test_a_shader_that_is_not_a_function():
+    with pytest.raises(TypeError, match=r"shader must be a function, got int"):
+        draw(fragment_shader=5)
