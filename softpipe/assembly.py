@@ -23,6 +23,7 @@ each triangle, as OpenGL's default.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from fractions import Fraction
 from typing import Dict, Optional
 
 import numba
@@ -96,9 +97,9 @@ def _check_indices(indices, n_vertices: int) -> np.ndarray:
     arr = np.asarray(indices)
     if arr.size and not np.issubdtype(arr.dtype, np.integer):
         raise TypeError(f"indices must be an integer array, got dtype {arr.dtype}")
-    arr = arr.astype(np.int64, copy=False).reshape(-1) if arr.ndim in (1, 2) else None
-    if arr is None:
+    if not (arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] == 3)):
         raise ValueError(f"indices must have shape [M] or [M, 3], got {list(np.shape(indices))}")
+    arr = arr.astype(np.int64, copy=False).reshape(-1)
     if arr.size:
         lo, hi = int(arr.min()), int(arr.max())
         if lo < 0 or hi >= n_vertices:
@@ -125,7 +126,8 @@ def triangle_indices(topology: str, indices, n_vertices: int) -> np.ndarray:
         seq = _check_indices(indices, n_vertices)
     if topology == "triangles":
         if len(seq) % 3:
-            raise ValueError(f"a triangle list needs a multiple of 3 vertices, got {len(seq)}")
+            what = "positions (no indices)" if indices is None else "indices"
+            raise ValueError(f"{what}: a triangle list needs a multiple of 3 vertices, got {len(seq)}")
         return seq.reshape(-1, 3)
     t = max(len(seq) - 2, 0)
     i = np.arange(t)
@@ -152,12 +154,26 @@ def _planes(viewport: Viewport) -> np.ndarray:
     ], dtype=np.float64)
 
 
+#: Beyond this magnitude, clip-space coordinates are clipped in exact rational arithmetic.
+EXACT_CLIP_ABOVE = float(1 << 20)
+
+
 def _clip_polygon(poly_pos, poly_var, planes, noperspective_cols):
-    """Sutherland–Hodgman in homogeneous clip space; returns lists of corners."""
+    """Sutherland–Hodgman in homogeneous clip space; returns lists of corners.
+
+    Floating point for ordinary coordinates. For huge ones (|c| > 2^20, e.g.
+    1e30) ``x + g·w`` would round to ``x`` and the new vertex land in the wrong
+    place, so positions are then clipped exactly with Fractions and rounded
+    once at the end.
+    """
+    exact = max(abs(float(c)) for p in poly_pos for c in p) > EXACT_CLIP_ABOVE
+    if exact:
+        poly_pos = [[Fraction(float(c)) for c in p] for p in poly_pos]
+        planes = [[Fraction(float(c)) for c in plane] for plane in planes]
     for plane in planes:
         if len(poly_pos) < 3:
             break
-        d = [plane[:4] @ p + plane[4] for p in poly_pos]
+        d = [sum(plane[k] * p[k] for k in range(4)) + plane[4] for p in poly_pos]
         out_pos, out_var = [], []
         n = len(poly_pos)
         for k in range(n):
@@ -166,20 +182,21 @@ def _clip_polygon(poly_pos, poly_var, planes, noperspective_cols):
                 out_pos.append(poly_pos[a])
                 out_var.append(poly_var[a])
             if (d[a] >= 0) != (d[b] >= 0):
-                inside, outside = (a, b) if d[a] >= 0 else (b, a)
+                inside, outside = (a, b) if d[a] >= 0 else (b, a)   # always from the inside end
                 t = d[inside] / (d[inside] - d[outside])
                 p_in, p_out = poly_pos[inside], poly_pos[outside]
-                pos = p_in + t * (p_out - p_in)
-                var = poly_var[inside] + t * (poly_var[outside] - poly_var[inside])
+                pos = [p_in[c] + t * (p_out[c] - p_in[c]) for c in range(4)]
+                tf = float(t)
+                var = poly_var[inside] + tf * (poly_var[outside] - poly_var[inside])
                 if len(noperspective_cols):
-                    s = t * p_out[3] / pos[3]  # the same point's parameter in window space
+                    sw = float(t * p_out[3] / pos[3])   # the same point's parameter in window space
                     v_in, v_out = poly_var[inside], poly_var[outside]
-                    var[noperspective_cols] = v_in[noperspective_cols] + s * (
+                    var[noperspective_cols] = v_in[noperspective_cols] + sw * (
                         v_out[noperspective_cols] - v_in[noperspective_cols])
-                out_pos.append(pos)
+                out_pos.append(np.array(pos, dtype=object if exact else np.float64))
                 out_var.append(var)
         poly_pos, poly_var = out_pos, out_var
-    return poly_pos, poly_var
+    return [np.array([float(c) for c in p]) for p in poly_pos], poly_var
 
 
 def _columns(layout: VaryingLayout, qualifier: str) -> np.ndarray:

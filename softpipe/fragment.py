@@ -172,9 +172,7 @@ def shade_visible(prims: Primitives, vis, edges, plane, fb, fragment_shader: Opt
     pattern = fb.pattern
     args = (vis, edges, plane, pattern.offsets, pattern.positions, prims.inv_w, prims.varyings, prims.front_facing,
             prims.primitive_id, _gradients(shader, prims), uniforms, fb.samples_color)
-    try:
-        kernel(0, 0, *args)      # compile (or load) once, in this thread, where errors are reported clearly
-    except (numba.core.errors.TypingError, numba.core.errors.LoweringError,
-            numba.core.errors.UnsupportedError) as e:
-        raise _shader._describe_compile_error("fragment", shader, e) from None
-    in_bands(kernel, fb.height, numba.get_num_threads(), *args)
+    # compile (or load) once, in this thread, where errors are reported clearly
+    _shader.run_compiled("fragment", shader, kernel, None, 0, 0, *args)
+    _shader.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, numba.get_num_threads(), *a),
+                         None, *args)

@@ -152,9 +152,10 @@ def _merge_one(k, i, j, m, depth, color, discarded, func, depth_write, src_f, ds
         for c in range(4):
             fb_color[j, i, m, c] = color[k, c]
     else:
-        sa, da = color[k, 3], fb_color[j, i, m, 3]
+        # float64 explicitly: numba and plain Python (NumPy keeps float32 scalars) then agree
+        sa, da = np.float64(color[k, 3]), np.float64(fb_color[j, i, m, 3])
         for c in range(4):
-            src, dst = color[k, c], fb_color[j, i, m, c]
+            src, dst = np.float64(color[k, c]), np.float64(fb_color[j, i, m, c])
             fb_color[j, i, m, c] = (src * blend_factor(src_f, src, dst, sa, da)
                                     + dst * blend_factor(dst_f, src, dst, sa, da))
     return WRITTEN

@@ -30,9 +30,9 @@ import numpy as np
 from .assembly import assemble
 from .fragment import run_fragment_stage
 from .framebuffer import Framebuffer
-from .fragment import shade_visible
+from .fragment import default_fragment_shader, shade_visible
 from .output import DEPTH_FUNCS, MergeState, merge
-from .raster import SHADING_POSITIONS, count_fragments, rasterize
+from .raster import SHADING_POSITIONS, count_fragments, pixel_rect, rasterize
 from .shader import make_uniforms, may_discard
 from .transforms import Viewport
 from .vertex import run_vertex_stage
@@ -104,6 +104,9 @@ class DrawCall:
             raise TypeError(f"viewport must be a softpipe.Viewport, got {type(viewport).__name__}")
         self.framebuffer, self.viewport = framebuffer, viewport
         self.positions, self.indices, self.varyings, self.attributes = positions, indices, varyings, attributes
+        for name, f in (("vertex_shader", vertex_shader), ("fragment_shader", fragment_shader)):
+            if f is not None and not callable(f):
+                raise TypeError(f"{name} must be a function, got {type(f).__name__}")
         self.vertex_shader, self.fragment_shader = vertex_shader, fragment_shader
         self.uniforms = make_uniforms(uniforms)
         self.topology, self.interpolation, self.cull, self.front_face = topology, interpolation, cull, front_face
@@ -127,8 +130,7 @@ class DrawCall:
         debug = _debug_stages()
         fb = self.framebuffer
         clock = self._clock()
-        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
-        vout.layout = vout.layout.with_qualifiers(self.interpolation)
+        vout = self._vertex_stage()
         clock("vertex")
         yield self._emit(Stage("vertex", vout), debug)
         clock(None)
@@ -137,10 +139,11 @@ class DrawCall:
         clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
-        counts = count_fragments(prims, fb.width, fb.height, fb.pattern)
+        rect = pixel_rect(fb.width, fb.height, self.viewport)
+        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect)
         clock("setup")
         for batch, (first, last) in enumerate(_batches(counts, MAX_FRAGMENTS_PER_BATCH)):
-            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading)
+            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading, rect)
             clock("raster")
             yield self._emit(Stage("raster", frags, batch), debug)
             clock(None)
@@ -178,6 +181,13 @@ class DrawCall:
             pass
         return None
 
+    def _vertex_stage(self):
+        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
+        vout.layout = vout.layout.with_qualifiers(self.interpolation)
+        if self.fragment_shader is None:
+            default_fragment_shader(vout.layout)     # no 'color' varying: say so now, drawn or not
+        return vout
+
     def fast_path_blocker(self) -> Optional[str]:
         """Why this draw cannot take the visibility fast path, or None if it can."""
         if self.state.blend is not None:
@@ -203,14 +213,14 @@ class DrawCall:
     def _run_fast(self) -> None:
         fb = self.framebuffer
         clock = self._clock()
-        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
-        vout.layout = vout.layout.with_qualifiers(self.interpolation)
+        vout = self._vertex_stage()
         clock("vertex")
         prims = assemble(vout, self.topology, self.indices, viewport=self.viewport, cull=self.cull,
                          front_face=self.front_face, keep_culled=False)
         clock("assembly")
         func = -1 if self.state.depth_test is None else DEPTH_FUNCS.index(self.state.depth_test)
-        vis, edges, plane = visibility_pass(prims, fb, func, bool(self.state.depth_write) and func >= 0)
+        vis, edges, plane = visibility_pass(prims, fb, func, bool(self.state.depth_write) and func >= 0,
+                                            pixel_rect(fb.width, fb.height, self.viewport))
         clock("raster")
         if len(prims):
             shade_visible(prims, vis, edges, plane, fb, self.fragment_shader, self.uniforms)

@@ -130,13 +130,14 @@ def _bias(xa, ya, xb, yb, sign):
 
 
 @numba.njit(cache=True)
-def _box(x0, x1, x2, lo_off, hi_off, size):
-    """Pixels whose samples may lie inside [min, max] of the snapped corners (clamped)."""
+def _box(x0, x1, x2, lo_off, hi_off, first_pixel, last_pixel):
+    """Pixels whose samples may lie inside [min, max] of the snapped corners, clamped to the
+    pixel range [first_pixel, last_pixel] (the viewport within the framebuffer: the scissor)."""
     lo = min(x0, x1, x2) - hi_off
     hi = max(x0, x1, x2) - lo_off
     first = -((-lo) // SUBPIXEL)            # ceil(lo / 256)
     last = hi // SUBPIXEL                   # floor(hi / 256)
-    return max(first, 0), min(last, size - 1)
+    return max(first, first_pixel), min(last, last_pixel)
 
 
 @numba.njit(cache=True)
@@ -149,7 +150,7 @@ def _covered(x0, y0, x1, y1, x2, y2, sign, b0, b1, b2, px, py):
 
 
 @numba.njit(cache=True)
-def _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s, out_depth, out_bary, start,
+def _cover_triangle(window, t, rect, height, offsets, mode, out_x, out_y, out_s, out_depth, out_bary, start,
                     emit):
     """Visit every covered sample of triangle t; write them from ``start`` if ``emit``. Returns the count.
 
@@ -166,8 +167,8 @@ def _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s
     b2 = _bias(x0, y0, x1, y1, sign)
     ox_lo, ox_hi = offsets[:, 0].min(), offsets[:, 0].max()
     oy_lo, oy_hi = offsets[:, 1].min(), offsets[:, 1].max()
-    i_first, i_last = _box(x0, x1, x2, ox_lo, ox_hi, width)
-    j_first, j_last = _box(y0, y1, y2, oy_lo, oy_hi, height)
+    i_first, i_last = _box(x0, x1, x2, ox_lo, ox_hi, rect[0], rect[1])
+    j_first, j_last = _box(y0, y1, y2, oy_lo, oy_hi, rect[2], rect[3])
     z0, dz1, dz2 = window[t, 0, 2], window[t, 1, 2] - window[t, 0, 2], window[t, 2, 2] - window[t, 0, 2]
     inv_area = 1.0 / area
     n = 0
@@ -217,21 +218,21 @@ def _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s
 
 
 @numba.njit(cache=True, parallel=True)
-def _count_kernel(window, width, height, offsets, counts):
+def _count_kernel(window, rect, height, offsets, counts):
     dummy_i = np.empty(0, np.int32)
     dummy_f = np.empty(0, np.float64)
     dummy_b = np.empty((0, 3), np.float64)
     for t in prange(window.shape[0]):
-        counts[t] = _cover_triangle(window, t, width, height, offsets, SHADE_SAMPLE,
+        counts[t] = _cover_triangle(window, t, rect, height, offsets, SHADE_SAMPLE,
                                     dummy_i, dummy_i, dummy_i, dummy_f, dummy_b, 0, False)
 
 
 @numba.njit(cache=True, parallel=True)
-def _emit_kernel(window, first, last, starts, width, height, offsets, mode, out_x, out_y, out_s, out_depth,
+def _emit_kernel(window, first, last, starts, rect, height, offsets, mode, out_x, out_y, out_s, out_depth,
                  out_bary, out_tri):
     for t in prange(first, last):
         begin = starts[t]
-        n = _cover_triangle(window, t, width, height, offsets, mode, out_x, out_y, out_s, out_depth, out_bary,
+        n = _cover_triangle(window, t, rect, height, offsets, mode, out_x, out_y, out_s, out_depth, out_bary,
                             begin, True)
         for k in range(begin, begin + n):
             out_tri[k] = t
@@ -259,17 +260,31 @@ def barycentric_gradients(prims: Primitives) -> np.ndarray:
     return out
 
 
-def count_fragments(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER) -> np.ndarray:
+def pixel_rect(width: int, height: int, viewport=None) -> np.ndarray:
+    """The window pixels a draw may touch, (i_min, i_max, j_min, j_max): the viewport ∩ framebuffer.
+
+    Clipping to the view volume keeps geometry inside the viewport; with a guard
+    band the rasterizer does that part, as a scissor rectangle.
+    """
+    if viewport is None:
+        return np.array([0, width - 1, 0, height - 1], np.int64)
+    return np.array([max(viewport.x, 0), min(viewport.x + viewport.width, width) - 1,
+                     max(viewport.y, 0), min(viewport.y + viewport.height, height) - 1], np.int64)
+
+
+def count_fragments(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
+                    rect: np.ndarray | None = None) -> np.ndarray:
     """How many samples each triangle covers (int64 [P]); the rasterizer's first pass."""
     counts = np.zeros(len(prims), dtype=np.int64)
+    rect = pixel_rect(width, height) if rect is None else rect
     if len(prims):
-        _count_kernel(prims.window, width, height, pattern.offsets, counts)
+        _count_kernel(prims.window, rect, height, pattern.offsets, counts)
     return counts
 
 
 def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
               first: int = 0, last: int | None = None, counts: np.ndarray | None = None,
-              shading: str = "sample") -> Fragments:
+              shading: str = "sample", rect: np.ndarray | None = None) -> Fragments:
     """The covered samples of triangles ``first:last`` (all by default), in primitive order.
 
     Within a triangle, fragments come row by row from the bottom of the window
@@ -281,9 +296,10 @@ def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern
     if shading not in SHADING_POSITIONS:
         raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {shading!r}")
     mode = SHADING_POSITIONS.index(shading)
+    rect = pixel_rect(width, height) if rect is None else rect
     last = len(prims) if last is None else last
     if counts is None:
-        counts = count_fragments(prims, width, height, pattern)
+        counts = count_fragments(prims, width, height, pattern, rect)
     starts = np.zeros(len(prims) + 1, dtype=np.int64)
     np.cumsum(counts, out=starts[1:])
     starts -= starts[first]
@@ -295,7 +311,7 @@ def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern
     bary = np.empty((total, 3), np.float64)
     tri = np.empty(total, np.int32)
     if total:
-        _emit_kernel(prims.window, first, last, starts, width, height, pattern.offsets, mode, x, y, s, depth, bary,
+        _emit_kernel(prims.window, first, last, starts, rect, height, pattern.offsets, mode, x, y, s, depth, bary,
                      tri)
     return Fragments(x=x, y=y, sample=s, depth=depth, bary=bary, triangle=tri,
                      primitive_id=prims.primitive_id[tri] if total else np.zeros(0, np.int64))

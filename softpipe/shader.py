@@ -671,3 +671,7 @@ def run_compiled(kind: str, shader: Callable, kernel: Callable, explain: Callabl
         if explain is not None:
             explain()
         raise _describe_compile_error(kind, shader, e) from None
+    except ShaderError:
+        raise
+    except Exception as e:   # raised by the shader's own code while it ran
+        raise ShaderError(f"{kind} shader {shader_name(shader)} raised {type(e).__name__}: {e}") from e

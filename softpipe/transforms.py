@@ -74,7 +74,7 @@ def rotate(angle_degrees: float, axis: Sequence[float]) -> np.ndarray:
         raise ValueError("axis must not be the zero vector")
     x, y, z = a / n
     t = math.radians(_finite("angle_degrees", angle_degrees))
-    c, s = math.cos(t), math.sin(t)
+    c, s = _exact_cos_sin(t, angle_degrees)
     k = 1.0 - c
     m = np.eye(4)
     m[:3, :3] = [

@@ -43,7 +43,7 @@ TILE = 64
 
 
 @numba.njit(cache=True, parallel=True)
-def setup_triangles(window, width, height, offsets, edges, bias, plane, box):
+def setup_triangles(window, rect, offsets, edges, bias, plane, box):
     """Per triangle: oriented edge coefficients [T, 3, 3] (A, B, C), biases [T, 3],
     depth plane [T, 4] (z0, z1 − z0, z2 − z0, 1/area) and pixel box [T, 4]
     (i0, i1, j0, j1; empty when i0 > i1)."""
@@ -71,10 +71,10 @@ def setup_triangles(window, width, height, offsets, edges, bias, plane, box):
             continue
         lo_x, hi_x = min(x[0], x[1], x[2]) - ox_hi, max(x[0], x[1], x[2]) - ox_lo
         lo_y, hi_y = min(y[0], y[1], y[2]) - oy_hi, max(y[0], y[1], y[2]) - oy_lo
-        box[t, 0] = max(-((-lo_x) // SUBPIXEL), 0)
-        box[t, 1] = min(hi_x // SUBPIXEL, width - 1)
-        box[t, 2] = max(-((-lo_y) // SUBPIXEL), 0)
-        box[t, 3] = min(hi_y // SUBPIXEL, height - 1)
+        box[t, 0] = max(-((-lo_x) // SUBPIXEL), rect[0])
+        box[t, 1] = min(hi_x // SUBPIXEL, rect[1])
+        box[t, 2] = max(-((-lo_y) // SUBPIXEL), rect[2])
+        box[t, 3] = min(hi_y // SUBPIXEL, rect[3])
 
 
 @numba.njit(cache=True)
@@ -158,7 +158,7 @@ def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height,
                         e2 += a2
 
 
-def visibility_pass(prims, fb, func: int, depth_write: bool):
+def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray):
     """Setup, binning and the tiled visibility pass; returns (vis, edges, plane) for shading.
 
     ``vis`` is int32 [H, W, S]: the triangle whose fragment was written last at
@@ -173,7 +173,7 @@ def visibility_pass(prims, fb, func: int, depth_write: bool):
     vis = np.full((h, w, len(offsets)), -1, np.int32)
     if n == 0:
         return vis, edges, plane
-    setup_triangles(prims.window, w, h, offsets, edges, bias, plane, box)
+    setup_triangles(prims.window, rect, offsets, edges, bias, plane, box)
     tiles_x, tiles_y = -(-w // TILE), -(-h // TILE)
     starts, items = bin_triangles(box, tiles_x, tiles_y)
     previous = numba.get_parallel_chunksize()

@@ -120,8 +120,5 @@ def test_pure_python_path_gives_the_same_pixels(scenes, tmp_path):
     compare_jit_and_python(scenes, tmp_path, "small")
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: blending is float64 under numba (blend_factor's 0.0/1.0 literals "
-                                       "promote) but float32 in pure Python (NumPy 2 scalar promotion), so "
-                                       "blended colors differ in the last bit")
 def test_pure_python_path_gives_the_same_pixels_with_blending(scenes, tmp_path):
     compare_jit_and_python(scenes, tmp_path, "small_blend")

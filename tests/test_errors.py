@@ -79,8 +79,6 @@ def test_list_length_not_a_multiple_of_three():
         draw(TRI[:2], varyings={"color": np.ones((2, 3))})
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: the message 'a triangle list needs a multiple of 3 vertices, got 4' "
-                                       "names neither indices nor positions")
 @pytest.mark.parametrize("argument", ["indices", "positions"])
 def test_list_length_error_names_the_argument(argument):
     with pytest.raises(ValueError, match=argument):
@@ -95,8 +93,6 @@ def test_indices_with_three_dimensions():
         draw(indices=np.zeros((1, 1, 3), int))
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: _check_indices accepts any 2-D shape and flattens it, so [3, 2] "
-                                       "indices silently draw two triangles")
 def test_indices_of_shape_m_by_2():
     with pytest.raises(ValueError, match=r"indices must have shape \[M\] or \[M, 3\], got \[3, 2\]"):
         draw(indices=np.array([[0, 1], [2, 0], [1, 2]]))
@@ -191,8 +187,6 @@ def test_no_fragment_shader_and_no_color_varying():
         draw(varyings={"color": np.ones((3, 2))})
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: the missing 'color' varying is only noticed when the fragment stage "
-                                       "runs, so the same call succeeds when the triangle is clipped or culled away")
 def test_no_color_varying_is_an_error_even_when_nothing_is_visible():
     with pytest.raises(ValueError, match=r"no varying named 'color'"):
         draw(TRI + [0, 0, 5, 0], varyings={"colour": np.ones((3, 3))})     # beyond the far plane
@@ -275,9 +269,6 @@ def test_fragment_shader_numba_cannot_compile():
     assert "python_helper" in str(info.value)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: since the shader is no longer probed before the compiled loop runs, "
-                                       "an exception raised inside a fragment shader escapes as the bare "
-                                       "ValueError/ZeroDivisionError, without naming the shader")
 def test_fragment_shader_that_raises():
     with pytest.raises(ShaderError, match=r"fragment shader test_errors\.raises_on_the_right.*"
                                           r"this fragment is on the right"):

@@ -68,8 +68,6 @@ def test_rotate_about_a_coordinate_axis_agrees_with_the_axis_rotation(angle, axi
     np.testing.assert_allclose(rotate(angle, axis), axis_rot(angle), atol=1e-15)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: rotate() uses math.cos/sin, so rotate(90, z) maps x to "
-                                       "(6.1e-17, 1, 0), while rotate_z(90) is exact")
 def test_rotate_90_about_z_maps_x_to_y_exactly():
     assert np.array_equal(rotate(90, (0, 0, 1)) @ X, Y)
 
