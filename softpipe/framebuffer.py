@@ -53,8 +53,9 @@ class Framebuffer:
         For one sample per pixel, the color buffer itself (writable).
     depth : float32 [H, W]
         For one sample per pixel, the depth buffer itself.
-    samples_color : float32 [H, W, S, 4], samples_depth : float32 [H, W, S]
-        Every sample.
+    samples_color : float32 [S, H, W, 4], samples_depth : float32 [S, H, W]
+        Every sample: one image plane per sample, so that a row of one sample is
+        contiguous in memory (what the rasterizer's inner loop walks along).
 
     A new framebuffer is cleared to opaque black, (0, 0, 0, 1), and depth 1.0.
     """
@@ -65,8 +66,8 @@ class Framebuffer:
         _check_size(width, height, len(pattern))
         self.width, self.height, self.pattern = int(width), int(height), pattern
         s = len(pattern)
-        self.samples_color = np.empty((self.height, self.width, s, 4), dtype=np.float32)
-        self.samples_depth = np.empty((self.height, self.width, s), dtype=np.float32)
+        self.samples_color = np.empty((s, self.height, self.width, 4), dtype=np.float32)
+        self.samples_depth = np.empty((s, self.height, self.width), dtype=np.float32)
         self.clear()
 
     @property
@@ -90,7 +91,7 @@ class Framebuffer:
     def color(self) -> np.ndarray:
         """[H, W, 4]: the buffer itself for one sample, else the box-filtered resolve."""
         if self.samples == 1:
-            return self.samples_color[:, :, 0, :]
+            return self.samples_color[0]
         return self.resolve("box")
 
     def resolve(self, filter: str = "box") -> np.ndarray:
@@ -102,13 +103,13 @@ class Framebuffer:
         pixels' samples contribute too (a softer result).
         """
         if filter == "box":
-            return self.samples_color.mean(axis=2, dtype=np.float64).astype(np.float32)
+            return self.samples_color.mean(axis=0, dtype=np.float64).astype(np.float32)
         if filter != "tent":
             raise ValueError(f"resolve filter must be 'box' or 'tent', got {filter!r}")
         pos = self.pattern.positions                       # y up within the pixel
         acc = np.zeros((self.height, self.width, 4))
         wsum = np.zeros((self.height, self.width, 1))
-        padded = np.pad(self.samples_color.astype(np.float64), ((1, 1), (1, 1), (0, 0), (0, 0)), mode="edge")
+        padded = np.pad(self.samples_color.astype(np.float64), ((0, 0), (1, 1), (1, 1), (0, 0)), mode="edge")
         for di in (-1, 0, 1):          # neighbour column offset
             for dj in (-1, 0, 1):      # neighbour row offset in the image (row down = window y − 1)
                 for s, (sx, sy) in enumerate(pos):
@@ -117,7 +118,7 @@ class Framebuffer:
                     w = max(0.0, 1 - abs(dx)) * max(0.0, 1 - abs(dy))
                     if w == 0.0:
                         continue
-                    acc += w * padded[1 + dj:1 + dj + self.height, 1 + di:1 + di + self.width, s]
+                    acc += w * padded[s, 1 + dj:1 + dj + self.height, 1 + di:1 + di + self.width]
                     wsum += w
         return (acc / wsum).astype(np.float32)
 
@@ -125,8 +126,8 @@ class Framebuffer:
     def depth(self) -> np.ndarray:
         """[H, W]: the buffer itself for one sample, else the nearest sample's depth."""
         if self.samples == 1:
-            return self.samples_depth[:, :, 0]
-        return self.samples_depth.min(axis=2)
+            return self.samples_depth[0]
+        return self.samples_depth.min(axis=0)
 
     def to_uint8(self, alpha: bool = True) -> np.ndarray:
         """The color as 8-bit [H, W, 4] (or [H, W, 3]): round(clamp(c, 0, 1)·255), half to even."""

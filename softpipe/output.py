@@ -134,7 +134,7 @@ def _merge_kernel(x, y, s, depth, color, discarded, func, depth_write, src_f, ds
                                 fb_color, fb_depth)
         if record:
             for c in range(4):
-                after[k, c] = fb_color[j, i, m, c]
+                after[k, c] = fb_color[m, j, i, c]
 
 
 @numba.njit(cache=True)
@@ -144,19 +144,19 @@ def _merge_one(k, i, j, m, depth, color, discarded, func, depth_write, src_f, ds
         return DISCARDED
     z = np.float32(depth[k])
     if func >= 0:
-        if not depth_passes(func, z, fb_depth[j, i, m]):
+        if not depth_passes(func, z, fb_depth[m, j, i]):
             return DEPTH_FAILED
         if depth_write:
-            fb_depth[j, i, m] = z
+            fb_depth[m, j, i] = z
     if src_f < 0:
         for c in range(4):
-            fb_color[j, i, m, c] = color[k, c]
+            fb_color[m, j, i, c] = color[k, c]
     else:
         # float64 explicitly: numba and plain Python (NumPy keeps float32 scalars) then agree
-        sa, da = np.float64(color[k, 3]), np.float64(fb_color[j, i, m, 3])
+        sa, da = np.float64(color[k, 3]), np.float64(fb_color[m, j, i, 3])
         for c in range(4):
-            src, dst = np.float64(color[k, c]), np.float64(fb_color[j, i, m, c])
-            fb_color[j, i, m, c] = (src * blend_factor(src_f, src, dst, sa, da)
+            src, dst = np.float64(color[k, c]), np.float64(fb_color[m, j, i, c])
+            fb_color[m, j, i, c] = (src * blend_factor(src_f, src, dst, sa, da)
                                     + dst * blend_factor(dst_f, src, dst, sa, da))
     return WRITTEN
 

@@ -203,7 +203,7 @@ class Trace:
                 sample=int(f.sample[k]), depth=float(f.depth[k]), varyings=varyings,
                 color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
                 color_after=tuple(float(c) for c in m.color_after[k])))
-        before = tuple(float(c) for c in self.before_color[y, x, 0])
+        before = tuple(float(c) for c in self.before_color[0, y, x])
         return PixelHistory(x, y, events, before)
 
     # ------------------------------------------------------------- pictures

@@ -8,7 +8,7 @@ skip shading every fragment:
    as ``E_k(p) = A_k·p_x + B_k·p_y + C_k`` (oriented, exact int64), its fill-rule
    biases, depth plane and pixel bounding box — the same numbers the reference
    rasterizer (``raster.py``) computes.
-2. **Binning** (:func:`bin_triangles`): each 64×64 tile gets the list of
+2. **Binning** (:func:`bin_triangles`): each 128×32 tile gets the list of
    triangles whose box touches it, in primitive order.
 3. **Visibility** (:func:`raster_tiles`): tiles run in parallel; inside a tile,
    triangles in order; each row's covered span comes from solving the three
@@ -37,9 +37,12 @@ from .output import depth_passes
 from .raster import snap
 from .sampling import SUBPIXEL
 
-__all__ = ["TILE", "setup_triangles", "bin_triangles", "raster_tiles", "visibility_pass"]
+__all__ = ["TILE_W", "TILE_H", "setup_triangles", "bin_triangles", "raster_tiles", "visibility_pass"]
 
-TILE = 64
+#: Tiles are wide and short: rows inside a tile are long enough for the compiler's
+#: vectorized loop to pay off, and a tile's depth and visibility (128×32×8 bytes)
+#: stay in the core's cache while every triangle binned to it is drawn.
+TILE_W, TILE_H = 128, 32
 
 
 @numba.njit(cache=True, parallel=True)
@@ -85,8 +88,8 @@ def bin_triangles(box, tiles_x, tiles_y):
     for t in range(box.shape[0]):
         if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
             continue
-        for ty in range(box[t, 2] // TILE, box[t, 3] // TILE + 1):
-            for tx in range(box[t, 0] // TILE, box[t, 1] // TILE + 1):
+        for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
+            for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
                 counts[ty * tiles_x + tx + 1] += 1
     starts = np.cumsum(counts)
     items = np.empty(starts[-1], np.int32)
@@ -94,8 +97,8 @@ def bin_triangles(box, tiles_x, tiles_y):
     for t in range(box.shape[0]):
         if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
             continue
-        for ty in range(box[t, 2] // TILE, box[t, 3] // TILE + 1):
-            for tx in range(box[t, 0] // TILE, box[t, 1] // TILE + 1):
+        for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
+            for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
                 tile = ty * tiles_x + tx
                 items[fill[tile]] = t
                 fill[tile] += 1
@@ -107,61 +110,167 @@ def _span(edges, bias, t, px0, py, i_lo, i_hi):
     """The pixels i in [i_lo, i_hi] whose sample (256·i + px0, py) every edge covers.
 
     E_k = A·(256 i + px0) + B·py + C + bias ≥ 0 is linear in i; each edge bounds i
-    from one side, solved exactly with floor division.
+    from one side. The bound is estimated in floating point (a division is far
+    cheaper there than in 64-bit integers) and then made exact by testing the
+    integer inequality itself, so the span is exactly the covered pixels.
     """
     for k in range(3):
         a = edges[t, k, 0] * SUBPIXEL
         r = edges[t, k, 0] * px0 + edges[t, k, 1] * py + edges[t, k, 2] + bias[t, k]   # E at i = 0
-        if a > 0:                      # r + a·i ≥ 0  ⇔  i ≥ ceil(−r / a)
-            i_lo = max(i_lo, -(r // a))
-        elif a < 0:                    # i ≤ floor(r / −a)
-            i_hi = min(i_hi, r // (-a))
+        if a > 0:                      # first i with r + a·i ≥ 0
+            i = np.int64(np.ceil(-r / a))
+            while r + a * i < 0:
+                i += 1
+            while r + a * (i - 1) >= 0:
+                i -= 1
+            i_lo = max(i_lo, i)
+        elif a < 0:                    # last i with r + a·i ≥ 0
+            i = np.int64(np.floor(r / -a))
+            while r + a * i < 0:
+                i -= 1
+            while r + a * (i + 1) >= 0:
+                i += 1
+            i_hi = min(i_hi, i)
         elif r < 0:
             return 1, 0
+        if i_lo > i_hi:
+            return 1, 0
     return i_lo, i_hi
+
+
+#: Depth tests for which a tile's farthest depth can reject whole triangles (with writes on).
+LESS, LEQUAL = 1, 3
+#: Safety margin of the hierarchical depth test: far larger than any rounding in
+#: the per-sample depth, far smaller than anything a picture could show.
+HIZ_MARGIN = 1e-6
+
+
+@numba.njit(cache=True)
+def _plane_z(edges, plane, t, px, py):
+    """The depth plane at a (possibly off-sample) fixed-point position, in float: for bounds only."""
+    e1 = edges[t, 1, 0] * float(px) + edges[t, 1, 1] * float(py) + edges[t, 1, 2]
+    e2 = edges[t, 2, 0] * float(px) + edges[t, 2, 1] * float(py) + edges[t, 2, 2]
+    return plane[t, 0] + (e1 * plane[t, 1] + e2 * plane[t, 2]) * plane[t, 3]
+
+
+@numba.njit(cache=True)
+def _inside(edges, bias, t, px, py):
+    for k in range(3):
+        if edges[t, k, 0] * px + edges[t, k, 1] * py + edges[t, k, 2] + bias[t, k] < 0:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
+    """Are all samples of pixels [i0, i1] × [j0, j1] inside the triangle? (Convex: the corners decide.)"""
+    qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
+    qy0, qy1 = j0 * SUBPIXEL + oy_lo, j1 * SUBPIXEL + oy_hi
+    return (_inside(edges, bias, t, qx0, qy0) and _inside(edges, bias, t, qx1, qy0)
+            and _inside(edges, bias, t, qx0, qy1) and _inside(edges, bias, t, qx1, qy1))
+
+
+@numba.njit(cache=True)
+def _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, strict, write):
+    """One span (contiguous views of one row of one sample plane) under LESS (strict) or LEQUAL.
+
+    Written so that the compiler vectorizes it: 1-D contiguous views indexed
+    from 0, and selects rather than branches. e1 + k·a1 is exact in float64
+    (integers below 2^53), so z is the very expression the reference
+    rasterizer evaluates.
+    """
+    for k in range(drow.shape[0]):
+        kf = float(k)
+        z = z0 + ((e1 + kf * a1) * dz1 + (e2 + kf * a2) * dz2) * inv_area
+        zf = np.float32(min(max(z, 0.0), 1.0))
+        old = drow[k]
+        passed = zf < old if strict else zf <= old
+        if write:
+            drow[k] = zf if passed else old
+        vrow[k] = t if passed else vrow[k]
+
+
+@numba.njit(cache=True)
+def _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write):
+    """One span under any compare function."""
+    for k in range(drow.shape[0]):
+        kf = float(k)
+        z = z0 + ((e1 + kf * a1) * dz1 + (e2 + kf * a2) * dz2) * inv_area
+        zf = np.float32(min(max(z, 0.0), 1.0))
+        if depth_passes(func, zf, drow[k]):
+            if write:
+                drow[k] = zf
+            vrow[k] = t
 
 
 @numba.njit(cache=True, parallel=True)
 def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
                  depth, vis):
-    """The visibility pass over all tiles (parallel); see the module docstring."""
+    """The visibility pass over all tiles (parallel); see the module docstring.
+
+    Hierarchical depth (LESS/LEQUAL with writes): each tile keeps an upper bound
+    of its depths; a triangle whose nearest point over the tile lies beyond it
+    cannot pass anywhere there and is skipped; a triangle that covers the whole
+    tile lowers the bound to its own farthest depth there.
+    """
     n_tiles = starts.shape[0] - 1
+    hiz = depth_write and (func == LESS or func == LEQUAL)
+    ox_lo, ox_hi = offsets[:, 0].min(), offsets[:, 0].max()
+    oy_lo, oy_hi = offsets[:, 1].min(), offsets[:, 1].max()
     for tile in prange(n_tiles):
         tx, ty = tile % tiles_x, tile // tiles_x
-        x_lo, x_hi = tx * TILE, min(tx * TILE + TILE, width) - 1
-        y_lo, y_hi = ty * TILE, min(ty * TILE + TILE, height) - 1
+        x_lo, x_hi = tx * TILE_W, min(tx * TILE_W + TILE_W, width) - 1
+        y_lo, y_hi = ty * TILE_H, min(ty * TILE_H + TILE_H, height) - 1
+        far = 0.0
+        if hiz and starts[tile + 1] > starts[tile]:
+            for row in range(height - 1 - y_hi, height - y_lo):
+                for i in range(x_lo, x_hi + 1):
+                    for s in range(offsets.shape[0]):
+                        far = max(far, depth[s, row, i])
         for k in range(starts[tile], starts[tile + 1]):
             t = items[k]
             i0, i1 = max(box[t, 0], x_lo), min(box[t, 1], x_hi)
             j0, j1 = max(box[t, 2], y_lo), min(box[t, 3], y_hi)
+            if i0 > i1 or j0 > j1:
+                continue
+            if hiz:
+                # the rectangle holding every sample this triangle may cover in the tile
+                qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
+                qy0, qy1 = j0 * SUBPIXEL + oy_lo, j1 * SUBPIXEL + oy_hi
+                za, zb = _plane_z(edges, plane, t, qx0, qy0), _plane_z(edges, plane, t, qx1, qy0)
+                zc, zd = _plane_z(edges, plane, t, qx0, qy1), _plane_z(edges, plane, t, qx1, qy1)
+                if min(za, zb, zc, zd) - HIZ_MARGIN > far:
+                    continue
+                covers_tile = _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
+                if covers_tile and i0 == x_lo and i1 == x_hi and j0 == y_lo and j1 == y_hi:
+                    far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
+            else:
+                covers_tile = _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
             z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
-            a1, a2 = edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
+            a1, a2 = float(edges[t, 1, 0] * SUBPIXEL), float(edges[t, 2, 0] * SUBPIXEL)
             for s in range(offsets.shape[0]):
                 ox, oy = offsets[s, 0], offsets[s, 1]
+                dplane, vplane = depth[s], vis[s]
                 for j in range(j0, j1 + 1):
                     py = j * SUBPIXEL + oy
-                    lo, hi = _span(edges, bias, t, ox, py, i0, i1)
+                    lo, hi = (i0, i1) if covers_tile else _span(edges, bias, t, ox, py, i0, i1)
                     if lo > hi:
                         continue
                     px = lo * SUBPIXEL + ox
-                    e1 = edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2]
-                    e2 = edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2]
+                    e1 = float(edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2])
+                    e2 = float(edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2])
                     row = height - 1 - j
-                    for i in range(lo, hi + 1):
-                        z = z0 + (e1 * dz1 + e2 * dz2) * inv_area     # = the reference's depth
-                        z = np.float32(min(max(z, 0.0), 1.0))
-                        if depth_passes(func, z, depth[row, i, s]):
-                            if depth_write:
-                                depth[row, i, s] = z
-                            vis[row, i, s] = t
-                        e1 += a1
-                        e2 += a2
+                    drow, vrow = dplane[row, lo:hi + 1], vplane[row, lo:hi + 1]
+                    if func == LESS or func == LEQUAL:
+                        _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func == LESS, depth_write)
+                    else:
+                        _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, depth_write)
 
 
 def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray):
     """Setup, binning and the tiled visibility pass; returns (vis, edges, plane) for shading.
 
-    ``vis`` is int32 [H, W, S]: the triangle whose fragment was written last at
+    ``vis`` is int32 [S, H, W]: the triangle whose fragment was written last at
     each sample by this draw, or −1. The framebuffer's depth is updated.
     """
     w, h, offsets = fb.width, fb.height, fb.pattern.offsets
@@ -170,11 +279,11 @@ def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray):
     bias = np.empty((n, 3), np.int64)
     plane = np.empty((n, 4), np.float64)
     box = np.empty((n, 4), np.int64)
-    vis = np.full((h, w, len(offsets)), -1, np.int32)
+    vis = np.full((len(offsets), h, w), -1, np.int32)
     if n == 0:
         return vis, edges, plane
     setup_triangles(prims.window, rect, offsets, edges, bias, plane, box)
-    tiles_x, tiles_y = -(-w // TILE), -(-h // TILE)
+    tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
     starts, items = bin_triangles(box, tiles_x, tiles_y)
     previous = numba.get_parallel_chunksize()
     numba.set_parallel_chunksize(1)     # tiles differ in work: hand them out one at a time

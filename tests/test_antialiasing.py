@@ -171,7 +171,7 @@ def test_depth_test_runs_per_sample():
     fb = sp.Framebuffer(size, size, pattern=pattern)
     sp.draw(fb, pa, varyings={"color": np.tile([1.0, 0, 0], (3, 1))})
     sp.draw(fb, pb, varyings={"color": np.tile([0, 0, 1.0], (3, 1))})
-    s = fb.samples_color[0, 0]
+    s = fb.samples_color[:, 0, 0]
     for k, (sx, sy) in enumerate(pattern.positions):
         nearer_a = za(sx) < 0.5
         assert tuple(s[k, :3]) == ((1.0, 0.0, 0.0) if nearer_a else (0.0, 0.0, 1.0))
@@ -200,7 +200,7 @@ def test_tent_resolve_weights_neighbours_and_box_is_the_mean():
     # 3×3 pixels with a 2×2 grid each; only the centre pixel's samples are white.
     fb = sp.Framebuffer(3, 3, pattern=grid(2))
     fb.clear((0.0, 0.0, 0.0, 0.0))
-    fb.samples_color[1, 1] = (1.0, 1.0, 1.0, 1.0)
+    fb.samples_color[:, 1, 1] = (1.0, 1.0, 1.0, 1.0)
     box = fb.resolve("box")
     assert box[1, 1, 0] == 1.0 and box[1, 0, 0] == 0.0
     tent = fb.resolve("tent")

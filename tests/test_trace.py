@@ -43,7 +43,7 @@ def test_written_pixels_are_the_fragments_whose_verdict_is_written():
     assert set(np.unique(verdicts)) <= {"written", "depth-failed"}
     assert (verdicts == "depth-failed").any()          # the spheres overlap
     written = {(int(x), int(y)) for x, y in zip(f.x[trace.written()], f.y[trace.written()])}
-    changed = {(int(x), int(y)) for y, x in np.argwhere((fb.color != trace.before_color[:, :, 0]).any(axis=2))}
+    changed = {(int(x), int(y)) for y, x in np.argwhere((fb.color != trace.before_color[0]).any(axis=2))}
     assert changed <= written
     # every written pixel holds the color its last written fragment left
     last = {}
