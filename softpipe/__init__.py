@@ -3,19 +3,29 @@
 Stages (one module each): :mod:`~softpipe.transforms` → :mod:`~softpipe.vertex`
 → :mod:`~softpipe.assembly` → :mod:`~softpipe.raster` →
 :mod:`~softpipe.fragment` → :mod:`~softpipe.output`, wired by
-:mod:`~softpipe.pipeline`.
+:mod:`~softpipe.pipeline`. Shaders are Python functions (:mod:`~softpipe.shader`,
+:mod:`~softpipe.glsl`, :mod:`~softpipe.lighting`); built-in programs live in
+:mod:`softpipe.shaders`.
 """
+from . import glsl, lighting, shapes
 from .assembly import Primitives, assemble
+from .camera import Camera
 from .fragment import ShadedFragments
 from .framebuffer import Framebuffer
-from .material import Material
-from .output import MergeState
-from .pipeline import draw
+from .material import Light, Lighting, LightingUniform, Material, MaterialUniform, pack_lights
+from .mesh import Mesh
+from .mesh import concatenate as concatenate_meshes
+from .obj import OBJError, load_obj, parse_obj
+from .output import MergeResult, MergeState
+from .pipeline import DrawCall, Stage, draw
 from .raster import Fragments, rasterize
-from .sampling import CENTER, SamplePattern
+from .sampling import CENTER, SamplePattern, grid, jittered, random_pattern, rotated_grid_4x
+from .scene import draw_mesh, standard_uniforms
 from .shader import DISCARD, FragInfo, ShaderError, make_uniforms
-from .transforms import (Viewport, compose, frustum, identity, look_at, normal_matrix, orthographic,
-                         perspective, rotate, rotate_x, rotate_y, rotate_z, scale, translate)
-from .vertex import VertexOut, standard_vertex
+from .texture import Texture2D, TextureUniform
+from .trace import PixelHistory, Trace
+from .transforms import (Viewport, compose, frustum, identity, look_at, normal_matrix, opencv_camera,
+                         orthographic, perspective, rotate, rotate_x, rotate_y, rotate_z, scale, translate)
+from .vertex import VertexOut, run_vertex_stage, standard_vertex
 
 __version__ = "0.1.0"
