@@ -5,8 +5,9 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
 ``vertices``    every vertex with w > 0 as a dot at its window position
 ``primitives``  wireframe of the triangles that reach the rasterizer (white);
                 pieces made by clipping (cyan) over the outline of the triangle
-                they were cut from (orange); triangles culled for facing (red)
-``coverage``    each covered pixel colored by the primitive id of its last fragment
+                they were cut from (orange); triangles culled for facing (red,
+                drawn first, so the others show over them)
+``coverage``    each pixel colored by the primitive id of the last fragment written there
 ``depth``       the depth buffer after the draw (near = white, cleared = black)
 ``overdraw``    fragments per pixel as a heat map (black 0, blue 1, … white many)
 ``final``       the color buffer after the draw
@@ -105,15 +106,16 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
     pics["vertices"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
+    _wire(img, prims.culled_window, h, RED)          # under the rest: the back of a closed mesh
     _wire(img, _cut_outlines(trace), h, ORANGE)
     _wire(img, prims.window[~prims.clipped], h, WHITE)
     _wire(img, prims.window[prims.clipped], h, CYAN)
-    _wire(img, prims.culled_window, h, RED)
     pics["primitives"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
-    if len(f):
-        img[f.y, f.x] = _id_colors(f.primitive_id)    # fancy assignment: the last fragment wins
+    written = trace.written()
+    if written.any():                                  # fancy assignment: the last written fragment wins
+        img[f.y[written], f.x[written]] = _id_colors(f.primitive_id[written])
     pics["coverage"] = img
 
     depth = fb.depth

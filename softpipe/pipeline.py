@@ -62,7 +62,8 @@ class Stage:
     batch: int = 0
 
     def __repr__(self) -> str:
-        return f"Stage({self.name!r}, batch {self.batch}: {self.output!r})"
+        batch = f", batch {self.batch}" if self.name in ("raster", "fragment", "output") else ""
+        return f"Stage({self.name!r}{batch}: {self.output!r})"
 
 
 def _debug_stages() -> set:
@@ -212,16 +213,24 @@ class DrawCall:
 
     def _run_fast(self) -> None:
         fb = self.framebuffer
+        debug = _debug_stages()
         clock = self._clock()
         vout = self._vertex_stage()
         clock("vertex")
+        self._emit(Stage("vertex", vout), debug)
         prims = assemble(vout, self.topology, self.indices, viewport=self.viewport, cull=self.cull,
                          front_face=self.front_face, keep_culled=False)
         clock("assembly")
+        self._emit(Stage("assembly", prims), debug)
         func = -1 if self.state.depth_test is None else DEPTH_FUNCS.index(self.state.depth_test)
         vis, edges, plane = visibility_pass(prims, fb, func, bool(self.state.depth_write) and func >= 0,
                                             pixel_rect(fb.width, fb.height, self.viewport))
         clock("raster")
+        if debug & {"raster", "fragment", "output"}:
+            visible = int((vis >= 0).sum())
+            print(f"[softpipe raster] fast path: {visible} visible samples of {vis.size} "
+                  f"(fragments are not kept on the fast path; use path='reference' to see them)",
+                  file=sys.stderr)
         if len(prims):
             shade_visible(prims, vis, edges, plane, fb, self.fragment_shader, self.uniforms)
         clock("fragment")

@@ -32,12 +32,13 @@ def standard_uniforms(camera: Camera, aspect: float, model: Optional[np.ndarray]
 
 def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program="normals", *,
               model: Optional[np.ndarray] = None, uniforms: Optional[Mapping[str, Any]] = None,
-              cull: str = "back", **state) -> None:
+              cull: str = "back", **state):
     """Draw ``mesh`` seen by ``camera`` with a built-in ``program`` (a name or a Program).
 
     The mesh's normals are used when it has them, else computed (area-weighted).
     ``uniforms`` are added to the standard ones (and override them); ``state``
-    is passed on to :func:`softpipe.draw` (``depth_test``, ``blend``, …).
+    is passed on to :func:`softpipe.draw` (``depth_test``, ``blend``, ``trace``, …), whose
+    result (a Trace with ``trace=True``) is returned.
     """
     prog = get_program(program)
     u = standard_uniforms(camera, framebuffer.width / framebuffer.height, model)
@@ -49,5 +50,5 @@ def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program="normals",
     if mesh.uvs is not None:
         attributes["uv"] = mesh.uvs
     interpolation = dict(prog.interpolation)
-    draw(framebuffer, mesh.positions, mesh.indices, vertex_shader=prog.vertex, fragment_shader=prog.fragment,
+    return draw(framebuffer, mesh.positions, mesh.indices, vertex_shader=prog.vertex, fragment_shader=prog.fragment,
          uniforms=u, attributes=attributes, interpolation=interpolation or None, cull=cull, **state)

@@ -30,6 +30,20 @@ from .raster import Fragments
 __all__ = ["Trace", "PixelEvent", "PixelHistory"]
 
 
+def _plain(value):
+    """numpy scalars → Python floats, bools and ints (the same values, easier to read in pdb)."""
+    if isinstance(value, tuple):
+        items = [_plain(v) for v in value]
+        return type(value)(*items) if hasattr(value, "_fields") else tuple(items)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    return value
+
+
 def _concat(parts, cls, fields):
     return cls(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in fields})
 
@@ -172,22 +186,31 @@ class Trace:
             self._grad = _gradients(self.fragment_shader, p)
         out = module.fragment_inputs(index, f.triangle, fx, fy, f.depth, f.bary, p.inv_w, p.varyings,
                                      p.front_facing, p.primitive_id, self._grad)
-        return (out[0], self.call.uniforms) + tuple(out[1:])
+        return (_plain(out[0]), self.call.uniforms) + tuple(_plain(o) for o in out[1:])
 
-    def debug_fragment(self, x: int, y: int, which: int = -1, sample: Optional[int] = None):
+    def debug_fragment(self, x: int, y: int, which: Optional[int] = None, sample: Optional[int] = None,
+                       index: Optional[int] = None):
         """Re-run the fragment shader as plain Python on one fragment of pixel (x, y).
 
-        ``which`` picks among the pixel's fragments in order (default: the last).
-        Put a breakpoint (``breakpoint()``) in your shader: it stops here, on
-        this fragment. Returns the shader's RGBA, which equals what the compiled
-        shader produced for that fragment.
+        By default the fragment whose color the pixel shows: the last one
+        written (or the last one, if none was written). ``which`` picks among the
+        pixel's fragments in order instead; ``index`` names a fragment directly
+        (the ``#`` column of :meth:`pixel_history`). Put a breakpoint
+        (``breakpoint()``) in your shader: it stops here, on this fragment.
+        Returns the shader's RGBA, which equals what the compiled shader
+        produced for that fragment.
         """
-        idx = self.at(x, y)
-        if sample is not None:
-            idx = idx[self.fragments.sample[idx] == sample]
-        if len(idx) == 0:
-            raise ValueError(f"no fragment reached pixel ({x}, {y})")
-        index = int(idx[which])
+        if index is None:
+            idx = self.at(x, y)
+            if sample is not None:
+                idx = idx[self.fragments.sample[idx] == sample]
+            if len(idx) == 0:
+                raise ValueError(f"no fragment reached pixel ({x}, {y})")
+            if which is None:
+                written = idx[self.merged.verdict[idx] == 0]
+                index = int(written[-1] if len(written) else idx[-1])
+            else:
+                index = int(idx[which])
         return _shader.python_function(self.fragment_shader)(*self.fragment_inputs(index))
 
     def pixel_history(self, x: int, y: int) -> PixelHistory:
