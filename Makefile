@@ -24,3 +24,10 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) out build *.egg-info
+
+# Coverage-guided fuzzing of the OBJ and scene-file parsers (fuzz/README.md): atheris
+# when it installs, hypothesis otherwise. SECONDS per target.
+SECONDS ?= 60
+fuzz: $(STAMP)
+	$(PY) -m pip install -q atheris || echo "atheris did not install: fuzzing with hypothesis"
+	$(PY) fuzz/run.py --seconds $(SECONDS)

@@ -12,6 +12,7 @@ Every render prints where it wrote and how long it took; progress goes to stderr
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import re
@@ -312,7 +313,7 @@ def _frame_size(args, default: Tuple[int, int]) -> Tuple[Optional[int], Optional
 
 def _model_scene(args, default_size: Tuple[int, int]):
     """A Scene for one OBJ model: framed camera, studio lights, the options applied."""
-    from .obj import OBJError, load_obj
+    from .obj import load_obj
     from .scenefile import FrameSpec, Scene, SceneObject
     from .texture import Texture2D
 
@@ -320,8 +321,6 @@ def _model_scene(args, default_size: Tuple[int, int]):
         warnings.simplefilter("always")
         try:
             mesh = load_obj(args.input)
-        except OBJError:
-            raise
         except UnicodeError as e:
             raise CLIError(f"{args.input}: cannot read: {e}") from None
     for w in caught:
@@ -367,13 +366,13 @@ def _identity():
 
 def _load_scene_file(args, default_size):
     from .scenefile import load_scene
+    if args.texture:
+        raise CLIError("--texture applies to an OBJ model; in a scene file give the material a diffuse_texture")
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         scene = load_scene(args.input)
     for message in scene.warnings:
         _note(args, f"warning: {message}")
-    if args.texture:
-        raise CLIError("--texture applies to an OBJ model; in a scene file give the material a diffuse_texture")
     if args.size or args.width or args.height:
         w, h = _frame_size(args, (scene.width, scene.height))
         scene = scene.replace(width=w, height=h)
@@ -381,13 +380,11 @@ def _load_scene_file(args, default_size):
         if scene.camera is not None:
             scene = scene.replace(camera=scene.camera.replace(fovy=args.fovy))
         else:
-            import dataclasses
             scene = scene.replace(frame=dataclasses.replace(scene.frame, fovy=args.fovy))
     if (args.azimuth is not None or args.elevation is not None) and scene.camera is not None:
         raise CLIError(f"{args.input}: --azimuth/--elevation apply to a framed camera, and this scene's "
                        "[camera] gives an eye")
     if scene.camera is None and (args.azimuth is not None or args.elevation is not None):
-        import dataclasses
         f = scene.frame
         scene = scene.replace(frame=dataclasses.replace(
             f, azimuth=f.azimuth if args.azimuth is None else args.azimuth,
@@ -561,7 +558,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     try:
         parser = build_parser()
-        args = parser.parse_args(None if argv is None else list(argv))
+        args, extra = parser.parse_known_args(None if argv is None else list(argv))
+        if extra:
+            prog = f"softpipe {args.command}" if getattr(args, "command", None) else "softpipe"
+            raise _UsageError(prog, f"unrecognized arguments: {' '.join(extra)} (see '{prog} --help')")
     except _UsageError as e:
         print(f"{e.prog}: error: {e}", file=sys.stderr)
         return 2

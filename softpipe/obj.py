@@ -113,11 +113,16 @@ def load_obj(path: PathLike) -> Mesh:
     return _OBJParser(text, path, os.path.dirname(path)).mesh(name)
 
 
+#: Larger indices (and smoothing groups) cannot name anything: refused before numpy's int64 overflows.
+_MAX_INDEX = 1 << 40
+
+
 def parse_obj(text: str, name: str = "<string>", base_dir: Optional[PathLike] = None) -> Mesh:
     """Parse OBJ text; ``name`` labels error messages, ``base_dir`` resolves ``mtllib``.
 
     With ``base_dir=None``, MTL files are looked up relative to the current directory.
     """
+    text = text[1:] if text.startswith("\ufeff") else text      # a byte-order mark, as load_obj skips it
     return _OBJParser(text, name, os.fspath(base_dir) if base_dir is not None else "").mesh(name)
 
 
@@ -336,6 +341,9 @@ class _OBJParser:
             values = [int(x) if x else 0 for x in fields] if ok else []
         except ValueError:
             ok = False
+        if ok and any(abs(x) > _MAX_INDEX for x in values):
+            raise self.error(i, f"index in {tok!r} is beyond any possible vertex count "
+                                f"(at most {_MAX_INDEX}): {self.quoted(i)}")
         if not ok:
             raise self.error(
                 i, f"expected a face corner v, v/vt, v//vn or v/vt/vn, got {tok!r} in {self.quoted(i)}"
@@ -414,9 +422,13 @@ class _OBJParser:
         for i, rest in self.events["s"]:
             word = _strip_comment(rest).strip()
             try:
-                values.append(0 if word == "off" else int(word))
+                value = 0 if word == "off" else int(word)
             except ValueError:
                 raise self.error(i, f"expected a smoothing group number or 'off' after 's', got {self.quoted(i)}")
+            if not 0 <= value <= _MAX_INDEX:
+                raise self.error(i, f"expected a smoothing group number in [0, {_MAX_INDEX}] or 'off' after 's', "
+                                    f"got {self.quoted(i)}")
+            values.append(value)
         return values
 
     def smoothing_key(self, corner_face: np.ndarray) -> np.ndarray:

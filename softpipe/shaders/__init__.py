@@ -24,6 +24,7 @@ class Program:
     fragment: Callable
     description: str = ""
     interpolation: tuple = ()   # (varying, qualifier) pairs, e.g. (("color", "flat"),)
+    faceted: bool = False       # draw_mesh gives it Mesh.flat_shaded(): one normal per face
 
 
 PROGRAMS: Dict[str, Program] = {}
@@ -43,4 +44,5 @@ def get_program(name: str) -> Program:
     return PROGRAMS[name]
 
 
-from . import basic  # noqa: E402,F401  (registers the programs)
+# Importing the modules registers their programs.
+from . import basic, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: E402,F401

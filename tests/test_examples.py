@@ -1,0 +1,58 @@
+"""The example scripts run, at a tiny size, and write labelled contact sheets."""
+import importlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+SCRIPTS = {   # name: (tiny size, pictures on the sheet)
+    "shading_models": (24, 6),
+    "specular": (24, 12),
+    "shininess": (24, 8),
+    "spotlight": (24, 10),
+    "attenuation": ((32, 20), 10),
+    "materials": (24, 12),
+    "cook_torrance_gooch": ((32, 24), 8),
+    "antialiasing": ((36, 24), 10),
+    "user_program": (24, 4),
+}
+
+
+@pytest.fixture(scope="module")
+def examples():
+    sys.path.insert(0, str(EXAMPLES))
+    try:
+        yield {name: importlib.import_module(name) for name in SCRIPTS}
+    finally:
+        sys.path.remove(str(EXAMPLES))
+
+
+def test_every_example_script_is_listed():
+    scripts = {p.stem for p in EXAMPLES.glob("*.py")} - {"common"}
+    assert scripts == set(SCRIPTS)
+
+
+@pytest.mark.parametrize("name", sorted(SCRIPTS))
+def test_example_writes_its_contact_sheet(name, examples, tmp_path, capsys):
+    size, count = SCRIPTS[name]
+    module = examples[name]
+    path = module.main(size, out_dir=tmp_path)
+    assert path == tmp_path / f"{name}.png" and path.exists()
+    assert str(path) in capsys.readouterr().out
+    pictures = module.sheet(size)
+    assert len(pictures) == count
+    w, h = (size, size) if isinstance(size, int) else size
+    for label, picture in pictures.items():
+        assert picture.shape == (h, w, 3) and picture.dtype == np.uint8, label
+        assert picture.std() > 0, f"{name}: {label!r} is blank"
+    sheet = Image.open(path)
+    assert sheet.width >= w and sheet.height > h
+
+
+def test_examples_readme_lists_every_script():
+    text = (EXAMPLES / "README.md").read_text()
+    for name in SCRIPTS:
+        assert f"python examples/{name}.py" in text and f"out/examples/{name}.png" in text
