@@ -158,6 +158,20 @@ def _planes(viewport: Viewport) -> np.ndarray:
 EXACT_CLIP_ABOVE = float(1 << 20)
 
 
+def _window_parameter(t, w_out, w_new) -> float:
+    """Where the new vertex lies between the edge's ends in window space: t·w_out/w_new.
+
+    Meaningful when both ends are in front of the eye (then it is in [0, 1]); with
+    the outside end behind the eye the window position of that end does not
+    exist, and the parameter is clamped to [0, 1] so varyings stay finite.
+    """
+    try:
+        value = float(t * w_out / w_new)
+    except (OverflowError, ZeroDivisionError):
+        value = 1.0 if (w_out > 0) == (w_new > 0) else 0.0
+    return min(max(value, 0.0), 1.0) if value == value else 0.0
+
+
 def _clip_polygon(poly_pos, poly_var, planes, noperspective_cols):
     """Sutherland–Hodgman in homogeneous clip space; returns lists of corners.
 
@@ -189,7 +203,7 @@ def _clip_polygon(poly_pos, poly_var, planes, noperspective_cols):
                 tf = float(t)
                 var = poly_var[inside] + tf * (poly_var[outside] - poly_var[inside])
                 if len(noperspective_cols):
-                    sw = float(t * p_out[3] / pos[3])   # the same point's parameter in window space
+                    sw = _window_parameter(t, p_out[3], pos[3])
                     v_in, v_out = poly_var[inside], poly_var[outside]
                     var[noperspective_cols] = v_in[noperspective_cols] + sw * (
                         v_out[noperspective_cols] - v_in[noperspective_cols])

@@ -251,6 +251,12 @@ def opencv_camera(K, R, t, width: int, height: int, near: float, far: float) -> 
     return view, proj
 
 
+#: Largest viewport width, height and |offset|: with the guard band, window
+#: coordinates then stay below 2^18 pixels, and the rasterizer's 1/256-pixel edge
+#: functions well inside 64 bits.
+MAX_VIEWPORT = 1 << 16
+
+
 class Viewport:
     """The viewport transform NDC → window (glViewport and glDepthRange).
 
@@ -268,6 +274,9 @@ class Viewport:
                 raise TypeError(f"Viewport.{k} must be an integer, got {v!r}")
         if width <= 0 or height <= 0:
             raise ValueError(f"Viewport size must be positive, got {width}×{height}")
+        if max(width, height, abs(x), abs(y)) > MAX_VIEWPORT:
+            raise ValueError(f"Viewport ({x}, {y}, {width}, {height}) exceeds the limit MAX_VIEWPORT = {MAX_VIEWPORT} "
+                             "for its size and offset (window coordinates must fit the rasterizer's fixed point)")
         near, far = _finite("near", near), _finite("far", far)
         if not (0.0 <= near <= 1.0 and 0.0 <= far <= 1.0):
             raise ValueError(f"Viewport depth range must lie in [0, 1], got ({near}, {far})")
