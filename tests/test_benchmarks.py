@@ -1,0 +1,113 @@
+"""The benchmark harness runs: every scene once, tiny, through the same code as ``make bench``.
+
+Benchmarks are not tests: nothing here looks at a time. This only keeps
+``benchmarks/`` from rotting (issue 6): every scene builds and renders, every
+result row has its fields, every image shows something.
+"""
+import json
+import os
+import sys
+
+import numba
+import numpy as np
+import pytest
+from PIL import Image
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+from benchmarks import run as bench  # noqa: E402
+from benchmarks import scenes  # noqa: E402
+
+SCALE = 0.04
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    """One run of the command line over all scenes at a tiny size, one warm frame, one thread."""
+    out = tmp_path_factory.mktemp("bench")
+    threads_before = numba.get_num_threads()
+    code = bench.main(["--scale", str(SCALE), "--frames", "1", "--threads", "1", "--budget", "0",
+                       "--json", str(out / "bench.json"), "--save-images", str(out / "images")])
+    data = json.loads((out / "bench.json").read_text())
+    assert not data["failed"], "\n\n".join(f["traceback"] for f in data["failed"])
+    assert code == 0
+    assert numba.get_num_threads() == threads_before, "the harness must restore numba's thread count"
+    return data, out / "images"
+
+
+def test_every_scene_runs_and_reports_every_field(report):
+    data, _ = report
+    assert [r["scene"] for r in data["scenes"]] == list(scenes.SCENES)
+    for row in data["scenes"]:
+        assert set(bench.ROW_FIELDS) <= set(row), f"{row['scene']}: missing {set(bench.ROW_FIELDS) - set(row)}"
+        assert row["triangles"] > 0 and row["fragments"] > 0 and row["pixels_drawn"] > 0, row["scene"]
+        assert row["warm_frames"] == 1 and len(row["frames_ms"]) == 1
+        assert row["min_ms"] <= row["median_ms"] <= row["max_ms"]
+        assert row["first_ms"] > 0 and row["peak_rss_mb"] > 0
+        assert row["threads"] == 1
+        assert set(bench.STAGES) <= set(row["stages_ms"]), row["stages_ms"]
+        assert row["triangles_per_s"] > 0 and row["shaded_pixels_per_s"] > 0
+        assert row["target_ms"] is None  # targets apply to the full-size scenes only
+    assert data["threads"]["numba_threads"] == 1
+    assert data["settings"] == {"frames": 1, "scale": SCALE, "budget_s": None}
+    for key in ("nproc", "cpu_model", "python", "numba"):
+        assert data["machine"][key]
+    assert data["source"]["commit"] is None or isinstance(data["source"]["commit"], str)
+    for row in data["scenes"]:
+        assert row["shading"] and row["path"] in ("reference", "fast", "fast/reference")
+
+
+def test_every_image_shows_something(report):
+    data, images = report
+    for row in data["scenes"]:
+        scene = scenes.build_scene(row["scene"], SCALE)
+        pixels = np.asarray(Image.open(images / f"{row['scene']}.png"))
+        assert pixels.shape == (scene.height, scene.width, 3)
+        clear = np.rint(np.asarray(scene.clear_color[:3]) * 255).astype(np.uint8)
+        drawn = np.any(pixels != clear, axis=-1)
+        assert drawn.mean() > 0.05, f"{row['scene']}: only {drawn.sum()} pixels differ from the clear color"
+
+
+def test_tables_name_every_scene_and_stage(report):
+    data, _ = report
+    text = bench.format_tables(data["scenes"])
+    for name in scenes.SCENES:
+        assert name in text
+    for title in ("vertex", "assembly+clip", "setup+bin", "raster", "shading", "merge"):
+        assert title in text
+
+
+def test_scenes_are_deterministic_and_scale():
+    a, b = scenes.build_scene("fill", SCALE), scenes.build_scene("fill", SCALE)
+    assert np.array_equal(a.draws[0]["positions"], b.draws[0]["positions"])
+    b2f = scenes.build_scene("fill-b2f", SCALE)
+    z = b2f.draws[0]["positions"][::3, 2]
+    assert np.all(np.diff(z) < 0), "fill-b2f must draw strictly back to front"
+    assert sorted(z.tolist()) == sorted(a.draws[0]["positions"][::3, 2].tolist())
+    assert scenes.build_scene("tiny", SCALE).triangles == round(1000 * SCALE) ** 2
+
+
+def test_a_missing_asset_says_where_it_was_looked_for(monkeypatch):
+    monkeypatch.setattr(scenes, "ASSETS", "../no-such-assets")
+    with pytest.raises(scenes.AssetMissing, match=r"no-such-assets/stanford-bunny\.obj"):
+        scenes.build_scene("bunny", SCALE)
+
+
+def test_unknown_scene_is_refused():
+    with pytest.raises(ValueError, match="sphere200k"):
+        bench.run(["no-such-scene"])
+
+
+def test_lit_scenes_fall_back_to_their_own_shaders(monkeypatch):
+    """Without the built-in programs the lit scenes still render, with the shaders of benchmarks.scenes."""
+    def missing(name):
+        raise ValueError(f"unknown shading program {name!r}")
+    monkeypatch.setattr(scenes, "get_program", missing)
+    for name in ("sphere200k", "spot-textured"):   # bunny's fallback differs from sphere200k's by one constant
+        row = bench.run_scene(name, frames=1, scale=SCALE, budget=None, keep_image=True, log=lambda s: None)
+        assert "benchmarks.scenes" in row["shading"]
+        assert any("not available" in n for n in row["notes"])
+        assert row["pixels_drawn"] > 0 and row["fragments"] > 0
+    assert any("not trilinear" in n for n in row["notes"])
