@@ -169,13 +169,13 @@ def spot_factor(L: Vec3, S: Vec3, cos_cutoff: float, e: float) -> float:
     return positive_power(cos_angle, e)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def light_vec3(lights: np.ndarray, j: int, column: int) -> Vec3:
     """The three values at ``lights[j, column:column + 3]``: a color, a position or a direction."""
     return (lights[j, column], lights[j, column + 1], lights[j, column + 2])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     """(L, f_att · f_spot) for packed light j at the eye-space point P (FORMULAS §7–§9).
 
@@ -194,7 +194,7 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     return L, f_att * f_spot
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global_ambient: Color,
                     lights: np.ndarray, specular_model: int) -> Color:
     """The OpenGL lighting equation, summed over all lights (FORMULAS §10).

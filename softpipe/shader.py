@@ -99,7 +99,7 @@ def jit_function(fn: Callable) -> Callable:
         return fn
     if numba.config.DISABLE_JIT:
         return fn
-    return numba.njit(fn)
+    return numba.njit(fn, inline="always")
 
 
 # --------------------------------------------------------------------- uniforms

@@ -307,5 +307,14 @@ def in_bands(kernel, height: int, threads: int, *args) -> None:
         kernel(0, height, *args)
         return
     bounds = np.linspace(0, height, threads * 4 + 1).astype(int)
-    with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(lambda k: kernel(bounds[k], bounds[k + 1], *args), range(len(bounds) - 1)))
+    list(_pool(threads).map(lambda k: kernel(bounds[k], bounds[k + 1], *args), range(len(bounds) - 1)))
+
+
+_POOLS: dict = {}
+
+
+def _pool(threads: int) -> ThreadPoolExecutor:
+    """One long-lived pool per thread count (starting threads per draw costs milliseconds)."""
+    if threads not in _POOLS:
+        _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="softpipe-shade")
+    return _POOLS[threads]
