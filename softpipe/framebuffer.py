@@ -42,6 +42,7 @@ def _check_size(width, height, samples: int) -> None:
             raise ValueError(f"Framebuffer {name} must be at least 1, got {v}")
         if v > MAX_DIMENSION:
             raise ValueError(f"Framebuffer {name} {v} exceeds the limit MAX_DIMENSION = {MAX_DIMENSION}")
+    width, height, samples = int(width), int(height), int(samples)   # no numpy int overflow in the product
     if width * height * samples > MAX_TOTAL_SAMPLES:
         raise ValueError(f"Framebuffer {width}×{height}×{samples} samples = {width * height * samples} exceeds "
                          f"the limit MAX_TOTAL_SAMPLES = {MAX_TOTAL_SAMPLES}")

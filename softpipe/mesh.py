@@ -53,6 +53,9 @@ def _float_rows(name: str, value: Any, width: int, rows: Optional[int]) -> np.nd
         raise ValueError(
             f"Mesh.{name} must have one row per position: shape [{rows}, {width}], got {_describe(a)}"
         )
+    from .vertex import MAX_VERTICES
+    if a.shape[0] > MAX_VERTICES:
+        raise ValueError(f"Mesh.{name} has {a.shape[0]} rows; the limit is MAX_VERTICES = {MAX_VERTICES}")
     a = np.ascontiguousarray(a, dtype=np.float64)
     bad = ~np.isfinite(a).all(axis=1)
     if bad.any():

@@ -35,7 +35,7 @@ class SamplePattern:
         if pos.ndim != 2 or pos.shape[1] != 2 or len(pos) == 0:
             raise ValueError(f"sample positions must have shape [S, 2] with S ≥ 1, got {list(pos.shape)}")
         if len(pos) > MAX_SAMPLES:
-            raise ValueError(f"a sample pattern has at most {MAX_SAMPLES} samples, got {len(pos)}")
+            raise ValueError(f"a sample pattern has at most MAX_SAMPLES = {MAX_SAMPLES} samples, got {len(pos)}")
         if not np.all(np.isfinite(pos)) or pos.min() < 0.0 or pos.max() >= 1.0:
             raise ValueError("sample positions must lie in [0, 1) × [0, 1)")
         # Offsets from the pixel centre in 1/256 pixel, rounded half to even as
@@ -93,7 +93,7 @@ def jittered(s: int, seed: int = 0) -> SamplePattern:
 
 def random_pattern(n: int, seed: int = 0) -> SamplePattern:
     """n samples uniformly at random in the pixel (seeded)."""
-    n = _count("number of samples", n, 1, MAX_SAMPLES)
+    n = _count("number of samples (MAX_SAMPLES)", n, 1, MAX_SAMPLES)
     rng = np.random.default_rng(seed)
     return SamplePattern(rng.random((n, 2)) * (1.0 - 1.0 / SUBPIXEL), name=f"random {n} (seed {seed})")
 

@@ -498,6 +498,8 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
             "    q1 = b1 * inv_w[t, 1]",
             "    q2 = b2 * inv_w[t, 2]",
             "    qs = q0 + q1 + q2",
+            "    if not qs > 0.0:",         # an extrapolated pixel centre (multisampling) can make it 0
+            "        q0, q1, q2, qs = b0, b1, b2, 1.0",
             "    p0 = q0 / qs",
             "    p1 = q1 / qs",
             "    p2 = q2 / qs",

@@ -66,7 +66,7 @@ def as_float_array(name: str, value, ncols: Optional[tuple] = None, allow_1d: bo
             want += " or [N]"
         raise ValueError(f"{name} must have shape {want}, got {list(arr.shape)}")
     if arr.shape[0] > MAX_VERTICES:
-        raise ValueError(f"{name} has {arr.shape[0]} rows; the limit is {MAX_VERTICES} vertices per draw")
+        raise ValueError(f"{name} has {arr.shape[0]} rows; the limit is MAX_VERTICES = {MAX_VERTICES} vertices per draw")
     return np.ascontiguousarray(arr, dtype=np.float64)
 
 
