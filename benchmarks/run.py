@@ -237,7 +237,8 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
     if isinstance(scene, str):
         scene = build_scene(scene, scale)
     build_s = time.perf_counter() - t0
-    fb = Framebuffer(scene.width, scene.height)
+    fb = Framebuffer(scene.width, scene.height, pattern=scene.pattern) if scene.pattern else \
+        Framebuffer(scene.width, scene.height)
     notes = list(scene.notes)
     gc.collect()
     start_rss = _rss_mb()

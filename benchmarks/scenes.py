@@ -34,7 +34,7 @@ from __future__ import annotations
 import importlib
 import math
 from collections import namedtuple
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Dict, List, Optional, Tuple
 
@@ -95,6 +95,7 @@ class Scene:
     notes: List[str] = field(default_factory=list)
     scale: float = 1.0
     shading: str = ""
+    pattern: object = None      # the framebuffer's SamplePattern (None: one centre sample)
 
 
 def _size(width: int, height: int, scale: float) -> Tuple[int, int]:
@@ -380,6 +381,22 @@ def tiny(scale: float = 1.0) -> Scene:
 
 
 #: name → scene function, in the issue's order.
+def _bunny_aa(name: str, pattern_name: str, sample_shading: str) -> Callable[[float], Scene]:
+    """The bunny at 512×512 with a sample pattern: the cost of each antialiasing mode (issue 8)."""
+    from softpipe.sampling import pattern_named
+
+    def scene(scale: float = 1.0) -> Scene:
+        base = bunny(scale * 0.5)
+        pattern = pattern_named(pattern_name)
+        for d in base.draws:
+            d["sample_shading"] = sample_shading
+        mode = "MSAA (shaded once per pixel)" if sample_shading != "sample" else "SSAA (every sample shaded)"
+        return replace(base, name=name, pattern=pattern,
+                       description=f"bunny at 512x512, {pattern.name}, {len(pattern)} samples, "
+                                   f"{mode if len(pattern) > 1 else 'no antialiasing'}")
+    return scene
+
+
 SCENES: Dict[str, Callable[[float], Scene]] = {
     "sphere200k": sphere200k,
     "sphere200k-color": sphere200k_color,
@@ -388,6 +405,11 @@ SCENES: Dict[str, Callable[[float], Scene]] = {
     "fill": fill,
     "fill-b2f": fill_b2f,
     "tiny": tiny,
+    "aa-1": _bunny_aa("aa-1", "1", "sample"),
+    "aa-grid4": _bunny_aa("aa-grid4", "grid4", "sample"),
+    "aa-rgss4": _bunny_aa("aa-rgss4", "rgss4", "sample"),
+    "aa-jitter16": _bunny_aa("aa-jitter16", "jitter16", "sample"),
+    "aa-msaa4": _bunny_aa("aa-msaa4", "rgss4", "center"),
 }
 
 
