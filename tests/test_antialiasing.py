@@ -54,7 +54,7 @@ def test_pattern_names_and_errors():
         pattern_named("msaa")
     with pytest.raises(ValueError, match=r"\[0, 1\)"):
         sp.SamplePattern([(1.0, 0.5)])
-    with pytest.raises(ValueError, match="at most 64"):
+    with pytest.raises(ValueError, match="at most MAX_SAMPLES = 64"):
         sp.SamplePattern(np.full((65, 2), 0.5))
 
 
