@@ -236,6 +236,15 @@ class Trace:
         from .pictures import stage_pictures
         return stage_pictures(self)
 
+    def _repr_png_(self) -> bytes:
+        """In Jupyter a trace shows as the labelled contact sheet of its stages."""
+        import io
+
+        from .pictures import contact_sheet, stage_pictures
+        buf = io.BytesIO()
+        contact_sheet(stage_pictures(self)).save(buf, format="PNG")
+        return buf.getvalue()
+
     def save_pictures(self, directory) -> dict:
         """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""
         from .pictures import save_stage_pictures

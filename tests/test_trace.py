@@ -154,6 +154,9 @@ def test_stage_pictures_have_the_framebuffer_size_and_mark_culled_triangles(tmp_
     assert set(paths) == set(PICTURES) | {"contact-sheet"}
     from PIL import Image
     assert Image.open(paths["contact-sheet"]).size[0] > 3 * 40
+    import io
+    inline = Image.open(io.BytesIO(trace._repr_png_()))            # what Jupyter shows for a trace
+    assert inline.size == Image.open(paths["contact-sheet"]).size
 
 
 def test_debug_switch_prints_the_stages(capsys, monkeypatch):
