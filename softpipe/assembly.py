@@ -234,44 +234,54 @@ def _signed_area(ax, ay, bx, by, cx, cy):
     return (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
 
 
+NON_FINITE_BIT = 1 << 7   # beside one bit per clip plane (7 planes)
+
+
 @numba.njit(cache=True, parallel=True)
-def _classify(pos, tri, planes, vp, cull, ccw_front, status, front):
-    """Per input triangle: ACCEPTED, NON_FINITE, OUTSIDE, CUT or CULLED, and its facing."""
-    for t in numba.prange(tri.shape[0]):
-        finite = True
-        for c in range(3):
-            for k in range(4):
-                finite = finite and np.isfinite(pos[tri[t, c], k])
-        if not finite:
-            status[t] = NON_FINITE
-            continue
-        all_in, out_of_one = True, False
-        for p in range(planes.shape[0]):
-            n_out = 0
-            for c in range(3):
-                v = tri[t, c]
+def _vertex_codes(pos, planes, vp, codes, window):
+    """Per vertex, once (vertices are shared by triangles): a bit per clip plane it is outside
+    of (and NON_FINITE_BIT), and its window position when it is inside every plane."""
+    for v in numba.prange(pos.shape[0]):
+        code = 0
+        if not (np.isfinite(pos[v, 0]) and np.isfinite(pos[v, 1]) and np.isfinite(pos[v, 2])
+                and np.isfinite(pos[v, 3])):
+            code = NON_FINITE_BIT
+        else:
+            for p in range(planes.shape[0]):
                 d = (planes[p, 0] * pos[v, 0] + planes[p, 1] * pos[v, 1] + planes[p, 2] * pos[v, 2]
                      + planes[p, 3] * pos[v, 3] + planes[p, 4])
                 if d < 0:
-                    n_out += 1
-            all_in = all_in and n_out == 0
-            out_of_one = out_of_one or n_out == 3
-        if out_of_one:
+                    code |= 1 << p
+        codes[v] = code
+        if code == 0:
+            window[v, 0], window[v, 1], window[v, 2] = _to_window(pos[v, 0], pos[v, 1], pos[v, 2], pos[v, 3], vp)
+
+
+@numba.njit(cache=True, parallel=True)
+def _classify(codes, window, tri, cull, ccw_front, status, front):
+    """Per input triangle: ACCEPTED, NON_FINITE, OUTSIDE, CUT or CULLED, and its facing.
+
+    From its corners' codes: any corner non-finite → NON_FINITE; all three outside
+    one plane → OUTSIDE; some corner outside some plane → CUT (clipped later);
+    else facing from the window-space area, and culling.
+    """
+    for t in numba.prange(tri.shape[0]):
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        any_out = codes[a] | codes[b] | codes[c]
+        if any_out & NON_FINITE_BIT:
+            status[t] = NON_FINITE
+        elif codes[a] & codes[b] & codes[c]:
             status[t] = OUTSIDE
-        elif not all_in:
+        elif any_out:
             status[t] = CUT           # facing comes from the clipped polygon, later
         else:
-            a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
-            ax, ay, _ = _to_window(pos[a, 0], pos[a, 1], pos[a, 2], pos[a, 3], vp)
-            bx, by, _ = _to_window(pos[b, 0], pos[b, 1], pos[b, 2], pos[b, 3], vp)
-            cx, cy, _ = _to_window(pos[c, 0], pos[c, 1], pos[c, 2], pos[c, 3], vp)
-            area = _signed_area(ax, ay, bx, by, cx, cy)
+            area = _signed_area(window[a, 0], window[a, 1], window[b, 0], window[b, 1], window[c, 0], window[c, 1])
             front[t] = area > 0 if ccw_front else area < 0
             status[t] = CULLED if (cull == 1 and not front[t]) or (cull == 2 and front[t]) else ACCEPTED
 
 
 @numba.njit(cache=True, parallel=True)
-def _emit_accepted(pos, var, tri, status, offset, vp, flat, window, inv_w, out_var, key):
+def _emit_accepted(pos, var, tri, status, offset, vertex_window, flat, window, inv_w, out_var, key):
     """Write the accepted triangles at their output rows (primitive order kept by ``offset``)."""
     for t in numba.prange(tri.shape[0]):
         if status[t] != ACCEPTED:
@@ -280,8 +290,9 @@ def _emit_accepted(pos, var, tri, status, offset, vp, flat, window, inv_w, out_v
         key[o] = t
         for c in range(3):
             v = tri[t, c]
-            x, y, z = _to_window(pos[v, 0], pos[v, 1], pos[v, 2], pos[v, 3], vp)
-            window[o, c, 0], window[o, c, 1], window[o, c, 2] = x, y, z
+            window[o, c, 0] = vertex_window[v, 0]
+            window[o, c, 1] = vertex_window[v, 1]
+            window[o, c, 2] = vertex_window[v, 2]
             inv_w[o, c] = 1.0 / pos[v, 3]
             for k in range(var.shape[1]):
                 out_var[o, c, k] = var[v, k]
@@ -344,8 +355,11 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
     cull_code, ccw_front = CULL_MODES.index(cull), front_face == "ccw"
     status = np.empty(n, np.int8)
     front = np.zeros(n, bool)
+    codes = np.empty(len(vout.position), np.uint8)
+    vertex_window = np.empty((len(vout.position), 3))
     if n:
-        _classify(vout.position, tri, planes, vp, cull_code, ccw_front, status, front)
+        _vertex_codes(vout.position, planes, vp, codes, vertex_window)
+        _classify(codes, vertex_window, tri, cull_code, ccw_front, status, front)
     pieces = _clip_cut(vout, tri, np.nonzero(status == CUT)[0], planes, vp, layout, cull_code, ccw_front, status)
 
     counts = (status == ACCEPTED).astype(np.int64)
@@ -359,7 +373,7 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
     window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
     out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
     if n:
-        _emit_accepted(vout.position, vout.varyings, tri, status, offset, vp, _columns(layout, "flat"),
+        _emit_accepted(vout.position, vout.varyings, tri, status, offset, vertex_window, _columns(layout, "flat"),
                        window, inv_w, out_var, key)
     clipped = np.zeros(total, bool)
     for t, (win, iw, pv, _) in pieces.items():
