@@ -176,6 +176,13 @@ def light_vec3(lights: np.ndarray, j: int, column: int) -> Vec3:
 
 
 @njit(cache=True, inline="always")
+def light_colors(lights: np.ndarray, j: int) -> Tuple[Color, Color, Color]:
+    """Light j's ambient, diffuse and specular colors (I_a,j, I_d,j, I_s,j)."""
+    return (light_vec3(lights, j, LIGHT_AMBIENT), light_vec3(lights, j, LIGHT_DIFFUSE),
+            light_vec3(lights, j, LIGHT_SPECULAR))
+
+
+@njit(cache=True, inline="always")
 def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     """(L, f_att · f_spot) for packed light j at the eye-space point P (FORMULAS §7–§9).
 
@@ -222,9 +229,7 @@ def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global
     color = add(emission(m.ke), ambient(m.ka, global_ambient))
     for j in range(lights.shape[0]):
         L, f = light_at(P, lights, j)
-        Ia = light_vec3(lights, j, LIGHT_AMBIENT)
-        Id = light_vec3(lights, j, LIGHT_DIFFUSE)
-        Is = light_vec3(lights, j, LIGHT_SPECULAR)
+        Ia, Id, Is = light_colors(lights, j)
         if specular_model == PHONG:
             specular = phong_specular(m.ks, Is, N, L, V, m.shininess)
         else:
@@ -298,9 +303,7 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global_ambi
     color = ambient(m.ka, global_ambient)
     for j in range(lights.shape[0]):
         L, f = light_at(P, lights, j)
-        Ia = light_vec3(lights, j, LIGHT_AMBIENT)
-        Id = light_vec3(lights, j, LIGHT_DIFFUSE)
-        Is = light_vec3(lights, j, LIGHT_SPECULAR)
+        Ia, Id, Is = light_colors(lights, j)
         reflected = add(blinn_phong_specular(m.ks, Is, N, L, V, m.shininess), lambert(m.kd, Id, N, L))
         transmitted = hall_transmission(m.kt, Is, N, L, V, eta, m.transmission_shininess)
         term = add(add(ambient(m.ka, Ia), reflected), transmitted)
@@ -431,9 +434,7 @@ def cook_torrance_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform,
     color = add(emission(mt.ke), ambient(mt.ka, global_ambient))
     for j in range(lights.shape[0]):
         L, f = light_at(P, lights, j)
-        Ia = light_vec3(lights, j, LIGHT_AMBIENT)
-        Id = light_vec3(lights, j, LIGHT_DIFFUSE)
-        Is = light_vec3(lights, j, LIGHT_SPECULAR)
+        Ia, Id, Is = light_colors(lights, j)
         term = ambient(mt.ka, Ia)
         n_dot_l = dot(N, L)
         if n_dot_l > 0.0:  # B_j = 1
