@@ -7,6 +7,7 @@ Stages (one module each): :mod:`~softpipe.transforms` → :mod:`~softpipe.vertex
 :mod:`~softpipe.glsl`, :mod:`~softpipe.lighting`); built-in programs live in
 :mod:`softpipe.shaders`.
 """
+from . import _runtime  # noqa: F401  (first: process settings, see its docstring)
 from . import glsl, lighting, shapes
 from .assembly import Primitives, assemble
 from .camera import Camera

@@ -1,0 +1,55 @@
+"""Process settings that softpipe's speed depends on, applied once when softpipe is imported.
+
+Both were measured on the benchmark scenes (benchmarks/README.md, 2 cores):
+
+**OpenMP workers sleep when idle** (``OMP_WAIT_POLICY=PASSIVE``). numba's
+parallel kernels (binning, the visibility pass, assembly) run on OpenMP
+threads, which by default spin for a while after each kernel. The fast path's
+shading runs on Python threads right after such a kernel, and a spinning worker
+takes a core from them: sphere200k's two shading passes took 27 + 25 ms with
+spinning workers and 22 + 20 ms with sleeping ones. The variable is read when
+OpenMP starts, so it only counts if softpipe is imported before numba runs its
+first parallel kernel; a value already set is left alone.
+
+**Freed memory is kept for reuse** (glibc's ``mallopt``: ``M_MMAP_THRESHOLD``
+and ``M_TRIM_THRESHOLD``). A draw makes arrays of tens of megabytes (assembled
+triangles, edge functions, the visibility buffer) and frees them at its end.
+By default glibc gives each such block back to the system and maps a fresh one
+for the next draw, and the kernel must zero every page again on first touch:
+sphere200k's assembly took 31 ms that way and 5 ms with the memory kept
+(page faults per frame: about 3,000 → 0). The cost is that the process keeps
+its peak memory instead of returning it after a large draw.
+
+Set ``SOFTPIPE_SYSTEM_MALLOC=1`` to leave the allocator as it is. Neither setting
+changes a single output byte.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import sys
+
+__all__ = ["KEEP_FREED_BELOW", "malloc_tuned"]
+
+#: Blocks up to this size come from (and go back to) the heap instead of fresh mappings.
+KEEP_FREED_BELOW = 1 << 30
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3   # glibc's malloc.h
+
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
+def _tune_malloc() -> bool:
+    """Ask glibc to keep freed blocks; False where there is no glibc or it refused."""
+    if os.environ.get("SOFTPIPE_SYSTEM_MALLOC", "") not in ("", "0") or not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None)
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):       # not glibc (musl has no mallopt)
+        return False
+    mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
+    return bool(mallopt(_M_MMAP_THRESHOLD, KEEP_FREED_BELOW)) and bool(mallopt(_M_TRIM_THRESHOLD, KEEP_FREED_BELOW))
+
+
+#: Whether the allocator was tuned in this process.
+malloc_tuned = _tune_malloc()
