@@ -12,8 +12,10 @@ skip shading every fragment:
    triangles whose box touches it, in primitive order.
 3. **Visibility** (:func:`raster_tiles`): tiles run in parallel; inside a tile,
    triangles in order; each row's covered span comes from solving the three
-   edge inequalities exactly in integers, then the depth test runs per sample
-   and the visibility buffer keeps the last triangle that passed. Depth is
+   edge inequalities exactly in integers (a triangle less than :data:`NARROW`
+   pixels wide in the tile has each sample's edges tested instead: cheaper
+   for small triangles), then the depth test runs per sample and the
+   visibility buffer keeps the last triangle that passed. Depth is
    computed by the same expression as in the reference rasterizer, so the
    depth buffer is identical.
 4. **Shading** (``shader.visible_kernel``): the fragment shader runs once per
@@ -203,6 +205,65 @@ def _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
             vrow[k] = t
 
 
+#: A triangle whose box inside a tile is at most this many pixels wide is walked
+#: sample by sample: for small triangles, testing each sample costs less than
+#: solving each row's span.
+NARROW = 16
+
+
+@numba.njit(cache=True)
+def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, write, depth, vis):
+    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample's edges.
+
+    Depth is the reference rasterizer's expression on the sample's exact edge values.
+    """
+    z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
+    for s in range(offsets.shape[0]):
+        ox, oy = offsets[s, 0], offsets[s, 1]
+        for j in range(j0, j1 + 1):
+            py = j * SUBPIXEL + oy
+            row = height - 1 - j
+            for i in range(i0, i1 + 1):
+                px = i * SUBPIXEL + ox
+                if not _inside(edges, bias, t, px, py):
+                    continue
+                e1 = edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2]
+                e2 = edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2]
+                z = z0 + (e1 * dz1 + e2 * dz2) * inv_area
+                zf = np.float32(min(max(z, 0.0), 1.0))
+                if depth_passes(func, zf, depth[s, row, i]):
+                    if write:
+                        depth[s, row, i] = zf
+                    vis[s, row, i] = t
+
+
+@numba.njit(cache=True)
+def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, covers, offsets, height, func, write, depth, vis):
+    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1] row span by row span.
+
+    ``covers``: every sample of the box is inside (no span to solve).
+    """
+    z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
+    a1, a2 = float(edges[t, 1, 0] * SUBPIXEL), float(edges[t, 2, 0] * SUBPIXEL)
+    for s in range(offsets.shape[0]):
+        ox, oy = offsets[s, 0], offsets[s, 1]
+        dplane, vplane = depth[s], vis[s]
+        for j in range(j0, j1 + 1):
+            py = j * SUBPIXEL + oy
+            lo, hi = (i0, i1) if covers else _span(edges, bias, t, ox, py, i0, i1)
+            if lo > hi:
+                continue
+            px = lo * SUBPIXEL + ox
+            e1 = float(edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2])
+            e2 = float(edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2])
+            row = height - 1 - j
+            drow, vrow = dplane[row, lo:hi + 1], vplane[row, lo:hi + 1]
+            if func == LESS or func == LEQUAL:
+                _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func == LESS, write)
+            else:
+                _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
+
+
 @numba.njit(cache=True, parallel=True)
 def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
                  depth, vis):
@@ -233,6 +294,7 @@ def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height,
             j0, j1 = max(box[t, 2], y_lo), min(box[t, 3], y_hi)
             if i0 > i1 or j0 > j1:
                 continue
+            whole_tile = i0 == x_lo and i1 == x_hi and j0 == y_lo and j1 == y_hi
             if hiz:
                 # the rectangle holding every sample this triangle may cover in the tile
                 qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
@@ -241,30 +303,14 @@ def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height,
                 zc, zd = _plane_z(edges, plane, t, qx0, qy1), _plane_z(edges, plane, t, qx1, qy1)
                 if min(za, zb, zc, zd) - HIZ_MARGIN > far:
                     continue
-                covers_tile = _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
-                if covers_tile and i0 == x_lo and i1 == x_hi and j0 == y_lo and j1 == y_hi:
+                if whole_tile and _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
                     far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
+            if i1 - i0 < NARROW:
+                _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
             else:
-                covers_tile = _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
-            z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
-            a1, a2 = float(edges[t, 1, 0] * SUBPIXEL), float(edges[t, 2, 0] * SUBPIXEL)
-            for s in range(offsets.shape[0]):
-                ox, oy = offsets[s, 0], offsets[s, 1]
-                dplane, vplane = depth[s], vis[s]
-                for j in range(j0, j1 + 1):
-                    py = j * SUBPIXEL + oy
-                    lo, hi = (i0, i1) if covers_tile else _span(edges, bias, t, ox, py, i0, i1)
-                    if lo > hi:
-                        continue
-                    px = lo * SUBPIXEL + ox
-                    e1 = float(edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2])
-                    e2 = float(edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2])
-                    row = height - 1 - j
-                    drow, vrow = dplane[row, lo:hi + 1], vplane[row, lo:hi + 1]
-                    if func == LESS or func == LEQUAL:
-                        _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func == LESS, depth_write)
-                    else:
-                        _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, depth_write)
+                covers = _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
+                _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, covers, offsets, height, func, depth_write,
+                            depth, vis)
 
 
 def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray):

@@ -132,3 +132,36 @@ def test_fast_path_is_refused_when_it_cannot_give_the_same_bytes():
                  path="fast").run()
     assert not DrawCall(sp.Framebuffer(8, 8), clip, varyings=color).uses_fast_path()     # small: reference
     assert DrawCall(sp.Framebuffer(256, 256), clip, varyings=color).uses_fast_path()
+
+
+@pytest.mark.parametrize("pattern", [sp.CENTER, rotated_grid_4x()], ids=lambda p: p.name)
+@pytest.mark.parametrize("func", ["less", "lequal", "greater", "always"])
+def test_narrow_and_wide_triangles_across_tile_edges(pattern, func):
+    """Boxes just under, at and over NARROW pixels wide (sample by sample vs row spans), 1-pixel
+    triangles and slivers, placed across the 128×32 tile edges, overlapping at random depths."""
+    from softpipe.visibility import NARROW, TILE_H, TILE_W
+    rng = np.random.default_rng(11)
+    w, h = 2 * TILE_W + 20, 3 * TILE_H + 7
+    tris = []
+    for width in (0.7, 1.0, 3.0, NARROW - 1.5, NARROW - 0.5, NARROW + 0.5, NARROW + 3.0, 40.0):
+        for _ in range(12):
+            c = rng.choice([TILE_W, 2 * TILE_W, w / 2]) + rng.uniform(-8, 8), \
+                rng.choice([TILE_H, 2 * TILE_H, h / 2]) + rng.uniform(-8, 8)
+            x = np.array([-0.5, 0.5, rng.uniform(-0.5, 0.5)]) * width         # box exactly `width` wide
+            y = rng.uniform(-0.5, 0.5, 3) * rng.choice([0.3, 2.0, 30.0])
+            corners = np.c_[x, y] + c
+            tris.append(np.c_[np.round(corners * 4) / 4, rng.uniform(-0.8, 0.8, 3)])
+    tris = np.array(tris)
+    box_w = np.ceil(tris[:, :, 0].max(1)) - np.floor(tris[:, :, 0].min(1))
+    assert (box_w <= NARROW - 2).sum() > 20 and (box_w >= NARROW + 2).sum() > 20   # both ways are taken
+    clip = window_to_clip(tris.reshape(-1, 3), w, h)
+
+    def make():
+        fb = sp.Framebuffer(w, h, pattern=pattern)
+        fb.clear((0.0, 0.0, 0.0, 1.0), depth=0.5)
+        return fb
+
+    a, b = both_paths(make, positions=clip, varyings={"color": rng.uniform(0, 1, (len(clip), 3))},
+                      depth_test=func)
+    assert_same(a, b)
+    assert (a.samples_depth != 0.5).sum() > 300
