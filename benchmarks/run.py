@@ -58,6 +58,7 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 import softpipe.pipeline as _pipeline  # noqa: E402
+from softpipe._runtime import release_memory  # noqa: E402
 from softpipe.framebuffer import Framebuffer  # noqa: E402
 from softpipe.pipeline import DrawCall  # noqa: E402
 from softpipe.raster import count_fragments  # noqa: E402
@@ -241,6 +242,7 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
         Framebuffer(scene.width, scene.height)
     notes = list(scene.notes)
     gc.collect()
+    release_memory()        # what earlier scenes left for reuse (softpipe._runtime) is not this scene's
     start_rss = _rss_mb()
     reset = _reset_peak_rss()
 

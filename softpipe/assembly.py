@@ -369,12 +369,18 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
     offset = np.zeros(n + 1, np.int64)
     np.cumsum(counts, out=offset[1:])
     total = int(offset[-1])
-    k = layout.width
-    window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
-    out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
-    if n:
-        _emit_accepted(vout.position, vout.varyings, tri, status, offset, vertex_window, _columns(layout, "flat"),
-                       window, inv_w, out_var, key)
+    k, flat = layout.width, _columns(layout, "flat")
+    if indices is None and topology == "triangles" and not pieces and total == n and not len(flat):
+        # Every triangle kept whole, and vertex 3t + c is corner c of triangle t: the
+        # per-vertex arrays already are the per-corner ones (views, not copies).
+        window, inv_w = vertex_window.reshape(n, 3, 3), 1.0 / vout.position[:, 3].reshape(n, 3)
+        out_var, key = vout.varyings.reshape(n, 3, k), np.arange(n, dtype=np.int64)
+    else:
+        window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
+        out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
+        if n:
+            _emit_accepted(vout.position, vout.varyings, tri, status, offset, vertex_window, flat,
+                           window, inv_w, out_var, key)
     clipped = np.zeros(total, bool)
     for t, (win, iw, pv, _) in pieces.items():
         rows = slice(offset[t], offset[t] + len(win))

@@ -243,3 +243,27 @@ def test_dropped_ids_refer_to_strip_triangles():
         prims = softpipe.assemble(run_vertex_stage(pts), "triangle_strip", viewport=softpipe.Viewport(0, 0, S, S))
     assert list(prims.dropped["non-finite"]) == [2, 3]
     assert list(prims.primitive_id) == [0, 1]
+
+
+@pytest.mark.parametrize("case", ["all kept", "one culled", "one clipped", "one outside"])
+def test_unindexed_list_gives_what_indices_in_order_give(case):
+    """A triangle list without indices whose triangles are all kept whole reuses the vertex arrays
+    as the corner arrays; the result must be what the general path (indices 0, 1, 2, …) gives."""
+    rng = np.random.default_rng(4)
+    tris = rng.uniform(0.5, 7.5, (6, 3, 2))
+    tris[::2, [1, 2]] = tris[::2, [2, 1]]          # windings of both kinds
+    z = rng.uniform(-0.5, 0.5, (6, 3, 1))
+    pos = window_to_clip(np.concatenate([tris, z], axis=2).reshape(-1, 3), S, S) * rng.uniform(0.5, 2, (18, 1))
+    if case == "one clipped":
+        pos[4, 2] = -2 * pos[4, 3]                 # behind the near plane
+    elif case == "one outside":
+        pos[3:6, 0] = 1e5 * pos[3:6, 3]            # far right, beyond the guard band
+    vout = run_vertex_stage(pos, {"color": rng.uniform(0, 1, (18, 3)), "t": rng.uniform(0, 1, 18)})
+    vp = softpipe.Viewport(0, 0, S, S)
+    cull = "back" if case == "one culled" else "none"
+    a = softpipe.assemble(vout, viewport=vp, cull=cull)
+    b = softpipe.assemble(vout, indices=np.arange(18), viewport=vp, cull=cull)
+    for name in ("window", "inv_w", "varyings", "primitive_id", "front_facing", "clipped"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert {k: list(v) for k, v in a.dropped.items()} == {k: list(v) for k, v in b.dropped.items()}
+    assert (len(a) == 6) == (case == "all kept")
