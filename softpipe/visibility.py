@@ -215,26 +215,31 @@ NARROW = 16
 def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, write, depth, vis):
     """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample's edges.
 
-    Depth is the reference rasterizer's expression on the sample's exact edge values.
+    Along a row the edge values step by A_k·256 (exact integers); depth is the
+    reference rasterizer's expression on the sample's exact edge values.
     """
     z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
+    step0, step1, step2 = edges[t, 0, 0] * SUBPIXEL, edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
     for s in range(offsets.shape[0]):
         ox, oy = offsets[s, 0], offsets[s, 1]
+        px = i0 * SUBPIXEL + ox
         for j in range(j0, j1 + 1):
             py = j * SUBPIXEL + oy
             row = height - 1 - j
+            e0 = edges[t, 0, 0] * px + edges[t, 0, 1] * py + edges[t, 0, 2]
+            e1 = edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2]
+            e2 = edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2]
             for i in range(i0, i1 + 1):
-                px = i * SUBPIXEL + ox
-                if not _inside(edges, bias, t, px, py):
-                    continue
-                e1 = edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2]
-                e2 = edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2]
-                z = z0 + (e1 * dz1 + e2 * dz2) * inv_area
-                zf = np.float32(min(max(z, 0.0), 1.0))
-                if depth_passes(func, zf, depth[s, row, i]):
-                    if write:
-                        depth[s, row, i] = zf
-                    vis[s, row, i] = t
+                if e0 + bias[t, 0] >= 0 and e1 + bias[t, 1] >= 0 and e2 + bias[t, 2] >= 0:
+                    z = z0 + (e1 * dz1 + e2 * dz2) * inv_area
+                    zf = np.float32(min(max(z, 0.0), 1.0))
+                    if depth_passes(func, zf, depth[s, row, i]):
+                        if write:
+                            depth[s, row, i] = zf
+                        vis[s, row, i] = t
+                e0 += step0
+                e1 += step1
+                e2 += step2
 
 
 @numba.njit(cache=True)
