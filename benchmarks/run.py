@@ -183,10 +183,11 @@ def _counting(fb: Framebuffer):
         return counted
 
     def fast(f):
-        def counted(prims, vis, *args, **kwargs):
+        def counted(prims, visibility, *args, **kwargs):
+            vis = getattr(visibility, "vis", visibility)     # a Visibility (or, before it, the array)
             counter["shaded"] += int(np.count_nonzero(np.asarray(vis) >= 0))
             counter["calls"] += 1
-            return f(prims, vis, *args, **kwargs)
+            return f(prims, visibility, *args, **kwargs)
         return counted
 
     saved = {}

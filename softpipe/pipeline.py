@@ -223,16 +223,15 @@ class DrawCall:
         clock("assembly")
         self._emit(Stage("assembly", prims), debug)
         func = -1 if self.state.depth_test is None else DEPTH_FUNCS.index(self.state.depth_test)
-        vis, edges, plane = visibility_pass(prims, fb, func, bool(self.state.depth_write) and func >= 0,
-                                            pixel_rect(fb.width, fb.height, self.viewport))
+        visibility = visibility_pass(prims, fb, func, bool(self.state.depth_write) and func >= 0,
+                                     pixel_rect(fb.width, fb.height, self.viewport))
         clock("raster")
         if debug & {"raster", "fragment", "output"}:
-            visible = int((vis >= 0).sum())
-            print(f"[softpipe raster] fast path: {visible} visible samples of {vis.size} "
+            print(f"[softpipe raster] fast path: {visibility!r} "
                   f"(fragments are not kept on the fast path; use path='reference' to see them)",
                   file=sys.stderr)
         if len(prims):
-            shade_visible(prims, vis, edges, plane, fb, self.fragment_shader, self.uniforms)
+            shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms)
         clock("fragment")
 
     @staticmethod

@@ -30,6 +30,7 @@ the two paths to identical color and depth.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -39,7 +40,7 @@ from .output import depth_passes
 from .raster import snap
 from .sampling import SUBPIXEL
 
-__all__ = ["TILE_W", "TILE_H", "setup_triangles", "bin_triangles", "raster_tiles", "visibility_pass"]
+__all__ = ["TILE_W", "TILE_H", "Visibility", "setup_triangles", "bin_triangles", "raster_tiles", "visibility_pass"]
 
 #: Tiles are wide and short: rows inside a tile are long enough for the compiler's
 #: vectorized loop to pay off, and a tile's depth and visibility (128×32×8 bytes)
@@ -271,8 +272,11 @@ def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, covers, offsets, height, 
 
 @numba.njit(cache=True, parallel=True)
 def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
-                 depth, vis):
+                 depth, vis, touched):
     """The visibility pass over all tiles (parallel); see the module docstring.
+
+    ``touched[tile]`` is set for every tile where some triangle was depth-tested
+    (the others keep no visible sample of this draw: shading skips them).
 
     Hierarchical depth (LESS/LEQUAL with writes): each tile keeps an upper bound
     of its depths; a triangle whose nearest point over the tile lies beyond it
@@ -300,7 +304,7 @@ def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height,
             if i0 > i1 or j0 > j1:
                 continue
             whole_tile = i0 == x_lo and i1 == x_hi and j0 == y_lo and j1 == y_hi
-            if hiz:
+            if hiz and (far < 1.0 or whole_tile):      # (at far = 1, nothing can be rejected)
                 # the rectangle holding every sample this triangle may cover in the tile
                 qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
                 qy0, qy1 = j0 * SUBPIXEL + oy_lo, j1 * SUBPIXEL + oy_hi
@@ -310,6 +314,7 @@ def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height,
                     continue
                 if whole_tile and _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
                     far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
+            touched[tile] = True
             if i1 - i0 < NARROW:
                 _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
             else:
@@ -318,12 +323,37 @@ def raster_tiles(edges, bias, plane, box, starts, items, tiles_x, width, height,
                             depth, vis)
 
 
-def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray):
-    """Setup, binning and the tiled visibility pass; returns (vis, edges, plane) for shading.
+@dataclass
+class Visibility:
+    """What the visibility pass hands to shading: which triangle to shade at each sample.
 
-    ``vis`` is int32 [S, H, W]: the triangle whose fragment was written last at
-    each sample by this draw, or −1. The framebuffer's depth is updated.
+    Attributes
+    ----------
+    vis : int32 [S, H, W]
+        The triangle (row of the Primitives) whose fragment was written last at
+        each sample by this draw, or −1.
+    edges : int64 [T, 3, 3]
+        Each triangle's oriented edge functions (A, B, C): the barycentrics are
+        E_k / area, as the rasterizer computes them.
+    plane : float64 [T, 4]
+        Each triangle's depth plane (z0, z1 − z0, z2 − z0, 1/area).
+    touched : bool [tiles_y, tiles_x]
+        Tiles (TILE_W × TILE_H pixels, in window coordinates: tile row 0 at the
+        bottom) where some triangle was depth-tested; the others hold no ``vis`` entry.
     """
+
+    vis: np.ndarray
+    edges: np.ndarray
+    plane: np.ndarray
+    touched: np.ndarray
+
+    def __repr__(self) -> str:
+        return (f"Visibility({int((self.vis >= 0).sum())} visible samples of {self.vis.size}, "
+                f"{len(self.edges)} triangles, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
+
+
+def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray) -> Visibility:
+    """Setup, binning and the tiled visibility pass of a draw's primitives; the framebuffer's depth is updated."""
     w, h, offsets = fb.width, fb.height, fb.pattern.offsets
     n = len(prims)
     edges = np.empty((n, 3, 3), np.int64)
@@ -331,19 +361,20 @@ def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray):
     plane = np.empty((n, 4), np.float64)
     box = np.empty((n, 4), np.int64)
     vis = np.full((len(offsets), h, w), -1, np.int32)
-    if n == 0:
-        return vis, edges, plane
-    setup_triangles(prims.window, rect, offsets, edges, bias, plane, box)
     tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
+    touched = np.zeros((tiles_y, tiles_x), np.bool_)
+    if n == 0:
+        return Visibility(vis, edges, plane, touched)
+    setup_triangles(prims.window, rect, offsets, edges, bias, plane, box)
     starts, items = bin_triangles(box, tiles_x, tiles_y)
     previous = numba.get_parallel_chunksize()
     numba.set_parallel_chunksize(1)     # tiles differ in work: hand them out one at a time
     try:
         raster_tiles(edges, bias, plane, box, starts, items, tiles_x, w, h, offsets, func, depth_write,
-                     fb.samples_depth, vis)
+                     fb.samples_depth, vis, touched.reshape(-1))
     finally:
         numba.set_parallel_chunksize(previous)
-    return vis, edges, plane
+    return Visibility(vis, edges, plane, touched)
 
 
 def in_bands(kernel, height: int, threads: int, *args) -> None:
