@@ -111,3 +111,17 @@ def test_lit_scenes_fall_back_to_their_own_shaders(monkeypatch):
         assert any("not available" in n for n in row["notes"])
         assert row["pixels_drawn"] > 0 and row["fragments"] > 0
     assert any("not trilinear" in n for n in row["notes"])
+
+
+def test_shading_cost_splits_the_lit_scenes(capsys):
+    """benchmarks.shading_cost runs on both lit scenes, small, and reports each part."""
+    from benchmarks import shading_cost
+    assert shading_cost.main(["--runs", "1", "--scale", "0.05"]) == 0
+    out = capsys.readouterr().out
+    for name in shading_cost.LIT_SCENES:
+        assert f"\n{name}: " in out
+    assert out.count("ns/sample") == 4 * len(shading_cost.LIT_SCENES)
+    row = shading_cost.measure("bunny", 1, 0.05)
+    assert row["samples"] > 0 and min(row["constant"], row["varyings"], row["own"]) > 0
+    with pytest.raises(SystemExit):
+        shading_cost.main(["tiny"])        # not a lit scene: refused with a message
