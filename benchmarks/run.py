@@ -184,8 +184,15 @@ def _counting(fb: Framebuffer):
 
     def fast(f):
         def counted(prims, visibility, *args, **kwargs):
-            vis = getattr(visibility, "vis", visibility)     # a Visibility (or, before it, the array)
-            counter["shaded"] += int(np.count_nonzero(np.asarray(vis) >= 0))
+            vis = np.asarray(getattr(visibility, "vis", visibility))     # a Visibility (or, before it, the array)
+            shading = kwargs.get("shading", args[3] if len(args) > 3 else "sample")
+            if shading == "center":     # multisampling: one invocation per pixel and triangle there
+                ordered = np.sort(vis, axis=0)
+                first = np.ones((1,) + ordered.shape[1:], bool)
+                distinct = np.concatenate([first, ordered[1:] != ordered[:-1]], axis=0) & (ordered >= 0)
+                counter["shaded"] += int(np.count_nonzero(distinct))
+            else:
+                counter["shaded"] += int(np.count_nonzero(vis >= 0))
             counter["calls"] += 1
             return f(prims, visibility, *args, **kwargs)
         return counted

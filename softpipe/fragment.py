@@ -162,23 +162,30 @@ def _probe(shader, frags, prims, uniforms, fx, fy) -> None:
     _shader.probe_fragment_shader(shader, V(*args), uniforms, frag)
 
 
-def visible_loop_args(prims: Primitives, visibility, fb, shader: Callable, uniforms) -> tuple:
-    """The arguments of the generated ``visible_loop`` after its rows (row_lo, row_hi)."""
+def visible_loop_args(prims: Primitives, visibility, fb, shader: Callable, uniforms, shading: str = "sample") -> tuple:
+    """The arguments of the generated ``visible_loop`` after its rows (row_lo, row_hi).
+
+    ``shading``: "sample" (every sample its own invocation) or "center" (once per
+    pixel and triangle, at the pixel centre: multisampling).
+    """
     from .visibility import TILE_H, TILE_W
+    if shading not in ("sample", "center"):
+        raise ValueError(f"the fast path shades per 'sample' or at the pixel 'center', not {shading!r}")
     pattern = fb.pattern
-    return (visibility.vis, visibility.touched, TILE_W, TILE_H, visibility.edges, visibility.plane, pattern.offsets,
-            pattern.positions, prims.inv_w, prims.varyings, prims.front_facing, prims.primitive_id,
-            _gradients(shader, prims), uniforms, fb.samples_color)
+    return (visibility.vis, visibility.touched, TILE_W, TILE_H, visibility.edges, visibility.bias, visibility.plane,
+            pattern.offsets, pattern.positions, shading == "center", prims.inv_w, prims.varyings,
+            prims.front_facing, prims.primitive_id, _gradients(shader, prims), uniforms, fb.samples_color)
 
 
-def shade_visible(prims: Primitives, visibility, fb, fragment_shader: Optional[Callable], uniforms) -> None:
+def shade_visible(prims: Primitives, visibility, fb, fragment_shader: Optional[Callable], uniforms,
+                  shading: str = "sample") -> None:
     """The fast path's shading: run the shader on the samples a :class:`~softpipe.visibility.Visibility` kept."""
     import numba
 
     from .visibility import in_bands
     shader = fragment_shader or default_fragment_shader(prims.layout)
     kernel = _shader.visible_kernel(shader, prims.layout)
-    args = visible_loop_args(prims, visibility, fb, shader, uniforms)
+    args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
     # compile (or load) once, in this thread, where errors are reported clearly
     _shader.run_compiled("fragment", shader, kernel, None, 0, 0, *args)
     _shader.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, numba.get_num_threads(), *a),

@@ -193,8 +193,8 @@ class DrawCall:
         """Why this draw cannot take the visibility fast path, or None if it can."""
         if self.state.blend is not None:
             return "blending is on (the result depends on every fragment, not only the last)"
-        if self.sample_shading != "sample":
-            return f"sample_shading={self.sample_shading!r} (multisampling shades per pixel run)"
+        if self.sample_shading == "centroid":
+            return "sample_shading='centroid' (the centroid of a triangle's covered samples is the reference path's)"
         if self.fragment_shader is not None and may_discard(self.fragment_shader):
             return "the fragment shader may return DISCARD"
         return None
@@ -231,7 +231,7 @@ class DrawCall:
                   f"(fragments are not kept on the fast path; use path='reference' to see them)",
                   file=sys.stderr)
         if len(prims):
-            shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms)
+            shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
         clock("fragment")
 
     @staticmethod
@@ -282,7 +282,7 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         "reference" rasterizes, shades and merges every fragment in order;
         "fast" finds the visible samples first and shades only those
         (:mod:`softpipe.visibility`; not for blending, discard or
-        multisampling); "auto" (default) takes the fast path when it can and
+        ``sample_shading="centroid"``); "auto" (default) takes the fast path when it can and
         the framebuffer has at least FAST_PATH_MIN_SAMPLES samples. Both give
         the same bytes.
 

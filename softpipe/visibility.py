@@ -165,6 +165,28 @@ def _inside(edges, bias, t, px, py):
 
 
 @numba.njit(cache=True)
+def first_covered_sample(edges, bias, t, i, j, offsets):
+    """The first sample of pixel (i, j), in pattern order, that triangle t covers (−1: none).
+
+    Where the rasterizer's run of t's samples in that pixel starts: a
+    multisampled fragment takes that sample's depth (``raster.py``).
+    """
+    for s in range(offsets.shape[0]):
+        if _inside(edges, bias, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]):
+            return s
+    return -1
+
+
+@numba.njit(cache=True)
+def same_triangle_before(vis, s, row, i):
+    """An earlier sample of the pixel that shows the same triangle as sample s, or −1."""
+    for earlier in range(s):
+        if vis[earlier, row, i] == vis[s, row, i]:
+            return earlier
+    return -1
+
+
+@numba.njit(cache=True)
 def _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
     """Are all samples of pixels [i0, i1] × [j0, j1] inside the triangle? (Convex: the corners decide.)"""
     qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
@@ -335,6 +357,8 @@ class Visibility:
     edges : int64 [T, 3, 3]
         Each triangle's oriented edge functions (A, B, C): the barycentrics are
         E_k / area, as the rasterizer computes them.
+    bias : int64 [T, 3]
+        The fill rule: a sample is covered when every E_k + bias_k ≥ 0.
     plane : float64 [T, 4]
         Each triangle's depth plane (z0, z1 − z0, z2 − z0, 1/area).
     touched : bool [tiles_y, tiles_x]
@@ -344,6 +368,7 @@ class Visibility:
 
     vis: np.ndarray
     edges: np.ndarray
+    bias: np.ndarray
     plane: np.ndarray
     touched: np.ndarray
 
@@ -364,7 +389,7 @@ def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray) -
     tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
     touched = np.zeros((tiles_y, tiles_x), np.bool_)
     if n == 0:
-        return Visibility(vis, edges, plane, touched)
+        return Visibility(vis, edges, bias, plane, touched)
     setup_triangles(prims.window, rect, offsets, edges, bias, plane, box)
     starts, items = bin_triangles(box, tiles_x, tiles_y)
     previous = numba.get_parallel_chunksize()
@@ -374,7 +399,7 @@ def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray) -
                      fb.samples_depth, vis, touched.reshape(-1))
     finally:
         numba.set_parallel_chunksize(previous)
-    return Visibility(vis, edges, plane, touched)
+    return Visibility(vis, edges, bias, plane, touched)
 
 
 def in_bands(kernel, height: int, threads: int, *args) -> None:

@@ -127,8 +127,8 @@ def test_fast_path_is_refused_when_it_cannot_give_the_same_bytes():
 
     with pytest.raises(ValueError, match="DISCARD"):
         DrawCall(fb, clip, varyings=color, fragment_shader=discarding, path="fast").run()
-    with pytest.raises(ValueError, match="sample_shading"):
-        DrawCall(sp.Framebuffer(4, 4, pattern=grid(2)), clip, varyings=color, sample_shading="center",
+    with pytest.raises(ValueError, match="centroid"):
+        DrawCall(sp.Framebuffer(4, 4, pattern=grid(2)), clip, varyings=color, sample_shading="centroid",
                  path="fast").run()
     assert not DrawCall(sp.Framebuffer(8, 8), clip, varyings=color).uses_fast_path()     # small: reference
     assert DrawCall(sp.Framebuffer(256, 256), clip, varyings=color).uses_fast_path()
@@ -165,3 +165,37 @@ def test_narrow_and_wide_triangles_across_tile_edges(pattern, func):
                       depth_test=func)
     assert_same(a, b)
     assert (a.samples_depth != 0.5).sum() > 300
+
+
+def shading_inputs(varyings, uniforms, frag):
+    """Everything a multisampled invocation is given, folded into a color that shows any difference."""
+    return (varyings.uv[0] + frag.x * 0.001, varyings.uv[1] + frag.y * 0.001, frag.z,
+            0.5 + 0.25 * frag.front_facing + frag.primitive_id * 1e-4)
+
+
+@pytest.mark.parametrize("pattern", [grid(2), rotated_grid_4x(), sp.jittered(3, seed=2)], ids=lambda p: p.name)
+@pytest.mark.parametrize("func", ["less", "lequal", "greater"])
+def test_multisampling_at_the_pixel_centre_gives_the_reference_bytes(pattern, func):
+    """sample_shading="center": one invocation per pixel and triangle, at the centre, with the depth of
+    the pixel's first covered sample; every covered, visible sample of the pixel gets its color.
+    Small and large triangles, edges through pixels (so pixels hold several triangles), perspective."""
+    rng = np.random.default_rng(21)
+    w, h = 150, 70
+    tris = rng.uniform(-1.5, 1.5, size=(160, 3, 3))
+    tris[:, :, :2] = tris[:, :1, :2] + (tris[:, :, :2] - tris[:, :1, :2]) * rng.choice([0.02, 0.2, 1.0], (160, 1, 1))
+    tris[:, :, 2] = rng.uniform(-5, -1, size=(160, 1)) + rng.uniform(-0.8, 0.8, size=(160, 3))   # slanted
+    clip = (perspective(60, w / h, 0.5, 10) @ np.c_[tris.reshape(-1, 3), np.ones(480)].T).T
+    varyings = {"uv": rng.uniform(0, 1, (480, 2))}
+
+    def make():
+        fb = sp.Framebuffer(w, h, pattern=pattern)
+        fb.clear((0.0, 0.0, 0.0, 1.0), depth=1.0 if func != "greater" else 0.0)
+        return fb
+
+    a, b = both_paths(make, positions=clip, varyings=varyings, fragment_shader=shading_inputs,
+                      sample_shading="center", depth_test=func)
+    assert_same(a, b)
+    covered = (a.samples_depth != a.samples_depth[0, 0, 0]).sum()
+    assert covered > 2000
+    partial = ((a.samples_color[..., 0] != a.samples_color[:1, ..., 0]).any(axis=0)).sum()
+    assert partial > 100            # pixels whose samples show different triangles (or none)

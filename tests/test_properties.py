@@ -496,6 +496,19 @@ def test_fast_path_gives_the_bytes_of_the_reference_path(scene):
     assert_same_bytes(reference_fb, render(scene, "fast"), "fast vs reference")
 
 
+
+@given(scene=scenes(pattern=st.sampled_from(["grid(2)", "grid(2)", "1"])))
+@examples()
+def test_multisampled_fast_path_gives_the_bytes_of_the_reference_path(scene):
+    # sample_shading="center": the reference shades each run of a triangle's
+    # samples in a pixel once, at the centre, with the run's first sample's
+    # depth; the fast path shades each (pixel, triangle) of the visibility
+    # buffer so, and copies the color to the triangle's other visible samples.
+    note(describe(scene))
+    assert_same_bytes(render(scene, "reference", sample_shading="center"),
+                      render(scene, "fast", sample_shading="center"), "fast vs reference, multisampled")
+
+
 #: the fast path's tile (a compile-time constant of its numba kernels): 64×64 once, now wide tiles
 TILE_W = getattr(softpipe.visibility, "TILE_W", getattr(softpipe.visibility, "TILE", 64))
 TILE_H = getattr(softpipe.visibility, "TILE_H", getattr(softpipe.visibility, "TILE", 64))
