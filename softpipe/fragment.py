@@ -165,16 +165,18 @@ def _probe(shader, frags, prims, uniforms, fx, fy) -> None:
 def visible_loop_args(prims: Primitives, visibility, fb, shader: Callable, uniforms, shading: str = "sample") -> tuple:
     """The arguments of the generated ``visible_loop`` after its rows (row_lo, row_hi).
 
-    ``shading``: "sample" (every sample its own invocation) or "center" (once per
-    pixel and triangle, at the pixel centre: multisampling).
+    ``shading`` as :func:`run_fragment_stage`'s: per "sample", or once per pixel
+    and triangle at the pixel "center" or "centroid" (multisampling).
     """
+    from .raster import SHADING_POSITIONS
     from .visibility import TILE_H, TILE_W
-    if shading not in ("sample", "center"):
-        raise ValueError(f"the fast path shades per 'sample' or at the pixel 'center', not {shading!r}")
+    if shading not in SHADING_POSITIONS:
+        raise ValueError(f"shading must be one of {SHADING_POSITIONS}, got {shading!r}")
     pattern = fb.pattern
-    return (visibility.vis, visibility.touched, TILE_W, TILE_H, visibility.edges, visibility.bias, visibility.plane,
-            pattern.offsets, pattern.positions, shading == "center", prims.inv_w, prims.varyings,
-            prims.front_facing, prims.primitive_id, _gradients(shader, prims), uniforms, fb.samples_color)
+    return (visibility.vis, visibility.touched, TILE_W, TILE_H, prims.window, visibility.edges, visibility.bias,
+            visibility.plane, pattern.offsets, pattern.positions, SHADING_POSITIONS.index(shading), prims.inv_w,
+            prims.varyings, prims.front_facing, prims.primitive_id, _gradients(shader, prims), uniforms,
+            fb.samples_color)
 
 
 def shade_visible(prims: Primitives, visibility, fb, fragment_shader: Optional[Callable], uniforms,

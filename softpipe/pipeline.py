@@ -193,8 +193,6 @@ class DrawCall:
         """Why this draw cannot take the visibility fast path, or None if it can."""
         if self.state.blend is not None:
             return "blending is on (the result depends on every fragment, not only the last)"
-        if self.sample_shading == "centroid":
-            return "sample_shading='centroid' (the centroid of a triangle's covered samples is the reference path's)"
         if self.fragment_shader is not None and may_discard(self.fragment_shader):
             return "the fragment shader may return DISCARD"
         return None
@@ -281,8 +279,7 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     path : "auto" | "reference" | "fast"
         "reference" rasterizes, shades and merges every fragment in order;
         "fast" finds the visible samples first and shades only those
-        (:mod:`softpipe.visibility`; not for blending, discard or
-        ``sample_shading="centroid"``); "auto" (default) takes the fast path when it can and
+        (:mod:`softpipe.visibility`; not for blending or discard); "auto" (default) takes the fast path when it can and
         the framebuffer has at least FAST_PATH_MIN_SAMPLES samples. Both give
         the same bytes.
 

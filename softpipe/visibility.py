@@ -1,8 +1,8 @@
 """The fast path: tiled rasterization with early depth, then shading of the visible samples only.
 
 For a draw whose result depends only on which fragment is written last at
-each sample (no blending, no discard, per-sample shading), the pipeline can
-skip shading every fragment:
+each sample (no blending, no discard), the pipeline can skip shading every
+fragment:
 
 1. **Setup** (:func:`setup_triangles`): each triangle's snapped edge functions
    as ``E_k(p) = A_k·p_x + B_k·p_y + C_k`` (oriented, exact int64), its fill-rule
@@ -19,8 +19,9 @@ skip shading every fragment:
    computed by the same expression as in the reference rasterizer, so the
    depth buffer is identical.
 4. **Shading** (``shader.visible_kernel``): the fragment shader runs once per
-   sample whose visibility entry is set, with the barycentrics, depth and
-   window position recomputed exactly as the reference path computes them.
+   sample whose visibility entry is set (with multisampling, once per pixel
+   and triangle there), with the barycentrics, depth and window position
+   recomputed exactly as the reference path computes them.
 
 The result is the same bytes as the reference path (rasterize every fragment,
 shade it, merge in order), because there the final color of a sample is the
@@ -37,7 +38,7 @@ import numpy as np
 from numba import prange
 
 from .output import depth_passes
-from .raster import snap
+from .raster import _covered, _setup, snap
 from .sampling import SUBPIXEL
 
 __all__ = ["TILE_W", "TILE_H", "Visibility", "setup_triangles", "bin_triangles", "raster_tiles", "visibility_pass"]
@@ -175,6 +176,36 @@ def first_covered_sample(edges, bias, t, i, j, offsets):
         if _inside(edges, bias, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]):
             return s
     return -1
+
+
+@numba.njit(cache=True)
+def centroid_of_run(window, edges, bias, t, i, j, offsets, positions):
+    """Multisampling at the centroid: the run of triangle t's covered samples in pixel (i, j).
+
+    Returns (its first sample, the three edge functions at the centroid of its
+    samples, the centroid within the pixel), computed as the rasterizer and the
+    fragment stage compute them: the centroid in subpixel units is the integer
+    sum over the count, and its edge functions are ``raster._covered``'s on the
+    snapped corners. (Sample positions are multiples of 1/256, so their sum is
+    exact in any order.)
+    """
+    first, count = -1, 0
+    sum_x, sum_y = np.int64(0), np.int64(0)
+    pos_x, pos_y = 0.0, 0.0
+    for s in range(offsets.shape[0]):
+        px, py = i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]
+        if _inside(edges, bias, t, px, py):
+            if first < 0:
+                first = s
+            count += 1
+            sum_x += px
+            sum_y += py
+            pos_x += positions[s, 0]
+            pos_y += positions[s, 1]
+    x0, y0, x1, y1, x2, y2, sign, _ = _setup(window, t)
+    e0, e1, e2, _ = _covered(x0, y0, x1, y1, x2, y2, sign, bias[t, 0], bias[t, 1], bias[t, 2],
+                             sum_x / count, sum_y / count)
+    return first, e0, e1, e2, pos_x / count, pos_y / count
 
 
 @numba.njit(cache=True)

@@ -127,9 +127,6 @@ def test_fast_path_is_refused_when_it_cannot_give_the_same_bytes():
 
     with pytest.raises(ValueError, match="DISCARD"):
         DrawCall(fb, clip, varyings=color, fragment_shader=discarding, path="fast").run()
-    with pytest.raises(ValueError, match="centroid"):
-        DrawCall(sp.Framebuffer(4, 4, pattern=grid(2)), clip, varyings=color, sample_shading="centroid",
-                 path="fast").run()
     assert not DrawCall(sp.Framebuffer(8, 8), clip, varyings=color).uses_fast_path()     # small: reference
     assert DrawCall(sp.Framebuffer(256, 256), clip, varyings=color).uses_fast_path()
 
@@ -173,11 +170,13 @@ def shading_inputs(varyings, uniforms, frag):
             0.5 + 0.25 * frag.front_facing + frag.primitive_id * 1e-4)
 
 
+@pytest.mark.parametrize("shading", ["center", "centroid"])
 @pytest.mark.parametrize("pattern", [grid(2), rotated_grid_4x(), sp.jittered(3, seed=2)], ids=lambda p: p.name)
 @pytest.mark.parametrize("func", ["less", "lequal", "greater"])
-def test_multisampling_at_the_pixel_centre_gives_the_reference_bytes(pattern, func):
-    """sample_shading="center": one invocation per pixel and triangle, at the centre, with the depth of
-    the pixel's first covered sample; every covered, visible sample of the pixel gets its color.
+def test_multisampling_gives_the_reference_bytes(pattern, func, shading):
+    """Multisampling: one invocation per pixel and triangle, at the centre or at the centroid of the
+    triangle's covered samples there, with the depth of the pixel's first covered sample; every
+    covered, visible sample of the pixel gets its color.
     Small and large triangles, edges through pixels (so pixels hold several triangles), perspective."""
     rng = np.random.default_rng(21)
     w, h = 150, 70
@@ -193,7 +192,7 @@ def test_multisampling_at_the_pixel_centre_gives_the_reference_bytes(pattern, fu
         return fb
 
     a, b = both_paths(make, positions=clip, varyings=varyings, fragment_shader=shading_inputs,
-                      sample_shading="center", depth_test=func)
+                      sample_shading=shading, depth_test=func)
     assert_same(a, b)
     covered = (a.samples_depth != a.samples_depth[0, 0, 0]).sum()
     assert covered > 2000

@@ -497,16 +497,18 @@ def test_fast_path_gives_the_bytes_of_the_reference_path(scene):
 
 
 
-@given(scene=scenes(pattern=st.sampled_from(["grid(2)", "grid(2)", "1"])))
+@given(scene=scenes(pattern=st.sampled_from(["grid(2)", "grid(2)", "1"])),
+       shading=st.sampled_from(["center", "centroid"]))
 @examples()
-def test_multisampled_fast_path_gives_the_bytes_of_the_reference_path(scene):
-    # sample_shading="center": the reference shades each run of a triangle's
-    # samples in a pixel once, at the centre, with the run's first sample's
-    # depth; the fast path shades each (pixel, triangle) of the visibility
-    # buffer so, and copies the color to the triangle's other visible samples.
-    note(describe(scene))
-    assert_same_bytes(render(scene, "reference", sample_shading="center"),
-                      render(scene, "fast", sample_shading="center"), "fast vs reference, multisampled")
+def test_multisampled_fast_path_gives_the_bytes_of_the_reference_path(scene, shading):
+    # Multisampling: the reference shades each run of a triangle's samples in
+    # a pixel once, at the centre or the run's centroid, with the run's first
+    # sample's depth; the fast path shades each (pixel, triangle) of the
+    # visibility buffer so, and copies the color to the triangle's other
+    # visible samples there.
+    note(describe(scene) + f"; sample_shading={shading}")
+    assert_same_bytes(render(scene, "reference", sample_shading=shading),
+                      render(scene, "fast", sample_shading=shading), f"fast vs reference, {shading}")
 
 
 #: the fast path's tile (a compile-time constant of its numba kernels): 64×64 once, now wide tiles
