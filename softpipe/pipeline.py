@@ -120,6 +120,8 @@ class DrawCall:
         self.path = path
         #: seconds spent in each stage by the last run: vertex, assembly, setup, raster, fragment, output
         self.timings: dict = {}
+        #: the last run's assembled triangles (what reached the rasterizer), on either path
+        self.primitives = None
 
     def steps(self, record: bool = False) -> Iterator[Stage]:
         """Run the draw one stage at a time, yielding each stage's result as it is made.
@@ -135,8 +137,8 @@ class DrawCall:
         clock("vertex")
         yield self._emit(Stage("vertex", vout), debug)
         clock(None)
-        prims = assemble(vout, self.topology, self.indices, viewport=self.viewport, cull=self.cull,
-                         front_face=self.front_face)
+        prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
+                                           cull=self.cull, front_face=self.front_face)
         clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
@@ -216,8 +218,8 @@ class DrawCall:
         vout = self._vertex_stage()
         clock("vertex")
         self._emit(Stage("vertex", vout), debug)
-        prims = assemble(vout, self.topology, self.indices, viewport=self.viewport, cull=self.cull,
-                         front_face=self.front_face, keep_culled=False)
+        prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
+                                           cull=self.cull, front_face=self.front_face, keep_culled=False)
         clock("assembly")
         self._emit(Stage("assembly", prims), debug)
         func = -1 if self.state.depth_test is None else DEPTH_FUNCS.index(self.state.depth_test)

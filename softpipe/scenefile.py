@@ -903,11 +903,8 @@ def draw_object(fb: Framebuffer, obj: SceneObject, camera: Camera, lighting, *, 
     if trace:
         t = call.run(trace=True)
         return DrawResult(obj.name, prog.name, t.primitives, t, dict(call.timings))
-    primitives = None
-    for stage in call.steps():
-        if stage.name == "assembly":
-            primitives = stage.output
-    return DrawResult(obj.name, prog.name, primitives, None, dict(call.timings))
+    call.run()
+    return DrawResult(obj.name, prog.name, call.primitives, None, dict(call.timings))
 
 
 def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool = False,
