@@ -198,3 +198,24 @@ def test_multisampling_gives_the_reference_bytes(pattern, func, shading):
     assert covered > 2000
     partial = ((a.samples_color[..., 0] != a.samples_color[:1, ..., 0]).any(axis=0)).sum()
     assert partial > 100            # pixels whose samples show different triangles (or none)
+
+
+def with_derivatives(varyings, uniforms, frag, derivatives):
+    """Reads the screen-space derivatives of a smooth and a noperspective varying."""
+    return (derivatives.dx.uv[0] * 10.0, derivatives.dy.uv[1] * 10.0 + varyings.uv[0],
+            derivatives.dx.w * 5.0 + derivatives.dy.w, 1.0)
+
+
+@pytest.mark.parametrize("shading", ["sample", "center", "centroid"])
+def test_derivatives_are_the_reference_paths_at_every_shading_position(shading):
+    rng = np.random.default_rng(33)
+    w, h = 140, 90
+    tris = rng.uniform(-1.5, 1.5, size=(60, 3, 3))
+    tris[:, :, 2] = rng.uniform(-5, -1, size=(60, 3))
+    clip = (perspective(60, w / h, 0.5, 10) @ np.c_[tris.reshape(-1, 3), np.ones(180)].T).T
+    varyings = {"uv": rng.uniform(0, 1, (180, 2)), "w": rng.uniform(0, 1, 180)}
+    a, b = both_paths(lambda: sp.Framebuffer(w, h, pattern=rotated_grid_4x()), positions=clip, varyings=varyings,
+                      fragment_shader=with_derivatives, interpolation={"w": "noperspective"},
+                      sample_shading=shading)
+    assert_same(a, b)
+    assert len(np.unique(a.samples_color[..., 0])) > 50
