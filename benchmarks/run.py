@@ -414,9 +414,10 @@ def source_state() -> dict:
 
 
 def _threading_layer() -> str:
+    """numba's threading layer, if some parallel kernel started it (softpipe's own run none: softpipe._parallel)."""
     try:
         return numba.threading_layer()
-    except ValueError:  # no parallel kernel has run yet
+    except ValueError:
         return "not started"
 
 
@@ -520,8 +521,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         for note in report["notes"]:
             print(f"  - {note}")
     memory = report["scenes"][0]["memory_method"] if report["scenes"] else "-"
-    print(f"\n{report['total_s']:.0f} s in all; numba threads {report['threads']['numba_threads']} "
-          f"({report['threads']['threading_layer']} layer); peak MB = {memory}")
+    print(f"\n{report['total_s']:.0f} s in all; threads {report['threads']['numba_threads']} "
+          f"(softpipe's bands on Python threads; numba's threading layer: {report['threads']['threading_layer']}); "
+          f"peak MB = {memory}")
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(_jsonable(report), indent=1) + "\n")
     print(f"results written to {args.json}")

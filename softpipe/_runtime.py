@@ -1,15 +1,4 @@
-"""Process settings that softpipe's speed depends on, applied once when softpipe is imported.
-
-Both were measured on the benchmark scenes (benchmarks/README.md, 2 cores):
-
-**OpenMP workers sleep when idle** (``OMP_WAIT_POLICY=PASSIVE``). numba's
-parallel kernels (binning, the visibility pass, assembly) run on OpenMP
-threads, which by default spin for a while after each kernel. The fast path's
-shading runs on Python threads right after such a kernel, and a spinning worker
-takes a core from them: sphere200k's two shading passes took 27 + 25 ms with
-spinning workers and 22 + 20 ms with sleeping ones. The variable is read when
-OpenMP starts, so it only counts if softpipe is imported before numba runs its
-first parallel kernel; a value already set is left alone.
+"""A process setting that softpipe's speed depends on, applied once when softpipe is imported.
 
 **Freed memory is kept for reuse** (glibc's ``mallopt``: ``M_MMAP_THRESHOLD``
 and ``M_TRIM_THRESHOLD``). A draw makes arrays of tens of megabytes (assembled
@@ -17,12 +6,12 @@ triangles, edge functions, the visibility buffer) and frees them at its end.
 By default glibc gives each such block back to the system and maps a fresh one
 for the next draw, and the kernel must zero every page again on first touch:
 sphere200k's assembly took 31 ms that way and 5 ms with the memory kept
-(page faults per frame: about 3,000 → 0). The cost is that the process keeps
-its peak memory instead of returning it after a large draw
-(:func:`release_memory` returns it).
+(page faults per frame: about 3,000 → 0; benchmarks/README.md). The cost is
+that the process keeps its peak memory instead of returning it after a large
+draw (:func:`release_memory` returns it).
 
-Set ``SOFTPIPE_SYSTEM_MALLOC=1`` to leave the allocator as it is. Neither setting
-changes a single output byte.
+Set ``SOFTPIPE_SYSTEM_MALLOC=1`` to leave the allocator as it is. It changes no
+output byte.
 """
 from __future__ import annotations
 
@@ -35,8 +24,6 @@ __all__ = ["KEEP_FREED_BELOW", "malloc_tuned", "release_memory"]
 #: Blocks up to this size come from (and go back to) the heap instead of fresh mappings.
 KEEP_FREED_BELOW = 1 << 30
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3   # glibc's malloc.h
-
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 def _tune_malloc() -> bool:

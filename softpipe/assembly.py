@@ -29,6 +29,7 @@ from typing import Dict, Optional
 import numba
 import numpy as np
 
+from ._parallel import in_bands
 from .shader import VaryingLayout
 from .transforms import Viewport
 from .vertex import VertexOut
@@ -237,11 +238,11 @@ def _signed_area(ax, ay, bx, by, cx, cy):
 NON_FINITE_BIT = 1 << 7   # beside one bit per clip plane (7 planes)
 
 
-@numba.njit(cache=True, parallel=True)
-def _vertex_codes(pos, planes, vp, codes, window):
-    """Per vertex, once (vertices are shared by triangles): a bit per clip plane it is outside
-    of (and NON_FINITE_BIT), and its window position when it is inside every plane."""
-    for v in numba.prange(pos.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def _vertex_codes(lo, hi, pos, planes, vp, codes, window):
+    """Per vertex lo:hi, once (vertices are shared by triangles): a bit per clip plane it is
+    outside of (and NON_FINITE_BIT), and its window position when it is inside every plane."""
+    for v in range(lo, hi):
         code = 0
         if not (np.isfinite(pos[v, 0]) and np.isfinite(pos[v, 1]) and np.isfinite(pos[v, 2])
                 and np.isfinite(pos[v, 3])):
@@ -257,15 +258,15 @@ def _vertex_codes(pos, planes, vp, codes, window):
             window[v, 0], window[v, 1], window[v, 2] = _to_window(pos[v, 0], pos[v, 1], pos[v, 2], pos[v, 3], vp)
 
 
-@numba.njit(cache=True, parallel=True)
-def _classify(codes, window, tri, cull, ccw_front, status, front):
+@numba.njit(cache=True, nogil=True)
+def _classify(lo, hi, codes, window, tri, cull, ccw_front, status, front):
     """Per input triangle: ACCEPTED, NON_FINITE, OUTSIDE, CUT or CULLED, and its facing.
 
     From its corners' codes: any corner non-finite → NON_FINITE; all three outside
     one plane → OUTSIDE; some corner outside some plane → CUT (clipped later);
     else facing from the window-space area, and culling.
     """
-    for t in numba.prange(tri.shape[0]):
+    for t in range(lo, hi):
         a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
         any_out = codes[a] | codes[b] | codes[c]
         if any_out & NON_FINITE_BIT:
@@ -280,10 +281,10 @@ def _classify(codes, window, tri, cull, ccw_front, status, front):
             status[t] = CULLED if (cull == 1 and not front[t]) or (cull == 2 and front[t]) else ACCEPTED
 
 
-@numba.njit(cache=True, parallel=True)
-def _emit_accepted(pos, var, tri, status, offset, vertex_window, flat, window, inv_w, out_var, key):
-    """Write the accepted triangles at their output rows (primitive order kept by ``offset``)."""
-    for t in numba.prange(tri.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def _emit_accepted(lo, hi, pos, var, tri, status, offset, vertex_window, flat, window, inv_w, out_var, key):
+    """Write the accepted triangles among lo:hi at their output rows (primitive order kept by ``offset``)."""
+    for t in range(lo, hi):
         if status[t] != ACCEPTED:
             continue
         o = offset[t]
@@ -358,8 +359,8 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
     codes = np.empty(len(vout.position), np.uint8)
     vertex_window = np.empty((len(vout.position), 3))
     if n:
-        _vertex_codes(vout.position, planes, vp, codes, vertex_window)
-        _classify(codes, vertex_window, tri, cull_code, ccw_front, status, front)
+        in_bands(_vertex_codes, len(vout.position), vout.position, planes, vp, codes, vertex_window, grain=8192)
+        in_bands(_classify, n, codes, vertex_window, tri, cull_code, ccw_front, status, front, grain=8192)
     pieces = _clip_cut(vout, tri, np.nonzero(status == CUT)[0], planes, vp, layout, cull_code, ccw_front, status)
 
     counts = (status == ACCEPTED).astype(np.int64)
@@ -379,8 +380,8 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
         window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
         out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
         if n:
-            _emit_accepted(vout.position, vout.varyings, tri, status, offset, vertex_window, flat,
-                           window, inv_w, out_var, key)
+            in_bands(_emit_accepted, n, vout.position, vout.varyings, tri, status, offset, vertex_window, flat,
+                     window, inv_w, out_var, key, grain=8192)
     clipped = np.zeros(total, bool)
     for t, (win, iw, pv, _) in pieces.items():
         rows = slice(offset[t], offset[t] + len(win))

@@ -182,13 +182,10 @@ def visible_loop_args(prims: Primitives, visibility, fb, shader: Callable, unifo
 def shade_visible(prims: Primitives, visibility, fb, fragment_shader: Optional[Callable], uniforms,
                   shading: str = "sample") -> None:
     """The fast path's shading: run the shader on the samples a :class:`~softpipe.visibility.Visibility` kept."""
-    import numba
-
-    from .visibility import in_bands
+    from ._parallel import in_bands
     shader = fragment_shader or default_fragment_shader(prims.layout)
     kernel = _shader.visible_kernel(shader, prims.layout)
     args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
     # compile (or load) once, in this thread, where errors are reported clearly
     _shader.run_compiled("fragment", shader, kernel, None, 0, 0, *args)
-    _shader.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, numba.get_num_threads(), *a),
-                         None, *args)
+    _shader.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), None, *args)

@@ -15,6 +15,7 @@ from typing import Sequence, Union
 import numba
 import numpy as np
 
+from ._parallel import in_bands
 from .sampling import CENTER, SamplePattern
 
 __all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES"]
@@ -25,10 +26,10 @@ MAX_DIMENSION = 16384
 MAX_TOTAL_SAMPLES = 1 << 26
 
 
-@numba.njit(cache=True, parallel=True)
-def _fill(color, rgba, depth, z):
-    """Clear: a parallel fill (numpy's is single-threaded, and a 1080p clear is ~10 ms)."""
-    for k in numba.prange(depth.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def _fill(lo, hi, color, rgba, depth, z):
+    """Clear samples lo:hi (run in parallel bands: numpy's fill is single-threaded, and a 1080p clear is ~10 ms)."""
+    for k in range(lo, hi):
         depth[k] = z
         for c in range(4):
             color[k, c] = rgba[c]
@@ -94,7 +95,8 @@ class Framebuffer:
             raise ValueError(f"clear color must be 3 or 4 finite numbers, got {color!r}")
         if not 0.0 <= float(depth) <= 1.0:
             raise ValueError(f"clear depth must be in [0, 1], got {depth!r}")
-        _fill(self.samples_color.reshape(-1, 4), c, self.samples_depth.reshape(-1), np.float32(depth))
+        in_bands(_fill, self.samples_depth.size, self.samples_color.reshape(-1, 4), c, self.samples_depth.reshape(-1),
+                 np.float32(depth), grain=65536)
         return self
 
     @property

@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from numba import prange
 
+from ._parallel import in_bands
 from .assembly import Primitives
 from .sampling import CENTER, SUBPIXEL, SamplePattern
 
@@ -217,20 +217,22 @@ def _cover_triangle(window, t, rect, height, offsets, mode, out_x, out_y, out_s,
     return n
 
 
-@numba.njit(cache=True, parallel=True)
-def _count_kernel(window, rect, height, offsets, counts):
+@numba.njit(cache=True, nogil=True)
+def _count_kernel(lo, hi, window, rect, height, offsets, counts):
+    """The covered samples of triangles lo:hi (run in bands by softpipe._parallel)."""
     dummy_i = np.empty(0, np.int32)
     dummy_f = np.empty(0, np.float64)
     dummy_b = np.empty((0, 3), np.float64)
-    for t in prange(window.shape[0]):
+    for t in range(lo, hi):
         counts[t] = _cover_triangle(window, t, rect, height, offsets, SHADE_SAMPLE,
                                     dummy_i, dummy_i, dummy_i, dummy_f, dummy_b, 0, False)
 
 
-@numba.njit(cache=True, parallel=True)
-def _emit_kernel(window, first, last, starts, rect, height, offsets, mode, out_x, out_y, out_s, out_depth,
+@numba.njit(cache=True, nogil=True)
+def _emit_kernel(lo, hi, window, first, starts, rect, height, offsets, mode, out_x, out_y, out_s, out_depth,
                  out_bary, out_tri):
-    for t in prange(first, last):
+    """The fragments of triangles first + lo : first + hi, each at its start (run in bands)."""
+    for t in range(first + lo, first + hi):
         begin = starts[t]
         n = _cover_triangle(window, t, rect, height, offsets, mode, out_x, out_y, out_s, out_depth, out_bary,
                             begin, True)
@@ -278,7 +280,7 @@ def count_fragments(prims: Primitives, width: int, height: int, pattern: SampleP
     counts = np.zeros(len(prims), dtype=np.int64)
     rect = pixel_rect(width, height) if rect is None else rect
     if len(prims):
-        _count_kernel(prims.window, rect, height, pattern.offsets, counts)
+        in_bands(_count_kernel, len(prims), prims.window, rect, height, pattern.offsets, counts, grain=256)
     return counts
 
 
@@ -311,7 +313,7 @@ def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern
     bary = np.empty((total, 3), np.float64)
     tri = np.empty(total, np.int32)
     if total:
-        _emit_kernel(prims.window, first, last, starts, rect, height, pattern.offsets, mode, x, y, s, depth, bary,
-                     tri)
+        in_bands(_emit_kernel, last - first, prims.window, first, starts, rect, height, pattern.offsets, mode, x, y,
+                 s, depth, bary, tri, grain=256)
     return Fragments(x=x, y=y, sample=s, depth=depth, bary=bary, triangle=tri,
                      primitive_id=prims.primitive_id[tri] if total else np.zeros(0, np.int64))

@@ -30,12 +30,12 @@ the two paths to identical color and depth.
 """
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
+from ._parallel import in_bands
 from .output import depth_passes
 from .raster import _covered, _setup, snap
 from .sampling import SUBPIXEL
@@ -426,37 +426,8 @@ def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray) -
     touched = np.zeros((tiles_y, tiles_x), np.bool_)
     if n == 0:
         return Visibility(vis, edges, bias, plane, touched)
-    threads = numba.get_num_threads()
-    in_bands(setup_triangles, n, threads, prims.window, rect, offsets, edges, bias, plane, box)
+    in_bands(setup_triangles, n, prims.window, rect, offsets, edges, bias, plane, box, grain=4096)
     starts, items = bin_triangles(box, tiles_x, tiles_y)
-    in_bands(raster_tiles, tiles_x * tiles_y, threads, edges, bias, plane, box, starts, items, tiles_x, w, h,
-             offsets, func, depth_write, fb.samples_depth, vis, touched.reshape(-1))
+    in_bands(raster_tiles, tiles_x * tiles_y, edges, bias, plane, box, starts, items, tiles_x, w, h, offsets,
+             func, depth_write, fb.samples_depth, vis, touched.reshape(-1))
     return Visibility(vis, edges, bias, plane, touched)
-
-
-def in_bands(kernel, rows: int, threads: int, *args) -> None:
-    """Run a nogil kernel ``kernel(lo, hi, *args)`` over ``rows`` rows (or tiles, or triangles) in parallel bands.
-
-    Python threads rather than numba's ``prange``: a parallel kernel costs
-    seconds more to compile (measured: 3.3 s against 0.6 s for the tile loop),
-    and a shading loop is compiled per shader. Bands are disjoint and each is
-    the same computation whoever runs it, so the result does not depend on the
-    thread count. Up to 8 bands per thread, handed out in turn, so that a band
-    heavier than the others does not leave a thread idle for long.
-    """
-    threads = max(1, min(threads, rows))
-    if threads == 1:
-        kernel(0, rows, *args)
-        return
-    bounds = np.linspace(0, rows, min(rows, threads * 8) + 1).astype(int)
-    list(_pool(threads).map(lambda k: kernel(bounds[k], bounds[k + 1], *args), range(len(bounds) - 1)))
-
-
-_POOLS: dict = {}
-
-
-def _pool(threads: int) -> ThreadPoolExecutor:
-    """One long-lived pool per thread count (starting threads per draw costs milliseconds)."""
-    if threads not in _POOLS:
-        _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="softpipe-shade")
-    return _POOLS[threads]
