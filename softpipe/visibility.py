@@ -332,11 +332,14 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
     tx, ty = tile % tiles_x, tile // tiles_x
     x_lo, x_hi = tx * TILE_W, min(tx * TILE_W + TILE_W, width) - 1
     y_lo, y_hi = ty * TILE_H, min(ty * TILE_H + TILE_H, height) - 1
+    for s in range(offsets.shape[0]):      # nothing visible yet (here, in parallel, not one serial fill)
+        for row in range(height - 1 - y_hi, height - y_lo):
+            vis[s, row, x_lo:x_hi + 1] = -1
     far = 0.0
     if hiz and starts[tile + 1] > starts[tile]:
-        for row in range(height - 1 - y_hi, height - y_lo):
-            for i in range(x_lo, x_hi + 1):
-                for s in range(offsets.shape[0]):
+        for s in range(offsets.shape[0]):
+            for row in range(height - 1 - y_hi, height - y_lo):
+                for i in range(x_lo, x_hi + 1):
                     far = max(far, depth[s, row, i])
     for k in range(starts[tile], starts[tile + 1]):
         t = items[k]
@@ -421,10 +424,11 @@ def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray) -
     bias = np.empty((n, 3), np.int64)
     plane = np.empty((n, 4), np.float64)
     box = np.empty((n, 4), np.int64)
-    vis = np.full((len(offsets), h, w), -1, np.int32)
+    vis = np.empty((len(offsets), h, w), np.int32)      # raster_tiles sets every tile to −1 first
     tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
     touched = np.zeros((tiles_y, tiles_x), np.bool_)
     if n == 0:
+        vis.fill(-1)
         return Visibility(vis, edges, bias, plane, touched)
     in_bands(setup_triangles, n, prims.window, rect, offsets, edges, bias, plane, box, grain=4096)
     starts, items = bin_triangles(box, tiles_x, tiles_y)
