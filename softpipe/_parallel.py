@@ -17,6 +17,7 @@ does not depend on the thread count.
 """
 from __future__ import annotations
 
+import itertools
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -33,23 +34,38 @@ def threads() -> int:
 def in_bands(kernel, rows: int, *args, grain: int = 1) -> None:
     """Run the nogil kernel ``kernel(lo, hi, *args)`` over ``rows`` items in parallel bands.
 
-    Up to 8 bands per thread, handed out in turn, so that a band heavier than
-    the others does not leave a thread idle for long; a band has at least
-    ``grain`` items (below that, starting a thread costs more than it saves).
+    Up to 8 bands per thread, taken in turn by whichever thread is free (the
+    calling thread works too), so that a band heavier than the others does
+    not leave a thread idle for long; a band has at least ``grain`` items
+    (below that, starting a thread costs more than it saves).
     """
     count = max(1, min(threads(), -(-rows // max(grain, 1))))
     if count == 1 or rows <= 1:
         kernel(0, rows, *args)
         return
     bounds = np.linspace(0, rows, min(rows, count * 8) + 1).astype(np.int64)
-    list(_pool(count).map(lambda k: kernel(bounds[k], bounds[k + 1], *args), range(len(bounds) - 1)))
+    bands = len(bounds) - 1
+    next_band = itertools.count().__next__       # atomic under the GIL
+
+    def work() -> None:
+        k = next_band()
+        while k < bands:
+            kernel(bounds[k], bounds[k + 1], *args)
+            k = next_band()
+
+    helpers = [_pool(count - 1).submit(work) for _ in range(count - 1)]
+    try:
+        work()
+    finally:
+        for helper in helpers:       # every band is done (or failed) before returning or raising
+            helper.result()
 
 
 _POOLS: dict = {}
 
 
 def _pool(count: int) -> ThreadPoolExecutor:
-    """One long-lived pool per thread count (starting threads per call costs milliseconds)."""
+    """One long-lived pool of helper threads per size (starting threads per call costs milliseconds)."""
     if count not in _POOLS:
         _POOLS[count] = ThreadPoolExecutor(count, thread_name_prefix="softpipe")
     return _POOLS[count]
