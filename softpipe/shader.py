@@ -423,8 +423,8 @@ def vertex_kernel(shader: Callable, attr_sizes: Sequence[Tuple[str, int]], out_l
                                for n, s in attr_sizes)
         lines = [
             "@JIT",
-            f"def vertex_loop({', '.join(f'a_{n}' for n in names)}, uniforms, out_position, out_varyings):",
-            "    for i in range(out_position.shape[0]):",
+            f"def vertex_loop(lo, hi, {', '.join(f'a_{n}' for n in names)}, uniforms, out_position, out_varyings):",
+            "    for i in range(lo, hi):",
             f"        attributes = Attributes({attr_exprs})",
             "        clip, v = shader(attributes, uniforms)",
         ]

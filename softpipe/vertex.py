@@ -16,6 +16,7 @@ from typing import Any, Callable, Dict, Mapping, Optional
 import numpy as np
 
 from . import shader as _shader
+from ._parallel import in_bands
 from .shader import VaryingLayout
 
 __all__ = ["VertexOut", "run_vertex_stage", "standard_vertex", "StandardVaryings"]
@@ -144,7 +145,10 @@ def _run_shader(vertex_shader: Callable, inputs: Dict[str, np.ndarray], uniforms
     kernel = _shader.vertex_kernel(vertex_shader, sizes, layout)
     position = np.empty((n, 4), dtype=np.float64)
     packed = np.empty((n, layout.width), dtype=np.float64)
-    _shader.run_compiled("vertex", vertex_shader, kernel, None, *inputs.values(), uniforms, position, packed)
+    args = (*inputs.values(), uniforms, position, packed)
+    # compile (or load) once, in this thread, where errors are reported clearly; then run in bands
+    _shader.run_compiled("vertex", vertex_shader, kernel, None, 0, 0, *args)
+    _shader.run_compiled("vertex", vertex_shader, lambda *a: in_bands(kernel, n, *a, grain=4096), None, *args)
     return VertexOut(position, packed, layout)
 
 
