@@ -301,3 +301,37 @@ def test_vertex_shader_errors_name_the_shader():
 def test_a_shader_that_is_not_a_function():
     with pytest.raises(TypeError, match=r"shader must be a function, got int"):
         draw(fragment_shader=5)
+
+
+def fragment_shader_that_raises_on_the_right(varyings, uniforms, frag):
+    if frag.x > 200.0:
+        raise ValueError("too far right")
+    return (1.0, 1.0, 1.0, 1.0)
+
+
+def vertex_shader_that_raises_late(attributes, uniforms):
+    p = attributes.position
+    if p[0] > 0.9:
+        raise ValueError("this vertex is out of bounds")
+    return (p[0], p[1], 0.0, 1.0), softpipe.vertex.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+
+
+@pytest.mark.parametrize("path", ["reference", "fast"])
+def test_a_shader_that_raises_on_some_fragments_only_is_reported_from_any_thread(path):
+    # the fast path shades in bands on several threads; the error must still arrive, named
+    fb = softpipe.Framebuffer(256, 256)
+    full = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1.0]])
+    with pytest.raises(ShaderError, match=r"fragment shader test_errors\.fragment_shader_that_raises_on_the_right "
+                                          r"raised ValueError: too far right"):
+        softpipe.draw(fb, full, [0, 1, 2, 0, 2, 3], varyings={"color": np.ones((4, 3))},
+                      fragment_shader=fragment_shader_that_raises_on_the_right, path=path)
+
+
+def test_a_vertex_shader_that_raises_on_late_vertices_only_is_reported():
+    rng = np.random.default_rng(1)
+    positions = np.c_[rng.uniform(-1, 0.8, (20000, 3))]
+    positions[19990, 0] = 0.95                    # one vertex, in the last band
+    with pytest.raises(ShaderError, match=r"vertex shader test_errors\.vertex_shader_that_raises_late raised "
+                                          r"ValueError: this vertex is out of bounds"):
+        softpipe.draw(softpipe.Framebuffer(64, 64), positions, vertex_shader=vertex_shader_that_raises_late,
+                      fragment_shader=fragment_shader_that_raises_on_the_right)
