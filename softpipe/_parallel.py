@@ -18,6 +18,7 @@ does not depend on the thread count.
 from __future__ import annotations
 
 import itertools
+import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -62,6 +63,9 @@ def in_bands(kernel, rows: int, *args, grain: int = 1) -> None:
 
 
 _POOLS: dict = {}
+if hasattr(os, "register_at_fork"):
+    # A forked child has the pools but not their threads: it must start its own.
+    os.register_at_fork(after_in_child=_POOLS.clear)
 
 
 def _pool(count: int) -> ThreadPoolExecutor:
