@@ -281,8 +281,9 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     path : "auto" | "reference" | "fast"
         "reference" rasterizes, shades and merges every fragment in order;
         "fast" finds the visible samples first and shades only those
-        (:mod:`softpipe.visibility`; not for blending or discard); "auto" (default) takes the fast path when it can and
-        the framebuffer has at least FAST_PATH_MIN_SAMPLES samples. Both give
+        (:mod:`softpipe.visibility`; not for blending or discard); "auto"
+        (default) takes the fast path when it can and the framebuffer has at
+        least FAST_PATH_MIN_SAMPLES samples. Both give
         the same bytes.
 
     Returns
