@@ -16,6 +16,7 @@ from .framebuffer import Framebuffer
 from .material import Light, Lighting, LightingUniform, Material, MaterialUniform, pack_lights
 from .mesh import Mesh
 from .mesh import concatenate as concatenate_meshes
+from .models import load_model, model_path
 from .obj import OBJError, load_obj, parse_obj
 from .output import MergeResult, MergeState
 from .pipeline import DrawCall, Stage, draw
