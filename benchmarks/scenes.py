@@ -1,4 +1,4 @@
-"""The standard benchmark scenes of issue 6, built from code and ``../shared/assets/``.
+"""The standard benchmark scenes of issue 6, built from code and the bundled models (``softpipe.models``).
 
 Each scene is a function ``scene(scale=1.0) -> Scene``. ``scale`` 1 is the size
 the issue specifies; a smaller scale shrinks the framebuffer by ``scale`` on
@@ -44,6 +44,7 @@ from softpipe.camera import Camera
 from softpipe.glsl import dot, mat3_mul_vec3, mat4_mul_vec4, neg, normalize
 from softpipe.lighting import BLINN_PHONG, PHONG, opengl_lighting
 from softpipe.material import Light, Lighting, Material
+from softpipe.models import MODELS_DIR
 from softpipe.obj import load_obj
 from softpipe.scene import standard_uniforms
 from softpipe.shaders import get_program
@@ -54,8 +55,9 @@ from softpipe.vertex import standard_vertex
 
 __all__ = ["Scene", "SCENES", "build_scene", "AssetMissing", "ASSETS", "asset_path", "TEXTURE_NOTE"]
 
-#: Where the meshes are, relative to the repository root (the folder holding ``benchmarks/``).
-ASSETS = "../shared/assets"
+#: Where the meshes are: the models bundled with softpipe (:mod:`softpipe.models`). A relative
+#: path here would be taken from the repository root (the folder holding ``benchmarks/``).
+ASSETS = MODELS_DIR
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 #: What ``spot-textured`` samples with when the built-in ``textured`` program is missing.
@@ -72,8 +74,8 @@ def asset_path(relative: str, scene: str) -> Path:
     path = (REPO_ROOT / ASSETS / relative).resolve()
     if not path.is_file():
         raise AssetMissing(f"benchmark scene {scene!r} needs {ASSETS}/{relative} (resolved from the repository "
-                           f"root {REPO_ROOT} to {path}), which does not exist; the test meshes live in "
-                           f"/work/shared/assets (see its README.md)")
+                           f"root {REPO_ROOT} to {path}), which does not exist; the test meshes ship with "
+                           f"softpipe in softpipe/data/models (see its README.md)")
     return path
 
 
@@ -234,7 +236,7 @@ def sphere200k_color(scale: float = 1.0) -> Scene:
 
 
 # --------------------------------------------------------------------------
-# The meshes from ../shared/assets
+# The meshes bundled with softpipe (softpipe/data/models)
 # --------------------------------------------------------------------------
 
 def bunny(scale: float = 1.0) -> Scene:

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from softpipe.material import Material
+from softpipe.models import MODELS_DIR
 from softpipe.obj import OBJError, OBJWarning, _OBJParser, _parse_faces, load_mtl, load_obj, parse_mtl, parse_obj
 
-ASSETS = Path("/work/shared/assets")
+ASSETS = MODELS_DIR  # the bundled models (softpipe/data/models/README.md)
 DATA = Path(__file__).parent / "data" / "obj"
 
 SQUARE = """\
@@ -326,7 +327,7 @@ def test_errors_from_load_obj_carry_the_path(tmp_path):
         load_obj(path)
 
 
-# ---------------------------------------------------------------------------- the shared assets
+# ---------------------------------------------------------------------------- the bundled models
 
 # file, triangles, 'v' lines, mesh vertices, has normals, has uvs
 ASSET_TABLE = [
