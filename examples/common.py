@@ -7,7 +7,6 @@ what the tests call at a tiny size.
 """
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 from typing import Dict, Optional
@@ -21,6 +20,7 @@ if str(REPO) not in sys.path:          # run from a checkout without installing
 import softpipe as sp  # noqa: E402
 from softpipe.material import Lighting  # noqa: E402
 from softpipe.mesh import Mesh  # noqa: E402
+from softpipe.models import MODELS_DIR, model_path  # noqa: E402
 from softpipe.obj import load_obj  # noqa: E402
 from softpipe.pictures import contact_sheet  # noqa: E402
 from softpipe.scene import draw_mesh  # noqa: E402
@@ -28,8 +28,8 @@ from softpipe.scene import draw_mesh  # noqa: E402
 from softpipe.shaders import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: E402,F401
 from softpipe.shaders.common import lighting_uniform  # noqa: E402
 
-#: The shared test meshes: ``../shared/assets`` next to the repository (override: SOFTPIPE_ASSETS).
-ASSETS = Path(os.environ.get("SOFTPIPE_ASSETS", REPO.parent / "shared" / "assets"))
+#: The test meshes bundled with softpipe (:mod:`softpipe.models`, ``softpipe/data/models/``).
+ASSETS = MODELS_DIR
 #: Where the contact sheets go.
 OUT = REPO / "out" / "examples"
 
@@ -60,16 +60,12 @@ def image(fb: sp.Framebuffer) -> np.ndarray:
 
 
 def load_asset(name: str, size: float = 2.0) -> Mesh:
-    """A mesh from the shared assets, centred, scaled to fit a cube of side ``size``, smooth normals.
+    """A bundled model (``"bunny"``) or an OBJ file, centred, scaled to fit a cube of side ``size``, smooth normals.
 
     Normals are averaged over vertices at the same position, so a mesh whose
     patch seams are not welded (the teapot) still shades smoothly across them.
     """
-    path = ASSETS / name
-    if not path.exists():
-        raise FileNotFoundError(f"{path} not found: the examples expect the shared assets in ../shared/assets "
-                                "(or set SOFTPIPE_ASSETS)")
-    mesh = load_obj(path).normalized(size)
+    mesh = load_obj(model_path(name)).normalized(size)
     return mesh.replace(normals=welded_normals(mesh))
 
 

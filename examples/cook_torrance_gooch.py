@@ -8,7 +8,7 @@ Beckmann D, the geometry term G, exact Fresnel F) for a smooth dielectric
 angles) and a rougher, metal-like surface (m = 0.35, a large real index, 10,
 standing in for a metal's complex one: F ≈ 0.67); Gooch's cool-to-warm tones
 (``gooch``) with a silhouette rim, on a light background as in the paper.
-The meshes come from ``../shared/assets``.
+The meshes are the models bundled with softpipe (:mod:`softpipe.models`).
 """
 from common import image, key_light, load_asset, render, save_sheet
 
@@ -22,13 +22,13 @@ COLUMNS = (
     ("Cook-Torrance m=0.35 ior 10", "cook_torrance", Material(**BASE, ior=10.0, roughness=0.35), {}),
     ("Gooch, outline", "gooch", Material(kd=(0.75, 0.75, 0.75)), {"gooch_outline": 0.3}),
 )
-MODELS = (("bunny", "stanford-bunny.obj", 20.0, 10.0), ("teapot", "teapot.obj", 25.0, 20.0))
+MODELS = (("bunny", 20.0, 10.0), ("teapot", 25.0, 20.0))   # softpipe.models names
 
 
 def sheet(size=(200, 170)):
     pictures = {}
-    for model_name, file, azimuth, elevation in MODELS:
-        mesh = load_asset(file)
+    for model_name, azimuth, elevation in MODELS:
+        mesh = load_asset(model_name)
         camera = Camera.frame(mesh, azimuth=azimuth, elevation=elevation, fovy=30.0, margin=0.78,
                               aspect=size[0] / size[1])
         for label, program, material, extra in COLUMNS:
