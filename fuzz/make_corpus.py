@@ -1,13 +1,13 @@
 """Write the seed corpus: fuzz/corpus/obj/seed-* and fuzz/corpus/scene/seed-*.
 
-    python fuzz/make_corpus.py [--assets ../shared/assets]
+    python fuzz/make_corpus.py [--assets softpipe/data/models]
 
-OBJ seeds are small, self-consistent slices of every OBJ in the shared assets (a run
-of faces with just the v/vt/vn lines they use, renumbered, in the file's own index
-form), the head of each file as it is, and hand-written files that use every
-statement the parser knows (and a few it rejects). Scene seeds are
-``examples/scene.toml`` as it is, the same file pointed at the small files in
-``fuzz/data``, and hand-written scenes that use every key. Files the fuzzer found are
+OBJ seeds are small, self-consistent slices of every OBJ among the models bundled with
+softpipe in ``softpipe/data/models`` (a run of faces with just the v/vt/vn lines they
+use, renumbered, in the file's own index form), the head of each file as it is, and
+hand-written files that use every statement the parser knows (and a few it rejects).
+Scene seeds are ``examples/scene.toml`` as it is, the same file pointed at the small
+files in ``fuzz/data``, and hand-written scenes that use every key. Files the fuzzer found are
 ``fuzz/corpus/*/cov-*`` (from ``run.py --merge``) and are left alone here.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-DEFAULT_ASSETS = ROOT.parent / "shared" / "assets"
+DEFAULT_ASSETS = ROOT / "softpipe" / "data" / "models"   # the bundled models (softpipe.models.MODELS_DIR)
 
 
 def obj_slice(lines, first: int, count: int) -> str:
@@ -287,8 +287,9 @@ def main() -> None:
     example = (ROOT / "examples" / "scene.toml").read_text(encoding="utf-8")
     (scene_dir / "seed-example.toml").write_text(example)
     local = re.sub(r'"[^"]*/spot_texture\.png"', '"checker.png"', example)
-    local = re.sub(r'obj = "[^"]*(bunny|teapot)\.obj"', 'obj = "tri.obj"', local)
-    local = re.sub(r'obj = "[^"]*\.obj"', 'obj = "quad.obj"', local)
+    # A model by path or by bundled name ("bunny"): the bunny and the teapot become tri.obj, the rest quad.obj.
+    local = re.sub(r'(?m)^obj = "[^"]*(bunny|teapot)(\.obj)?"', 'obj = "tri.obj"', local)
+    local = re.sub(r'(?m)^obj = "(?!tri\.obj")[^"]*"', 'obj = "quad.obj"', local)
     local = local.replace("width = 640", "width = 64").replace("height = 480", "height = 48")
     (scene_dir / "seed-example-local.toml").write_text(local)
     for name, text in HAND_SCENE.items():
