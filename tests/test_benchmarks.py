@@ -6,6 +6,8 @@ result row has its fields, every image shows something.
 """
 import json
 import os
+import re
+import subprocess
 import sys
 
 import numba
@@ -23,14 +25,27 @@ from benchmarks import scenes  # noqa: E402
 SCALE = 0.04
 
 
+def _git_head():
+    """The repository's HEAD as 40 hex digits, or None outside a git checkout (or without git)."""
+    try:
+        done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    head = done.stdout.strip()
+    return head if done.returncode == 0 and re.fullmatch(r"[0-9a-f]{40}", head) else None
+
+
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     """One run of the command line over all scenes at a tiny size, one warm frame, one thread."""
     out = tmp_path_factory.mktemp("bench")
     threads_before = numba.get_num_threads()
+    heads = [_git_head()]  # HEAD before and after the run: someone may commit meanwhile
     code = bench.main(["--scale", str(SCALE), "--frames", "1", "--threads", "1", "--budget", "0",
                        "--json", str(out / "bench.json"), "--save-images", str(out / "images")])
+    heads.append(_git_head())
     data = json.loads((out / "bench.json").read_text())
+    data["_heads"] = heads
     assert not data["failed"], "\n\n".join(f["traceback"] for f in data["failed"])
     assert code == 0
     assert numba.get_num_threads() == threads_before, "the harness must restore numba's thread count"
@@ -54,9 +69,22 @@ def test_every_scene_runs_and_reports_every_field(report):
     assert data["settings"] == {"frames": 1, "scale": SCALE, "budget_s": None}
     for key in ("nproc", "cpu_model", "python", "numba"):
         assert data["machine"][key]
-    assert data["source"]["commit"] is None or isinstance(data["source"]["commit"], str)
     for row in data["scenes"]:
         assert row["shading"] and row["path"] in ("reference", "fast", "fast/reference")
+
+
+def test_the_source_is_the_checked_out_commit(report):
+    """In a git checkout the report names HEAD (abbreviated: ``git rev-parse --short``); elsewhere None."""
+    data, _ = report
+    source, heads = data["source"], data["_heads"]
+    if heads == [None, None]:
+        assert source["commit"] is None
+        return
+    commit = source["commit"]
+    assert isinstance(commit, str) and re.fullmatch(r"[0-9a-f]{7,40}", commit), commit
+    assert any(head and head.startswith(commit) for head in heads), f"{commit} is not HEAD ({heads})"
+    changed = source["softpipe_files_changed_since"]
+    assert isinstance(changed, int) and changed >= 0
 
 
 def test_every_image_shows_something(report):

@@ -143,6 +143,10 @@ def test_triangle_outside_the_framebuffer_is_clamped_not_wrapped():
 def test_depth_is_linear_in_window_space():
     tri = [(0, 0, 0.0), (4, 0, 1.0), (0, 4, 0.5)]
     f = rasterize(window_prims([tri]), 4, 4)
+    # The pixels of test_right_triangle_lists_its_pixels, one fragment each: a depth
+    # check over no fragments (or over some of them) would prove nothing.
+    assert len(f) == 6
+    assert {(int(x), 3 - int(y)) for x, y in zip(f.x, f.y)} == {(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (0, 2)}
     for x, y, z in zip(f.x, f.y, f.depth):
         i, j = x + 0.5, (3 - y) + 0.5
         b1, b2 = i / 4, j / 4                      # barycentrics of this right triangle
