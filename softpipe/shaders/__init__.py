@@ -3,7 +3,7 @@
 Each program lives in its own module beside this one and reads like the slide it
 comes from. All of them take the standard uniforms (``model_view``,
 ``projection``, ``normal_matrix``) and the standard attributes (``position``,
-``normal``), which :func:`softpipe.scene.standard_uniforms` builds.
+``normal``), which :func:`softpipe.standard_uniforms` builds.
 
 ``get_program(name)`` looks a program up by name; ``PROGRAMS`` lists them.
 """

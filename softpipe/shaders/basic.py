@@ -1,11 +1,11 @@
 """Programs for looking at geometry: ``unlit``, ``normals``, ``depth``.
 
-Varyings from :func:`softpipe.vertex.standard_vertex`: ``position`` (eye space)
+Varyings from :func:`~softpipe.shaders.common.standard_vertex`: ``position`` (eye space)
 and ``normal`` (eye space, not normalized after interpolation).
 """
 from ..glsl import add, normalize, scale
-from ..vertex import standard_vertex
 from . import Program, register
+from .common import standard_vertex
 
 
 def unlit_fragment(varyings, uniforms, frag):

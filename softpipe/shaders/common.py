@@ -1,19 +1,27 @@
-"""What the lit programs share: eye-space vertex work, the surface vectors N and V, lights.
+"""What the built-in programs share: the standard vertex shader, the surface vectors N and V, lights.
 
 Every lit program shades in **eye space** (``softpipe.material``: the eye at the
-origin looking down −z), with the names of FORMULAS.md:
+origin looking down −z). P, N, V and the other names are those of FORMULAS.md,
+defined once in :mod:`softpipe.shading` (the module a shader author imports from,
+which re-exports the functions here).
 
-P   the surface point, eye space (varying ``position``)
-N   the unit normal, turned toward the viewer on back faces (two-sided lighting)
-V   the unit vector from P toward the eye
+The vertex side is one slide::
+
+    P    = model_view · (x, y, z, 1)        eye space
+    N    = normal_matrix · n                eye space, not normalized
+    clip = projection · P
+
+:func:`eye_space` computes it; :func:`standard_vertex`, the vertex shader of
+most built-in programs, passes P and N on as the varyings ``position`` and
+``normal``.
 
 Uniforms every lit program reads
 --------------------------------
 ``model_view``, ``projection``, ``normal_matrix``
-    As :func:`softpipe.scene.standard_uniforms` builds them.
+    As :func:`softpipe.standard_uniforms` builds them.
 ``material``
     A :class:`~softpipe.material.Material` (the shader sees its
-    :class:`~softpipe.material.MaterialUniform`); :func:`softpipe.scene.draw_mesh`
+    :class:`~softpipe.material.MaterialUniform`); :func:`softpipe.draw_mesh`
     passes the mesh's.
 ``lighting``
     ``Lighting(lights, global_ambient).uniform(view)``: the global ambient light and
@@ -27,6 +35,7 @@ only the ones it changes.
 """
 from __future__ import annotations
 
+from collections import namedtuple
 from typing import Iterable, Union
 
 import numpy as np
@@ -37,8 +46,8 @@ from numba.extending import overload, register_jitable
 from ..glsl import mat3_mul_vec3, mat4_mul_vec4, normalize, scale
 from ..material import Light, Lighting, LightingUniform
 
-__all__ = ["eye_space", "toward_eye", "facing_normal", "uniform_or", "rgba",
-           "DEFAULT_LIGHTING", "lighting_uniform"]
+__all__ = ["eye_space", "standard_vertex", "StandardVaryings", "toward_eye", "facing_normal",
+           "uniform_or", "rgba", "DEFAULT_LIGHTING", "lighting_uniform"]
 
 
 # --------------------------------------------------------------------------
@@ -49,14 +58,32 @@ __all__ = ["eye_space", "toward_eye", "facing_normal", "uniform_or", "rgba",
 def eye_space(attributes, uniforms):
     """(clip, P, N) of one vertex: clip position, eye-space point and (unnormalized) normal.
 
-    P = model_view · (x, y, z, 1), clip = projection · P, N = normal_matrix · n
-    (the same arithmetic as :func:`softpipe.vertex.standard_vertex`).
+    P = model_view · (x, y, z, 1), clip = projection · P, N = normal_matrix · n.
+    Reads the attributes ``position`` and ``normal`` and the uniforms
+    ``model_view``, ``projection`` and ``normal_matrix``.
     """
     p = attributes.position
     P = mat4_mul_vec4(uniforms.model_view, (p[0], p[1], p[2], 1.0))
     clip = mat4_mul_vec4(uniforms.projection, P)
     N = mat3_mul_vec3(uniforms.normal_matrix, attributes.normal)
     return clip, (P[0], P[1], P[2]), N
+
+
+StandardVaryings = namedtuple("StandardVaryings", ["position", "normal"])
+
+
+def standard_vertex(attributes, uniforms):
+    """The usual vertex shader: model-view-projection, eye-space P and N as varyings.
+
+    Uniforms: ``model_view`` (4×4), ``projection`` (4×4) and ``normal_matrix``
+    (3×3, the inverse transpose of model_view's upper-left;
+    :func:`softpipe.transforms.normal_matrix`), as
+    :func:`softpipe.standard_uniforms` builds them. Attributes:
+    ``position`` (x, y, z) and ``normal`` (x, y, z). Varyings: ``position`` = P
+    and ``normal`` = N, both eye space.
+    """
+    clip, P, N = eye_space(attributes, uniforms)
+    return clip, StandardVaryings(P, N)
 
 
 # --------------------------------------------------------------------------

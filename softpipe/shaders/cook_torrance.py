@@ -17,9 +17,8 @@ Program ``cook_torrance``. Uniforms: ``model_view``, ``projection``,
 ``normal_matrix``, ``material``, ``lighting`` (see :mod:`softpipe.shaders.common`).
 """
 from ..lighting import cook_torrance_lighting
-from ..vertex import standard_vertex
 from . import Program, register
-from .common import facing_normal, rgba, toward_eye
+from .common import facing_normal, rgba, standard_vertex, toward_eye
 
 
 def cook_torrance_fragment(varyings, uniforms, frag):

@@ -19,9 +19,8 @@ Program ``gooch``. Uniforms: ``model_view``, ``projection``, ``normal_matrix``,
 """
 from ..glsl import dot
 from ..lighting import gooch, light_at
-from ..vertex import standard_vertex
 from . import Program, register
-from .common import facing_normal, rgba, toward_eye, uniform_or
+from .common import facing_normal, rgba, standard_vertex, toward_eye, uniform_or
 
 
 def gooch_fragment(varyings, uniforms, frag):

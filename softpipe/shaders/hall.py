@@ -16,9 +16,8 @@ Program ``hall``. Uniforms: ``model_view``, ``projection``, ``normal_matrix``,
 ``material``, ``lighting`` (see :mod:`softpipe.shaders.common`).
 """
 from ..lighting import hall_local
-from ..vertex import standard_vertex
 from . import Program, register
-from .common import facing_normal, rgba, toward_eye
+from .common import facing_normal, rgba, standard_vertex, toward_eye
 
 
 def hall_fragment(varyings, uniforms, frag):

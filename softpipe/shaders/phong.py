@@ -1,6 +1,6 @@
 """Phong shading (FORMULAS §12): interpolate the normals, renormalize, light every fragment.
 
-    vertex shader:   eye-space P and N (:func:`softpipe.vertex.standard_vertex`)
+    vertex shader:   eye-space P and N (:func:`~softpipe.shaders.common.standard_vertex`)
     rasterizer:      P and N interpolated across the triangle
     fragment shader: N renormalized → the OpenGL lighting equation (§10) → color
 
@@ -16,9 +16,8 @@ face seen with culling off is lit with its normal reversed. The color is not
 clamped here; the framebuffer clamps once, when it becomes 8 bits.
 """
 from ..lighting import BLINN_PHONG, PHONG, opengl_lighting
-from ..vertex import standard_vertex
 from . import Program, register
-from .common import facing_normal, rgba, toward_eye
+from .common import facing_normal, rgba, standard_vertex, toward_eye
 
 
 def phong_fragment(varyings, uniforms, frag):
