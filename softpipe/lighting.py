@@ -5,25 +5,10 @@ these per vertex, a Phong shader per fragment, and a user's shader may call them
 too. Each function is ``@njit(cache=True)``; under ``NUMBA_DISABLE_JIT=1`` (or via
 ``.py_func``) it is the same code as plain Python, with bit-identical results.
 
-Names, as in FORMULAS.md (all vectors in eye space, unit length unless said)
----------------------------------------------------------------------------
-P        the surface point, in eye space (the eye is at the origin)
-N        the surface normal, on the viewer's side
-L        from P toward the light
-V        from P toward the eye: V = normalize(−P) in eye space
-H        the half vector normalize(L + V)                               (§6)
-R        L mirrored about N: R = 2(N·L)N − L                            (§5)
-H′       the transmitted half vector of the Hall model                 (§14)
-B        1 if N·L > 0, else 0: no light from below the surface          (§4)
-(x)₊     max(0, x)
-ke, ka, kd, ks, kt   the material's emission, ambient, diffuse, specular and
-         transmission colors (``MaterialUniform`` fields)
-n, n′    the shininess and the transmission shininess
-I_a, I_d, I_s        a light's ambient, diffuse and specular colors;
-         I_a,global the global ambient light (``Lighting.global_ambient``)
-f_att, f_spot        the attenuation (§7) and spotlight (§8) factors
-η        a ratio of refractive indices, defined where used
-m        Beckmann's roughness (Cook-Torrance, §26)
+Names: P, N, L, V, H, R, H′, B, (x)₊, ke, ka, kd, ks, kt, n, n′, I_a, I_d, I_s,
+f_att, f_spot, η and m are FORMULAS.md's, defined once in :mod:`softpipe.shading`
+(the module a shader author imports from; it re-exports every function here).
+All vectors are in eye space and of unit length unless said.
 
 Colors are RGB 3-tuples multiplied per channel. Lights arrive packed in eye
 space, one row per light (``softpipe.material.pack_lights``; columns ``LIGHT_*``).
@@ -62,7 +47,7 @@ __all__ = [
     "BLINN_PHONG", "PHONG",
     "positive_power", "b_factor", "half_vector",
     "emission", "ambient", "lambert", "phong_specular", "blinn_phong_specular",
-    "attenuation", "spot_factor", "light_at", "light_vec3", "opengl_lighting",
+    "attenuation", "spot_factor", "light_at", "light_vec3", "light_colors", "opengl_lighting",
     "transmitted_half_vector", "hall_transmission", "hall_local",
     "fresnel_rs_rp", "fresnel", "fresnel_schlick",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting",

@@ -1,0 +1,172 @@
+"""Everything a shader author needs, in one import: ``from softpipe.shading import *``.
+
+This module defines nothing; it gathers, under one name, what the shader
+contract (:mod:`softpipe.shader`), the GLSL math (:mod:`softpipe.glsl`), the
+lighting equations (:mod:`softpipe.lighting`), the packed lights
+(:mod:`softpipe.material`) and the built-in programs (:mod:`softpipe.shaders`)
+offer. Each name here *is* the object of its home module. A walk through
+writing one: ``docs/shaders.md``.
+
+The contract
+------------
+A shader is a plain Python function, written like GLSL and compiled by numba::
+
+    def vertex(attributes, uniforms):                 # once per vertex
+        ...
+        return clip, Varyings(position=P, normal=N)  # clip = (x, y, z, w)
+
+    def fragment(varyings, uniforms, frag):           # once per fragment (sample)
+        ...
+        return (r, g, b, a)                           # or DISCARD
+
+    def fragment(varyings, uniforms, frag, derivatives):   # when it needs dFdx/dFdy
+        ...
+
+``attributes``
+    The vertex's inputs by name: ``position`` (the ``positions`` of the draw)
+    and every array given as ``attributes=`` (``normal``, ``uv``, …). A field
+    is a float for an ``[N]`` array, a tuple of k floats for ``[N, k]``.
+``uniforms``
+    The draw's ``uniforms=`` dict, the same for every invocation, by name:
+    numbers become floats, short vectors tuples, matrices numpy arrays,
+    a :class:`Material` its :class:`MaterialUniform` (``uniforms.material.kd``),
+    the ``lighting`` uniform a :class:`LightingUniform` (``global_ambient``
+    and ``lights``, the packed eye-space lights, one row per light).
+    :func:`uniform_or` reads an optional one with a default.
+``Varyings``
+    Any namedtuple class; its fields (a float or a tuple of 2–4 floats each)
+    are what the rasterizer interpolates, and the fragment shader receives
+    them by the same names in ``varyings``.
+``frag``
+    A :data:`FragInfo`: ``x``, ``y`` (window position of the sample, y up,
+    pixel centres at +½, as ``gl_FragCoord``), ``z`` (its depth in [0, 1]),
+    ``front_facing``, ``primitive_id``.
+``derivatives``
+    A :data:`Derivatives`: ``dx`` and ``dy``, each with every varying's exact
+    screen-space derivative by name (``derivatives.dx.uv``), GLSL's ``dFdx``/``dFdy``.
+Return value
+    The fragment's RGBA (floats, not clamped: the framebuffer clamps once, when
+    it becomes 8 bits), or :data:`DISCARD` (GLSL ``discard``). A shader that
+    cannot compile or run raises :class:`ShaderError` naming it and its line.
+
+What Python a shader may use: the subset numba compiles. Vectors are tuples of
+floats (``(0.0, 1.0, 0.0)``), indexed ``v[0]``; arithmetic on them is the
+functions below (``add(a, b)``, ``scale(v, s)``, ``dot(N, L)``), not operators
+and not numpy (``length(v)``, not ``np.linalg.norm(v)``). ``math``, ``min``,
+``max``, ``if``, ``for j in range(n)`` and local variables are fine.
+
+Names (FORMULAS.md's, used by every function below)
+---------------------------------------------------
+All vectors are in **eye space** (the eye at the origin, looking down −z) and
+of unit length unless said.
+
+P        the surface point (the varying ``position`` of :func:`standard_vertex`)
+N        the surface normal, on the viewer's side (:func:`facing_normal`)
+L        from P toward the light (:func:`light_at`)
+V        from P toward the eye: normalize(−P) (:func:`toward_eye`)
+H        the half vector normalize(L + V)                                   (§6)
+R        L mirrored about N: R = 2(N·L)N − L                                (§5)
+H′       the transmitted half vector of the Hall model                     (§14)
+B        1 if N·L > 0, else 0: no light from below the surface              (§4)
+(x)₊     max(0, x)
+ke, ka, kd, ks, kr, kt   the material's emission, ambient, diffuse, specular,
+         reflection and transmission colors (:class:`MaterialUniform` fields)
+n, n′    the shininess and the transmission shininess
+I_a, I_d, I_s        a light's ambient, diffuse and specular colors;
+         I_a,global the global ambient light (``uniforms.lighting.global_ambient``)
+f_att, f_spot        the attenuation (§7) and spotlight (§8) factors
+η        a ratio of refractive indices, defined where used
+m        Beckmann's roughness (Cook-Torrance, §26)
+
+Colors are RGB 3-tuples, multiplied per channel (``mul(kd, I_d)``).
+
+What is offered
+---------------
+The contract (:mod:`softpipe.shader`)
+    FragInfo, DISCARD, Derivatives, ShaderError
+Programs and the vertex side (:mod:`softpipe.shaders`, :mod:`softpipe.shaders.common`)
+    Program                  a vertex and a fragment shader with a name, for ``draw_mesh``
+    standard_vertex          the usual vertex shader: varyings P (``position``) and N (``normal``)
+    StandardVaryings         its varyings
+    eye_space                (clip, P, N) of a vertex: model_view · p, projection · P, normal_matrix · n
+Surface vectors and helpers (:mod:`softpipe.shaders.common`)
+    facing_normal            N: the interpolated normal renormalized, reversed on back faces (§12)
+    toward_eye               V, also for an orthographic projection
+    uniform_or               an optional uniform with its default
+    rgba                     (r, g, b, a) from a color and an alpha
+GLSL math on tuples (:mod:`softpipe.glsl`)
+    vec2, vec3, vec4                                 constructors
+    add, sub, mul, div, scale, neg                   arithmetic, per component
+    dot, cross, length, distance, normalize          geometry
+    faceforward, reflect, refract                    GLSL's (§16–§19)
+    mix, clamp, saturate, step, smoothstep, pow_     per component
+    vmin, vmax, vabs                                 GLSL's min, max, abs
+    hsum, max_component, min_component               reductions
+    mat4_mul_vec4, mat3_mul_vec3                     M · v
+The lighting equations (:mod:`softpipe.lighting`; § as in FORMULAS.md)
+    emission (§1), ambient (§2), lambert (§3), b_factor (§4),
+    phong_specular (§5), blinn_phong_specular (§6), half_vector (§6),
+    positive_power (§5, §6), attenuation (§7), spot_factor (§8),
+    opengl_lighting (§10) with BLINN_PHONG or PHONG,
+    hall_local (§13), hall_transmission (§13, §14), transmitted_half_vector (§14),
+    fresnel_rs_rp, fresnel, fresnel_schlick (§20),
+    beckmann_d, geometry_g, cook_torrance, cook_torrance_lighting, gooch (§26)
+The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
+    light_at                 (L, f_att · f_spot) of light j at P (§7–§9)
+    light_vec3               three columns of light j: ``light_vec3(lights, j, LIGHT_DIFFUSE)`` is I_d
+    light_colors             (I_a, I_d, I_s) of light j
+    LIGHT_KIND, LIGHT_AMBIENT, LIGHT_DIFFUSE, LIGHT_SPECULAR, LIGHT_POSITION,
+    LIGHT_ATTENUATION, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_COS_CUTOFF,
+    LIGHT_SPOT_EXPONENT, LIGHT_COLUMNS     the columns of a packed light
+    LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT             the values of LIGHT_KIND
+What the uniforms are made from (:mod:`softpipe.material`, :mod:`softpipe.shaders.common`)
+    Material, MaterialUniform, Light, Lighting, LightingUniform,
+    lighting_uniform         the ``lighting`` uniform for a camera's view matrix
+"""
+from .glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, length, mat3_mul_vec3,
+                   mat4_mul_vec4, max_component, min_component, mix, mul, neg, normalize, pow_, reflect,
+                   refract, saturate, scale, smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin)
+from .lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
+                       cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_rs_rp, fresnel_schlick,
+                       geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert, light_at,
+                       light_colors, light_vec3, opengl_lighting, phong_specular, positive_power, spot_factor,
+                       transmitted_half_vector)
+from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
+                       LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
+                       LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
+                       LightingUniform, Material, MaterialUniform)
+from .shader import DISCARD, Derivatives, FragInfo, ShaderError
+from .shaders import Program
+from .shaders.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
+                             standard_vertex, toward_eye, uniform_or)
+
+__all__ = [
+    # the contract
+    "FragInfo", "DISCARD", "Derivatives", "ShaderError",
+    # programs and the vertex side
+    "Program", "standard_vertex", "StandardVaryings", "eye_space",
+    # surface vectors and helpers
+    "facing_normal", "toward_eye", "uniform_or", "rgba",
+    # GLSL math
+    "vec2", "vec3", "vec4",
+    "add", "sub", "mul", "div", "scale", "neg",
+    "dot", "cross", "length", "distance", "normalize",
+    "faceforward", "reflect", "refract",
+    "mix", "clamp", "saturate", "step", "smoothstep", "pow_",
+    "vmin", "vmax", "vabs",
+    "hsum", "max_component", "min_component",
+    "mat4_mul_vec4", "mat3_mul_vec3",
+    # the lighting equations
+    "emission", "ambient", "lambert", "b_factor", "phong_specular", "blinn_phong_specular", "half_vector",
+    "positive_power", "attenuation", "spot_factor", "opengl_lighting", "BLINN_PHONG", "PHONG",
+    "hall_local", "hall_transmission", "transmitted_half_vector",
+    "fresnel_rs_rp", "fresnel", "fresnel_schlick",
+    "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting", "gooch",
+    # the packed lights
+    "light_at", "light_vec3", "light_colors",
+    "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR", "LIGHT_POSITION",
+    "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF", "LIGHT_SPOT_EXPONENT",
+    "LIGHT_COLUMNS", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
+    # what the uniforms are made from
+    "Material", "MaterialUniform", "Light", "Lighting", "LightingUniform", "lighting_uniform",
+]
