@@ -14,12 +14,9 @@ from common import image, key_light, render, save_sheet
 
 from softpipe import shapes
 from softpipe.camera import Camera
-from softpipe.glsl import add, dot, mul, scale
-from softpipe.lighting import ambient, blinn_phong_specular, emission, light_at, light_vec3
-from softpipe.material import LIGHT_AMBIENT, LIGHT_DIFFUSE, LIGHT_SPECULAR, Material
-from softpipe.shaders import Program
-from softpipe.shaders.common import facing_normal, toward_eye, uniform_or
-from softpipe.vertex import standard_vertex
+from softpipe.shading import (LIGHT_AMBIENT, LIGHT_DIFFUSE, LIGHT_SPECULAR, Material, Program, add, ambient,
+                              blinn_phong_specular, dot, emission, facing_normal, light_at, light_vec3, mul, scale,
+                              standard_vertex, toward_eye, uniform_or)
 
 
 def wrapped_fragment(varyings, uniforms, frag):
