@@ -29,14 +29,10 @@ import time
 
 import numba
 
-from softpipe import shader as _shader
-from softpipe.assembly import assemble
-from softpipe.fragment import visible_loop_args
+from softpipe import kernels
 from softpipe.framebuffer import Framebuffer
-from softpipe.output import DEPTH_FUNCS
 from softpipe.pipeline import DrawCall
-from softpipe.raster import pixel_rect
-from softpipe.visibility import visibility_pass
+from softpipe.visibility import visible_loop_args
 
 from .scenes import build_scene
 
@@ -72,17 +68,18 @@ def measure(scene_name: str, runs: int, scale: float = 1.0) -> dict:
     seconds = {"constant": 0.0, "varyings": 0.0, "own": 0.0}
     samples = 0
     for draw in scene.draws:
-        call = DrawCall(fb, **draw)
-        vout = call._vertex_stage()
-        if set(vout.layout.names) != {"position", "normal"}:
-            raise SystemExit(f"{scene_name}: varyings {vout.layout.names}, not (position, normal): cannot split")
-        prims = assemble(vout, call.topology, call.indices, viewport=call.viewport, cull=call.cull,
-                         front_face=call.front_face, keep_culled=False)
-        visibility = visibility_pass(prims, fb, DEPTH_FUNCS.index(call.state.depth_test), True,
-                                     pixel_rect(fb.width, fb.height, call.viewport))
+        call = DrawCall(fb, **{**draw, "path": "fast"})
+        stages = {}
+        for stage in call.steps():               # up to the visibility stage; shading is timed below
+            stages[stage.name] = stage.output
+            if stage.name == "visibility":
+                break
+        prims, visibility = stages["assembly"], stages["visibility"]
+        if set(prims.layout.names) != {"position", "normal"}:
+            raise SystemExit(f"{scene_name}: varyings {prims.layout.names}, not (position, normal): cannot split")
         samples += int((visibility.vis >= 0).sum())
         for key, shader in (("constant", constant), ("varyings", interpolated), ("own", call.fragment_shader)):
-            kernel = _shader.visible_kernel(shader, prims.layout)
+            kernel = kernels.visible_kernel(shader, prims.layout)
             args = visible_loop_args(prims, visibility, fb, shader, call.uniforms)
             seconds[key] += _median_seconds(kernel, fb.height, args, runs)
     return {"scene": scene_name, "samples": samples, "shader": scene.shading, **seconds}

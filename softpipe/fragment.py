@@ -1,7 +1,7 @@
 """Stage 4: the fragment stage — interpolate the varyings, run the fragment shader.
 
 For each fragment the varyings are interpolated from the triangle's corners
-with their qualifiers (:func:`softpipe.shader.fragment_kernel` writes the loop):
+with their qualifiers (:func:`softpipe.kernels.fragment_kernel` writes the loop):
 
 * ``smooth`` (the default): perspective-correct,
   ``v = Σ (b_k / w_k) v_k / Σ (b_k / w_k)``;
@@ -10,21 +10,25 @@ with their qualifiers (:func:`softpipe.shader.fragment_kernel` writes the loop):
 
 then the fragment shader turns them into an RGBA color (or discards the
 fragment). With no fragment shader, the color is the varying ``color`` (RGB,
-alpha 1, or RGBA). Output: :class:`ShadedFragments`.
+alpha 1, or RGBA). Everything it needs arrives in its input: the
+:class:`~softpipe.raster.Fragments` (barycentrics, depth, window position, and
+the triangle setup for derivatives) and the :class:`~softpipe.assembly.Primitives`
+(the corners' varyings and 1/w). Output: :class:`ShadedFragments`.
 """
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
 
-from . import shader as _shader
+from . import kernels
 from .assembly import Primitives
-from .raster import Fragments, barycentric_gradients
-from .shader import FragInfo
+from .raster import Fragments
+from .shader import FragInfo, wants_derivatives
 
-__all__ = ["ShadedFragments", "run_fragment_stage", "color_rgb", "color_rgba"]
+__all__ = ["ShadedFragments", "run_fragment_stage", "default_fragment_shader", "color_rgb", "color_rgba"]
 
 
 @dataclass
@@ -90,26 +94,8 @@ def pixel_runs(frags: Fragments) -> np.ndarray:
     return np.nonzero(new)[0]
 
 
-def window_coordinates(frags: Fragments, pattern, height: int, shading: str = "sample"):
-    """Where each fragment is shaded, as gl_FragCoord: x right, y up, pixel centres at +½.
-
-    The sample's position; with multisampling, the pixel centre ("center") or
-    the centroid of the run's covered samples ("centroid").
-    """
-    row = (height - 1 - frags.y).astype(np.float64)
-    if shading == "center":
-        return frags.x + 0.5, row + 0.5
-    pos = pattern.positions[frags.sample]
-    if shading == "centroid" and len(frags):
-        heads = pixel_runs(frags)
-        sizes = np.diff(np.append(heads, len(frags)))
-        mean = np.add.reduceat(pos, heads, axis=0) / sizes[:, None]
-        pos = np.repeat(mean, sizes, axis=0)
-    return frags.x + pos[:, 0], row + pos[:, 1]
-
-
 def run_fragment_stage(frags: Fragments, prims: Primitives, fragment_shader: Optional[Callable], uniforms,
-                       pattern, height: int, shading: str = "sample") -> ShadedFragments:
+                       shading: str = "sample") -> ShadedFragments:
     """Shade the fragments: every one (``shading="sample"``), or once per pixel run (multisampling).
 
     With multisampling the rasterizer has put the shading position's
@@ -120,72 +106,38 @@ def run_fragment_stage(frags: Fragments, prims: Primitives, fragment_shader: Opt
     n = len(frags)
     if n == 0:
         return ShadedFragments(np.empty((0, 4), np.float32), np.zeros(0, dtype=bool), 0)
-    fx, fy = window_coordinates(frags, pattern, height, shading)
     if shading == "sample":
-        shaded = _shade(shader, fragment_shader is not None, frags, prims, uniforms, fx, fy)
+        shaded = _shade(shader, fragment_shader is not None, frags, prims, uniforms)
         return ShadedFragments(shaded, np.isnan(shaded[:, 3]), n)
     heads = pixel_runs(frags)
-    sub = Fragments(*(a[heads] for a in (frags.x, frags.y, frags.sample, frags.depth, frags.bary,
-                                          frags.triangle, frags.primitive_id)))
-    shaded = _shade(shader, fragment_shader is not None, sub, prims, uniforms, fx[heads], fy[heads])
+    shaded = _shade(shader, fragment_shader is not None, frags.take(heads), prims, uniforms)
     color = np.repeat(shaded, np.diff(np.append(heads, n)), axis=0)
     return ShadedFragments(color, np.isnan(color[:, 3]), len(heads))
 
 
-def _shade(shader, probe: bool, frags: Fragments, prims: Primitives, uniforms, fx, fy) -> np.ndarray:
-    color = np.empty((len(frags), 4), dtype=np.float32)
-    kernel = _shader.fragment_kernel(shader, prims.layout)
-    explain = (lambda: _probe(shader, frags, prims, uniforms, fx, fy)) if probe else None
-    _shader.run_compiled("fragment", shader, kernel, explain, frags.triangle, np.ascontiguousarray(fx),
-                         np.ascontiguousarray(fy), frags.depth, np.ascontiguousarray(frags.bary), prims.inv_w,
-                         prims.varyings, prims.front_facing, prims.primitive_id, _gradients(shader, prims),
-                         uniforms, color)
-    return color
-
-
-def _gradients(shader, prims: Primitives) -> np.ndarray:
-    """Barycentric gradients when the shader asks for derivatives (else an empty placeholder)."""
-    if _shader.wants_derivatives(shader):
-        return barycentric_gradients(prims)
+def derivative_gradients(shader: Callable, setup) -> np.ndarray:
+    """The barycentric gradients a shader's derivatives need ([T, 2, 3]), or an empty placeholder."""
+    if wants_derivatives(shader):
+        return setup.barycentric_gradients()
     return np.zeros((0, 2, 3))
 
 
-def _probe(shader, frags, prims, uniforms, fx, fy) -> None:
+def _shade(shader, probe: bool, frags: Fragments, prims: Primitives, uniforms) -> np.ndarray:
+    color = np.empty((len(frags), 4), dtype=np.float32)
+    kernel = kernels.fragment_kernel(shader, prims.layout)
+    explain = (lambda: _probe(shader, frags, prims, uniforms)) if probe else None
+    kernels.run_compiled("fragment", shader, kernel, explain, frags.triangle, frags.frag_x, frags.frag_y,
+                         frags.depth, frags.bary, prims.inv_w, prims.varyings, prims.front_facing,
+                         prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+    return color
+
+
+def _probe(shader, frags, prims, uniforms) -> None:
     """Run the shader on the first fragment in Python: when numba fails, its error is clearer."""
     t = int(frags.triangle[0])
     values = prims.layout.unpack(prims.varyings[t, 2])
-    import collections
-    V = collections.namedtuple("Varyings", list(values) or ["none"])
+    V = namedtuple("Varyings", list(values) or ["none"])
     args = [float(v) if np.ndim(v) == 0 else tuple(float(c) for c in v) for v in values.values()] or [0.0]
-    frag = FragInfo(float(fx[0]), float(fy[0]), float(frags.depth[0]), bool(prims.front_facing[t]),
-                    int(prims.primitive_id[t]))
-    _shader.probe_fragment_shader(shader, V(*args), uniforms, frag)
-
-
-def visible_loop_args(prims: Primitives, visibility, fb, shader: Callable, uniforms, shading: str = "sample") -> tuple:
-    """The arguments of the generated ``visible_loop`` after its rows (row_lo, row_hi).
-
-    ``shading`` as :func:`run_fragment_stage`'s: per "sample", or once per pixel
-    and triangle at the pixel "center" or "centroid" (multisampling).
-    """
-    from .raster import SHADING_POSITIONS
-    from .visibility import TILE_H, TILE_W
-    if shading not in SHADING_POSITIONS:
-        raise ValueError(f"shading must be one of {SHADING_POSITIONS}, got {shading!r}")
-    pattern = fb.pattern
-    return (visibility.vis, visibility.touched, TILE_W, TILE_H, prims.window, visibility.edges, visibility.bias,
-            visibility.plane, pattern.offsets, pattern.positions, SHADING_POSITIONS.index(shading), prims.inv_w,
-            prims.varyings, prims.front_facing, prims.primitive_id, _gradients(shader, prims), uniforms,
-            fb.samples_color)
-
-
-def shade_visible(prims: Primitives, visibility, fb, fragment_shader: Optional[Callable], uniforms,
-                  shading: str = "sample") -> None:
-    """The fast path's shading: run the shader on the samples a :class:`~softpipe.visibility.Visibility` kept."""
-    from ._parallel import in_bands
-    shader = fragment_shader or default_fragment_shader(prims.layout)
-    kernel = _shader.visible_kernel(shader, prims.layout)
-    args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
-    # compile (or load) once, in this thread, where errors are reported clearly
-    _shader.run_compiled("fragment", shader, kernel, None, 0, 0, *args)
-    _shader.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), None, *args)
+    frag = FragInfo(float(frags.frag_x[0]), float(frags.frag_y[0]), float(frags.depth[0]),
+                    bool(prims.front_facing[t]), int(prims.primitive_id[t]))
+    kernels.probe_fragment_shader(shader, V(*args), uniforms, frag)

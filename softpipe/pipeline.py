@@ -1,12 +1,20 @@
 """The pipeline: wires the stages together, and nothing else.
 
-    vertex → assembly → raster → fragment → output
-    (vertex.py, assembly.py, raster.py, fragment.py, output.py)
+One pipeline, two orders of the same stages (as early depth in Mesa's softpipe):
+
+    reference:  vertex → assembly → setup → raster → fragment → output
+    fast:       vertex → assembly → setup → visibility (raster + depth test) → fragment (visible samples only)
+
+(vertex.py, assembly.py, setup.py, raster.py, fragment.py, output.py;
+visibility.py for the fast order). :func:`softpipe.visibility.choose_path` is the
+one function that picks the order; the draw records which it took and why
+(:attr:`DrawCall.path_taken`, :attr:`DrawCall.path_reason`).
 
 :func:`draw` is the entry point. :class:`DrawCall` holds one draw's inputs and
 runs it either all at once (:meth:`DrawCall.run`) or one stage at a time
-(:meth:`DrawCall.steps`, a generator of :class:`Stage`), which is how a notebook
-steps through a draw; ``draw(..., trace=True)`` keeps every stage's output in a
+(:meth:`DrawCall.steps`, a generator of :class:`Stage`, on whichever path the
+draw takes), which is how a notebook steps through a draw;
+``draw(..., trace=True)`` keeps every stage's output in a
 :class:`~softpipe.trace.Trace`.
 
 Triangles are rasterized, shaded and merged in batches of whole triangles
@@ -28,32 +36,34 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 import numpy as np
 
 from .assembly import assemble
-from .fragment import run_fragment_stage
+from .fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from .framebuffer import Framebuffer
-from .fragment import default_fragment_shader, shade_visible
-from .output import DEPTH_FUNCS, MergeState, merge
-from .raster import SHADING_POSITIONS, count_fragments, pixel_rect, rasterize
-from .shader import make_uniforms, may_discard
+from .output import MergeResult, MergeState, merge
+from .raster import Fragments, count_fragments, rasterize
+from .setup import SHADING_POSITIONS, pixel_rect, setup_triangles
+from .shader import make_uniforms
 from .transforms import Viewport
 from .vertex import run_vertex_stage
-from .visibility import visibility_pass
+from .visibility import FAST_PATH_MIN_SAMPLES, PATHS, choose_path, shade_visible, visibility_pass  # noqa: F401
 
 __all__ = ["draw", "DrawCall", "Stage", "MAX_FRAGMENTS_PER_BATCH", "STAGES"]
 
 MAX_FRAGMENTS_PER_BATCH = 1 << 22
-#: path="auto" takes the fast path from this many framebuffer samples on
-#: (small draws, such as most tests, keep to the reference path and its compile costs).
-FAST_PATH_MIN_SAMPLES = 128 * 128
-PATHS = ("auto", "reference", "fast")
+#: The stages :meth:`DrawCall.steps` yields: the reference path's, and the fast path's.
 STAGES = ("vertex", "assembly", "raster", "fragment", "output")
+FAST_STAGES = ("vertex", "assembly", "visibility", "fragment")
+#: The keys of :attr:`DrawCall.timings`, the same on both paths.
+TIMED = ("vertex", "assembly", "setup", "raster", "fragment", "output")
 
 
 @dataclass
 class Stage:
     """One stage's result while stepping through a draw.
 
-    ``name`` is one of :data:`STAGES`; ``output`` is that stage's data type
-    (VertexOut, Primitives, Fragments, ShadedFragments, MergeResult); ``batch``
+    ``name`` is one of :data:`STAGES` on the reference path, of
+    :data:`FAST_STAGES` on the fast path; ``output`` is that stage's data type
+    (VertexOut, Primitives, then Fragments, ShadedFragments, MergeResult on the
+    reference path, or Visibility, ShadedSamples on the fast path); ``batch``
     counts the fragment batches (raster, fragment and output repeat per batch).
     """
 
@@ -62,14 +72,17 @@ class Stage:
     batch: int = 0
 
     def __repr__(self) -> str:
-        batch = f", batch {self.batch}" if self.name in ("raster", "fragment", "output") else ""
+        batch = f", batch {self.batch}" if isinstance(self.output, _BATCHED) else ""
         return f"Stage({self.name!r}{batch}: {self.output!r})"
+
+
+_BATCHED = (Fragments, ShadedFragments, MergeResult)
 
 
 def _debug_stages() -> set:
     value = os.environ.get("SOFTPIPE_DEBUG", "")
     names = {s.strip() for s in value.split(",") if s.strip()}
-    return set(STAGES) if "all" in names else names
+    return set(STAGES + FAST_STAGES) if "all" in names else names
 
 
 def _batches(counts: np.ndarray, limit: int):
@@ -118,51 +131,84 @@ class DrawCall:
         if path not in PATHS:
             raise ValueError(f"path must be one of {PATHS}, got {path!r}")
         self.path = path
-        #: seconds spent in each stage by the last run: vertex, assembly, setup, raster, fragment, output
+        #: seconds spent in each stage by the last run, keyed by :data:`TIMED` on both paths (on
+        #: the fast path "raster" is the visibility pass, with its depth test, and "output" is 0:
+        #: shading writes the visible samples' color)
         self.timings: dict = {}
         #: the last run's assembled triangles (what reached the rasterizer), on either path
         self.primitives = None
+        #: which path the last run took ("reference" or "fast"), and why
+        self.path_taken: Optional[str] = None
+        self.path_reason: Optional[str] = None
+
+    def choose_path(self, keep_fragments: bool = False) -> Tuple[str, str]:
+        """The path this draw takes and why (:func:`softpipe.visibility.choose_path`)."""
+        fb = self.framebuffer
+        return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
+                           keep_fragments)
 
     def steps(self, record: bool = False) -> Iterator[Stage]:
         """Run the draw one stage at a time, yielding each stage's result as it is made.
 
-        The framebuffer is updated by each "output" stage; a draw stepped to the
-        end leaves it exactly as :meth:`run` would. ``record`` keeps each
-        fragment's color after merging (for pixel history).
+        The stages are those of the path the draw takes (:meth:`choose_path`;
+        ``record`` asks for every fragment, so "auto" keeps to the reference
+        path). The framebuffer is updated by each "output" stage (the
+        "fragment" stage on the fast path); a draw stepped to the end leaves it
+        exactly as :meth:`run` would. ``record`` keeps each fragment's color
+        after merging (for pixel history).
         """
+        self.path_taken, self.path_reason = self.choose_path(keep_fragments=record)
         debug = _debug_stages()
-        fb = self.framebuffer
         clock = self._clock()
         vout = self._vertex_stage()
         clock("vertex")
         yield self._emit(Stage("vertex", vout), debug)
         clock(None)
+        fast = self.path_taken == "fast"
         prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
-                                           cull=self.cull, front_face=self.front_face)
+                                           cull=self.cull, front_face=self.front_face, keep_culled=not fast)
         clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
-        rect = pixel_rect(fb.width, fb.height, self.viewport)
-        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect)
+        fb = self.framebuffer
+        setup = setup_triangles(prims.window, pixel_rect(fb.width, fb.height, self.viewport), fb.pattern.offsets)
         clock("setup")
+        stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
+                                                                                               record)
+        for stage in stages:
+            yield self._emit(stage, debug)
+            clock(None)
+
+    def _reference_stages(self, prims, setup, clock, record: bool) -> Iterator[Stage]:
+        """Rasterize, shade every fragment and merge in order, in batches of whole triangles."""
+        fb = self.framebuffer
+        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, setup=setup)
+        clock("raster")
         for batch, (first, last) in enumerate(_batches(counts, MAX_FRAGMENTS_PER_BATCH)):
-            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading, rect)
+            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
+                              setup=setup)
             clock("raster")
-            yield self._emit(Stage("raster", frags, batch), debug)
-            clock(None)
-            shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, fb.pattern, fb.height,
-                                        self.sample_shading)
+            yield Stage("raster", frags, batch)
+            shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
             clock("fragment")
-            yield self._emit(Stage("fragment", shaded, batch), debug)
-            clock(None)
+            yield Stage("fragment", shaded, batch)
             merged = merge(frags, shaded, self.state, fb, record=record)
             clock("output")
-            yield self._emit(Stage("output", merged, batch), debug)
-            clock(None)
+            yield Stage("output", merged, batch)
+
+    def _fast_stages(self, prims, setup, clock) -> Iterator[Stage]:
+        """Early depth: the visibility pass, then the shader on the visible samples only."""
+        fb = self.framebuffer
+        visibility = visibility_pass(prims, setup, fb, self.state)
+        clock("raster")
+        yield Stage("visibility", visibility)
+        shaded = shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
+        clock("fragment")
+        yield Stage("fragment", shaded)
 
     def _clock(self):
         """A stopwatch that adds the time since its last call to ``self.timings[name]`` (None: skip)."""
-        self.timings = {}
+        self.timings = dict.fromkeys(TIMED, 0.0)
         last = [time.perf_counter()]
 
         def lap(name):
@@ -177,9 +223,6 @@ class DrawCall:
         if trace:
             from .trace import Trace
             return Trace.record(self)
-        if self.uses_fast_path():
-            self._run_fast()
-            return None
         for _ in self.steps():
             pass
         return None
@@ -191,48 +234,9 @@ class DrawCall:
             default_fragment_shader(vout.layout)     # no 'color' varying: say so now, drawn or not
         return vout
 
-    def fast_path_blocker(self) -> Optional[str]:
-        """Why this draw cannot take the visibility fast path, or None if it can."""
-        if self.state.blend is not None:
-            return "blending is on (the result depends on every fragment, not only the last)"
-        if self.fragment_shader is not None and may_discard(self.fragment_shader):
-            return "the fragment shader may return DISCARD"
-        return None
-
     def uses_fast_path(self) -> bool:
         """Does :meth:`run` (without a trace) take the fast path? See :mod:`softpipe.visibility`."""
-        if self.path == "reference":
-            return False
-        blocker = self.fast_path_blocker()
-        if self.path == "fast":
-            if blocker:
-                raise ValueError(f"path='fast' is not possible for this draw: {blocker}")
-            return True
-        fb = self.framebuffer
-        return blocker is None and fb.width * fb.height * fb.samples >= FAST_PATH_MIN_SAMPLES
-
-    def _run_fast(self) -> None:
-        fb = self.framebuffer
-        debug = _debug_stages()
-        clock = self._clock()
-        vout = self._vertex_stage()
-        clock("vertex")
-        self._emit(Stage("vertex", vout), debug)
-        prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
-                                           cull=self.cull, front_face=self.front_face, keep_culled=False)
-        clock("assembly")
-        self._emit(Stage("assembly", prims), debug)
-        func = -1 if self.state.depth_test is None else DEPTH_FUNCS.index(self.state.depth_test)
-        visibility = visibility_pass(prims, fb, func, bool(self.state.depth_write) and func >= 0,
-                                     pixel_rect(fb.width, fb.height, self.viewport))
-        clock("raster")
-        if debug & {"raster", "fragment", "output"}:
-            print(f"[softpipe raster] fast path: {visibility!r} "
-                  f"(fragments are not kept on the fast path; use path='reference' to see them)",
-                  file=sys.stderr)
-        if len(prims):
-            shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
-        clock("fragment")
+        return self.choose_path()[0] == "fast"
 
     @staticmethod
     def _emit(stage: Stage, debug: set) -> Stage:
@@ -283,8 +287,8 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         "fast" finds the visible samples first and shades only those
         (:mod:`softpipe.visibility`; not for blending or discard); "auto"
         (default) takes the fast path when it can and the framebuffer has at
-        least FAST_PATH_MIN_SAMPLES samples. Both give
-        the same bytes.
+        least FAST_PATH_MIN_SAMPLES samples, and the reference path for a
+        trace. Both give the same bytes; the DrawCall records which ran.
 
     Returns
     -------

@@ -9,6 +9,14 @@ stages, the same pixels) and keeps:
 ``shaded``      the fragment shader's :class:`~softpipe.fragment.ShadedFragments`
 ``merged``      the output merger's :class:`~softpipe.output.MergeResult` (verdicts, color after each)
 ``before``      a copy of the framebuffer's color and depth before the draw
+``path``        the path the draw took ("reference" or "fast") and ``path_reason`` why
+``visibility``  on the fast path, the visibility pass's :class:`~softpipe.visibility.Visibility`
+
+A trace follows the path the draw takes: with ``path="auto"`` that is the
+reference path (only it makes every fragment); with ``path="fast"`` the trace
+holds the visibility stage, and its fragments are the ones the fast path
+shaded (one per visible sample: the fragments that lost the depth test were
+never made, so a pixel's history lists only the winner).
 
 and answers: :meth:`Trace.pixel_history` (every fragment that touched a pixel,
 in order), :meth:`Trace.fragment_inputs` and :meth:`Trace.debug_fragment`
@@ -22,10 +30,11 @@ from typing import Any, List, Optional
 
 import numpy as np
 
-from . import shader as _shader
-from .fragment import ShadedFragments, default_fragment_shader, window_coordinates
+from . import kernels
+from .fragment import ShadedFragments, default_fragment_shader, derivative_gradients
 from .output import VERDICTS, MergeResult
 from .raster import Fragments
+from .shader import python_function
 
 __all__ = ["Trace", "PixelEvent", "PixelHistory"]
 
@@ -103,7 +112,8 @@ class Trace:
         self.before_color, self.before_depth = before_color, before_depth
         fb = call.framebuffer
         self.width, self.height, self.pattern = fb.width, fb.height, fb.pattern
-        self._frag_coords = None
+        self.path, self.path_reason = call.path_taken, call.path_reason
+        self.visibility = None
         self._grad = None
 
     @classmethod
@@ -111,7 +121,7 @@ class Trace:
         """Run ``call`` (a :class:`~softpipe.pipeline.DrawCall`) and keep what every stage made."""
         fb = call.framebuffer
         before_color, before_depth = fb.samples_color.copy(), fb.samples_depth.copy()
-        out = {"raster": [], "fragment": [], "output": []}
+        out = {"raster": [], "fragment": [], "output": [], "visibility": []}
         vertex = primitives = None
         for stage in call.steps(record=True):
             if stage.name == "vertex":
@@ -120,19 +130,36 @@ class Trace:
                 primitives = stage.output
             else:
                 out[stage.name].append(stage.output)
-        frag_fields = ("x", "y", "sample", "depth", "bary", "triangle", "primitive_id")
+        if out["visibility"]:
+            return cls._fast(call, vertex, primitives, out["visibility"][0], out["fragment"][0], before_color,
+                             before_depth)
+        frag_fields = ("x", "y", "sample", "depth", "bary", "triangle", "primitive_id", "frag_x", "frag_y")
         if out["raster"]:
             fragments = _concat(out["raster"], Fragments, frag_fields)
+            fragments.setup = out["raster"][0].setup
             shaded = _concat(out["fragment"], ShadedFragments, ("color", "discarded"))
             shaded.invocations = sum(p.invocations for p in out["fragment"])
             merged = _concat(out["output"], MergeResult, ("verdict", "color_after"))
         else:
             empty = np.zeros(0)
             fragments = Fragments(empty.astype(np.int32), empty.astype(np.int32), empty.astype(np.int32),
-                                  empty, np.zeros((0, 3)), empty.astype(np.int32), empty.astype(np.int64))
+                                  empty, np.zeros((0, 3)), empty.astype(np.int32), empty.astype(np.int64),
+                                  empty, empty)
             shaded = ShadedFragments(np.zeros((0, 4), np.float32), np.zeros(0, bool))
             merged = MergeResult(np.zeros(0, np.int8), np.zeros((0, 4), np.float32))
         return cls(call, vertex, primitives, fragments, shaded, merged, before_color, before_depth)
+
+    @classmethod
+    def _fast(cls, call, vertex, primitives, visibility, shaded_samples, before_color, before_depth) -> "Trace":
+        """A trace of the fast path: its fragments are those it shaded, each written."""
+        fb = call.framebuffer
+        fragments = visibility.fragments(primitives, fb.pattern, call.sample_shading)
+        color = fb.samples_color[fragments.sample, fragments.y, fragments.x]
+        shaded = ShadedFragments(color, np.zeros(len(fragments), bool), shaded_samples.invocations)
+        merged = MergeResult(np.zeros(len(fragments), np.int8), color.copy())
+        trace = cls(call, vertex, primitives, fragments, shaded, merged, before_color, before_depth)
+        trace.visibility = visibility
+        return trace
 
     # ------------------------------------------------------------- questions
 
@@ -140,6 +167,9 @@ class Trace:
         return len(self.fragments)
 
     def __repr__(self) -> str:
+        if self.visibility is not None:
+            return (f"Trace(fast path: {self.vertex!r}; {self.primitives!r}; {self.visibility!r}; "
+                    f"{self.shaded!r})")
         return (f"Trace({self.vertex!r}; {self.primitives!r}; {self.fragments!r}; {self.shaded!r}; "
                 f"{self.merged!r})")
 
@@ -171,20 +201,16 @@ class Trace:
 
         Computed by the same generated interpolation code, run as plain Python.
         """
-        module = _shader.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
         return self._inputs(module, index)
 
     def _inputs(self, module, index: int):
         f, p = self.fragments, self.primitives
         if not 0 <= index < len(f):
             raise IndexError(f"fragment index {index} out of range for {len(f)} fragments")
-        if self._frag_coords is None:
-            self._frag_coords = window_coordinates(f, self.pattern, self.height, self.call.sample_shading)
-        fx, fy = self._frag_coords
         if self._grad is None:
-            from .fragment import _gradients
-            self._grad = _gradients(self.fragment_shader, p)
-        out = module.fragment_inputs(index, f.triangle, fx, fy, f.depth, f.bary, p.inv_w, p.varyings,
+            self._grad = derivative_gradients(self.fragment_shader, f.setup)
+        out = module.fragment_inputs(index, f.triangle, f.frag_x, f.frag_y, f.depth, f.bary, p.inv_w, p.varyings,
                                      p.front_facing, p.primitive_id, self._grad)
         return (_plain(out[0]), self.call.uniforms) + tuple(_plain(o) for o in out[1:])
 
@@ -211,12 +237,12 @@ class Trace:
                 index = int(written[-1] if len(written) else idx[-1])
             else:
                 index = int(idx[which])
-        return _shader.python_function(self.fragment_shader)(*self.fragment_inputs(index))
+        return python_function(self.fragment_shader)(*self.fragment_inputs(index))
 
     def pixel_history(self, x: int, y: int) -> PixelHistory:
         """Every fragment that touched pixel (x, y), in order, with what happened to it."""
         idx = self.at(x, y)
-        module = _shader.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
         f, s, m = self.fragments, self.shaded, self.merged
         events = []
         for k in idx:

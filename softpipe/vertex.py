@@ -2,8 +2,8 @@
 
 With no vertex shader, the positions given to a draw already are clip
 coordinates ``[N, 4]`` and the varyings are passed on unchanged. With a vertex
-shader (see :mod:`softpipe.shader` for the contract) softpipe runs it over every
-vertex; :func:`standard_vertex` is the usual model-view-projection shader.
+shader (:mod:`softpipe.shader` is the contract, :mod:`softpipe.kernels` how it
+runs) softpipe runs it over every vertex; :func:`standard_vertex` is the usual model-view-projection shader.
 
 Output: :class:`VertexOut`.
 """
@@ -15,7 +15,7 @@ from typing import Any, Callable, Dict, Mapping, Optional
 
 import numpy as np
 
-from . import shader as _shader
+from . import kernels
 from ._parallel import in_bands
 from .shader import VaryingLayout
 
@@ -141,14 +141,14 @@ def _run_shader(vertex_shader: Callable, inputs: Dict[str, np.ndarray], uniforms
         return VertexOut(np.zeros((0, 4)), np.zeros((0, 0)), VaryingLayout())
     first = Attributes(*(tuple(float(c) for c in a[0]) if a.shape[1] > 1 else float(a[0, 0])
                          for a in inputs.values()))
-    _, layout = _shader.probe_vertex_shader(vertex_shader, first, uniforms)
-    kernel = _shader.vertex_kernel(vertex_shader, sizes, layout)
+    _, layout = kernels.probe_vertex_shader(vertex_shader, first, uniforms)
+    kernel = kernels.vertex_kernel(vertex_shader, sizes, layout)
     position = np.empty((n, 4), dtype=np.float64)
     packed = np.empty((n, layout.width), dtype=np.float64)
     args = (*inputs.values(), uniforms, position, packed)
     # compile (or load) once, in this thread, where errors are reported clearly; then run in bands
-    _shader.run_compiled("vertex", vertex_shader, kernel, None, 0, 0, *args)
-    _shader.run_compiled("vertex", vertex_shader, lambda *a: in_bands(kernel, n, *a, grain=4096), None, *args)
+    kernels.run_compiled("vertex", vertex_shader, kernel, None, 0, 0, *args)
+    kernels.run_compiled("vertex", vertex_shader, lambda *a: in_bands(kernel, n, *a, grain=4096), None, *args)
     return VertexOut(position, packed, layout)
 
 

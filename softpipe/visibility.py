@@ -1,27 +1,31 @@
-"""The fast path: tiled rasterization with early depth, then shading of the visible samples only.
+"""The fast path: early depth, then shading of the visible samples only — the same stages in another order.
 
 For a draw whose result depends only on which fragment is written last at
 each sample (no blending, no discard), the pipeline can skip shading every
-fragment:
+fragment. As in Mesa's softpipe, where early depth is the same quad stages in
+another order chosen by one function, this is a configuration of the one
+pipeline, not a second one: the same assembly, the same triangle setup
+(``setup.py``), the same depth test (``output.depth_passes``), the same
+generated shading code (``kernels.py``). :func:`choose_path` is the one place
+that decides which order a draw takes.
 
-1. **Setup** (:func:`setup_triangles`): each triangle's snapped edge functions
-   as ``E_k(p) = A_k·p_x + B_k·p_y + C_k`` (oriented, exact int64), its fill-rule
-   biases, depth plane and pixel bounding box — the same numbers the reference
-   rasterizer (``raster.py``) computes.
+1. **Setup** (:func:`~softpipe.setup.setup_triangles`): the triangle setup
+   the reference rasterizer uses too.
 2. **Binning** (:func:`bin_triangles`): each 128×32 tile gets the list of
    triangles whose box touches it, in primitive order.
-3. **Visibility** (:func:`raster_tiles`): bands of tiles run in parallel; inside a tile,
-   triangles in order; each row's covered span comes from solving the three
-   edge inequalities exactly in integers (a triangle less than :data:`NARROW`
-   pixels wide in the tile has each sample's edges tested instead: cheaper
-   for small triangles), then the depth test runs per sample and the
-   visibility buffer keeps the last triangle that passed. Depth is
-   computed by the same expression as in the reference rasterizer, so the
-   depth buffer is identical.
-4. **Shading** (``shader.visible_kernel``): the fragment shader runs once per
-   sample whose visibility entry is set (with multisampling, once per pixel
-   and triangle there), with the barycentrics, depth and window position
-   recomputed exactly as the reference path computes them.
+3. **Visibility** (:func:`visibility_pass`): bands of tiles run in parallel;
+   inside a tile, triangles in order; each row's covered span comes from
+   solving the three edge inequalities exactly in integers (a triangle less
+   than :data:`NARROW` pixels wide in the tile has each sample's edges tested
+   instead: cheaper for small triangles), then the depth test runs per sample
+   and the visibility buffer keeps the last triangle that passed. Output:
+   :class:`Visibility`.
+4. **Shading** (:func:`shade_visible`, the generated ``visible_loop`` of
+   ``kernels.py``): the fragment shader runs once per sample whose visibility
+   entry is set (with multisampling, once per pixel and triangle there), with
+   the barycentrics, depth and window position of the triangle setup's
+   functions, as the reference rasterizer computes them. Output:
+   :class:`ShadedSamples` (the colors are in the framebuffer).
 
 The result is the same bytes as the reference path (rasterize every fragment,
 shade it, merge in order), because there the final color of a sample is the
@@ -31,57 +35,75 @@ the two paths to identical color and depth.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Optional, Tuple
 
 import numba
 import numpy as np
 
+from . import kernels
 from ._parallel import in_bands
-from .output import depth_passes
-from .raster import _covered, _setup, snap
+from .assembly import Primitives
+from .fragment import default_fragment_shader, derivative_gradients
+from .output import DEPTH_FUNCS, MergeState, depth_passes
+from .raster import Fragments
 from .sampling import SUBPIXEL
+from .setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, covers, depth_at, edge_values, pixel_coverage,
+                    plane_depth, sample_depth, shading_point)
 
-__all__ = ["TILE_W", "TILE_H", "Visibility", "setup_triangles", "bin_triangles", "raster_tiles", "visibility_pass"]
+__all__ = ["TILE_W", "TILE_H", "NARROW", "Visibility", "ShadedSamples", "bin_triangles", "visibility_pass",
+           "shade_visible", "choose_path", "fast_path_blocker", "PATHS", "FAST_PATH_MIN_SAMPLES"]
 
 #: Tiles are wide and short: rows inside a tile are long enough for the compiler's
 #: vectorized loop to pay off, and a tile's depth and visibility (128×32×8 bytes)
 #: stay in the core's cache while every triangle binned to it is drawn.
 TILE_W, TILE_H = 128, 32
 
+#: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
+#: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
+PATHS = ("auto", "reference", "fast")
+#: path="auto" takes the fast path from this many framebuffer samples on
+#: (small draws, such as most tests, keep to the reference path and its compile costs).
+FAST_PATH_MIN_SAMPLES = 128 * 128
 
-@numba.njit(cache=True, nogil=True)
-def setup_triangles(lo, hi, window, rect, offsets, edges, bias, plane, box):
-    """Per triangle t in [lo, hi): oriented edge coefficients [T, 3, 3] (A, B, C), biases [T, 3],
-    depth plane [T, 4] (z0, z1 − z0, z2 − z0, 1/area) and pixel box [T, 4]
-    (i0, i1, j0, j1; empty when i0 > i1)."""
-    ox_lo, ox_hi = offsets[:, 0].min(), offsets[:, 0].max()
-    oy_lo, oy_hi = offsets[:, 1].min(), offsets[:, 1].max()
-    for t in range(lo, hi):
-        x = (snap(window[t, 0, 0]), snap(window[t, 1, 0]), snap(window[t, 2, 0]))
-        y = (snap(window[t, 0, 1]), snap(window[t, 1, 1]), snap(window[t, 2, 1]))
-        area = (x[1] - x[0]) * (y[2] - y[0]) - (y[1] - y[0]) * (x[2] - x[0])
-        sign = np.int64(1) if area > 0 else np.int64(-1)
-        for k in range(3):
-            a, b = (k + 1) % 3, (k + 2) % 3            # edge a→b, opposite corner k
-            dx, dy = sign * (x[b] - x[a]), sign * (y[b] - y[a])
-            edges[t, k, 0] = -dy
-            edges[t, k, 1] = dx
-            edges[t, k, 2] = dy * x[a] - dx * y[a]
-            bias[t, k] = 0 if (dy < 0 or (dy == 0 and dx > 0)) else -1
-        z0 = window[t, 0, 2]
-        plane[t, 0] = z0
-        plane[t, 1] = window[t, 1, 2] - z0
-        plane[t, 2] = window[t, 2, 2] - z0
-        plane[t, 3] = 1.0 / (area * sign) if area != 0 else 0.0
-        if area == 0:
-            box[t, 0], box[t, 1], box[t, 2], box[t, 3] = 1, 0, 1, 0
-            continue
-        lo_x, hi_x = min(x[0], x[1], x[2]) - ox_hi, max(x[0], x[1], x[2]) - ox_lo
-        lo_y, hi_y = min(y[0], y[1], y[2]) - oy_hi, max(y[0], y[1], y[2]) - oy_lo
-        box[t, 0] = max(-((-lo_x) // SUBPIXEL), rect[0])
-        box[t, 1] = min(hi_x // SUBPIXEL, rect[1])
-        box[t, 2] = max(-((-lo_y) // SUBPIXEL), rect[2])
-        box[t, 3] = min(hi_y // SUBPIXEL, rect[3])
 
+# ------------------------------------------------------------------ the decision
+
+def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable]) -> Optional[str]:
+    """Why a draw with this merge state and shader cannot take the fast path, or None if it can."""
+    if state.blend is not None:
+        return "blending is on (the result depends on every fragment, not only the last)"
+    if fragment_shader is not None and kernels.may_discard(fragment_shader):
+        return "the fragment shader may return DISCARD"
+    return None
+
+
+def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable], samples: int,
+                keep_fragments: bool = False) -> Tuple[str, str]:
+    """Which order a draw takes, and why: ("reference" | "fast", reason).
+
+    ``path`` is the draw's request (:data:`PATHS`), ``samples`` the framebuffer's
+    width × height × samples per pixel, ``keep_fragments`` whether the caller
+    needs every fragment (a trace with ``path="auto"``).
+    """
+    if path not in PATHS:
+        raise ValueError(f"path must be one of {PATHS}, got {path!r}")
+    if path == "reference":
+        return "reference", "path='reference' was asked for"
+    blocker = fast_path_blocker(state, fragment_shader)
+    if path == "fast":
+        if blocker:
+            raise ValueError(f"path='fast' is not possible for this draw: {blocker}")
+        return "fast", "path='fast' was asked for"
+    if blocker:
+        return "reference", blocker
+    if keep_fragments:
+        return "reference", "a trace keeps every fragment, which only the reference path makes (path='fast' traces the fast path)"
+    if samples < FAST_PATH_MIN_SAMPLES:
+        return "reference", f"a small framebuffer ({samples} samples < FAST_PATH_MIN_SAMPLES = {FAST_PATH_MIN_SAMPLES})"
+    return "fast", "opaque draw without discard: only the visible samples are shaded"
+
+
+# --------------------------------------------------------------- the visibility pass
 
 @numba.njit(cache=True)
 def bin_triangles(box, tiles_x, tiles_y):
@@ -151,78 +173,17 @@ HIZ_MARGIN = 1e-6
 @numba.njit(cache=True)
 def _plane_z(edges, plane, t, px, py):
     """The depth plane at a (possibly off-sample) fixed-point position, in float: for bounds only."""
-    e1 = edges[t, 1, 0] * float(px) + edges[t, 1, 1] * float(py) + edges[t, 1, 2]
-    e2 = edges[t, 2, 0] * float(px) + edges[t, 2, 1] * float(py) + edges[t, 2, 2]
-    return plane[t, 0] + (e1 * plane[t, 1] + e2 * plane[t, 2]) * plane[t, 3]
+    _, e1, e2 = edge_values(edges, t, float(px), float(py))
+    return depth_at(plane, t, e1, e2)
 
 
 @numba.njit(cache=True)
-def _inside(edges, bias, t, px, py):
-    for k in range(3):
-        if edges[t, k, 0] * px + edges[t, k, 1] * py + edges[t, k, 2] + bias[t, k] < 0:
-            return False
-    return True
-
-
-@numba.njit(cache=True)
-def first_covered_sample(edges, bias, t, i, j, offsets):
-    """The first sample of pixel (i, j), in pattern order, that triangle t covers (−1: none).
-
-    Where the rasterizer's run of t's samples in that pixel starts: a
-    multisampled fragment takes that sample's depth (``raster.py``).
-    """
-    for s in range(offsets.shape[0]):
-        if _inside(edges, bias, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]):
-            return s
-    return -1
-
-
-@numba.njit(cache=True)
-def centroid_of_run(window, edges, bias, t, i, j, offsets, positions):
-    """Multisampling at the centroid: the run of triangle t's covered samples in pixel (i, j).
-
-    Returns (its first sample, the three edge functions at the centroid of its
-    samples, the centroid within the pixel), computed as the rasterizer and the
-    fragment stage compute them: the centroid in subpixel units is the integer
-    sum over the count, and its edge functions are ``raster._covered``'s on the
-    snapped corners. (Sample positions are multiples of 1/256, so their sum is
-    exact in any order.)
-    """
-    first, count = -1, 0
-    sum_x, sum_y = np.int64(0), np.int64(0)
-    pos_x, pos_y = 0.0, 0.0
-    for s in range(offsets.shape[0]):
-        px, py = i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]
-        if _inside(edges, bias, t, px, py):
-            if first < 0:
-                first = s
-            count += 1
-            sum_x += px
-            sum_y += py
-            pos_x += positions[s, 0]
-            pos_y += positions[s, 1]
-    x0, y0, x1, y1, x2, y2, sign, _ = _setup(window, t)
-    e0, e1, e2, _ = _covered(x0, y0, x1, y1, x2, y2, sign, bias[t, 0], bias[t, 1], bias[t, 2],
-                             sum_x / count, sum_y / count)
-    return first, e0, e1, e2, pos_x / count, pos_y / count
-
-
-@numba.njit(cache=True)
-def same_triangle_before(vis, s, row, i):
-    """An earlier sample of the pixel that shows the same triangle as sample s, or −1."""
-    for earlier in range(s):
-        if vis[earlier, row, i] == vis[s, row, i]:
-            return earlier
-    return -1
-
-
-@numba.njit(cache=True)
-def _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
+def _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
     """Are all samples of pixels [i0, i1] × [j0, j1] inside the triangle? (Convex: the corners decide.)"""
     qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
     qy0, qy1 = j0 * SUBPIXEL + oy_lo, j1 * SUBPIXEL + oy_hi
-    return (_inside(edges, bias, t, qx0, qy0) and _inside(edges, bias, t, qx1, qy0)
-            and _inside(edges, bias, t, qx0, qy1) and _inside(edges, bias, t, qx1, qy1))
+    return (covers(edges, bias, t, qx0, qy0) and covers(edges, bias, t, qx1, qy0)
+            and covers(edges, bias, t, qx0, qy1) and covers(edges, bias, t, qx1, qy1))
 
 
 @numba.njit(cache=True)
@@ -231,13 +192,12 @@ def _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, strict, wri
 
     Written so that the compiler vectorizes it: 1-D contiguous views indexed
     from 0, and selects rather than branches. e1 + k·a1 is exact in float64
-    (integers below 2^53), so z is the very expression the reference
-    rasterizer evaluates.
+    (integers below 2^53), so the depth is the reference rasterizer's
+    (:func:`~softpipe.setup.plane_depth`).
     """
     for k in range(drow.shape[0]):
         kf = float(k)
-        z = z0 + ((e1 + kf * a1) * dz1 + (e2 + kf * a2) * dz2) * inv_area
-        zf = np.float32(min(max(z, 0.0), 1.0))
+        zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1 + kf * a1, e2 + kf * a2))
         old = drow[k]
         passed = zf < old if strict else zf <= old
         if write:
@@ -250,8 +210,7 @@ def _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
     """One span under any compare function."""
     for k in range(drow.shape[0]):
         kf = float(k)
-        z = z0 + ((e1 + kf * a1) * dz1 + (e2 + kf * a2) * dz2) * inv_area
-        zf = np.float32(min(max(z, 0.0), 1.0))
+        zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1 + kf * a1, e2 + kf * a2))
         if depth_passes(func, zf, drow[k]):
             if write:
                 drow[k] = zf
@@ -268,8 +227,8 @@ NARROW = 16
 def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, write, depth, vis):
     """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample's edges.
 
-    Along a row the edge values step by A_k·256 (exact integers); depth is the
-    reference rasterizer's expression on the sample's exact edge values.
+    Along a row the edge values step by A_k·256 (exact integers); depth is
+    :func:`~softpipe.setup.plane_depth` of the sample's exact edge values.
     """
     z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
     step0, step1, step2 = edges[t, 0, 0] * SUBPIXEL, edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
@@ -279,13 +238,10 @@ def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, w
         for j in range(j0, j1 + 1):
             py = j * SUBPIXEL + oy
             row = height - 1 - j
-            e0 = edges[t, 0, 0] * px + edges[t, 0, 1] * py + edges[t, 0, 2]
-            e1 = edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2]
-            e2 = edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2]
+            e0, e1, e2 = edge_values(edges, t, px, py)
             for i in range(i0, i1 + 1):
                 if e0 + bias[t, 0] >= 0 and e1 + bias[t, 1] >= 0 and e2 + bias[t, 2] >= 0:
-                    z = z0 + (e1 * dz1 + e2 * dz2) * inv_area
-                    zf = np.float32(min(max(z, 0.0), 1.0))
+                    zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1, e2))
                     if depth_passes(func, zf, depth[s, row, i]):
                         if write:
                             depth[s, row, i] = zf
@@ -296,10 +252,10 @@ def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, w
 
 
 @numba.njit(cache=True)
-def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, covers, offsets, height, func, write, depth, vis):
+def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, func, write, depth, vis):
     """Depth-test the covered samples of pixels [i0, i1] × [j0, j1] row span by row span.
 
-    ``covers``: every sample of the box is inside (no span to solve).
+    ``whole``: every sample of the box is inside (no span to solve).
     """
     z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
     a1, a2 = float(edges[t, 1, 0] * SUBPIXEL), float(edges[t, 2, 0] * SUBPIXEL)
@@ -308,12 +264,12 @@ def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, covers, offsets, height, 
         dplane, vplane = depth[s], vis[s]
         for j in range(j0, j1 + 1):
             py = j * SUBPIXEL + oy
-            lo, hi = (i0, i1) if covers else _span(edges, bias, t, ox, py, i0, i1)
+            lo, hi = (i0, i1) if whole else _span(edges, bias, t, ox, py, i0, i1)
             if lo > hi:
                 continue
             px = lo * SUBPIXEL + ox
-            e1 = float(edges[t, 1, 0] * px + edges[t, 1, 1] * py + edges[t, 1, 2])
-            e2 = float(edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2])
+            _, e1i, e2i = edge_values(edges, t, px, py)
+            e1, e2 = float(e1i), float(e2i)
             row = height - 1 - j
             drow, vrow = dplane[row, lo:hi + 1], vplane[row, lo:hi + 1]
             if func == LESS or func == LEQUAL:
@@ -356,14 +312,14 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
             zc, zd = _plane_z(edges, plane, t, qx0, qy1), _plane_z(edges, plane, t, qx1, qy1)
             if min(za, zb, zc, zd) - HIZ_MARGIN > far:
                 continue
-            if whole_tile and _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
+            if whole_tile and _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
                 far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
         touched[tile] = True
         if i1 - i0 < NARROW:
             _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
         else:
-            covers = _covers(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
-            _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, covers, offsets, height, func, depth_write,
+            whole = _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
+            _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, func, depth_write,
                         depth, vis)
 
 
@@ -392,46 +348,132 @@ class Visibility:
     ----------
     vis : int32 [S, H, W]
         The triangle (row of the Primitives) whose fragment was written last at
-        each sample by this draw, or −1.
-    edges : int64 [T, 3, 3]
-        Each triangle's oriented edge functions (A, B, C): the barycentrics are
-        E_k / area, as the rasterizer computes them.
-    bias : int64 [T, 3]
-        The fill rule: a sample is covered when every E_k + bias_k ≥ 0.
-    plane : float64 [T, 4]
-        Each triangle's depth plane (z0, z1 − z0, z2 − z0, 1/area).
+        each sample by this draw, or −1 (image rows: row 0 at the top).
+    setup : TriangleSetup
+        The triangle setup the pass used (edges, fill-rule biases, depth planes, boxes).
     touched : bool [tiles_y, tiles_x]
         Tiles (TILE_W × TILE_H pixels, in window coordinates: tile row 0 at the
         bottom) where some triangle was depth-tested; the others hold no ``vis`` entry.
     """
 
     vis: np.ndarray
-    edges: np.ndarray
-    bias: np.ndarray
-    plane: np.ndarray
+    setup: TriangleSetup
     touched: np.ndarray
 
     def __repr__(self) -> str:
         return (f"Visibility({int((self.vis >= 0).sum())} visible samples of {self.vis.size}, "
-                f"{len(self.edges)} triangles, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
+                f"{len(self.setup)} triangles, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
+
+    def visible_triangles(self) -> np.ndarray:
+        """The rows of the Primitives that are visible at some sample, sorted."""
+        return np.unique(self.vis[self.vis >= 0])
+
+    def fragments(self, prims: Primitives, pattern, shading: str = "sample") -> Fragments:
+        """The fragments the fast path shaded, as the rasterizer's :class:`~softpipe.raster.Fragments`.
+
+        One per visible sample, in (sample, image row, column) order, with the
+        barycentrics, depth and window position the shading loop gave the
+        shader. (The fragments that lost the depth test were never made.)
+        """
+        s_idx, rows, cols = np.nonzero(self.vis >= 0)
+        n = len(s_idx)
+        tri = self.vis[s_idx, rows, cols].astype(np.int32)
+        depth, bary, pos = np.empty(n), np.empty((n, 3)), np.empty((2, n))
+        height = self.vis.shape[1]
+        _visible_fragments(s_idx, rows, cols, tri, self.setup.edges, self.setup.bias, self.setup.plane, height,
+                           pattern.offsets, pattern.positions, SHADING_POSITIONS.index(shading), depth, bary, pos)
+        return Fragments(cols.astype(np.int32), rows.astype(np.int32), s_idx.astype(np.int32), depth, bary, tri,
+                         prims.primitive_id[tri], pos[0], pos[1], self.setup)
 
 
-def visibility_pass(prims, fb, func: int, depth_write: bool, rect: np.ndarray) -> Visibility:
-    """Setup, binning and the tiled visibility pass of a draw's primitives; the framebuffer's depth is updated."""
+@numba.njit(cache=True)
+def _visible_fragments(s_idx, rows, cols, tri, edges, bias, plane, height, offsets, positions, mode, depth, bary,
+                       pos):
+    for k in range(s_idx.shape[0]):
+        s, i, j, t = s_idx[k], cols[k], height - 1 - rows[k], tri[k]
+        mask, count = np.int64(0), 1
+        if mode != SHADE_SAMPLE:
+            mask, _, count = pixel_coverage(edges, bias, t, i, j, offsets)
+        b0, b1, b2, fx, fy = shading_point(edges, plane, t, i, j, s, mask, count, offsets, positions, mode)
+        depth[k] = sample_depth(edges, plane, t, i, j, s, offsets)
+        bary[k, 0], bary[k, 1], bary[k, 2] = b0, b1, b2
+        pos[0, k], pos[1, k] = fx, fy
+
+
+def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeState) -> Visibility:
+    """Binning and the tiled visibility pass of a draw's set-up triangles; the framebuffer's depth is updated."""
     w, h, offsets = fb.width, fb.height, fb.pattern.offsets
-    n = len(prims)
-    edges = np.empty((n, 3, 3), np.int64)
-    bias = np.empty((n, 3), np.int64)
-    plane = np.empty((n, 4), np.float64)
-    box = np.empty((n, 4), np.int64)
+    func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
+    depth_write = bool(state.depth_write) and func >= 0
     vis = np.empty((len(offsets), h, w), np.int32)      # raster_tiles sets every tile to −1 first
     tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
     touched = np.zeros((tiles_y, tiles_x), np.bool_)
-    if n == 0:
+    if len(prims) == 0:
         vis.fill(-1)
-        return Visibility(vis, edges, bias, plane, touched)
-    in_bands(setup_triangles, n, prims.window, rect, offsets, edges, bias, plane, box, grain=4096)
-    starts, items = bin_triangles(box, tiles_x, tiles_y)
-    in_bands(raster_tiles, tiles_x * tiles_y, edges, bias, plane, box, starts, items, tiles_x, w, h, offsets,
-             func, depth_write, fb.samples_depth, vis, touched.reshape(-1))
-    return Visibility(vis, edges, bias, plane, touched)
+        return Visibility(vis, setup, touched)
+    starts, items = bin_triangles(setup.box, tiles_x, tiles_y)
+    in_bands(raster_tiles, tiles_x * tiles_y, setup.edges, setup.bias, setup.plane, setup.box, starts, items,
+             tiles_x, w, h, offsets, func, depth_write, fb.samples_depth, vis, touched.reshape(-1))
+    return Visibility(vis, setup, touched)
+
+
+# ------------------------------------------------------------ shading what is visible
+
+@dataclass
+class ShadedSamples:
+    """What the fast path's shading did: the shader ran on the visible samples and wrote their color.
+
+    Attributes
+    ----------
+    written : bool [S, H, W]
+        The samples this draw wrote (those the :class:`Visibility` kept).
+    invocations : int
+        Fragment shader invocations (one per written sample; with multisampling,
+        one per pixel and visible triangle).
+    """
+
+    written: np.ndarray
+    invocations: int
+
+    def __repr__(self) -> str:
+        return f"ShadedSamples({int(self.written.sum())} samples written, {self.invocations} shader invocations)"
+
+
+def visible_loop_args(prims: Primitives, visibility: Visibility, fb, shader: Callable, uniforms,
+                      shading: str = "sample") -> tuple:
+    """The arguments of the generated ``visible_loop`` after its rows (row_lo, row_hi).
+
+    ``shading``: per "sample", or once per pixel and triangle at the pixel
+    "center" or "centroid" (multisampling).
+    """
+    if shading not in SHADING_POSITIONS:
+        raise ValueError(f"shading must be one of {SHADING_POSITIONS}, got {shading!r}")
+    pattern, s = fb.pattern, visibility.setup
+    return (visibility.vis, visibility.touched, TILE_W, TILE_H, s.edges, s.bias, s.plane, pattern.offsets,
+            pattern.positions, SHADING_POSITIONS.index(shading), prims.inv_w, prims.varyings, prims.front_facing,
+            prims.primitive_id, derivative_gradients(shader, s), uniforms, fb.samples_color)
+
+
+def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader: Optional[Callable], uniforms,
+                  shading: str = "sample") -> ShadedSamples:
+    """Run the shader on the samples a :class:`Visibility` kept, writing their color into ``fb``."""
+    written = visibility.vis >= 0
+    if len(prims) == 0:
+        return ShadedSamples(written, 0)
+    shader = fragment_shader or default_fragment_shader(prims.layout)
+    kernel = kernels.visible_kernel(shader, prims.layout)
+    args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
+    # compile (or load) once, in this thread, where errors are reported clearly
+    kernels.run_compiled("fragment", shader, kernel, None, 0, 0, *args)
+    kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), None, *args)
+    return ShadedSamples(written, _invocations(visibility.vis, shading))
+
+
+def _invocations(vis: np.ndarray, shading: str) -> int:
+    """Shader invocations of visible_loop: every visible sample, or each (pixel, triangle) once."""
+    if shading == "sample" or vis.shape[0] == 1:
+        return int((vis >= 0).sum())
+    seen = vis >= 0
+    for s in range(1, vis.shape[0]):
+        seen[s] &= (vis[:s] != vis[s]).all(axis=0)
+    return int(seen.sum())

@@ -181,6 +181,8 @@ def test_the_breakpoint_lines_in_the_debugging_page_are_right():
     for n in cited:
         assert n in lines, f"07-debugging.md cites raster.py:{n}, which is not inside _cover_triangle any more"
     # the line the page stops at to watch e0, e1, e2: right after they are computed for an emitted sample
-    watch = [n for n, s in lines.items() if s.strip().startswith("w0, w1, w2 = e0")]
+    watch = [n for n, s in lines.items() if s.strip().startswith("b0, b1, b2, fx, fy = shading_point(")]
     assert watch and watch[0] in cited, (
-        f"raster.py's 'w0, w1, w2 = e0 …' line is now {watch}; update 07-debugging.md")
+        f"raster.py's 'b0, b1, b2, fx, fy = shading_point(…' line is now {watch}; update 07-debugging.md")
+    assert lines[watch[0] - 1].strip().startswith("e0, e1, e2 = edge_values("), (
+        "07-debugging.md stops right after e0, e1, e2 are computed; raster.py no longer computes them there")

@@ -148,9 +148,9 @@ def _line_after_edge_functions() -> int:
     src, first = inspect.getsourcelines(raster._cover_triangle)
     for k, line in enumerate(src):
         code = line.split("#")[0].strip()
-        if code.startswith("e0, e1, e2") and "_covered(" in code and code.endswith("px, py)"):
+        if code.startswith("e0, e1, e2") and "edge_values(" in code and code.endswith("px, py)"):
             return first + k + 1
-    raise AssertionError("raster._cover_triangle no longer computes 'e0, e1, e2 … = _covered(…, px, py)'; "
+    raise AssertionError("raster._cover_triangle no longer computes 'e0, e1, e2 = edge_values(…, px, py)'; "
                          "update this test and docs/07-debugging.md")
 
 
@@ -172,8 +172,8 @@ def test_pdb_stops_in_cover_triangle_and_shows_the_edge_functions(tmp_path):
         f"break {path}:{line}, t == 0 and i == 5 and j == 1",
         "continue",
         "p ('at', t, i, j, s, emit)",
-        "p ('setup', x0, y0, x1, y1, x2, y2, sign, area)",
-        "p ('bias', b0, b1, b2)",
+        "p ('setup', tuple(edges[t].ravel().tolist()), round(1 / plane[t, 3]))",
+        "p ('bias', tuple(bias[t].tolist()))",
         "p ('edges', e0, e1, e2)",
         "continue",
         "quit",
@@ -185,13 +185,19 @@ def test_pdb_stops_in_cover_triangle_and_shows_the_edge_functions(tmp_path):
     assert "done 55 32" in out, "the script did not run to its end under pdb:\n" + out + run.stderr
 
     assert _pdb_values(out, "at") == ("at", 0, 5, 1, 0, True)
-    # The triangle in fixed point (256 per pixel, pixel i's centre at 256·i):
-    A, B, C = (512, 256), (3328, 256), (1536, 2560)
-    assert _pdb_values(out, "setup") == ("setup", *A, *B, *C, 1, 2816 * 2304)
-    # Fill rule, counter-clockwise: E_0 (B→C) runs up, a right edge: not an owner, bias −1.
-    # E_1 (C→A) runs down, a left edge: owner, 0. E_2 (A→B) is horizontal, to the right,
+    # The triangle in fixed point (256 per pixel, pixel i's centre at 256·i), counter-clockwise:
+    # corners P0 = (512, 256), P1 = (3328, 256), P2 = (1536, 2560). Edge k runs a→b opposite
+    # corner k (a = k+1, b = k+2) and E_k = A·x + B·y + C with A = −(Y_b − Y_a), B = X_b − X_a,
+    # C = (Y_b − Y_a)·X_a − (X_b − X_a)·Y_a:
+    #   E_0 (P1→P2): A = −2304, B = −1792, C = 2304·3328 + 1792·256   = 8126464
+    #   E_1 (P2→P0): A = 2304,  B = −1024, C = −2304·1536 + 1024·2560 = −917504
+    #   E_2 (P0→P1): A = 0,     B = 2816,  C = −2816·256              = −720896
+    edges = (-2304, -1792, 8126464, 2304, -1024, -917504, 0, 2816, -720896)
+    assert _pdb_values(out, "setup") == ("setup", edges, 2816 * 2304)
+    # Fill rule, counter-clockwise: E_0 (P1→P2) runs up, a right edge: not an owner, bias −1.
+    # E_1 (P2→P0) runs down, a left edge: owner, 0. E_2 (P0→P1) is horizontal, to the right,
     # the bottom edge: owner, 0.
-    assert _pdb_values(out, "bias") == ("bias", -1, 0, 0)
+    assert _pdb_values(out, "bias") == ("bias", (-1, 0, 0))
     # The sample: the centre of pixel (5, 1), P = (1280, 256). E(a→b) = (Xb−Xa)(Py−Ya) − (Yb−Ya)(Px−Xa):
     # E_0 = (1536−3328)(256−256) − (2560−256)(1280−3328) = 0 + 2304·2048          = 4718592
     # E_1 = (512−1536)(256−2560) − (256−2560)(1280−1536) = 1024·2304 − 2304·256   = 1769472
