@@ -1,8 +1,7 @@
 """The default scene of ``softpipe demo`` / ``make demo``: a lit scene, Phong shading.
 
-The Utah teapot and the Stanford bunny (from ``../shared/assets``, next to the
-repository; generated shapes stand in if they are not there), a sphere and a
-torus on a ground plane, lit by three kinds of light (FORMULAS §9):
+The Utah teapot and the Stanford bunny (bundled with softpipe, :mod:`softpipe.models`),
+a sphere and a torus on a ground plane, lit by three kinds of light (FORMULAS §9):
 
 * a directional "sun", warm, from the upper left;
 * a bluish point light on the right, attenuated with distance (§7);
@@ -13,10 +12,8 @@ and OpenGL's global ambient. Every object is shaded per fragment with the
 """
 from __future__ import annotations
 
-import os
 from functools import lru_cache
-from pathlib import Path
-from typing import List, Optional, Tuple
+from typing import List, Tuple
 
 import numpy as np
 
@@ -25,15 +22,13 @@ from .camera import Camera
 from .framebuffer import Framebuffer
 from .material import Light, Lighting, Material
 from .mesh import Mesh
-from .scene import draw_mesh
+from .models import load_model
+from .render import draw_mesh
 from .shaders import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401  (register)
 from .shaders.common import lighting_uniform
 from .transforms import compose, rotate_x, rotate_y, scale, translate
 
-__all__ = ["render_demo", "demo_camera", "demo_lighting", "demo_objects", "ASSETS"]
-
-#: The shared test meshes (override with the environment variable SOFTPIPE_ASSETS).
-ASSETS = Path(os.environ.get("SOFTPIPE_ASSETS", Path(__file__).resolve().parents[2] / "shared" / "assets"))
+__all__ = ["render_demo", "demo_camera", "demo_lighting", "demo_objects"]
 
 GROUND = Material(ka=(0.1, 0.1, 0.1), kd=(0.55, 0.56, 0.52), ks=(0.12, 0.12, 0.12), shininess=12.0, name="ground")
 PORCELAIN = Material(ka=(0.1, 0.1, 0.1), kd=(0.78, 0.76, 0.7), ks=(0.5, 0.5, 0.5), shininess=60.0, name="porcelain")
@@ -72,13 +67,9 @@ def _smooth_normals(mesh: Mesh) -> Mesh:
 
 
 @lru_cache(maxsize=4)
-def _asset(name: str, height: float) -> Optional[Mesh]:
-    """An asset mesh standing on y = 0, ``height`` tall, centred on the y axis; None if missing."""
-    path = ASSETS / name
-    if not path.exists():
-        return None
-    from .obj import load_obj
-    mesh = load_obj(path)
+def _model(name: str, height: float) -> Mesh:
+    """A bundled model standing on y = 0, ``height`` tall, centred on the y axis."""
+    mesh = load_model(name)
     lo, hi = mesh.bounds()
     s = height / (hi[1] - lo[1])
     centre = (lo + hi) / 2
@@ -89,16 +80,10 @@ def _asset(name: str, height: float) -> Optional[Mesh]:
 def demo_objects() -> List[Tuple[Mesh, np.ndarray]]:
     """(mesh with its material, model matrix) for every object of the scene."""
     objects = [(shapes.plane(size=14.0, subdivisions=4, material=GROUND), translate(0.0, 0.0, 0.0))]
-    teapot = _asset("teapot.obj", 1.2)
-    if teapot is not None:
-        objects.append((teapot.replace(material=PORCELAIN), compose(translate(-0.3, 0.0, 0.2), rotate_y(-25.0))))
-    else:
-        objects.append((shapes.cylinder(radius=0.6, height=1.2, material=PORCELAIN), translate(-0.3, 0.6, 0.2)))
-    bunny = _asset("stanford-bunny.obj", 1.3)
-    if bunny is not None:
-        objects.append((bunny.replace(material=CLAY), compose(translate(-2.2, 0.0, -0.6), rotate_y(25.0))))
-    else:
-        objects.append((shapes.cone(radius=0.6, height=1.3, material=CLAY), translate(-2.2, 0.65, -0.6)))
+    teapot = _model("teapot", 1.2)
+    objects.append((teapot.replace(material=PORCELAIN), compose(translate(-0.3, 0.0, 0.2), rotate_y(-25.0))))
+    bunny = _model("bunny", 1.3)
+    objects.append((bunny.replace(material=CLAY), compose(translate(-2.2, 0.0, -0.6), rotate_y(25.0))))
     objects.append((shapes.uv_sphere(radius=0.55, segments=48, rings=24, material=RED_PLASTIC),
                     translate(2.0, 0.55, -0.4)))
     objects.append((shapes.torus(major_radius=0.42, minor_radius=0.15, material=GOLD),
@@ -111,7 +96,7 @@ def render_demo(width: int = 640, height: int = 480, program: str = "phong") -> 
     fb = Framebuffer(width, height)
     fb.clear((0.05, 0.06, 0.09, 1.0))
     camera = demo_camera()
-    lighting = lighting_uniform(demo_lighting(), camera.view)
+    lighting = lighting_uniform(demo_lighting(), camera.view)  # in eye space once, for every draw
     for mesh, model in demo_objects():
-        draw_mesh(fb, mesh, camera, program, model=model, uniforms={"lighting": lighting})
+        draw_mesh(fb, mesh, camera, program, model=model, lighting=lighting)
     return fb

@@ -14,15 +14,19 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
 
 The pictures are for looking, not for the pipeline: the wireframes use a
 simple line drawer here, not the rasterizer.
+
+:func:`draw_wireframe` draws such a picture over a rendered image: the edges of the
+triangles a draw kept, hidden where the surface covers them (``softpipe render
+--wireframe`` and a scene's ``wireframe = true``).
 """
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Dict
+from typing import Any, Dict, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["stage_pictures", "contact_sheet", "save_stage_pictures", "PICTURES"]
+__all__ = ["stage_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "PICTURES"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
 
@@ -181,3 +185,59 @@ def save_stage_pictures(trace, directory) -> Dict[str, Path]:
     paths["contact-sheet"] = directory / "contact-sheet.png"
     contact_sheet(pics).save(paths["contact-sheet"])
     return paths
+
+
+# ---------------------------------------------------------------------------- a wireframe over an image
+
+
+def draw_wireframe(fb, primitives: Sequence[Any], color=(0.95, 0.95, 0.95)) -> None:
+    """Draw the edges of post-clip triangles over ``fb``, hiding those behind the surface.
+
+    Parameters
+    ----------
+    fb : Framebuffer
+        Already drawn: its depth buffer decides which edge pixels show.
+    primitives : sequence of Primitives (or None)
+        Each draw's post-clip triangles (:attr:`softpipe.render.DrawResult.primitives`).
+    color : RGB in 0..1, linear
+
+    Notes
+    -----
+    An edge pixel is drawn when its window depth (linear along the edge, as depth is in
+    window space) is no farther than the farthest depth in the 3×3 pixels around it,
+    so edges on the visible surface and on silhouettes show and edges behind it do not.
+    Every sample of the pixel gets the color. The edges are stepped one pixel at a
+    time along their longer axis (a DDA), not rasterized: a picture, not a primitive.
+    """
+    rgba = np.array(tuple(color)[:3] + (1.0,), dtype=np.float32)
+    h, w = fb.height, fb.width
+    depth = fb.depth
+    padded = np.pad(depth, 1, mode="edge")
+    # the farthest depth in each 3×3 neighbourhood: an edge one pixel off a silhouette still shows
+    far = np.max([padded[dy:dy + h, dx:dx + w] for dy in range(3) for dx in range(3)], axis=0)
+    for prims in primitives:
+        if prims is None or len(prims.window) == 0:
+            continue
+        tri = prims.window
+        for k in range(3):
+            x, y, z = _segment_pixels(tri[:, k], tri[:, (k + 1) % 3], w, h)
+            keep = z <= far[y, x] + 1e-6  # 1e-6: the edge's own surface passes despite rounding
+            fb.samples_color[:, y[keep], x[keep]] = rgba  # every sample plane [S, H, W, 4]
+
+
+def _segment_pixels(a: np.ndarray, b: np.ndarray, w: int, h: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixels (column, row, window depth) along window-space segments a→b, one step per pixel."""
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    a, b = a[ok], b[ok]
+    if len(a) == 0:
+        empty = np.zeros(0, np.int64)
+        return empty, empty, np.zeros(0)
+    steps = np.ceil(np.abs(b[:, :2] - a[:, :2]).max(axis=1)).astype(np.int64) + 1
+    seg = np.repeat(np.arange(len(a)), steps)
+    start = np.repeat(np.cumsum(steps) - steps, steps)
+    t = (np.arange(len(seg)) - start) / np.maximum(np.repeat(steps, steps) - 1, 1)
+    p = a[seg] + (b[seg] - a[seg]) * t[:, None]
+    x = np.floor(p[:, 0]).astype(np.int64)
+    y = np.floor(h - p[:, 1]).astype(np.int64)  # window y up → image row down
+    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    return x[inside], y[inside], p[inside, 2]

@@ -1,68 +1,325 @@
-"""Drawing meshes with a camera and a built-in program: the glue above :func:`softpipe.draw`.
+"""The scene model: what to draw, from where, under which lights, and how.
 
-:func:`standard_uniforms` builds the uniforms every built-in program reads
-(``model_view``, ``projection``, ``normal_matrix``); :func:`draw_mesh` draws a
-:class:`~softpipe.mesh.Mesh` with them.
+A :class:`Scene` holds :class:`SceneObject` s (a single-material mesh each, with its
+model matrix and, if textured, its texture), a camera (its own, or a framed one
+described by a :class:`FrameSpec`), the lights and the render settings. It is plain
+data: :func:`softpipe.scenefile.load_scene` fills one from a TOML file,
+:meth:`Scene.from_model` from one OBJ model (what ``softpipe render MODEL`` draws),
+and :func:`softpipe.render.render_scene` draws one.
+
+Also here, because every way of making a scene needs them: :func:`studio_lights`
+(the key/fill/rim set a scene without lights gets) and :func:`default_program` /
+:func:`program_for` (the shading program an object is drawn with).
+
+This module draws nothing and imports nothing that draws.
 """
 from __future__ import annotations
 
-from typing import Any, Dict, Mapping, Optional
+import dataclasses
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
 from .camera import Camera
-from .framebuffer import Framebuffer
-from .pipeline import draw
-from .shaders import Program, get_program
-from .transforms import compose, normal_matrix
+from .material import Light, Lighting, Material
+from .mesh import Mesh
+from .shaders import PROGRAMS
 
-__all__ = ["standard_uniforms", "draw_mesh"]
-
-
-def standard_uniforms(camera: Camera, aspect: float, model: Optional[np.ndarray] = None) -> Dict[str, Any]:
-    """``model_view``, ``projection``, ``normal_matrix`` and ``view`` for a camera and model matrix."""
-    model = np.eye(4) if model is None else np.asarray(model, dtype=np.float64)
-    if model.shape != (4, 4):
-        raise ValueError(f"model must be a 4×4 matrix, got shape {model.shape}")
-    view = camera.view
-    model_view = compose(view, model)
-    return {"model_view": model_view, "projection": camera.projection(aspect),
-            "normal_matrix": normal_matrix(model_view), "view": view}
+__all__ = ["Scene", "SceneObject", "FrameSpec", "framed_camera", "studio_lights", "default_program", "program_for"]
 
 
-def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program="phong", *,
-              model: Optional[np.ndarray] = None, lighting=None, uniforms: Optional[Mapping[str, Any]] = None,
-              cull: str = "back", **state):
-    """Draw ``mesh`` seen by ``camera`` with a built-in ``program`` (a name or a Program).
+@dataclass(frozen=True)
+class FrameSpec:
+    """How a framed camera looks at the scene (see :meth:`softpipe.camera.Camera.frame`).
 
-    The mesh's normals are used when it has them, else computed (area-weighted);
-    a faceted program (``flat``) gets the mesh with one normal per face. A
-    mesh with several materials is drawn once per material. ``lighting`` (a
-    Lighting, a Light, a list of Lights, or None for the default lights) is
-    given to every program as the uniform ``lighting``, in eye space.
-    ``uniforms`` are added to the standard ones (and override them); ``state``
-    is passed on to :func:`softpipe.draw` (``depth_test``, ``blend``, ``trace``, …), whose
-    result (a Trace with ``trace=True``) is returned.
+    Attributes
+    ----------
+    azimuth : float
+        Degrees about the vertical (y) axis, from +z toward +x.
+    elevation : float
+        Degrees above the horizontal (xz) plane.
+    fovy : float
+        Vertical field of view in degrees.
+    margin : float
+        How much larger than the bounding sphere the view is (1 = touching).
+    up : tuple of 3 floats
+        The world direction shown as "up".
     """
-    prog = get_program(program)
-    if getattr(mesh, "materials", ()) and len(mesh.materials) > 1:
-        result = None
-        for _, part in mesh.by_material():
-            result = draw_mesh(framebuffer, part, camera, prog, model=model, lighting=lighting, uniforms=uniforms,
-                               cull=cull, **state)
-        return result
-    if prog.faceted:
-        mesh = mesh.flat_shaded()
-    from .shaders.common import lighting_uniform
-    u = standard_uniforms(camera, framebuffer.width / framebuffer.height, model)
-    u["material"] = mesh.material
-    u["color"] = mesh.material.kd
-    u["lighting"] = lighting_uniform(lighting, u["view"])
-    u.update(uniforms or {})
-    normals = mesh.normals if mesh.normals is not None else mesh.vertex_normals()
-    attributes = {"normal": normals}
-    if mesh.uvs is not None:
-        attributes["uv"] = mesh.uvs
-    interpolation = dict(prog.interpolation)
-    return draw(framebuffer, mesh.positions, mesh.indices, vertex_shader=prog.vertex, fragment_shader=prog.fragment,
-         uniforms=u, attributes=attributes, interpolation=interpolation or None, cull=cull, **state)
+
+    azimuth: float = 30.0
+    elevation: float = 20.0
+    fovy: float = 35.0
+    margin: float = 1.1
+    up: Tuple[float, float, float] = (0.0, 1.0, 0.0)
+
+
+@dataclass
+class SceneObject:
+    """One draw: a single-material mesh, its model matrix and how to shade it.
+
+    ``program`` and ``cull`` are None to use the scene's; ``texture`` is the
+    :class:`~softpipe.texture.Texture2D` of the material's ``diffuse_texture``.
+    """
+
+    name: str
+    mesh: Mesh
+    model: np.ndarray
+    program: Optional[str] = None
+    cull: Optional[str] = None
+    texture: Any = None
+
+    def world_positions(self) -> np.ndarray:
+        """The mesh's positions after its model matrix (affine: no divide), [N, 3]."""
+        p = self.mesh.positions
+        return p @ self.model[:3, :3].T + self.model[:3, 3]
+
+
+@dataclass
+class Scene:
+    """A scene: objects, camera, lights and render settings.
+
+    ``camera`` None means framed (by ``frame``); ``lights`` None means the studio set
+    of :func:`studio_lights`, which follows the camera. ``path`` names the scene in
+    error messages; ``warnings`` keeps what loading it warned about.
+    """
+
+    objects: List[SceneObject] = field(default_factory=list)
+    camera: Optional[Camera] = None
+    frame: FrameSpec = field(default_factory=FrameSpec)
+    lights: Optional[Tuple[Light, ...]] = None
+    ambient: Tuple[float, float, float] = (0.2, 0.2, 0.2)
+    width: int = 640
+    height: int = 480
+    background: Tuple[float, ...] = (0.08, 0.09, 0.12, 1.0)
+    samples: str = "1"
+    sample_shading: str = "sample"
+    program: Optional[str] = None
+    cull: str = "back"
+    wireframe: bool = False
+    wireframe_color: Tuple[float, float, float] = (0.95, 0.95, 0.95)
+    materials: Dict[str, Material] = field(default_factory=dict)
+    path: str = "<string>"
+    warnings: List[str] = field(default_factory=list)
+
+    @classmethod
+    def from_model(cls, model: Union[str, "os.PathLike[str]", Mesh], *, texture: Any = None,
+                   azimuth: float = 30.0, elevation: float = 20.0, fovy: float = 35.0,
+                   **settings: Any) -> "Scene":
+        """The scene ``softpipe render MODEL`` draws: one model, framed, under the studio lights.
+
+        Parameters
+        ----------
+        model : str, path-like or Mesh
+            A bundled model's name (``"bunny"``, ``"spot"``, … see :mod:`softpipe.models`),
+            an OBJ file's path, or a mesh already loaded. A mesh with several materials
+            becomes one object per material.
+        texture : str, path-like or Texture2D, optional
+            A diffuse texture for every part of the model (the mesh needs texture
+            coordinates). Without it, a part whose material names a ``diffuse_texture``
+            (an MTL ``map_Kd``, or the bundled ``spot``'s texture) gets that one; one
+            that cannot be read is warned about and the part drawn without it.
+        azimuth, elevation, fovy : float
+            The framed camera's angles and field of view, in degrees (:class:`FrameSpec`).
+        **settings
+            Any other :class:`Scene` field: ``width``, ``height``, ``program``, ``cull``,
+            ``samples``, ``background``, ``wireframe``, ``path`` (the name in messages;
+            the model's name or path by default), …
+
+        Returns
+        -------
+        Scene
+            With no camera (framed), no lights (the studio set of :func:`studio_lights`)
+            and no program (:func:`program_for` picks ``textured`` or the default).
+
+        Raises
+        ------
+        ValueError
+            An unknown bare model name, a model without faces, or a texture for a mesh
+            without texture coordinates (``OBJError`` for a malformed file, ``OSError``
+            for one that cannot be read).
+        """
+        from .texture import Texture2D  # only a scene that has a texture pays for the image code
+
+        caught: List[str] = []
+        if isinstance(model, Mesh):
+            mesh = model
+            label = mesh.name or "<mesh>"
+            if mesh.triangle_count == 0:
+                raise ValueError(f"{label}: the mesh has no triangles to render")
+        else:
+            label = os.fspath(model)
+            mesh = _read_model(model, label, caught)
+        settings.setdefault("path", label)
+        tex = None
+        if texture is not None:
+            if mesh.uvs is None:
+                raise ValueError(f"{label} has no texture coordinates (vt), so a texture cannot be applied")
+            if isinstance(texture, Texture2D):
+                tex, source = texture, texture.source
+            else:
+                if not os.path.isfile(texture):
+                    raise FileNotFoundError(f"texture: {os.fspath(texture)}: no such file")
+                tex, source = Texture2D(texture), os.path.abspath(texture)
+        textures: Dict[str, Any] = {}
+        objects = []
+        for material, part in mesh.by_material():
+            part_texture = tex
+            if tex is not None:
+                # the material names the texture drawn, as if an MTL map_Kd had given it
+                part = part.replace(material=material.replace(diffuse_texture=source))
+            elif material.diffuse_texture:
+                if material.diffuse_texture not in textures:  # parts sharing an image share one Texture2D
+                    try:
+                        textures[material.diffuse_texture] = Texture2D(material.diffuse_texture)
+                    except (ValueError, OSError) as e:
+                        caught.append(f"{e}; material {material.name!r} drawn without it")
+                        textures[material.diffuse_texture] = None
+                part_texture = textures[material.diffuse_texture]
+            objects.append(SceneObject(part.name or mesh.name, part, np.eye(4), texture=part_texture))
+        frame = FrameSpec(azimuth=azimuth, elevation=elevation, fovy=fovy)
+        scene = cls(objects=objects, frame=frame, warnings=caught, **settings)
+        for message in caught:
+            warnings.warn(message, UserWarning, stacklevel=2)
+        return scene
+
+    def replace(self, **changes: Any) -> "Scene":
+        """A copy with ``changes`` (dataclass fields) applied; the objects list is shared."""
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def triangle_count(self) -> int:
+        """The triangles of every object's mesh, in all."""
+        return sum(o.mesh.triangle_count for o in self.objects)
+
+    def bounds(self) -> Tuple[np.ndarray, np.ndarray]:
+        """World-space (min, max) of every mesh (after its transform)."""
+        if not self.objects:
+            raise ValueError(f"{self.path}: the scene has no meshes to frame")
+        los, his = [], []
+        for o in self.objects:
+            with np.errstate(over="ignore", invalid="ignore"):  # Camera.frame rejects what overflowed
+                w = o.world_positions()
+            if len(w):
+                los.append(w.min(axis=0))
+                his.append(w.max(axis=0))
+        if not los:
+            raise ValueError(f"{self.path}: the scene's meshes have no vertices to frame")
+        return np.min(los, axis=0), np.max(his, axis=0)
+
+    def view_camera(self, azimuth: Optional[float] = None, elevation: Optional[float] = None) -> Camera:
+        """The camera to render with: the scene's own, or one that frames every mesh.
+
+        ``azimuth``/``elevation`` override the framing angles (a framed camera only).
+        """
+        if self.camera is not None:
+            if azimuth is not None or elevation is not None:
+                raise ValueError(f"{self.path}: azimuth/elevation apply only to a framed camera "
+                                 "(this scene gives [camera] eye)")
+            return self.camera
+        f = self.frame
+        azimuth = f.azimuth if azimuth is None else azimuth
+        elevation = f.elevation if elevation is None else elevation
+        lo, hi = self.bounds()
+        reach = float(max(np.max(np.abs(lo)), np.max(np.abs(hi))))
+        if not reach <= 1e100:
+            raise ValueError(f"cannot frame meshes that reach {reach:.3g} from the origin (the limit is 1e100); "
+                             "give [camera] eye and target")
+        return framed_camera((lo, hi), f, azimuth, elevation, self.width / self.height)
+
+    def lighting_for(self, camera: Camera) -> Lighting:
+        """The scene's lights (or the studio set, placed for ``camera``) and its global ambient."""
+        lights = studio_lights(camera) if self.lights is None else self.lights
+        return Lighting(lights, global_ambient=self.ambient)
+
+
+def _read_model(model: Union[str, "os.PathLike[str]"], label: str, caught: List[str]) -> Mesh:
+    """Load a bundled model by name or an OBJ file; its warnings go to ``caught`` (and are re-issued)."""
+    from .models import load_model  # the bundled models: name → file (and spot's texture)
+
+    with warnings.catch_warnings(record=True) as recorded:
+        warnings.simplefilter("always")
+        try:
+            mesh = load_model(model)
+        except UnicodeError as e:
+            raise ValueError(f"{label}: cannot read: {e}") from None
+    caught.extend(str(w.message) for w in recorded)
+    if mesh.triangle_count == 0:
+        raise ValueError(f"{label}: the file has no faces (f lines) to render")
+    return mesh
+
+
+def framed_camera(bounds, f: FrameSpec, azimuth: float, elevation: float, aspect: float) -> Camera:
+    """Camera.frame with ``f``'s settings.
+
+    Looking straight down (or up) the default up axis, the view direction and "up"
+    are parallel and ``look_at`` has no answer, so "up" on the screen becomes the
+    direction away from (toward) the azimuth: the picture a camera tilting over the
+    top would show.
+    """
+    up = f.up
+    if tuple(up) == (0.0, 1.0, 0.0) and abs(math.cos(math.radians(elevation))) < 1e-6:
+        s = -1.0 if math.sin(math.radians(elevation)) > 0 else 1.0
+        a = math.radians(azimuth)
+        up = (s * math.sin(a), 0.0, s * math.cos(a))
+    return Camera.frame(bounds, azimuth=azimuth, elevation=elevation, fovy=f.fovy, margin=f.margin,
+                        aspect=aspect, up=up)
+
+
+# ---------------------------------------------------------------------------- defaults
+
+
+def default_program() -> str:
+    """``"phong"`` when a program of that name is registered, else ``"normals"``."""
+    return "phong" if "phong" in PROGRAMS else "normals"
+
+
+def program_for(obj: SceneObject, scene_program: Optional[str] = None) -> str:
+    """The program an object is drawn with: its own, else the scene's, else
+    ``"textured"`` for a textured mesh when registered, else :func:`default_program`."""
+    if obj.program:
+        return obj.program
+    if scene_program:
+        return scene_program
+    if obj.texture is not None and "textured" in PROGRAMS:
+        return "textured"
+    return default_program()
+
+
+def studio_lights(camera: Camera) -> Tuple[Light, ...]:
+    """Three directional lights (FORMULAS §9) fixed to the camera.
+
+    A warm key from the upper left, a dim cool fill from the right, and a rim light
+    from behind the subject. The directions are given in eye space and turned into
+    world space here, so the model is lit the same way from every viewpoint.
+    """
+    to_world = camera.view[:3, :3].T  # eye → world for directions (the view is a rotation + move)
+
+    def light(toward_eye, diffuse, specular, name):
+        v = to_world @ np.asarray(toward_eye, dtype=np.float64)
+        return Light.directional(tuple(-v / np.linalg.norm(v)), diffuse=diffuse, specular=specular, name=name)
+
+    return (light((-0.6, 0.7, 0.7), (0.9, 0.85, 0.8), (0.9, 0.9, 0.9), "key"),
+            light((0.8, 0.1, 0.5), (0.25, 0.28, 0.35), (0.05, 0.05, 0.05), "fill"),
+            light((0.3, 0.6, -1.0), (0.5, 0.5, 0.55), (0.6, 0.6, 0.6), "rim"))
+
+
+# ---------------------------------------------------------------------------- moved names
+
+#: Names this module held before the drawing moved to :mod:`softpipe.render`; still
+#: importable from here (with a DeprecationWarning) until no caller uses them.
+_MOVED_TO_RENDER = ("draw_mesh", "standard_uniforms")
+
+
+def __getattr__(name: str) -> Any:
+    # Lazy on purpose: the model never imports the drawing code at import time (no
+    # circle, no layering breach); only an old caller's attribute access reaches it.
+    if name in _MOVED_TO_RENDER:
+        warnings.warn(f"softpipe.scene.{name} moved to softpipe.render.{name} (also softpipe.{name})",
+                      DeprecationWarning, stacklevel=2)
+        from . import render
+        return getattr(render, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,8 +1,11 @@
-"""Scene files: a camera, lights, materials and meshes, written in TOML.
+"""Scene files: reading and checking the TOML that describes a scene.
 
-``load_scene(path)`` reads a scene file into a :class:`Scene`;
-``render_scene(scene)`` draws it into a new :class:`~softpipe.framebuffer.Framebuffer`.
-``examples/scene.toml`` is a full example with every key explained; in short::
+``load_scene(path)`` reads a scene file into a :class:`~softpipe.scene.Scene` (the
+scene model, :mod:`softpipe.scene`); :func:`softpipe.render.render_scene` draws it.
+This module only reads: the schema, its validation (every mistake is a
+:class:`SceneError` naming the file, table and key) and the conversion of values
+into the model's objects. ``examples/scene.toml`` is a full example with every key
+explained; in short::
 
     ambient = [0.1, 0.1, 0.1]         # global ambient light (optional)
 
@@ -30,7 +33,8 @@
     kd = [0.8, 0.6, 0.2]
 
     [[meshes]]
-    obj = "model.obj"                 # relative to this file; or shape = "uv_sphere" + its parameters
+    obj = "model.obj"                 # relative to this file, or a bundled model: obj = "bunny"
+                                      # (or shape = "uv_sphere" + its parameters)
     material = "gold"                 # a name from [materials], or an inline table
     transform = [{ translate = [0, 1, 0] }, { rotate_y = 30 }, { scale = 0.5 }]
 
@@ -60,24 +64,28 @@ The meshes of one scene may hold at most :data:`MAX_SCENE_TRIANGLES` triangles i
 (a generated shape is counted before it is made); the image obeys the framebuffer's
 limits (``MAX_DIMENSION``, ``MAX_TOTAL_SAMPLES``).
 
-Uniforms
---------
-Each mesh is drawn with the standard uniforms of :func:`softpipe.scene.standard_uniforms`
-plus ``material`` (its :class:`~softpipe.material.Material`), ``color`` (its ``kd``),
-``lighting`` (the scene's :class:`~softpipe.material.Lighting` in eye space, a
-``LightingUniform``: ``global_ambient`` and the packed ``lights``) and, when its material
-has a diffuse texture, ``texture`` (a :class:`~softpipe.texture.Texture2D`).
+Models
+------
+``obj`` is a file name relative to the scene file, or the name of a model bundled with
+softpipe (:mod:`softpipe.models`: ``"bunny"``, ``"teapot"``, ``"suzanne"``, ``"spot"``,
+``"armadillo"``) when it is a bare word: no ``/`` and no ``.obj`` suffix. ``"spot"``
+comes with its texture.
+
+Drawing
+-------
+Each object is drawn by :func:`softpipe.render.draw_mesh` with the uniforms listed
+there; the lighting is the scene's :class:`~softpipe.material.Lighting` in eye space
+(the studio set of :func:`softpipe.scene.studio_lights` when there is no
+``[[lights]]``) and the texture the material's ``diffuse_texture``.
 """
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import inspect
 import math
 import os
 import re
 import warnings
-from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -92,17 +100,20 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10 with the tomli bac
 
 from . import shapes
 from .camera import Camera
-from .framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES, Framebuffer
+from .framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 from .material import Light, Lighting, Material
 from .mesh import Mesh
+from .models import MODELS, load_model, model_path
 from .obj import OBJError, load_obj
 from .sampling import pattern_named
-from .shaders import PROGRAMS, get_program
+# default_program, program_for and studio_lights are not used here: they lived here
+# once, and old ``scenefile.studio_lights`` callers keep working.
+from .scene import (FrameSpec, Scene, SceneObject, default_program, framed_camera, program_for,  # noqa: F401
+                    studio_lights)
+from .shaders import PROGRAMS
 from .transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
 
-__all__ = ["SceneError", "SceneWarning", "Scene", "SceneObject", "FrameSpec", "DrawResult",
-           "load_scene", "parse_scene", "render_scene", "draw_object", "draw_wireframe",
-           "studio_lights", "default_program", "program_for", "MAX_SCENE_TRIANGLES", "SHAPES"]
+__all__ = ["SceneError", "SceneWarning", "load_scene", "parse_scene", "MAX_SCENE_TRIANGLES", "SHAPES"]
 
 #: The most triangles all the meshes of one scene may hold together.
 MAX_SCENE_TRIANGLES = 4_000_000
@@ -127,156 +138,6 @@ class SceneError(ValueError):
 
 class SceneWarning(UserWarning):
     """Something a scene can do without (e.g. an OBJ's missing MTL file)."""
-
-
-# ---------------------------------------------------------------------------- the scene
-
-
-@dataclass(frozen=True)
-class FrameSpec:
-    """How a framed camera looks at the scene (see :meth:`softpipe.camera.Camera.frame`)."""
-
-    azimuth: float = 30.0
-    elevation: float = 20.0
-    fovy: float = 35.0
-    margin: float = 1.1
-    up: Tuple[float, float, float] = (0.0, 1.0, 0.0)
-
-
-@dataclass
-class SceneObject:
-    """One draw: a single-material mesh, its model matrix and how to shade it.
-
-    ``program`` and ``cull`` are None to use the scene's; ``texture`` is the
-    :class:`~softpipe.texture.Texture2D` of the material's ``diffuse_texture``.
-    """
-
-    name: str
-    mesh: Mesh
-    model: np.ndarray
-    program: Optional[str] = None
-    cull: Optional[str] = None
-    texture: Any = None
-
-    def world_positions(self) -> np.ndarray:
-        p = self.mesh.positions
-        return p @ self.model[:3, :3].T + self.model[:3, 3]
-
-
-@dataclass
-class Scene:
-    """A loaded scene. ``camera`` None means framed (by ``frame``); ``lights`` None means
-    the studio set of :func:`studio_lights`, which follows the camera."""
-
-    objects: List[SceneObject] = field(default_factory=list)
-    camera: Optional[Camera] = None
-    frame: FrameSpec = field(default_factory=FrameSpec)
-    lights: Optional[Tuple[Light, ...]] = None
-    ambient: Tuple[float, float, float] = (0.2, 0.2, 0.2)
-    width: int = 640
-    height: int = 480
-    background: Tuple[float, ...] = (0.08, 0.09, 0.12, 1.0)
-    samples: str = "1"
-    sample_shading: str = "sample"
-    program: Optional[str] = None
-    cull: str = "back"
-    wireframe: bool = False
-    wireframe_color: Tuple[float, float, float] = (0.95, 0.95, 0.95)
-    materials: Dict[str, Material] = field(default_factory=dict)
-    path: str = "<string>"
-    warnings: List[str] = field(default_factory=list)
-
-    def replace(self, **changes) -> "Scene":
-        return dataclasses.replace(self, **changes)
-
-    @property
-    def triangle_count(self) -> int:
-        return sum(o.mesh.triangle_count for o in self.objects)
-
-    def bounds(self) -> Tuple[np.ndarray, np.ndarray]:
-        """World-space (min, max) of every mesh (after its transform)."""
-        if not self.objects:
-            raise ValueError(f"{self.path}: the scene has no meshes to frame")
-        los, his = [], []
-        for o in self.objects:
-            with np.errstate(over="ignore", invalid="ignore"):  # Camera.frame rejects what overflowed
-                w = o.world_positions()
-            if len(w):
-                los.append(w.min(axis=0))
-                his.append(w.max(axis=0))
-        if not los:
-            raise ValueError(f"{self.path}: the scene's meshes have no vertices to frame")
-        return np.min(los, axis=0), np.max(his, axis=0)
-
-    def view_camera(self, azimuth: Optional[float] = None, elevation: Optional[float] = None) -> Camera:
-        """The camera to render with: the scene's own, or one that frames every mesh.
-
-        ``azimuth``/``elevation`` override the framing angles (a framed camera only).
-        """
-        if self.camera is not None:
-            if azimuth is not None or elevation is not None:
-                raise ValueError(f"{self.path}: azimuth/elevation apply only to a framed camera "
-                                 "(this scene gives [camera] eye)")
-            return self.camera
-        f = self.frame
-        azimuth = f.azimuth if azimuth is None else azimuth
-        elevation = f.elevation if elevation is None else elevation
-        lo, hi = self.bounds()
-        reach = float(max(np.max(np.abs(lo)), np.max(np.abs(hi))))
-        if not reach <= 1e100:
-            raise ValueError(f"cannot frame meshes that reach {reach:.3g} from the origin (the limit is 1e100); "
-                             "give [camera] eye and target")
-        return _framed((lo, hi), f, azimuth, elevation, self.width / self.height)
-
-    def lighting_for(self, camera: Camera) -> Lighting:
-        lights = studio_lights(camera) if self.lights is None else self.lights
-        return Lighting(lights, global_ambient=self.ambient)
-
-
-def _framed(bounds, f: FrameSpec, azimuth: float, elevation: float, aspect: float) -> Camera:
-    """Camera.frame with ``f``'s settings; looking straight down (or up) the default up
-    axis, "up" on the screen becomes the direction away from (toward) the azimuth."""
-    up = f.up
-    if tuple(up) == (0.0, 1.0, 0.0) and abs(math.cos(math.radians(elevation))) < 1e-6:
-        s = -1.0 if math.sin(math.radians(elevation)) > 0 else 1.0
-        a = math.radians(azimuth)
-        up = (s * math.sin(a), 0.0, s * math.cos(a))
-    return Camera.frame(bounds, azimuth=azimuth, elevation=elevation, fovy=f.fovy, margin=f.margin,
-                        aspect=aspect, up=up)
-
-
-# ---------------------------------------------------------------------------- defaults
-
-
-def default_program() -> str:
-    """``"phong"`` when a program of that name is registered, else ``"normals"``."""
-    return "phong" if "phong" in PROGRAMS else "normals"
-
-
-def program_for(obj: SceneObject, scene_program: Optional[str] = None) -> str:
-    """The program an object is drawn with: its own, else the scene's, else
-    ``"textured"`` for a textured mesh when registered, else :func:`default_program`."""
-    if obj.program:
-        return obj.program
-    if scene_program:
-        return scene_program
-    if obj.texture is not None and "textured" in PROGRAMS:
-        return "textured"
-    return default_program()
-
-
-def studio_lights(camera: Camera) -> Tuple[Light, ...]:
-    """Three directional lights fixed to the camera: a warm key from the upper left, a
-    dim cool fill from the right, and a rim light from behind the subject."""
-    to_world = camera.view[:3, :3].T  # eye → world for directions (the view is a rotation + move)
-
-    def light(toward_eye, diffuse, specular, name):
-        v = to_world @ np.asarray(toward_eye, dtype=np.float64)
-        return Light.directional(tuple(-v / np.linalg.norm(v)), diffuse=diffuse, specular=specular, name=name)
-
-    return (light((-0.6, 0.7, 0.7), (0.9, 0.85, 0.8), (0.9, 0.9, 0.9), "key"),
-            light((0.8, 0.1, 0.5), (0.25, 0.28, 0.35), (0.05, 0.05, 0.05), "fill"),
-            light((0.3, 0.6, -1.0), (0.5, 0.5, 0.55), (0.6, 0.6, 0.6), "rim"))
 
 
 # ---------------------------------------------------------------------------- reading values
@@ -498,15 +359,17 @@ class _Reader:
               line: Optional[int] = None) -> SceneError:
         return SceneError(message, file=self.file, table=table, key=key, line=line)
 
-    def path(self, table: _Table, key: str) -> str:
-        """A file named by ``key``, relative to the scene file; it must exist."""
+    def path(self, table: _Table, key: str, hint: str = "") -> str:
+        """A file named by ``key``, relative to the scene file; it must exist (``hint`` follows
+        "file not found")."""
         rel = table.get(key, string)
         if not rel.strip() or "\0" in rel:
             raise table.error(f"must name a file, got {_describe(rel)}", key)
         path = os.path.normpath(os.path.join(self.base_dir, os.path.expanduser(rel)))
         if not os.path.isfile(path):
-            what = "is a directory, not a file" if os.path.isdir(path) else "file not found"
-            raise self.error(f"key {key!r} in {table.label}: {what}: {path}", table=table.label, key=key)
+            problem = (f"is a directory, not a file: {path}" if os.path.isdir(path) else
+                       f"file not found: {path}{hint}")
+            raise self.error(f"key {key!r} in {table.label}: {problem}", table=table.label, key=key)
         return path
 
     # -- the whole file
@@ -576,7 +439,7 @@ class _Reader:
         if framed:
             f = FrameSpec(azimuth=t.get("azimuth", number, 30.0), elevation=t.get("elevation", number, 20.0),
                           fovy=t.get("fovy", number, 35.0), margin=t.get("margin", positive, 1.1), up=up)
-            t.library(None, lambda: _framed(((-1, -1, -1), (1, 1, 1)), f, f.azimuth, f.elevation, 1.0))
+            t.library(None, lambda: framed_camera(((-1, -1, -1), (1, 1, 1)), f, f.azimuth, f.elevation, 1.0))
             scene.frame, scene.camera = f, None
         else:
             eye = t.get("eye", vec3)
@@ -713,12 +576,20 @@ class _Reader:
             return t.library("shape", lambda: SHAPES[shape](**kw))
 
     def obj(self, t: _Table) -> Mesh:
-        path = self.path(t, "obj")
+        bundled = _bundled_model(t.data["obj"])
+        if bundled is not None:
+            name, path = t.data["obj"], bundled
+        else:
+            rel = t.data["obj"]
+            hint = f" (nor is {rel!r} a bundled model: {', '.join(MODELS)})" \
+                if isinstance(rel, str) and _is_bare_word(rel) else ""
+            name, path = None, self.path(t, "obj", hint)
         if path not in self._objs:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 try:
-                    mesh = load_obj(path)
+                    # a bundled model by name: load_model also gives "spot" its texture
+                    mesh = load_obj(path) if name is None else load_model(name)
                 except OBJError as e:
                     raise self.error(f"key 'obj' in {t.label}: {e}", table=t.label, key="obj") from None
                 except (OSError, UnicodeError) as e:
@@ -765,6 +636,28 @@ class _Reader:
         if not np.all(np.isfinite(model)) or not math.isfinite(det) or abs(det) < 1e-12:
             raise t.error("is singular or not finite (a scale of 0 flattens the mesh)", "transform")
         return model
+
+
+def _is_bare_word(text: str) -> bool:
+    """No folder and no ``.obj`` suffix: what a bundled model's name looks like."""
+    return "/" not in text and "\\" not in text and not text.lower().endswith(".obj")
+
+
+def _bundled_model(value: Any) -> Optional[str]:
+    """The bundled model file ``obj = value`` names (``"bunny"``), or None for a file name.
+
+    Only a bare word is looked up, so ``"models/bunny"`` or ``"bunny.obj"`` stay files
+    relative to the scene; :func:`softpipe.models.model_path` decides whether the word
+    is a model's name (it leaves anything else as it was, or refuses it: then the word
+    is a file name here, relative to the scene file, not to the current folder).
+    """
+    if not isinstance(value, str) or not value.strip() or "\0" in value or not _is_bare_word(value):
+        return None
+    try:
+        path = model_path(value)
+    except (ValueError, TypeError):
+        return None
+    return os.fspath(path) if os.fspath(path) != value else None
 
 
 def _in_range(v: int, low: int, high: int, unit: str) -> int:
@@ -864,112 +757,21 @@ def load_scene(path) -> Scene:
     return scene
 
 
-# ---------------------------------------------------------------------------- rendering
+# ---------------------------------------------------------------------------- moved names
+
+#: Names this module held before drawing moved to :mod:`softpipe.render` (and the
+#: wireframe to :mod:`softpipe.pictures`); still importable from here, with a
+#: DeprecationWarning, until no caller uses them.
+_MOVED = {"render_scene": "render", "DrawResult": "render", "draw_wireframe": "pictures"}
 
 
-@dataclass
-class DrawResult:
-    """What one draw of :func:`render_scene` left: its post-clip primitives (for a wireframe),
-    its :class:`~softpipe.trace.Trace` when traced, and its stage timings."""
-
-    name: str
-    program: str
-    primitives: Any
-    trace: Any = None
-    timings: Dict[str, float] = field(default_factory=dict)
-
-
-def draw_object(fb: Framebuffer, obj: SceneObject, camera: Camera, lighting, *, program: str,
-                cull: str = "back", sample_shading: str = "sample", trace: bool = False) -> DrawResult:
-    """Draw one object with a built-in program (the uniforms are listed in the module docstring)."""
-    from .pipeline import DrawCall
-    from .scene import standard_uniforms
-
-    prog = get_program(program)
-    mesh = obj.mesh
-    u = standard_uniforms(camera, fb.width / fb.height, obj.model)
-    u["material"] = mesh.material
-    u["color"] = mesh.material.kd
-    u["lighting"] = lighting.uniform(camera.view) if isinstance(lighting, Lighting) else lighting
-    if obj.texture is not None:
-        u["texture"] = obj.texture
-    attributes = {"normal": mesh.normals if mesh.normals is not None else mesh.vertex_normals()}
-    if mesh.uvs is not None:
-        attributes["uv"] = mesh.uvs
-    mirrored = np.linalg.det(obj.model[:3, :3]) < 0
-    call = DrawCall(fb, mesh.positions, mesh.indices, None, prog.vertex, prog.fragment, u,
-                    attributes=attributes, interpolation=dict(prog.interpolation) or None, cull=cull,
-                    front_face="cw" if mirrored else "ccw", sample_shading=sample_shading)
-    if trace:
-        t = call.run(trace=True)
-        return DrawResult(obj.name, prog.name, t.primitives, t, dict(call.timings))
-    call.run()
-    return DrawResult(obj.name, prog.name, call.primitives, None, dict(call.timings))
-
-
-def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool = False,
-                 results: Optional[list] = None,
-                 progress: Optional[Callable[[int, int, SceneObject], None]] = None) -> Framebuffer:
-    """Draw every object of ``scene`` into a new framebuffer (and the wireframe, if asked).
-
-    ``camera`` replaces the scene's; ``trace`` keeps each draw's Trace; ``results``, a
-    list, receives one :class:`DrawResult` per draw; ``progress(k, n, object)`` is
-    called before draw k of n.
-    """
-    camera = camera or scene.view_camera()
-    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples))
-    fb.clear(scene.background)
-    lighting = scene.lighting_for(camera).uniform(camera.view)
-    drawn = []
-    for k, obj in enumerate(scene.objects):
-        if progress is not None:
-            progress(k, len(scene.objects), obj)
-        r = draw_object(fb, obj, camera, lighting, program=program_for(obj, scene.program),
-                        cull=obj.cull or scene.cull, sample_shading=scene.sample_shading, trace=trace)
-        drawn.append(r)
-    if results is not None:
-        results.extend(drawn)
-    if scene.wireframe:
-        draw_wireframe(fb, [r.primitives for r in drawn], scene.wireframe_color)
-    return fb
-
-
-def draw_wireframe(fb: Framebuffer, primitives: Sequence[Any], color=(0.95, 0.95, 0.95)) -> None:
-    """Draw the edges of post-clip triangles over ``fb``, hiding those behind the surface.
-
-    An edge pixel is drawn when its window depth (linear along the edge, as depth is in
-    window space) is no farther than the farthest depth in the 3×3 pixels around it,
-    so edges on the visible surface and on silhouettes show and edges behind it do not.
-    Every sample of the pixel gets the color.
-    """
-    rgba = np.array(tuple(color)[:3] + (1.0,), dtype=np.float32)
-    h, w = fb.height, fb.width
-    depth = fb.depth
-    padded = np.pad(depth, 1, mode="edge")
-    far = np.max([padded[dy:dy + h, dx:dx + w] for dy in range(3) for dx in range(3)], axis=0)
-    for prims in primitives:
-        if prims is None or len(prims.window) == 0:
-            continue
-        tri = prims.window
-        for k in range(3):
-            x, y, z = _segment_pixels(tri[:, k], tri[:, (k + 1) % 3], w, h)
-            keep = z <= far[y, x] + 1e-6
-            fb.samples_color[:, y[keep], x[keep]] = rgba  # every sample plane [S, H, W, 4]
-
-
-def _segment_pixels(a: np.ndarray, b: np.ndarray, w: int, h: int):
-    """Pixels (column, row, window depth) along window-space segments a→b, one step per pixel."""
-    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
-    a, b = a[ok], b[ok]
-    if len(a) == 0:
-        empty = np.zeros(0, np.int64)
-        return empty, empty, np.zeros(0)
-    steps = np.ceil(np.abs(b[:, :2] - a[:, :2]).max(axis=1)).astype(np.int64) + 1
-    seg = np.repeat(np.arange(len(a)), steps)
-    start = np.repeat(np.cumsum(steps) - steps, steps)
-    t = (np.arange(len(seg)) - start) / np.maximum(np.repeat(steps, steps) - 1, 1)
-    p = a[seg] + (b[seg] - a[seg]) * t[:, None]
-    x = np.floor(p[:, 0]).astype(np.int64)
-    y = np.floor(h - p[:, 1]).astype(np.int64)  # window y up → image row down
-    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-    return x[inside], y[inside], p[inside, 2]
+def __getattr__(name: str) -> Any:
+    # Lazy on purpose: reading a scene file never loads the drawing code; only an old
+    # caller's ``from softpipe.scenefile import render_scene`` reaches it.
+    if name in _MOVED:
+        import importlib
+        module = _MOVED[name]
+        warnings.warn(f"softpipe.scenefile.{name} moved to softpipe.{module}.{name}", DeprecationWarning,
+                      stacklevel=2)
+        return getattr(importlib.import_module(f".{module}", __package__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,4 +1,4 @@
-"""Scene files (softpipe.scenefile): every key, every error message, and a small render."""
+"""Scene files (softpipe.scenefile): every key, every error message, and a small render (softpipe.render)."""
 from __future__ import annotations
 
 import warnings
@@ -10,11 +10,13 @@ import pytest
 import softpipe.scenefile as scenefile
 from softpipe.camera import Camera
 from softpipe.material import Light
-from softpipe.scenefile import SceneError, SceneWarning, load_scene, parse_scene, render_scene
+from softpipe.models import MODELS, model_path
+from softpipe.render import render_scene
+from softpipe.scene import Scene, default_program, studio_lights
+from softpipe.scenefile import SceneError, SceneWarning, load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "scene.toml"
-ASSETS = ROOT.parent / "shared" / "assets"
 
 SMALL = """
 [render]
@@ -48,7 +50,7 @@ def error_of(text: str, tmp_path: Path, name: str = "scene.toml") -> str:
     return message
 
 
-def parse(text: str) -> scenefile.Scene:
+def parse(text: str) -> Scene:
     return parse_scene(text, "scene.toml")
 
 
@@ -164,7 +166,7 @@ def test_obj_warnings_are_kept_and_issued(tmp_path):
     assert any("missing.mtl" in w for w in scene.warnings)
 
 
-@pytest.mark.skipif(not (ASSETS / "stanford-bunny.obj").exists(), reason="shared assets not present")
+@pytest.mark.skipif(not model_path("bunny").exists(), reason="the bundled models are not installed")
 def test_the_example_scene_loads():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -175,10 +177,31 @@ def test_the_example_scene_loads():
     assert next(o for o in scene.objects if o.name == "spot").texture is not None
 
 
+def test_obj_may_name_a_bundled_model(tmp_path):
+    scene = load_scene(write(tmp_path, '[[meshes]]\nobj = "suzanne"\n[[meshes]]\nobj = "spot"\n'))
+    suzanne, spot = scene.objects
+    assert suzanne.mesh.triangle_count == 968 and suzanne.name == "suzanne"
+    assert spot.texture is not None and spot.texture.width == 1024       # the bundled cow comes with its texture
+    assert spot.mesh.material.diffuse_texture.endswith("spot_texture.png")
+
+
+def test_a_bare_word_is_a_model_name_only_when_it_is_one(tmp_path):
+    write(tmp_path, TRI_OBJ, "suzanne.obj")                              # a suffix: a file, not the model
+    write(tmp_path, TRI_OBJ, "models/bunny")                             # a folder: a file, not the model
+    write(tmp_path, TRI_OBJ, "tri")                                      # a bare word that names no model
+    scene = load_scene(write(tmp_path, '[[meshes]]\nobj = "suzanne.obj"\n[[meshes]]\nobj = "models/bunny"\n'
+                                       '[[meshes]]\nobj = "tri"\n'))
+    assert [o.mesh.triangle_count for o in scene.objects] == [1, 1, 1]
+    message = error_of('[[meshes]]\nobj = "bunnie"\n', tmp_path)
+    assert f"key 'obj' in [[meshes]] #1: file not found: {tmp_path / 'bunnie'} (nor is 'bunnie' a bundled " \
+           f"model: {', '.join(MODELS)})" in message
+    assert "bundled" not in error_of('[[meshes]]\nobj = "nope.obj"\n', tmp_path)
+
+
 # ---------------------------------------------------------------------------- rendering
 
 
-def small_scene(extra: str = "") -> scenefile.Scene:
+def small_scene(extra: str = "") -> Scene:
     return parse(SMALL + extra + '\n[[meshes]]\nshape = "cube"\ntransform = { rotate_y = 30 }\n')
 
 
@@ -189,7 +212,7 @@ def test_a_small_scene_renders():
     assert (fb.width, fb.height) == (64, 48)
     img = fb.to_uint8(alpha=False)
     assert img[24, 32].any() and not img[0, 0].any()      # the cube in the middle, black corners
-    assert len(results) == 1 and results[0].program == scenefile.default_program()
+    assert len(results) == 1 and results[0].program == default_program()
     assert len(results[0].primitives) > 0
 
 
@@ -382,7 +405,7 @@ def test_scene_error_is_a_value_error_with_fields():
 def test_studio_lights_follow_the_camera():
     cam = Camera(eye=(0, 0, 5))
     turned = Camera(eye=(5, 0, 0))
-    key, key_turned = scenefile.studio_lights(cam)[0], scenefile.studio_lights(turned)[0]
+    key, key_turned = studio_lights(cam)[0], studio_lights(turned)[0]
     assert isinstance(key, Light) and key.kind == "directional"
     # the same direction in eye space: rotate the world by 90° about y
     assert np.allclose(cam.view[:3, :3] @ key.direction, turned.view[:3, :3] @ key_turned.direction)
