@@ -1,13 +1,19 @@
 """The command line: ``softpipe render``, ``softpipe turntable``, ``softpipe demo``, ``softpipe programs``.
 
-    softpipe render MODEL.obj -o out.png            any OBJ, framed, under three studio lights
+    softpipe render bunny -o bunny.png              a bundled model (softpipe.models), framed, three studio lights
+    softpipe render MODEL.obj -o out.png            any OBJ file, the same way
     softpipe render SCENE.toml -o out.png           a scene file (softpipe.scenefile)
-    softpipe turntable MODEL.obj -o spin.gif        an animated GIF, the camera circling the model
+    softpipe turntable MODEL -o spin.gif            an animated GIF, the camera circling the model
     softpipe demo                                   the default scene
     softpipe programs                               the shading programs and sample patterns
 
 Errors are one line on stderr and exit status 2; ``--help`` documents every option.
 Every render prints where it wrote and how long it took; progress goes to stderr.
+
+This module only turns options into a :class:`~softpipe.scene.Scene` (a model through
+:meth:`Scene.from_model <softpipe.scene.Scene.from_model>`, a scene file through
+:func:`softpipe.scenefile.load_scene`) and draws it with
+:func:`softpipe.render.render_scene`, as the Python API does.
 """
 from __future__ import annotations
 
@@ -141,7 +147,7 @@ def _programs() -> List[str]:
 
 
 def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
-    from .scenefile import default_program
+    from .scene import default_program
     g = p.add_argument_group("image")
     g.add_argument("--size", type=_width_height, metavar="WxH",
                    help=f"image size in pixels, e.g. 640x480 (default {default_size}, or the scene's [render] size)")
@@ -162,7 +168,8 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
                         f"now: {default_program()!r}); for a scene file it replaces every mesh's program")
     g.add_argument("--texture", metavar="IMAGE",
                    help="diffuse texture for an OBJ model with texture coordinates (vt), e.g. "
-                        "spot/spot_texture.png; passed to the program as uniform 'texture'")
+                        "spot_texture.png (the bundled 'spot' has its own); passed to the program as uniform "
+                        "'texture'")
     g.add_argument("--cull", choices=("back", "front", "none"),
                    help="which faces to drop: back (default), front or none")
     g.add_argument("--wireframe", action="store_true",
@@ -178,15 +185,19 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .models import MODELS
+    models = ", ".join(MODELS)
     parser = _Parser(
         prog="softpipe",
         description="softpipe: the graphics pipeline of a GPU, on the CPU, in Python.",
         epilog="examples:\n"
-               "  softpipe render ../shared/assets/stanford-bunny.obj -o bunny.png\n"
-               "  softpipe render spot_triangulated.obj --texture spot_texture.png -o spot.png\n"
+               "  softpipe render bunny -o bunny.png\n"
+               "  softpipe render spot --azimuth 210 -o spot.png\n"
+               "  softpipe render model.obj --texture model.png -o model.png\n"
                "  softpipe render examples/scene.toml -o scene.png --size 1280x960\n"
-               "  softpipe render teapot.obj --wireframe --stages out/stages -o teapot.png\n"
-               "  softpipe turntable suzanne.obj -o spin.gif --frames 36\n"
+               "  softpipe render teapot --wireframe --stages out/stages -o teapot.png\n"
+               "  softpipe turntable suzanne -o spin.gif --frames 36\n"
+               f"\nmodels bundled with softpipe (INPUT may name one): {models}.\n"
                "\nerrors print one line on stderr and exit with status 2.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -196,10 +207,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render INPUT to an image and print where it was written and how long it took.\n\n"
                     "INPUT.obj: a Wavefront OBJ model (with its MTL materials, if any), seen by a camera that "
                     "frames it, under a key/fill/rim set of three directional lights that follow the camera.\n"
+                    f"INPUT a bundled model's name ({models}): that model, the same way.\n"
                     "INPUT.toml: a scene file (see examples/scene.toml); the options below override its "
                     "[render] settings, and --azimuth/--elevation its framed camera.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    render.add_argument("input", metavar="INPUT", help="a .obj model or a .toml scene file")
+    render.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
     render.add_argument("-o", "--output", metavar="IMAGE",
                         help="image to write; the format follows the extension (.png, .jpg, .bmp, .tif, ...); "
                              "default out/NAME.png")
@@ -215,12 +227,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render INPUT from FRAMES camera positions evenly spaced on one turn about the vertical "
                     "axis and write them as an animated GIF (or an animated PNG for a .png output). Progress "
                     "('frame 12/36') goes to stderr.\n\n"
-                    "INPUT is a .obj model or a .toml scene file (a scene with its own [camera] eye turns that "
-                    "eye about the target). The studio lights follow the camera, so the model is seen turning "
+                    "INPUT is a .obj model, a bundled model's name or a .toml scene file (a scene with its own "
+                    "[camera] eye turns that eye about the target). The studio lights follow the camera, so the model is seen turning "
                     "under fixed lights. Frames that come out identical (a symmetric model) are merged by the "
                     "GIF writer.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    turn.add_argument("input", metavar="INPUT", help="a .obj model or a .toml scene file")
+    turn.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
     turn.add_argument("-o", "--output", metavar="ANIMATION", help="a .gif (or .png) to write; default out/NAME.gif")
     turn.add_argument("--frames", type=_frames, default=36, metavar="N",
                       help=f"number of frames in one turn (default 36, at most {MAX_FRAMES})")
@@ -257,7 +269,7 @@ def _demo(args) -> int:
 
 
 def _list_programs(args) -> int:
-    from .scenefile import default_program
+    from .scene import default_program
     from .shaders import PROGRAMS
     width = max(len(n) for n in PROGRAMS)
     print("shading programs (--program NAME):")
@@ -277,7 +289,10 @@ def _progress(args, message: str) -> None:
         print(message, file=sys.stderr, flush=True)
 
 
-def _check_input(path: str) -> str:
+def _check_input(name: str) -> str:
+    """The kind of INPUT (".obj" or ".toml"), after a bundled model's name becomes its file."""
+    from .models import model_path
+    path = os.fspath(model_path(name))  # a bare word that is neither a model nor a file: ValueError
     if not os.path.exists(path):
         raise CLIError(f"{path}: no such file")
     if os.path.isdir(path):
@@ -312,56 +327,39 @@ def _frame_size(args, default: Tuple[int, int]) -> Tuple[Optional[int], Optional
 
 
 def _model_scene(args, default_size: Tuple[int, int]):
-    """A Scene for one OBJ model: framed camera, studio lights, the options applied."""
-    from .obj import load_obj
-    from .scenefile import FrameSpec, Scene, SceneObject
-    from .texture import Texture2D
+    """The Scene for one model (Scene.from_model: framed camera, studio lights), the options applied.
+
+    The model is read here rather than by Scene.from_model so that its problems are
+    worded for the command line (``--texture``) and its warnings are one line each.
+    """
+    from .models import load_model
+    from .scene import Scene
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            mesh = load_obj(args.input)
+            mesh = load_model(args.input)
         except UnicodeError as e:
             raise CLIError(f"{args.input}: cannot read: {e}") from None
     for w in caught:
         _note(args, f"warning: {w.message}")
     if mesh.triangle_count == 0:
         raise CLIError(f"{args.input}: the file has no faces (f lines) to render")
-    texture = None
     if args.texture:
         if not os.path.isfile(args.texture):
             raise CLIError(f"--texture: {args.texture}: no such file")
         if mesh.uvs is None:
             raise CLIError(f"{args.input} has no texture coordinates (vt), so --texture cannot be applied")
-        texture = Texture2D(args.texture)
-    textures = {}
-    objects = []
-    parts = mesh.by_material()
-    for material, part in parts:
-        tex = texture
-        if texture is not None:
-            material = material.replace(diffuse_texture=os.path.abspath(args.texture))
-            part = part.replace(material=material)
-        elif material.diffuse_texture:
-            if material.diffuse_texture not in textures:
-                try:
-                    textures[material.diffuse_texture] = Texture2D(material.diffuse_texture)
-                except (ValueError, OSError) as e:
-                    _note(args, f"warning: {e}; material {material.name!r} drawn without it")
-                    textures[material.diffuse_texture] = None
-            tex = textures[material.diffuse_texture]
-        objects.append(SceneObject(part.name or mesh.name, part, _identity(), texture=tex))
     width, height = _frame_size(args, default_size)
-    frame = FrameSpec(azimuth=30.0 if args.azimuth is None else args.azimuth,
-                      elevation=20.0 if args.elevation is None else args.elevation,
-                      fovy=35.0 if args.fovy is None else args.fovy)
-    scene = Scene(objects=objects, frame=frame, width=width, height=height, path=args.input)
+    with warnings.catch_warnings(record=True) as caught:  # a material's texture that cannot be read
+        warnings.simplefilter("always")
+        scene = Scene.from_model(mesh, texture=args.texture or None, width=width, height=height,
+                                 azimuth=30.0 if args.azimuth is None else args.azimuth,
+                                 elevation=20.0 if args.elevation is None else args.elevation,
+                                 fovy=35.0 if args.fovy is None else args.fovy, path=args.input)
+    for w in caught:
+        _note(args, f"warning: {w.message}")
     return _apply_options(args, scene, model=True)
-
-
-def _identity():
-    import numpy as np
-    return np.eye(4)
 
 
 def _load_scene_file(args, default_size):
@@ -435,7 +433,7 @@ def _apply_options(args, scene, model: bool):
 
 
 def scene_program(scene) -> str:
-    from .scenefile import program_for
+    from .scene import program_for
     return ", ".join(sorted({program_for(o, scene.program) for o in scene.objects}))
 
 
@@ -470,7 +468,8 @@ def _safe_name(text: str) -> str:
 
 
 def _render(args) -> int:
-    from .scenefile import draw_wireframe, render_scene
+    from .pictures import draw_wireframe
+    from .render import render_scene
     start = time.perf_counter()
     output = _default_output(args, ".png")
     fmt = _image_format(output)
@@ -515,7 +514,7 @@ def _orbit(camera, degrees: float):
 
 
 def _turntable(args) -> int:
-    from .scenefile import render_scene
+    from .render import render_scene
     start = time.perf_counter()
     output = _default_output(args, ".gif")
     fmt = _image_format(output, animated=True)

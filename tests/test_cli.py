@@ -76,6 +76,12 @@ def test_each_command_has_complete_help(capsys, command, options):
             assert name in out
 
 
+def test_help_examples_use_the_bundled_models(capsys):
+    out = run(capsys, "--help")[1]
+    assert "softpipe render bunny -o bunny.png" in out and "../shared" not in out
+    assert "bunny, teapot, suzanne, spot, armadillo" in out
+
+
 def test_no_command_is_an_error(capsys):
     code, _, err = run(capsys)
     assert code == 2 and err.strip() == ("softpipe: error: a command is required: render, turntable, demo or "
@@ -167,6 +173,17 @@ def test_render_a_scene_file(capsys, model, tmp_path):
     assert code == 0
     assert sorted(p.name for p in stages.iterdir()) == ["01-tetra", "02-cube"]
     assert (stages / "02-cube" / "contact-sheet.png").exists()
+
+
+def test_render_a_bundled_model_by_name(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, "render", "suzanne", "--size", "32x24", "-q")
+    assert code == 0, err
+    assert Image.open(tmp_path / "out" / "suzanne.png").size == (32, 24)       # named after the model
+    assert "(32×24, 968 triangles, program phong, " in out
+    code, _, err = run(capsys, "render", "bunnie", "-o", tmp_path / "x.png")
+    assert code == 2
+    assert "'bunnie' is neither a file nor a bundled model; the models are: bunny, " in one_error_line(err)
 
 
 def test_demo_still_works(capsys, tmp_path):
