@@ -305,21 +305,3 @@ def studio_lights(camera: Camera) -> Tuple[Light, ...]:
     return (light((-0.6, 0.7, 0.7), (0.9, 0.85, 0.8), (0.9, 0.9, 0.9), "key"),
             light((0.8, 0.1, 0.5), (0.25, 0.28, 0.35), (0.05, 0.05, 0.05), "fill"),
             light((0.3, 0.6, -1.0), (0.5, 0.5, 0.55), (0.6, 0.6, 0.6), "rim"))
-
-
-# ---------------------------------------------------------------------------- moved names
-
-#: Names this module held before the drawing moved to :mod:`softpipe.render`; still
-#: importable from here (with a DeprecationWarning) until no caller uses them.
-_MOVED_TO_RENDER = ("draw_mesh", "standard_uniforms")
-
-
-def __getattr__(name: str) -> Any:
-    # Lazy on purpose: the model never imports the drawing code at import time (no
-    # circle, no layering breach); only an old caller's attribute access reaches it.
-    if name in _MOVED_TO_RENDER:
-        warnings.warn(f"softpipe.scene.{name} moved to softpipe.render.{name} (also softpipe.{name})",
-                      DeprecationWarning, stacklevel=2)
-        from . import render
-        return getattr(render, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

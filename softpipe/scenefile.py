@@ -769,9 +769,9 @@ def __getattr__(name: str) -> Any:
     # Lazy on purpose: reading a scene file never loads the drawing code; only an old
     # caller's ``from softpipe.scenefile import render_scene`` reaches it.
     if name in _MOVED:
-        import importlib
+        from . import pictures, render  # the reader's only link to drawing: no module imports it back
         module = _MOVED[name]
         warnings.warn(f"softpipe.scenefile.{name} moved to softpipe.{module}.{name}", DeprecationWarning,
                       stacklevel=2)
-        return getattr(importlib.import_module(f".{module}", __package__), name)
+        return getattr({"render": render, "pictures": pictures}[module], name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
