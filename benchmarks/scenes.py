@@ -51,7 +51,7 @@ from softpipe.shaders import get_program
 from softpipe.shapes import plane, uv_sphere
 from softpipe.texture import Texture2D, texture
 from softpipe.transforms import compose
-from softpipe.vertex import standard_vertex
+from softpipe.shading import standard_vertex
 
 __all__ = ["Scene", "SCENES", "build_scene", "AssetMissing", "ASSETS", "asset_path", "TEXTURE_NOTE"]
 
@@ -142,7 +142,7 @@ def phong_fragment(varyings, uniforms, frag):
 
 
 def textured_vertex(attributes, uniforms):
-    """:func:`softpipe.vertex.standard_vertex` plus the ``uv`` attribute as a varying."""
+    """:func:`softpipe.shading.standard_vertex` plus the ``uv`` attribute as a varying."""
     p = attributes.position
     eye = mat4_mul_vec4(uniforms.model_view, (p[0], p[1], p[2], 1.0))
     clip = mat4_mul_vec4(uniforms.projection, eye)

@@ -29,6 +29,7 @@ from .texture import Texture2D, TextureUniform
 from .trace import PixelHistory, Trace
 from .transforms import (Viewport, compose, frustum, identity, look_at, normal_matrix, opencv_camera,
                          orthographic, perspective, rotate, rotate_x, rotate_y, rotate_z, scale, translate)
-from .vertex import VertexOut, run_vertex_stage, standard_vertex
+from .shaders.common import standard_vertex
+from .vertex import VertexOut, run_vertex_stage
 
 __version__ = "0.1.0"

@@ -3,7 +3,9 @@
 With no vertex shader, the positions given to a draw already are clip
 coordinates ``[N, 4]`` and the varyings are passed on unchanged. With a vertex
 shader (:mod:`softpipe.shader` is the contract, :mod:`softpipe.kernels` how it
-runs) softpipe runs it over every vertex; :func:`standard_vertex` is the usual model-view-projection shader.
+runs) softpipe runs it over every vertex. The usual model-view-projection
+shader, ``standard_vertex``, is with the built-in programs
+(:mod:`softpipe.shaders.common`, offered by :mod:`softpipe.shading`).
 
 Output: :class:`VertexOut`.
 """
@@ -19,7 +21,7 @@ from . import kernels
 from ._parallel import in_bands
 from .shader import VaryingLayout
 
-__all__ = ["VertexOut", "run_vertex_stage", "standard_vertex", "StandardVaryings"]
+__all__ = ["VertexOut", "run_vertex_stage"]
 
 MAX_VERTICES = 1 << 26
 
@@ -151,34 +153,3 @@ def _run_shader(vertex_shader: Callable, inputs: Dict[str, np.ndarray], uniforms
     kernels.run_compiled("vertex", vertex_shader, lambda *a: in_bands(kernel, n, *a, grain=4096), None, *args)
     return VertexOut(position, packed, layout)
 
-
-# ----------------------------------------------------------- the standard shader
-
-StandardVaryings = namedtuple("StandardVaryings", ["position", "normal"])
-
-
-def standard_vertex(attributes, uniforms):
-    """Model-view-projection, with eye-space position and normal as varyings.
-
-    Uniforms: ``model_view`` (4×4), ``projection`` (4×4) and ``normal_matrix``
-    (3×3, the inverse transpose of model_view's upper-left;
-    :func:`softpipe.transforms.normal_matrix`). Attributes: ``position``
-    (x, y, z) and ``normal`` (x, y, z).
-    """
-    p = attributes.position
-    mv = uniforms.model_view
-    pr = uniforms.projection
-    nm = uniforms.normal_matrix
-    n = attributes.normal
-    eye = (mv[0, 0] * p[0] + mv[0, 1] * p[1] + mv[0, 2] * p[2] + mv[0, 3],
-           mv[1, 0] * p[0] + mv[1, 1] * p[1] + mv[1, 2] * p[2] + mv[1, 3],
-           mv[2, 0] * p[0] + mv[2, 1] * p[1] + mv[2, 2] * p[2] + mv[2, 3],
-           mv[3, 0] * p[0] + mv[3, 1] * p[1] + mv[3, 2] * p[2] + mv[3, 3])
-    clip = (pr[0, 0] * eye[0] + pr[0, 1] * eye[1] + pr[0, 2] * eye[2] + pr[0, 3] * eye[3],
-            pr[1, 0] * eye[0] + pr[1, 1] * eye[1] + pr[1, 2] * eye[2] + pr[1, 3] * eye[3],
-            pr[2, 0] * eye[0] + pr[2, 1] * eye[1] + pr[2, 2] * eye[2] + pr[2, 3] * eye[3],
-            pr[3, 0] * eye[0] + pr[3, 1] * eye[1] + pr[3, 2] * eye[2] + pr[3, 3] * eye[3])
-    normal = (nm[0, 0] * n[0] + nm[0, 1] * n[1] + nm[0, 2] * n[2],
-              nm[1, 0] * n[0] + nm[1, 1] * n[1] + nm[1, 2] * n[2],
-              nm[2, 0] * n[0] + nm[2, 1] * n[1] + nm[2, 2] * n[2])
-    return clip, StandardVaryings((eye[0], eye[1], eye[2]), normal)

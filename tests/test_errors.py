@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import softpipe
+import softpipe.shading
 from softpipe import ShaderError
 from softpipe.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 
@@ -45,7 +46,7 @@ def test_ragged_positions():
 
 def passthrough(attributes, uniforms):
     p = attributes.position
-    return (p[0], p[1], p[2], 1.0), softpipe.vertex.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    return (p[0], p[1], p[2], 1.0), softpipe.shading.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
 
 
 def test_positions_with_five_columns_for_a_vertex_shader():
@@ -286,7 +287,7 @@ def vertex_shader_that_raises(attributes, uniforms):
 
 
 def vertex_shader_with_2d_clip(attributes, uniforms):
-    return (0.0, 0.0), softpipe.vertex.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    return (0.0, 0.0), softpipe.shading.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
 
 
 def test_vertex_shader_errors_name_the_shader():
@@ -313,7 +314,7 @@ def vertex_shader_that_raises_late(attributes, uniforms):
     p = attributes.position
     if p[0] > 0.9:
         raise ValueError("this vertex is out of bounds")
-    return (p[0], p[1], 0.0, 1.0), softpipe.vertex.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    return (p[0], p[1], 0.0, 1.0), softpipe.shading.StandardVaryings((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
 
 
 @pytest.mark.parametrize("path", ["reference", "fast"])
