@@ -46,7 +46,7 @@ from softpipe.lighting import BLINN_PHONG, PHONG, opengl_lighting
 from softpipe.material import Light, Lighting, Material
 from softpipe.models import MODELS_DIR
 from softpipe.obj import load_obj
-from softpipe.render import standard_uniforms
+from softpipe.drawing import standard_uniforms
 from softpipe.shaders import get_program
 from softpipe.shapes import plane, uv_sphere
 from softpipe.texture import Texture2D, texture

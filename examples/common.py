@@ -23,7 +23,7 @@ from softpipe.mesh import Mesh  # noqa: E402
 from softpipe.models import MODELS_DIR, model_path  # noqa: E402
 from softpipe.obj import load_obj  # noqa: E402
 from softpipe.pictures import contact_sheet  # noqa: E402
-from softpipe.render import draw_mesh  # noqa: E402
+from softpipe.drawing import draw_mesh  # noqa: E402
 # the lit programs register themselves when imported
 from softpipe.shaders import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: E402,F401
 from softpipe.shaders.common import lighting_uniform  # noqa: E402

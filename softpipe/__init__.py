@@ -22,7 +22,7 @@ from .output import MergeResult, MergeState
 from .pipeline import DrawCall, Stage, draw
 from .raster import Fragments, rasterize
 from .sampling import CENTER, SamplePattern, grid, jittered, random_pattern, rotated_grid_4x
-from .render import draw_mesh, standard_uniforms
+from .drawing import draw_mesh, standard_uniforms
 from .scene import Scene
 from .shader import DISCARD, FragInfo, ShaderError, make_uniforms
 from .texture import Texture2D, TextureUniform

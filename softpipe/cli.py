@@ -13,7 +13,7 @@ Every render prints where it wrote and how long it took; progress goes to stderr
 This module only turns options into a :class:`~softpipe.scene.Scene` (a model through
 :meth:`Scene.from_model <softpipe.scene.Scene.from_model>`, a scene file through
 :func:`softpipe.scenefile.load_scene`) and draws it with
-:func:`softpipe.render.render_scene`, as the Python API does.
+:func:`softpipe.drawing.render_scene`, as the Python API does.
 """
 from __future__ import annotations
 
@@ -469,7 +469,7 @@ def _safe_name(text: str) -> str:
 
 def _render(args) -> int:
     from .pictures import draw_wireframe
-    from .render import render_scene
+    from .drawing import render_scene
     start = time.perf_counter()
     output = _default_output(args, ".png")
     fmt = _image_format(output)
@@ -514,7 +514,7 @@ def _orbit(camera, degrees: float):
 
 
 def _turntable(args) -> int:
-    from .render import render_scene
+    from .drawing import render_scene
     start = time.perf_counter()
     output = _default_output(args, ".gif")
     fmt = _image_format(output, animated=True)

@@ -23,7 +23,7 @@ from .framebuffer import Framebuffer
 from .material import Light, Lighting, Material
 from .mesh import Mesh
 from .models import load_model
-from .render import draw_mesh
+from .drawing import draw_mesh
 from .shaders import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401  (register)
 from .shaders.common import lighting_uniform
 from .transforms import compose, rotate_x, rotate_y, scale, translate

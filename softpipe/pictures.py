@@ -198,7 +198,7 @@ def draw_wireframe(fb, primitives: Sequence[Any], color=(0.95, 0.95, 0.95)) -> N
     fb : Framebuffer
         Already drawn: its depth buffer decides which edge pixels show.
     primitives : sequence of Primitives (or None)
-        Each draw's post-clip triangles (:attr:`softpipe.render.DrawResult.primitives`).
+        Each draw's post-clip triangles (:attr:`softpipe.drawing.DrawResult.primitives`).
     color : RGB in 0..1, linear
 
     Notes

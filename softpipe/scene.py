@@ -5,7 +5,7 @@ model matrix and, if textured, its texture), a camera (its own, or a framed one
 described by a :class:`FrameSpec`), the lights and the render settings. It is plain
 data: :func:`softpipe.scenefile.load_scene` fills one from a TOML file,
 :meth:`Scene.from_model` from one OBJ model (what ``softpipe render MODEL`` draws),
-and :func:`softpipe.render.render_scene` draws one.
+and :func:`softpipe.drawing.render_scene` draws one.
 
 Also here, because every way of making a scene needs them: :func:`studio_lights`
 (the key/fill/rim set a scene without lights gets) and :func:`default_program` /

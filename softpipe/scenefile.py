@@ -1,7 +1,7 @@
 """Scene files: reading and checking the TOML that describes a scene.
 
 ``load_scene(path)`` reads a scene file into a :class:`~softpipe.scene.Scene` (the
-scene model, :mod:`softpipe.scene`); :func:`softpipe.render.render_scene` draws it.
+scene model, :mod:`softpipe.scene`); :func:`softpipe.drawing.render_scene` draws it.
 This module only reads: the schema, its validation (every mistake is a
 :class:`SceneError` naming the file, table and key) and the conversion of values
 into the model's objects. ``examples/scene.toml`` is a full example with every key
@@ -73,7 +73,7 @@ comes with its texture.
 
 Drawing
 -------
-Each object is drawn by :func:`softpipe.render.draw_mesh` with the uniforms listed
+Each object is drawn by :func:`softpipe.drawing.draw_mesh` with the uniforms listed
 there; the lighting is the scene's :class:`~softpipe.material.Lighting` in eye space
 (the studio set of :func:`softpipe.scene.studio_lights` when there is no
 ``[[lights]]``) and the texture the material's ``diffuse_texture``.
@@ -755,23 +755,3 @@ def load_scene(path) -> Scene:
     for message in scene.warnings:
         warnings.warn(message, SceneWarning, stacklevel=2)
     return scene
-
-
-# ---------------------------------------------------------------------------- moved names
-
-#: Names this module held before drawing moved to :mod:`softpipe.render` (and the
-#: wireframe to :mod:`softpipe.pictures`); still importable from here, with a
-#: DeprecationWarning, until no caller uses them.
-_MOVED = {"render_scene": "render", "DrawResult": "render", "draw_wireframe": "pictures"}
-
-
-def __getattr__(name: str) -> Any:
-    # Lazy on purpose: reading a scene file never loads the drawing code; only an old
-    # caller's ``from softpipe.scenefile import render_scene`` reaches it.
-    if name in _MOVED:
-        from . import pictures, render  # the reader's only link to drawing: no module imports it back
-        module = _MOVED[name]
-        warnings.warn(f"softpipe.scenefile.{name} moved to softpipe.{module}.{name}", DeprecationWarning,
-                      stacklevel=2)
-        return getattr({"render": render, "pictures": pictures}[module], name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -13,7 +13,7 @@ import softpipe as sp
 from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.material import Light, Lighting, LightingUniform, Material
-from softpipe.render import draw_mesh
+from softpipe.drawing import draw_mesh
 from softpipe.shader import make_uniforms
 from softpipe.shaders import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
 from softpipe.shaders.common import DEFAULT_LIGHTING, facing_normal, lighting_uniform, toward_eye, uniform_or

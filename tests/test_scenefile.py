@@ -1,4 +1,4 @@
-"""Scene files (softpipe.scenefile): every key, every error message, and a small render (softpipe.render)."""
+"""Scene files (softpipe.scenefile): every key, every error message, and a small render (softpipe.drawing)."""
 from __future__ import annotations
 
 import warnings
@@ -11,7 +11,7 @@ import softpipe.scenefile as scenefile
 from softpipe.camera import Camera
 from softpipe.material import Light
 from softpipe.models import MODELS, model_path
-from softpipe.render import render_scene
+from softpipe.drawing import render_scene
 from softpipe.scene import Scene, default_program, studio_lights
 from softpipe.scenefile import SceneError, SceneWarning, load_scene, parse_scene
 

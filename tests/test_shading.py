@@ -16,7 +16,7 @@ from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.material import Light, Lighting, Material
 from softpipe.mesh import Mesh
-from softpipe.render import draw_mesh, standard_uniforms
+from softpipe.drawing import draw_mesh, standard_uniforms
 from softpipe.shaders import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
 from softpipe.shaders import Program, get_program
 from softpipe.texture import Texture2D

@@ -8,7 +8,7 @@ from softpipe.camera import Camera
 from softpipe.mesh import concatenate
 from softpipe.pictures import PICTURES, RED
 from softpipe.pipeline import DrawCall
-from softpipe.render import standard_uniforms
+from softpipe.drawing import standard_uniforms
 from softpipe.shaders import get_program
 
 

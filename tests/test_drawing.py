@@ -1,4 +1,4 @@
-"""Drawing (softpipe.render): one draw_mesh for the API, scene files and the command line.
+"""Drawing (softpipe.drawing): one draw_mesh for the API, scene files and the command line.
 
 Also the scene model's Scene.from_model (what ``softpipe render MODEL`` draws), the
 wireframe overlay (softpipe.pictures.draw_wireframe), and which module may import which.
@@ -16,7 +16,7 @@ import softpipe as sp
 from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.cli import main
-from softpipe.render import DrawResult, draw_mesh, render_scene, standard_uniforms
+from softpipe.drawing import DrawResult, draw_mesh, render_scene, standard_uniforms
 from softpipe.scene import Scene, program_for
 from softpipe.scenefile import parse_scene
 
@@ -220,17 +220,13 @@ def test_the_bundled_spot_is_drawn_textured():
 # ---------------------------------------------------------------------------- modules
 
 
-def test_moved_names_still_import_with_a_warning():
-    import softpipe.scenefile
-    from softpipe import pictures, render
-    with pytest.warns(DeprecationWarning, match="softpipe.render.render_scene"):
-        assert softpipe.scenefile.render_scene is render.render_scene
-    with pytest.warns(DeprecationWarning, match="softpipe.pictures.draw_wireframe"):
-        assert softpipe.scenefile.draw_wireframe is pictures.draw_wireframe
-    assert sp.draw_mesh is render.draw_mesh and sp.Scene is Scene
-    with pytest.raises(AttributeError):
-        softpipe.scenefile.no_such_name  # noqa: B018
+def test_each_name_has_one_home():
     import softpipe.scene
+    import softpipe.scenefile
+    from softpipe import drawing
+    assert sp.draw_mesh is drawing.draw_mesh and sp.Scene is Scene
+    for name in ("render_scene", "DrawResult", "draw_wireframe", "draw_object"):
+        assert not hasattr(softpipe.scenefile, name), name         # the reader draws nothing
     assert not hasattr(softpipe.scene, "draw_mesh")      # the model holds no drawing, not even an alias
 
 
@@ -247,10 +243,10 @@ def _module_imports(name: str, anywhere: bool) -> set:
 
 
 @pytest.mark.parametrize("module, anywhere, never", [
-    ("scene", True, {"render", "pipeline", "pictures", "scenefile", "cli", "demo"}),   # the model draws nothing
-    # reading draws nothing (its __getattr__ hands old callers the moved drawing names)
-    ("scenefile", False, {"render", "pipeline", "pictures", "cli", "demo"}),
-    ("render", True, {"scenefile", "cli", "demo"}),                                   # drawing reads no files
+    ("scene", True, {"drawing", "pipeline", "pictures", "scenefile", "cli", "demo"}),   # the model draws nothing
+    # reading draws nothing
+    ("scenefile", False, {"drawing", "pipeline", "pictures", "cli", "demo"}),
+    ("drawing", True, {"scenefile", "cli", "demo"}),                                   # drawing reads no files
 ])
 def test_lower_modules_do_not_import_higher_ones(module, anywhere, never):
     assert not _module_imports(module, anywhere) & never
