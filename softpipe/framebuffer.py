@@ -9,16 +9,18 @@ even.
 from __future__ import annotations
 
 import io
+import os
 from pathlib import Path
-from typing import Sequence, Union
+from typing import BinaryIO, Optional, Sequence, Union
 
 import numba
 import numpy as np
 
 from ._parallel import in_bands
+from .colors import rgba
 from .sampling import CENTER, SamplePattern
 
-__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES"]
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format"]
 
 #: Largest width or height, in pixels.
 MAX_DIMENSION = 16384
@@ -47,6 +49,37 @@ def _check_size(width, height, samples: int) -> None:
     if width * height * samples > MAX_TOTAL_SAMPLES:
         raise ValueError(f"Framebuffer {width}×{height}×{samples} samples = {width * height * samples} exceeds "
                          f"the limit MAX_TOTAL_SAMPLES = {MAX_TOTAL_SAMPLES}")
+
+
+def image_format(name: Optional[str], format: Optional[str] = None) -> str:
+    """The pillow format that writes ``name`` (by its extension) or ``format`` (a name or extension).
+
+    A ValueError names an extension or format pillow cannot write, or says that
+    neither was given (a file object with no name needs ``format=``).
+    """
+    from PIL import Image
+
+    Image.init()
+    extensions = Image.registered_extensions()
+    if format is not None:
+        if not isinstance(format, str):
+            raise TypeError(f"format must be a string such as 'png', got {type(format).__name__}")
+        key = format.strip().lower()
+        fmt = extensions.get(key if key.startswith(".") else "." + key)
+        if fmt is None and format.strip().upper() in Image.SAVE:
+            fmt = format.strip().upper()
+        if fmt is None or fmt not in Image.SAVE:
+            raise ValueError(f"cannot write images in format {format!r}; use png, jpeg, bmp, tiff, webp, ...")
+        return fmt
+    if name is None:
+        raise ValueError("saving to a file object needs format=, e.g. fb.save(f, format='png')")
+    ext = Path(name).suffix.lower()
+    if not ext:
+        raise ValueError(f"{name}: no extension to tell the image format; name it .png, .jpg, ... or give format=")
+    fmt = extensions.get(ext)
+    if fmt is None or fmt not in Image.SAVE:
+        raise ValueError(f"{name}: cannot write images with extension {ext!r}; use .png, .jpg, .bmp, .tif, ...")
+    return fmt
 
 
 class Framebuffer:
@@ -86,13 +119,21 @@ class Framebuffer:
     def samples(self) -> int:
         return len(self.pattern)
 
-    def clear(self, color: Sequence[float] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0) -> "Framebuffer":
-        """Set every sample to ``color`` (RGB or RGBA) and ``depth``."""
-        c = np.asarray(color, dtype=np.float32).reshape(-1)
-        if c.size == 3:
-            c = np.append(c, np.float32(1.0))
-        if c.size != 4 or not np.all(np.isfinite(c)):
-            raise ValueError(f"clear color must be 3 or 4 finite numbers, got {color!r}")
+    def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0) -> "Framebuffer":
+        """Set every sample to ``color`` and ``depth``; returns the framebuffer.
+
+        ``color`` is anything :func:`softpipe.colors.parse_color` reads: 3 or 4 numbers
+        (RGB or RGBA, linear, unclamped), a CSS name (``"red"``), hex (``"#ff8000"``) or
+        ``"rgb(255, 128, 0)"``. Alpha is 1 when not given.
+        """
+        try:
+            c = np.asarray(rgba(color), dtype=np.float32)
+        except (TypeError, ValueError) as e:
+            if isinstance(color, str):
+                raise ValueError(f"clear color: {e}") from None
+            c = np.full(4, np.nan, np.float32)
+        if not np.all(np.isfinite(c)):
+            raise ValueError(f"clear color must be 3 or 4 finite numbers, a color name or '#rrggbb', got {color!r}")
         if not 0.0 <= float(depth) <= 1.0:
             raise ValueError(f"clear depth must be in [0, 1], got {depth!r}")
         in_bands(_fill, self.samples_depth.size, self.samples_color.reshape(-1, 4), c, self.samples_depth.reshape(-1),
@@ -151,13 +192,70 @@ class Framebuffer:
         from PIL import Image
         return Image.fromarray(self.to_uint8(alpha), "RGBA" if alpha else "RGB")
 
-    def save(self, path: Union[str, Path], alpha: bool = False) -> Path:
-        """Write a PNG (RGB by default); returns the path."""
-        path = Path(path)
-        if path.parent and not path.parent.exists():
+    def save(self, file: Union[str, "os.PathLike[str]", BinaryIO], alpha: bool = False,
+             format: Optional[str] = None) -> Union[Path, BinaryIO]:
+        """Write the picture (8-bit RGB, or RGBA with ``alpha=True``) to a path or a binary file.
+
+        Parameters
+        ----------
+        file : str, path-like or binary file object
+            A path: its extension says the format (``.png``, ``.jpg``, ``.bmp``, ``.tif``,
+            ``.webp``, … any format pillow writes) and missing folders are made. A file
+            object opened for writing bytes (``open(…, "wb")``, ``io.BytesIO()``): give
+            ``format=`` unless it has a ``name`` with an extension.
+        alpha : bool
+            Keep the alpha channel (a format without alpha, such as JPEG, refuses it).
+        format : str, optional
+            ``"png"``, ``"jpeg"``, ``"jpg"``, ``".bmp"``, … (any case); overrides the extension.
+
+        Returns
+        -------
+        Path or the file object
+            Where it was written.
+
+        Raises
+        ------
+        ValueError
+            An extension or format pillow cannot write (naming it), no extension and no
+            ``format=``, or ``alpha=True`` for a format without alpha.
+        TypeError
+            A file object opened in text mode, or something that is neither a path nor a file.
+        """
+        is_path = isinstance(file, (str, os.PathLike))
+        if not is_path and not callable(getattr(file, "write", None)):
+            raise TypeError(f"save() takes a path or a binary file object, got {type(file).__name__}")
+        if not is_path and isinstance(file, io.TextIOBase):
+            raise TypeError(f"save() needs a binary file (opened with 'wb'), got the text file "
+                            f"{getattr(file, 'name', file)!r}")
+        name = os.fspath(file) if is_path else getattr(file, "name", None)
+        fmt = image_format(name if isinstance(name, str) else None, format)
+        image = self.to_image(alpha)
+        if alpha and fmt in ("JPEG", "PCX", "EPS", "PPM", "MPO"):
+            raise ValueError(f"{fmt} images have no alpha channel; save with alpha=False or as .png")
+        if is_path:
+            path = Path(file)
             path.parent.mkdir(parents=True, exist_ok=True)
-        self.to_image(alpha).save(path, format="PNG")
-        return path
+            image.save(path, format=fmt)
+            return path
+        image.save(file, format=fmt)
+        return file
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        """``np.asarray(fb)``: the picture as 8-bit RGB, [H, W, 3] uint8 (what :meth:`save` writes).
+
+        uint8 RGB because that is what every image library takes as it is:
+        ``PIL.Image.fromarray(np.asarray(fb))`` makes an RGB image, ``plt.imshow(fb)``
+        shows 0..255 integers without rescaling or clipping warnings, and
+        ``imageio.imwrite("x.png", fb)`` writes it without a lossy-conversion warning.
+        The float RGBA color (linear, unclamped, with alpha) is :attr:`color`;
+        ``fb.to_uint8()`` gives RGBA bytes. The array is a new one each time: writing
+        to it does not change the framebuffer.
+        """
+        if copy is False:
+            raise ValueError("np.asarray(framebuffer) makes a new uint8 array; it cannot be had without a copy "
+                             "(fb.color is the float buffer itself)")
+        a = self.to_uint8(alpha=False)
+        return a if dtype is None else a.astype(dtype)
 
     def _repr_png_(self) -> bytes:
         buf = io.BytesIO()

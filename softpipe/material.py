@@ -67,6 +67,8 @@ from typing import Iterable, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .colors import parse_color
+
 RGB = Tuple[float, float, float]
 Vec3 = Tuple[float, float, float]
 
@@ -87,9 +89,17 @@ def _is_number(value) -> bool:
 
 
 def _rgb(name: str, value, owner: str = "Material") -> RGB:
-    """Validate one RGB color field; a single number means gray."""
+    """Validate one RGB color field; a single number means gray, a string a named color ("red", "#ff8000")."""
     if _is_number(value):
         value = (value, value, value)
+    elif isinstance(value, str):  # the parser the command line and the framebuffer share
+        try:
+            rgb = parse_color(value)
+        except ValueError as e:
+            raise ValueError(f"{owner}.{name}: {e}") from None
+        if len(rgb) != 3:
+            raise ValueError(f"{owner}.{name} is an RGB color and takes no alpha, got {value!r}")
+        value = rgb
     try:
         triple = tuple(float(c) for c in value)
     except (TypeError, ValueError):
