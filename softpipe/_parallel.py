@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import itertools
 import os
-from concurrent.futures import ThreadPoolExecutor
+import queue
+import threading
+import time
 
 import numba
 import numpy as np
@@ -32,34 +34,94 @@ def threads() -> int:
     return numba.get_num_threads()
 
 
+#: How long an interrupted call waits for the bands under way before it gives up on
+#: their threads (a shader in an endless loop never ends its band).
+INTERRUPT_GRACE_S = 1.0
+
+
 def in_bands(kernel, rows: int, *args, grain: int = 1) -> None:
     """Run the nogil kernel ``kernel(lo, hi, *args)`` over ``rows`` items in parallel bands.
 
-    Up to 8 bands per thread, taken in turn by whichever thread is free (the
-    calling thread works too), so that a band heavier than the others does
-    not leave a thread idle for long; a band has at least ``grain`` items
-    (below that, starting a thread costs more than it saves).
+    Up to 8 bands per thread, taken in turn by whichever thread is free, so
+    that a band heavier than the others does not leave a thread idle for long;
+    a band has at least ``grain`` items (below that, starting a thread costs
+    more than it saves). The kernels run on helper threads while the calling
+    thread waits, so Ctrl-C (or any signal) is handled at once: no band is
+    started after it, the bands under way are given
+    :data:`INTERRUPT_GRACE_S` to end, and the KeyboardInterrupt is raised.
+    An error in a band stops the others from starting new bands and is
+    raised here, once every band under way has ended.
     """
     count = max(1, min(threads(), -(-rows // max(grain, 1))))
-    if count == 1 or rows <= 1:
-        kernel(0, rows, *args)
-        return
-    bounds = np.linspace(0, rows, min(rows, count * 8) + 1).astype(np.int64)
-    bands = len(bounds) - 1
+    bands = max(1, min(rows, count * 8)) if rows > 1 else 1
+    bounds = np.linspace(0, rows, bands + 1).astype(np.int64)
     next_band = itertools.count().__next__       # atomic under the GIL
+    stop, errors = [False], []
+    finished = threading.Semaphore(0)
 
     def work() -> None:
-        k = next_band()
-        while k < bands:
-            kernel(bounds[k], bounds[k + 1], *args)
+        try:
             k = next_band()
+            while k < bands and not stop[0]:
+                kernel(bounds[k], bounds[k + 1], *args)
+                k = next_band()
+        except BaseException as e:  # noqa: B036  (handed to the calling thread, which raises it)
+            stop[0] = True
+            errors.append(e)
+        finally:
+            finished.release()
 
-    helpers = [_pool(count - 1).submit(work) for _ in range(count - 1)]
+    pool = _pool(count)
+    for _ in range(count):
+        pool.submit(work)
+    ended = 0
     try:
-        work()
-    finally:
-        for helper in helpers:       # every band is done (or failed) before returning or raising
-            helper.result()
+        while ended < count:
+            if finished.acquire(timeout=0.25):            # a timed wait lets signals through
+                ended += 1
+    except BaseException:
+        stop[0] = True
+        _wait_or_abandon(finished, count - ended, pool)
+        raise
+    if errors:
+        raise errors[0]
+
+
+def _wait_or_abandon(finished: threading.Semaphore, running: int, pool: "_Workers") -> None:
+    """After an interrupt: wait a little for the bands under way; threads still busy then are left behind."""
+    deadline = time.monotonic() + INTERRUPT_GRACE_S
+    for _ in range(running):
+        if not finished.acquire(timeout=max(0.0, deadline - time.monotonic())):
+            pool.abandon()
+            return
+
+
+class _Workers:
+    """Daemon helper threads taking functions from a queue (daemon: a thread stuck in a
+    shader's endless loop must not keep the process from exiting)."""
+
+    def __init__(self, count: int):
+        self.count = count
+        self.tasks: "queue.SimpleQueue" = queue.SimpleQueue()
+        for k in range(count):
+            threading.Thread(target=self._run, name=f"softpipe-{k}", daemon=True).start()
+
+    def _run(self) -> None:
+        while True:
+            task = self.tasks.get()
+            if task is None:
+                return
+            task()
+
+    def submit(self, task) -> None:
+        self.tasks.put(task)
+
+    def abandon(self) -> None:
+        """Stop using these threads: the free ones end, the busy ones are left to finish alone."""
+        if _POOLS.get(self.count) is self:
+            del _POOLS[self.count]
+        for _ in range(self.count):
+            self.tasks.put(None)
 
 
 _POOLS: dict = {}
@@ -68,8 +130,8 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_POOLS.clear)
 
 
-def _pool(count: int) -> ThreadPoolExecutor:
-    """One long-lived pool of helper threads per size (starting threads per call costs milliseconds)."""
+def _pool(count: int) -> _Workers:
+    """One long-lived set of helper threads per size (starting threads per call costs milliseconds)."""
     if count not in _POOLS:
-        _POOLS[count] = ThreadPoolExecutor(count, thread_name_prefix="softpipe")
+        _POOLS[count] = _Workers(count)
     return _POOLS[count]

@@ -1,0 +1,73 @@
+"""Ctrl-C stops a long draw, and a draw whose shader never ends, within a second or two (issue #13).
+
+Each case runs in a subprocess that compiles its shader on a tiny draw first,
+says "ready", and then starts the long draw; the test sends SIGINT a moment
+later and measures how long the process takes to stop with a KeyboardInterrupt.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals")
+
+SCRIPT = textwrap.dedent('''
+    import sys, numpy as np, softpipe as sp
+
+    def heavy(varyings, uniforms, frag):
+        acc = 0.0
+        for k in range(20000):                  # ~10 µs a fragment: the 1024x1024 draw takes ~10 s of CPU
+            acc += (k % 7) * 1e-9
+        return (acc, 0.0, 0.0, 1.0)
+
+    def endless(varyings, uniforms, frag):
+        x = frag.x
+        while x >= 0.0:                         # never false: the shader never returns
+            x = x * 1.0000001 + 1.0
+        return (x, 0.0, 0.0, 1.0)
+
+    shader = {"heavy": heavy, "endless": endless}[sys.argv[1]]
+    quad = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1]], float)
+    idx = np.array([[0, 1, 2], [0, 2, 3]])
+    color = {"color": np.ones((4, 3))}
+    sp.draw(sp.Framebuffer(128, 128), quad[:3] * [0.001, 0.001, 1, 1], varyings={"color": np.ones((3, 3))},
+            fragment_shader=shader)                        # compiles; covers no pixel, so it returns
+    print("ready", flush=True)
+    sp.draw(sp.Framebuffer(1024, 1024), quad, idx, varyings=color, fragment_shader=shader)
+    print("finished", flush=True)
+''')
+
+
+def _interrupt(tmp_path, case: str) -> tuple:
+    script = tmp_path / "long_draw.py"
+    script.write_text(SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script), case], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.strip() == "ready", (line, proc.stderr.read() if proc.poll() is not None else "")
+        time.sleep(1.0)                         # the long draw is under way
+        assert proc.poll() is None, "the draw ended before it could be interrupted"
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+        return time.monotonic() - sent, proc.returncode, out, err
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+@pytest.mark.parametrize("case, limit", [("heavy", 2.5), ("endless", 2.5)])
+def test_ctrl_c_stops_a_draw_promptly(tmp_path, case, limit):
+    seconds, code, out, err = _interrupt(tmp_path, case)
+    assert "KeyboardInterrupt" in err, err[-2000:]
+    assert "finished" not in out
+    assert code != 0
+    # heavy: no band starts after the signal; endless: the grace period (1 s), then the thread is left behind
+    assert seconds < limit, f"the process took {seconds:.1f} s to stop after SIGINT"
