@@ -91,6 +91,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections import namedtuple
 from typing import Optional, Tuple, Union
 
@@ -98,6 +99,7 @@ import numpy as np
 from numba import njit
 
 __all__ = [
+    "MAX_TEXTURE_BYTES", "texture_bytes",
     "Texture2D",
     "TextureUniform",
     "texture",
@@ -357,13 +359,41 @@ def texture_size(tex, level):
 # --------------------------------------------------------------------------
 
 
-def _load_image(path: Union[str, os.PathLike]) -> np.ndarray:
-    """Read an image file into float32 RGBA [H, W, 4], row 0 = top."""
+#: Peak memory a texture costs while it is made, per texel of level 0: measured 96 bytes in
+#: numpy arrays (float32 RGBA level 0, the mip chain, its packed copy for shaders, float64
+#: while halving) for 1024² and 2048² images, plus Pillow's decoded copy; rounded up.
+PEAK_BYTES_PER_TEXEL = 110
+#: The largest peak a texture may cost (bytes); larger images are refused before they are
+#: decoded. ``Texture2D(..., max_bytes=...)`` raises or lowers it for one texture.
+MAX_TEXTURE_BYTES = 2 << 30
+
+
+def texture_bytes(width: int, height: int) -> int:
+    """The peak memory (bytes) making a ``width`` × ``height`` texture takes (:data:`PEAK_BYTES_PER_TEXEL`)."""
+    return int(width) * int(height) * PEAK_BYTES_PER_TEXEL
+
+
+def _check_size(name: str, width: int, height: int, max_bytes: Optional[int]) -> None:
+    limit = MAX_TEXTURE_BYTES if max_bytes is None else max_bytes
+    need = texture_bytes(width, height)
+    if need > limit:
+        raise ValueError(f"Texture2D: {name} is {width}×{height} texels, which needs about {need / 2**30:.1f} GiB "
+                         f"while its mipmaps are made ({PEAK_BYTES_PER_TEXEL} bytes a texel), more than the "
+                         f"limit of {limit / 2**30:.1f} GiB (Texture2D(..., max_bytes=...) or "
+                         "softpipe.texture.MAX_TEXTURE_BYTES)")
+
+
+def _load_image(path: Union[str, os.PathLike], max_bytes: Optional[int] = None) -> np.ndarray:
+    """Read an image file into float32 RGBA [H, W, 4], row 0 = top; its size is checked before decoding."""
     from PIL import Image, UnidentifiedImageError
 
     name = os.fspath(path)
     try:
-        with Image.open(name) as img:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)   # the size check below says more
+            img_file = Image.open(name)
+        with img_file as img:
+            _check_size(f"image file {name!r}", img.width, img.height, max_bytes)
             img.load()
             mode = img.mode
             if mode.startswith("I;16"):
@@ -377,6 +407,8 @@ def _load_image(path: Union[str, os.PathLike]) -> np.ndarray:
             rgba = np.asarray(img.convert("RGBA"), dtype=np.uint8)
     except FileNotFoundError:
         raise FileNotFoundError(f"Texture2D: image file not found: {name!r}") from None
+    except Image.DecompressionBombError as err:
+        raise ValueError(f"Texture2D: image file {name!r} is too large to decode safely: {err}") from None
     except (UnidentifiedImageError, OSError, SyntaxError) as err:
         # pillow reports truncated and corrupt files as OSError or SyntaxError
         raise ValueError(f"Texture2D: cannot read image file {name!r}: {err}") from None
@@ -481,6 +513,10 @@ class Texture2D:
         See the module docstring for what each does with the level of detail.
     wrap_s, wrap_t : str, optional
         Wrap mode for u (s) or v (t) alone, overriding ``wrap``.
+    max_bytes : int, optional
+        The most memory making this texture may take (default
+        :data:`MAX_TEXTURE_BYTES`, 2 GiB); a larger image is refused before it
+        is decoded, with the estimate (:func:`texture_bytes`) in the message.
 
     Attributes
     ----------
@@ -499,6 +535,7 @@ class Texture2D:
         filter: str = "bilinear",
         wrap_s: Optional[str] = None,
         wrap_t: Optional[str] = None,
+        max_bytes: Optional[int] = None,
     ) -> None:
         self.wrap_s = wrap if wrap_s is None else wrap_s
         self.wrap_t = wrap if wrap_t is None else wrap_t
@@ -508,9 +545,11 @@ class Texture2D:
         self._filter = _choose("filter", filter, FILTERS)
         if isinstance(source, (str, os.PathLike)):
             self.source = os.fspath(source)
-            level0 = _load_image(source)
+            level0 = _load_image(source, max_bytes)
         elif isinstance(source, np.ndarray):
             self.source = "array"
+            if source.ndim >= 2:
+                _check_size(f"the array of shape {source.shape}", source.shape[1], source.shape[0], max_bytes)
             level0 = _check_array(source)
         else:
             raise TypeError(
