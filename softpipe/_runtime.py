@@ -19,7 +19,7 @@ import ctypes
 import os
 import sys
 
-__all__ = ["KEEP_FREED_BELOW", "malloc_tuned", "release_memory"]
+__all__ = ["KEEP_FREED_BELOW", "malloc_tuned", "release_memory", "available_memory", "check_memory"]
 
 #: Blocks up to this size come from (and go back to) the heap instead of fresh mappings.
 KEEP_FREED_BELOW = 1 << 30
@@ -51,3 +51,28 @@ def release_memory() -> None:
     """
     if malloc_tuned:
         ctypes.CDLL(None).malloc_trim(0)
+
+
+def available_memory() -> int | None:
+    """Bytes the system can still give this process without swapping (Linux's MemAvailable), or None."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_memory(what: str, need: int) -> None:
+    """Raise MemoryError, with the estimate, when ``what`` needs more than the memory available.
+
+    Called before a large allocation, so that a draw too large for the machine
+    fails at once with a sentence instead of deep inside numpy (or the system
+    swapping for minutes).
+    """
+    have = available_memory()
+    if have is not None and need > have:
+        raise MemoryError(f"{what} needs about {need / 2**30:.1f} GiB, and this machine has "
+                          f"{have / 2**30:.1f} GiB available")

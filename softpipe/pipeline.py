@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
+from ._runtime import check_memory
 from .assembly import assemble
 from .fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from .framebuffer import Framebuffer
@@ -52,6 +53,12 @@ MAX_FRAGMENTS_PER_BATCH = 1 << 22
 #: The stages :meth:`DrawCall.steps` yields: the reference path's, and the fast path's.
 STAGES = ("vertex", "assembly", "raster", "fragment", "output")
 FAST_STAGES = ("vertex", "assembly", "visibility", "fragment")
+#: Memory a draw takes per triangle in assembly and triangle setup, plus per float of
+#: varyings (three corners): 223 bytes measured with 3 varyings; checked before assembly.
+BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_VARYING = 160, 24
+#: Memory a trace takes per fragment: 106 bytes kept (Fragments, ShadedFragments, MergeResult
+#: with the colors after), twice while the batches are joined.
+BYTES_PER_TRACED_FRAGMENT = 212
 #: The keys of :attr:`DrawCall.timings`, the same on both paths.
 TIMED = ("vertex", "assembly", "setup", "raster", "fragment", "output")
 
@@ -165,6 +172,7 @@ class DrawCall:
         yield self._emit(Stage("vertex", vout), debug)
         clock(None)
         fast = self.path_taken == "fast"
+        self._check_memory(vout)
         prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
                                            cull=self.cull, front_face=self.front_face, keep_culled=not fast)
         clock("assembly")
@@ -179,10 +187,22 @@ class DrawCall:
             yield self._emit(stage, debug)
             clock(None)
 
+    def _check_memory(self, vout) -> None:
+        """Refuse, before assembly, a draw whose triangles cannot fit in memory (:data:`BYTES_PER_TRIANGLE`)."""
+        n = len(vout.position) if self.indices is None else np.size(self.indices)
+        triangles = n // 3 if self.topology == "triangles" else max(n - 2, 0)
+        per_triangle = BYTES_PER_TRIANGLE + BYTES_PER_TRIANGLE_VARYING * vout.layout.width
+        check_memory(f"drawing {triangles:,} triangles (assembly and triangle setup, {per_triangle} bytes each)",
+                     triangles * per_triangle)
+
     def _reference_stages(self, prims, setup, clock, record: bool) -> Iterator[Stage]:
         """Rasterize, shade every fragment and merge in order, in batches of whole triangles."""
         fb = self.framebuffer
         counts = count_fragments(prims, fb.width, fb.height, fb.pattern, setup=setup)
+        if record:
+            total = int(counts.sum())
+            check_memory(f"tracing {total:,} fragments ({BYTES_PER_TRACED_FRAGMENT} bytes each, kept by the trace)",
+                         total * BYTES_PER_TRACED_FRAGMENT)
         clock("raster")
         for batch, (first, last) in enumerate(_batches(counts, MAX_FRAGMENTS_PER_BATCH)):
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,

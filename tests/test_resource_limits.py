@@ -52,3 +52,45 @@ def test_a_decompression_bomb_is_a_softpipe_error_not_pillows(tmp_path):
     with pytest.raises(ValueError, match=r"Texture2D: image file '.*bomb\.png' is too large to decode safely") as e:
         Texture2D(path)
     assert e.value.__cause__ is None and e.value.__suppress_context__
+
+
+# ---------------------------------------------------------------- draws too large for the machine
+
+def _triangles(n: int, size: float = 0.01):
+    rng = np.random.default_rng(1)
+    centres = np.repeat(rng.uniform(-0.9, 0.9, (n, 4)) * [1, 1, 0.5, 0], 3, axis=0)
+    pos = centres + rng.uniform(-size, size, (3 * n, 4)) * [1, 1, 1, 0]
+    pos[:, 3] = 1.0
+    return pos, {"color": rng.random((3 * n, 3))}
+
+
+def test_a_draw_whose_triangles_cannot_fit_fails_before_assembly_with_the_estimate(monkeypatch):
+    import softpipe as sp
+    from softpipe import _runtime
+    pos, varyings = _triangles(10_000)
+    fb = sp.Framebuffer(64, 64)
+    before = fb.samples_color.copy()
+    monkeypatch.setattr(_runtime, "available_memory", lambda: 1 << 20)
+    with pytest.raises(MemoryError, match=r"drawing 10,000 triangles \(assembly and triangle setup, 232 bytes "
+                                          r"each\) needs about 0\.0 GiB, and this machine has 0\.0 GiB available"):
+        sp.draw(fb, pos, varyings=varyings)
+    assert np.array_equal(fb.samples_color, before)          # nothing was drawn
+    monkeypatch.setattr(_runtime, "available_memory", lambda: 10_000 * 232)
+    sp.draw(fb, pos, varyings=varyings)                       # exactly enough: drawn
+    assert not np.array_equal(fb.samples_color, before)
+
+
+def test_a_trace_too_large_for_memory_fails_before_it_keeps_the_fragments(monkeypatch):
+    import softpipe as sp
+    from softpipe import _runtime, pipeline
+    pos, varyings = _triangles(20, size=0.5)
+    fb = sp.Framebuffer(64, 64)
+    covered = int(sp.DrawCall(sp.Framebuffer(64, 64), pos, varyings=varyings, path="reference").run(trace=True)
+                  .fragments.__len__())
+    need = covered * pipeline.BYTES_PER_TRACED_FRAGMENT
+    assert covered > 1000 and need > 20 * 232                 # the trace, not the triangles, is what is too large
+    monkeypatch.setattr(_runtime, "available_memory", lambda: need - 1)
+    with pytest.raises(MemoryError, match=rf"tracing {covered:,} fragments"):
+        sp.draw(fb, pos, varyings=varyings, trace=True)
+    monkeypatch.setattr(_runtime, "available_memory", lambda: need)
+    assert len(sp.draw(fb, pos, varyings=varyings, trace=True)) == covered
