@@ -218,8 +218,29 @@ class Mesh:
             angles[:, c] = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b))
         return angles
 
-    def vertex_normals(self, mode: NormalWeighting = "area") -> np.ndarray:
-        """Per-vertex unit normals averaged from the faces around each vertex, float64 [N, 3].
+    def position_classes(self, groups: Any = None) -> np.ndarray:
+        """For each vertex, the number of its position: vertices with equal positions share one, int64 [N].
+
+        Equal means bit-for-bit equal coordinates (``-0.0`` counts as ``0.0``): an OBJ file
+        that repeats a ``v`` line at a patch border, or a vertex split because its texture
+        coordinates differ, shares the number. ``groups`` (int [N], optional) keeps vertices
+        of different groups apart even at one position (the OBJ loader's smoothing groups).
+        Numbers are ``0 … K-1`` in sorted order of (position, group).
+        """
+        key = self.positions + 0.0  # -0.0 + 0.0 is 0.0: one position, one key
+        if groups is not None:
+            g = np.asarray(groups)
+            if g.shape != (self.vertex_count,) or g.dtype.kind not in "iu":
+                raise ValueError(f"Mesh.position_classes: groups must be an int array of shape "
+                                 f"[{self.vertex_count}], got {_describe(g)}")
+            key = np.column_stack([key, g.astype(np.float64)])
+        if self.vertex_count == 0:
+            return np.zeros(0, dtype=np.int64)
+        _, inverse = np.unique(key, axis=0, return_inverse=True)
+        return inverse.reshape(-1).astype(np.int64)
+
+    def vertex_normals(self, mode: NormalWeighting = "area", weld: bool = True, groups: Any = None) -> np.ndarray:
+        """Per-vertex unit normals averaged from the faces around each position, float64 [N, 3].
 
         Parameters
         ----------
@@ -228,8 +249,20 @@ class Mesh:
             of the triangles at the vertex, so each face counts in proportion to its area.
             ``"angle"``: the sum of the unit face normals, each times the triangle's interior
             angle at that vertex (independent of how the surface is cut into triangles).
+        weld : bool
+            True (the default): the sum runs over every triangle around the vertex's
+            *position* (:meth:`position_classes`), so vertex records at one position get
+            one normal. A mesh whose vertices are split where their texture coordinates
+            differ (a UV seam), or whose file repeats positions at patch borders (the Utah
+            teapot), is then smooth across the split; the vertex records themselves, and
+            their uvs, stay as they are. False: per vertex record, so a split shows as a
+            crease.
+        groups : int array [N], optional
+            With ``weld``: only vertices of the same group share a normal (a crease
+            between groups; the OBJ loader passes its smoothing groups).
 
-        Vertices used by no triangle, or only by degenerate ones, get the zero vector.
+        Vertices used by no triangle, or only by degenerate ones, get the zero vector
+        (welded: unless another vertex at their position is used by one).
         """
         if mode == "area":
             weighted = np.repeat(self.face_normals(normalized=False)[:, None, :], 3, axis=1)
@@ -237,17 +270,22 @@ class Mesh:
             weighted = self.face_normals()[:, None, :] * self.corner_angles()[:, :, None]
         else:
             raise ValueError(f"Mesh.vertex_normals: mode must be 'area' or 'angle', got {mode!r}")
-        flat_idx = self.indices.ravel()
+        if weld:
+            cls = self.position_classes(groups)
+            count = int(cls.max(initial=-1)) + 1
+        else:
+            cls, count = np.arange(self.vertex_count), self.vertex_count
+        flat_idx = cls[self.indices.ravel()]
         flat_w = weighted.reshape(-1, 3)
         total = np.stack(
-            [np.bincount(flat_idx, weights=flat_w[:, k], minlength=self.vertex_count) for k in range(3)],
+            [np.bincount(flat_idx, weights=flat_w[:, k], minlength=count) for k in range(3)],
             axis=1,
-        )
-        return _normalize_rows(total)
+        ).reshape(count, 3).astype(np.float64)  # bincount of nothing is an int array
+        return _normalize_rows(total)[cls]
 
-    def with_normals(self, mode: NormalWeighting = "area") -> "Mesh":
+    def with_normals(self, mode: NormalWeighting = "area", weld: bool = True) -> "Mesh":
         """A copy whose ``normals`` are :meth:`vertex_normals` (replacing any it had)."""
-        return self.replace(normals=self.vertex_normals(mode))
+        return self.replace(normals=self.vertex_normals(mode, weld))
 
     def signed_volume(self) -> float:
         """Σ p0 · (p1 × p2) / 6 over the triangles.

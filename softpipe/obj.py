@@ -12,7 +12,8 @@ Polygons are fan-triangulated, ``(c0, ci, ci+1)``, which keeps their winding.
 when there is no ``d``, ``map_Kd`` → diffuse texture path, relative to the MTL file).
 ``o`` and ``g`` name parts of the mesh (see :class:`OBJReport`). ``s`` smoothing
 groups matter only when the file has no normals: faces in different groups (or with
-``s off``) then get separate vertices, so :meth:`Mesh.vertex_normals` keeps the crease.
+``s off``) then get separate vertices, and the loader gives the mesh normals welded
+within each group (:meth:`Mesh.vertex_normals` with ``groups``), so the crease stays.
 Every other statement is skipped and counted in ``OBJReport.skipped``. A line ending
 in a backslash continues on the next one; ``#`` starts a comment anywhere.
 
@@ -22,6 +23,16 @@ The mesh has one vertex per distinct (v, vt, vn) triple that a face uses, ordere
 by (v, vt, vn), so for a file with positions only, mesh vertex ``i`` is the
 ``i``-th referenced ``v`` line in file order. Unreferenced ``v`` lines are dropped.
 ``OBJReport.vertex_source`` maps each mesh vertex back to its file elements.
+
+Normals
+-------
+A file without ``vn`` (and without ``s``) gives a mesh without normals: whoever draws
+it computes them with :meth:`Mesh.vertex_normals`, which welds by position, so vertex
+records at one position (a ``v`` line repeated at a patch border, as in the Utah
+teapot, or a vertex split at a UV seam) share one smooth normal while keeping their
+own uvs. The weld is in the mesh, not here, because every way to get smooth normals
+(drawing, ``Mesh.with_normals``, a scene file's ``normals = "area"``) must agree; the
+loader only adds what the mesh cannot know, the smoothing groups (above).
 
 Errors and warnings
 -------------------
@@ -381,7 +392,7 @@ class _OBJParser:
         corner_face = np.repeat(np.arange(len(counts)), counts)
         idx = np.stack([self.resolve(k, raw[:, c], corner_face) for c, k in enumerate(("v", "vt", "vn"))], 1)
         tri_face, tri_corners = _fan(counts)
-        vertex_of_corner, first_corner = self.vertices(idx, corner_face)
+        vertex_of_corner, first_corner, smoothing = self.vertices(idx, corner_face)
         used = idx[first_corner]  # (v, vt, vn) of each mesh vertex
         positions, normals, uvs = self.attributes(data, used)
         face_lines = np.asarray(self.vec["f"][1], np.int64)
@@ -393,6 +404,10 @@ class _OBJParser:
             # Corners without a vn get normals from the faces (a warning said so).
             normals = np.where(used[:, 2:] < 0, mesh.vertex_normals(), normals)
             mesh = mesh.replace(normals=normals)
+        elif smoothing is not None and len(first_corner):
+            # No vn but smoothing groups: welded normals within each group, so a crease
+            # between groups (or at an `s off` face) stays, and the rest is smooth.
+            mesh = mesh.replace(normals=mesh.vertex_normals(groups=smoothing[first_corner]))
         return mesh
 
     def fill_report(self, data: dict, tri_face: np.ndarray, used: np.ndarray) -> None:
@@ -408,13 +423,16 @@ class _OBJParser:
         rep.objects, rep.object_ids = self.labels("o", face_lines, tri_face, "")
         rep.groups, rep.group_ids = self.labels("g", face_lines, tri_face, "default")
 
-    def vertices(self, idx: np.ndarray, corner_face: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    def vertices(self, idx: np.ndarray, corner_face: np.ndarray):
         """One vertex per distinct (v, vt, vn[, smoothing group]) of the corners:
-        (vertex of each corner, first corner of each vertex)."""
+        (vertex of each corner, first corner of each vertex, the smoothing key of each
+        corner or None when smoothing groups do not matter)."""
         cols = [idx[:, 0]] + [idx[:, c] for c in (1, 2) if (idx[:, c] >= 0).any()]
+        smoothing = None
         if (idx[:, 2] < 0).all() and self.events["s"]:
-            cols.append(self.smoothing_key(corner_face))
-        return _unique_rows(cols)
+            smoothing = self.smoothing_key(corner_face)
+            cols.append(smoothing)
+        return _unique_rows(cols) + (smoothing,)
 
     def smoothing_groups(self) -> List[int]:
         """The group number of each ``s`` statement, 0 for ``off``."""

@@ -114,6 +114,42 @@ def test_vertex_normals_rejects_unknown_mode_and_zeroes_unused_vertices():
     np.testing.assert_allclose(np.linalg.norm(mesh.vertex_normals()[:4], axis=1), 1.0)
 
 
+def folded_with_a_split_edge() -> Mesh:
+    """Two triangles folded along the edge x = 0 (normals +z and +x), stored with separate
+    vertex records on that edge (2, 3 repeat 0, 1) and different uvs there: a UV seam."""
+    positions = [[0, 0, 0], [0, 1, 0], [0, 0, 0], [0, 1, 0], [-1, 0, 0], [0, 0, -1]]
+    uvs = [[0, 0], [0, 1], [0.5, 0], [0.5, 1], [1, 0], [1, 1]]
+    return Mesh(positions, [[4, 0, 1], [2, 5, 3]], uvs=uvs)
+
+
+def test_welded_normals_are_shared_by_records_at_one_position_and_keep_their_uvs():
+    mesh = folded_with_a_split_edge()
+    apart = mesh.vertex_normals(weld=False)
+    np.testing.assert_allclose(apart[[0, 1]], [[0, 0, 1]] * 2)    # each record sees only its own face
+    np.testing.assert_allclose(apart[[2, 3]], [[1, 0, 0]] * 2)
+    welded = mesh.vertex_normals()                                 # weld=True is the default
+    np.testing.assert_array_equal(welded[0], welded[2])
+    np.testing.assert_array_equal(welded[1], welded[3])
+    np.testing.assert_allclose(welded[0], np.array([1, 0, 1]) / math.sqrt(2))  # both faces, area-weighted
+    np.testing.assert_array_equal(welded[4], apart[4])             # positions of one record: unchanged
+    classes = mesh.position_classes()
+    assert classes[0] == classes[2] and classes[1] == classes[3] and len(set(classes.tolist())) == 4
+    out = mesh.with_normals()
+    assert out.vertex_count == 6 and np.array_equal(out.uvs, mesh.uvs)  # the records (and uvs) stay
+    np.testing.assert_array_equal(out.normals, welded)
+
+
+def test_weld_groups_keep_a_crease_and_minus_zero_is_zero():
+    mesh = folded_with_a_split_edge()
+    kept = mesh.vertex_normals(groups=np.array([0, 0, 1, 1, 0, 1]))
+    np.testing.assert_array_equal(kept, mesh.vertex_normals(weld=False))
+    with pytest.raises(ValueError, match=r"groups must be an int array of shape \[6\], got float64 \[2\]"):
+        mesh.vertex_normals(groups=np.zeros(2))
+    signed = Mesh([[0.0, 0, 0], [-0.0, 0, 0], [1, 0, 0]], [[0, 2, 2]])
+    assert signed.position_classes()[0] == signed.position_classes()[1]
+    assert Mesh(np.zeros((0, 3)), np.zeros((0, 3), int)).vertex_normals().shape == (0, 3)
+
+
 def test_with_normals_and_flat_shaded():
     mesh = tetra(uvs=np.arange(8.0).reshape(4, 2))
     assert mesh.with_normals("angle").normals is not None

@@ -149,6 +149,19 @@ def test_smoothing_groups_split_vertices_only_without_normals():
     assert with_normals.vertex_count == 4
 
 
+def test_smoothing_groups_without_normals_give_welded_normals_with_the_crease():
+    # Two triangles folded along the edge 1-2 (normals +z and +x).
+    folded = "v 0 0 0\nv 0 1 0\nv -1 0 0\nv 0 0 -1\n"
+    one_group = parse_quiet(folded + "s 1\nf 3 1 2\nf 1 4 2\n")
+    two_groups = parse_quiet(folded + "s 1\nf 3 1 2\ns 2\nf 1 4 2\n")
+    assert one_group.vertex_count == 4 and two_groups.vertex_count == 6
+    edge = [np.flatnonzero(m.source.vertex_source[:, 0] == 0) for m in (one_group, two_groups)]
+    np.testing.assert_allclose(one_group.normals[edge[0]], [np.array([1, 0, 1]) / np.sqrt(2)])  # smooth
+    crease = two_groups.normals[edge[1]]                      # one record per group, each its face's normal
+    np.testing.assert_allclose(sorted(map(tuple, crease)), [(0, 0, 1), (1, 0, 0)], atol=1e-15)
+    assert parse_quiet(folded + "f 3 1 2\nf 1 4 2\n").normals is None  # no s: left to Mesh.vertex_normals
+
+
 def test_corners_without_vn_or_vt_are_filled_with_a_warning():
     text = SQUARE + "vt 0.5 0.5\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\nf 1 3 4\n"
     with pytest.warns(OBJWarning) as record:
@@ -367,6 +380,70 @@ def test_spot_splits_vertices_per_position_uv_pair_and_both_versions_agree():
     lo, hi = tri.bounds()
     np.testing.assert_allclose(lo, [-0.471552, -0.736784, -0.668909])
     np.testing.assert_allclose(hi, [0.471552, 0.953646, 1.049])
+
+
+def _max_angle_between_records_at_one_position(mesh, normals):
+    """The largest angle (degrees) between the normals of two vertex records at one position."""
+    classes = mesh.position_classes()
+    order = np.argsort(classes, kind="stable")
+    starts = np.flatnonzero(np.diff(classes[order], prepend=-1))
+    worst = 0.0
+    for a, b in zip(starts, np.append(starts[1:], len(order))):
+        if b - a > 1:
+            n = normals[order[a:b]]
+            worst = max(worst, float(np.degrees(np.arccos(np.clip(n @ n.T, -1, 1)).max())))
+    return worst
+
+
+def test_teapot_vertices_at_one_position_share_one_smooth_normal():
+    """Issue 14: the teapot repeats 403 `v` lines at its patch borders (3,644 records, 3,241
+    positions). Normals per record made a seam along every border, up to 117° apart at the
+    handle's joint (median 9.7° over the 393 shared positions); welded, they are equal."""
+    mesh = load_obj(ASSETS / "teapot.obj")
+    assert mesh.normals is None and mesh.vertex_count == 3644
+    classes = mesh.position_classes()
+    assert classes.max() + 1 == 3241
+    before = mesh.vertex_normals(weld=False)
+    assert _max_angle_between_records_at_one_position(mesh, before) > 110
+    normals = mesh.vertex_normals()             # what drawing computes for a mesh without normals
+    first = np.zeros(classes.max() + 1, np.int64)
+    first[classes[::-1]] = np.arange(len(classes))[::-1]   # the first record of each position
+    np.testing.assert_array_equal(normals, normals[first[classes]])
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+
+
+def test_spot_keeps_its_uv_seam_records_but_shades_smoothly_across_them():
+    mesh = load_obj(ASSETS / "spot/spot_triangulated.obj")
+    classes = mesh.position_classes()
+    assert classes.max() + 1 == 2930 < mesh.vertex_count      # split only where the uvs differ
+    normals = mesh.with_normals().normals
+    assert _max_angle_between_records_at_one_position(mesh, mesh.vertex_normals(weld=False)) > 5
+    assert _max_angle_between_records_at_one_position(mesh, normals) < 1e-5
+
+
+def test_a_rendered_row_across_a_teapot_seam_has_no_step():
+    """The seam in pixels: drawn with the `normals` program (the eye-space normal as a color),
+    the largest color step between two neighbouring pixels of one row on the surface. Take
+    the pair of pixels where per-record normals made the largest step (a patch border): there
+    the step was 0.117 (ten times the row's median step), and welded it is like its neighbours."""
+    from softpipe.drawing import render_scene
+    from softpipe.scene import Scene
+
+    mesh = load_obj(ASSETS / "teapot.obj")
+    drawn = {}
+    for name, m in (("before", mesh.with_normals(weld=False)), ("after", mesh)):
+        fb = render_scene(Scene.from_model(m, width=200, height=150, program="normals"))
+        drawn[name] = fb.color[..., :3].astype(np.float64), fb.depth
+    depth = drawn["after"][1]
+    covered = depth < 1.0
+    # neighbours on one surface: both covered, nearly the same depth (no silhouette between)
+    same_surface = covered[:, 1:] & covered[:, :-1] & (np.abs(np.diff(depth, axis=1)) < 2e-3)
+    step = {k: np.abs(np.diff(c, axis=1)).max(axis=2) * same_surface for k, (c, _) in drawn.items()}
+    y, x = np.unravel_index(np.argmax(step["before"] - step["after"]), same_surface.shape)
+    row = step["after"][y][same_surface[y]]
+    assert step["before"][y, x] > 0.08 and step["before"][y, x] > 6 * np.median(row)   # the seam was there
+    assert step["after"][y, x] < 0.02 and step["after"][y, x] < 2 * np.median(row)     # and is gone
+    assert row.max() < 0.025                                                           # the whole row is smooth
 
 
 def test_suzanne_normals_follow_their_v_double_slash_vn_indices():
