@@ -103,13 +103,14 @@ from .camera import Camera
 from .framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 from .material import Light, Lighting, Material
 from .mesh import Mesh
-from .models import MODELS, load_model, model_path
+from .models import MODELS, load_model, model_path, texture_path
 from .obj import OBJError, load_obj
 from .sampling import pattern_named
 # default_program, program_for and studio_lights are not used here: they lived here
 # once, and old ``scenefile.studio_lights`` callers keep working.
 from .scene import (FrameSpec, Scene, SceneObject, default_program, framed_camera, program_for,  # noqa: F401
                     studio_lights)
+from .files import PathPolicyError, check_regular_file, resolve_inside
 from .shaders import PROGRAMS
 from .transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
 
@@ -348,8 +349,8 @@ def _estimate_triangles(shape: str, p: Dict[str, Any]) -> int:
 class _Reader:
     """One load of one scene file."""
 
-    def __init__(self, file: str, base_dir: str) -> None:
-        self.file, self.base_dir = file, base_dir
+    def __init__(self, file: str, base_dir: str, allow_outside: bool = False) -> None:
+        self.file, self.base_dir, self.allow_outside = file, base_dir, allow_outside
         self.triangles = 0
         self.warnings: List[str] = []
         self._objs: Dict[str, Mesh] = {}
@@ -365,7 +366,10 @@ class _Reader:
         rel = table.get(key, string)
         if not rel.strip() or "\0" in rel:
             raise table.error(f"must name a file, got {_describe(rel)}", key)
-        path = os.path.normpath(os.path.join(self.base_dir, os.path.expanduser(rel)))
+        try:
+            path = resolve_inside(self.base_dir, rel, allow_outside=self.allow_outside)
+        except PathPolicyError as e:
+            raise self.error(f"key {key!r} in {table.label}: {e}", table=table.label, key=key) from None
         if not os.path.isfile(path):
             problem = (f"is a directory, not a file: {path}" if os.path.isdir(path) else
                        f"file not found: {path}{hint}")
@@ -484,7 +488,8 @@ class _Reader:
             if key in t:
                 kw[key] = t.get(key, number)
         if "diffuse_texture" in t:
-            kw["diffuse_texture"] = self.path(t, "diffuse_texture")
+            bundled = _bundled_texture(t.data["diffuse_texture"])
+            kw["diffuse_texture"] = bundled if bundled is not None else self.path(t, "diffuse_texture")
         material = t.library(None, lambda: Material(**kw))
         if material.diffuse_texture:
             self.texture(material.diffuse_texture, t, "diffuse_texture")
@@ -643,6 +648,15 @@ def _is_bare_word(text: str) -> bool:
     return "/" not in text and "\\" not in text and not text.lower().endswith(".obj")
 
 
+def _bundled_texture(value: Any) -> Optional[str]:
+    """The bundled texture ``diffuse_texture = value`` names (``"spot"``: the texture of the
+    model "spot"), or None for a file name."""
+    if not isinstance(value, str) or _bundled_model(value) is None:
+        return None
+    found = texture_path(value)
+    return None if found is None else os.fspath(found)
+
+
 def _bundled_model(value: Any) -> Optional[str]:
     """The bundled model file ``obj = value`` names (``"bunny"``), or None for a file name.
 
@@ -697,10 +711,15 @@ def _transform_entry(kind: str, v: Any) -> np.ndarray:
 _LINE = re.compile(r"\(at line (\d+), column (\d+)\)")
 
 
-def parse_scene(text: str, name: str = "<string>", base_dir: Optional[str] = None) -> Scene:
+def parse_scene(text: str, name: str = "<string>", base_dir: Optional[str] = None, *,
+                allow_outside: bool = False) -> Scene:
     """A scene from TOML text; ``name`` labels errors, ``base_dir`` resolves file names
-    (the current directory by default)."""
-    reader = _Reader(name, os.fspath(base_dir) if base_dir is not None else "")
+    (the current directory by default).
+
+    The files it names must lie in ``base_dir`` or below (:func:`softpipe.files.resolve_inside`);
+    ``allow_outside=True`` lifts that for a scene you trust.
+    """
+    reader = _Reader(name, os.fspath(base_dir) if base_dir is not None else "", allow_outside)
     if _toml is None:  # pragma: no cover
         raise reader.error("reading scene files needs Python 3.11 (tomllib) or the 'tomli' package")
     if not isinstance(text, str):
@@ -729,8 +748,9 @@ def parse_scene(text: str, name: str = "<string>", base_dir: Optional[str] = Non
         raise reader.error("the scene is nested too deeply") from None
 
 
-def load_scene(path) -> Scene:
-    """Read a scene file (TOML); file names in it are relative to its folder.
+def load_scene(path, *, allow_outside: bool = False) -> Scene:
+    """Read a scene file (TOML); file names in it are relative to its folder, and must lie in
+    it or below unless ``allow_outside=True`` (:func:`softpipe.files.resolve_inside`).
 
     Every problem raises :class:`SceneError` naming the file, table and key. Warnings
     (e.g. an OBJ's missing MTL file) are kept in ``Scene.warnings`` and issued as
@@ -738,8 +758,11 @@ def load_scene(path) -> Scene:
     """
     path = os.fspath(path)
     try:
+        check_regular_file(path)
         with open(path, "rb") as f:
             raw = f.read()
+    except PathPolicyError as e:
+        raise SceneError(str(e), file=path) from None
     except FileNotFoundError:
         raise SceneError("scene file not found", file=path) from None
     except IsADirectoryError:
@@ -751,7 +774,7 @@ def load_scene(path) -> Scene:
     except UnicodeDecodeError as e:
         line = raw[:e.start].count(b"\n") + 1
         raise SceneError(f"not UTF-8 text (byte {e.start})", file=path, line=line) from None
-    scene = parse_scene(text, path, os.path.dirname(os.path.abspath(path)))
+    scene = parse_scene(text, path, os.path.dirname(os.path.abspath(path)), allow_outside=allow_outside)
     for message in scene.warnings:
         warnings.warn(message, SceneWarning, stacklevel=2)
     return scene
