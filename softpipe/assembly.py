@@ -100,7 +100,12 @@ def _check_indices(indices, n_vertices: int) -> np.ndarray:
         raise TypeError(f"indices must be an integer array, got dtype {arr.dtype}")
     if not (arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] == 3)):
         raise ValueError(f"indices must have shape [M] or [M, 3], got {list(np.shape(indices))}")
-    arr = arr.astype(np.int64, copy=False).reshape(-1)
+    flat = arr.reshape(-1)
+    if flat.size and flat.dtype.kind == "u" and int(flat.max()) >= n_vertices:
+        # checked before the cast: a uint64 above 2^63 would turn negative in int64
+        where = int(np.argmax(flat >= n_vertices))
+        raise ValueError(f"indices[{where}] = {int(flat[where])} is out of range for {n_vertices} vertices")
+    arr = flat.astype(np.int64, copy=False)
     if arr.size:
         lo, hi = int(arr.min()), int(arr.max())
         if lo < 0 or hi >= n_vertices:

@@ -267,3 +267,11 @@ def test_unindexed_list_gives_what_indices_in_order_give(case):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert {k: list(v) for k, v in a.dropped.items()} == {k: list(v) for k, v in b.dropped.items()}
     assert (len(a) == 6) == (case == "all kept")
+
+
+def test_a_huge_unsigned_index_is_reported_as_it_is_not_wrapped_negative():
+    import softpipe as sp
+    clip = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [0, 1, 0, 1]], float)
+    idx = np.array([0, 1, 2, 0, 1, 2**64 - 1], dtype=np.uint64)
+    with pytest.raises(ValueError, match=r"indices\[5\] = 18446744073709551615 is out of range for 3 vertices"):
+        sp.draw(sp.Framebuffer(8, 8), clip, idx, varyings={"color": np.ones((3, 3))})
