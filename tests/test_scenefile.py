@@ -63,7 +63,12 @@ def test_minimal_scene_has_defaults_and_a_framed_camera():
     assert scene.camera is None and scene.lights is None  # framed, studio lights
     cam = scene.view_camera()
     assert isinstance(cam, Camera)
-    assert np.allclose(cam.target, (0, 0, 0))
+    # framed: the cube's corners project centred in the picture, filling 1 / margin of its height
+    corners = np.array([[x, y, z, 1.0] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    clip = cam.projection(640 / 480) @ cam.view @ corners.T
+    ndc = clip[:2] / clip[3]
+    np.testing.assert_allclose(ndc.min(axis=1), -ndc.max(axis=1), atol=1e-9)
+    assert ndc.max() == pytest.approx(1 / 1.1)
     assert len(scene.lighting_for(cam).lights) == 3
 
 
