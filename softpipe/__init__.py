@@ -11,6 +11,7 @@ from . import _runtime  # noqa: F401  (first: process settings, see its docstrin
 from . import glsl, lighting, shapes
 from .assembly import Primitives, assemble
 from .camera import Camera
+from .colors import parse_color
 from .fragment import ShadedFragments
 from .framebuffer import Framebuffer
 from .material import Light, Lighting, LightingUniform, Material, MaterialUniform, pack_lights
@@ -22,7 +23,7 @@ from .output import MergeResult, MergeState
 from .pipeline import DrawCall, Stage, draw
 from .raster import Fragments, rasterize
 from .sampling import CENTER, SamplePattern, grid, jittered, random_pattern, rotated_grid_4x
-from .drawing import draw_mesh, standard_uniforms
+from .drawing import draw_mesh, render, render_scene, standard_uniforms, turntable
 from .scene import Scene
 from .shader import DISCARD, FragInfo, ShaderError, make_uniforms
 from .texture import Texture2D, TextureUniform

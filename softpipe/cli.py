@@ -10,15 +10,15 @@
 Errors are one line on stderr and exit status 2; ``--help`` documents every option.
 Every render prints where it wrote and how long it took; progress goes to stderr.
 
-This module only turns options into a :class:`~softpipe.scene.Scene` (a model through
-:meth:`Scene.from_model <softpipe.scene.Scene.from_model>`, a scene file through
-:func:`softpipe.scenefile.load_scene`) and draws it with
-:func:`softpipe.drawing.render_scene`, as the Python API does.
+This module only turns options into the keyword arguments of :func:`softpipe.render`
+and :func:`softpipe.turntable` (``softpipe.drawing``), checks them with messages that
+name the options, and calls those: the Python API and the command line make the same
+pictures by one code path. Colors (``--background``, ``--wire-color``) are read by
+:func:`softpipe.colors.parse_color`, as the API reads them.
 """
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import os
 import re
@@ -28,9 +28,9 @@ import warnings
 from pathlib import Path
 from typing import List, Optional, Sequence, Tuple
 
-__all__ = ["main", "build_parser", "CLIError"]
+from .drawing import MAX_FRAMES  # softpipe turntable's limit is softpipe.turntable's
 
-MAX_FRAMES = 3600
+__all__ = ["main", "build_parser", "CLIError"]
 
 
 class CLIError(Exception):
@@ -76,20 +76,12 @@ def _width_height(text: str) -> Tuple[int, int]:
 
 
 def _color(text: str) -> Tuple[float, ...]:
-    """'0.1,0.2,0.3[,1]' (linear 0..1), or a CSS color ('#202830', 'white', 'rgb(20,30,40)')."""
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    if len(parts) in (3, 4) and all(re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", p) for p in parts):
-        values = tuple(float(p) for p in parts)
-        if not all(0.0 <= v <= 1.0 for v in values):
-            raise argparse.ArgumentTypeError(f"color components must be in 0..1, got {text!r}")
-        return values
-    from PIL import ImageColor
+    """--background, --wire-color: what softpipe.colors.parse_color reads ('0.1,0.2,0.3', '#202830', 'white')."""
+    from .colors import parse_color
     try:
-        rgb = ImageColor.getrgb(text.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a color such as '0.1,0.1,0.12', '#1a1a20' or 'white', "
-                                         f"got {text!r}") from None
-    return tuple(c / 255.0 for c in rgb)
+        return parse_color(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _angle(text: str) -> float:
@@ -200,6 +192,9 @@ def build_parser() -> argparse.ArgumentParser:
                f"\nmodels bundled with softpipe (INPUT may name one): {models}.\n"
                "\nerrors print one line on stderr and exit with status 2.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
+    from . import __version__
+    parser.add_argument("--version", action="version", version=f"softpipe {__version__}",
+                        help="print softpipe's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     render = sub.add_parser(
@@ -290,32 +285,18 @@ def _progress(args, message: str) -> None:
 
 
 def _check_input(name: str) -> str:
-    """The kind of INPUT (".obj" or ".toml"), after a bundled model's name becomes its file."""
-    from .models import model_path
-    path = os.fspath(model_path(name))  # a bare word that is neither a model nor a file: ValueError
-    if not os.path.exists(path):
-        raise CLIError(f"{path}: no such file")
-    if os.path.isdir(path):
-        raise CLIError(f"{path}: is a directory, not a model or scene file")
-    kind = Path(path).suffix.lower()
-    if kind not in (".obj", ".toml"):
-        raise CLIError(f"{path}: expected a .obj model or a .toml scene file")
-    return kind
+    """The kind of INPUT (".obj" or ".toml"), checked before the (possibly slow) options and loading."""
+    from .drawing import input_kind
+    return input_kind(name)
 
 
-def _image_format(path: str, animated: bool = False) -> str:
+def _image_format(path: str) -> str:
     """The pillow format for an output file name (checked before rendering)."""
-    from PIL import Image
-    ext = Path(path).suffix.lower()
-    if animated:
-        if ext not in (".gif", ".png"):
-            raise CLIError(f"{path}: an animation is written as .gif or .png (animated PNG), not {ext or 'no extension'!r}")
-        return "GIF" if ext == ".gif" else "PNG"
-    Image.init()
-    fmt = Image.registered_extensions().get(ext)
-    if fmt is None or fmt not in Image.SAVE:
-        raise CLIError(f"{path}: cannot write images with extension {ext or '(none)'!r}; use .png, .jpg, .bmp, .tif, ...")
-    return fmt
+    from .framebuffer import image_format
+    try:
+        return image_format(path)
+    except ValueError as e:
+        raise CLIError(str(e)) from None
 
 
 def _frame_size(args, default: Tuple[int, int]) -> Tuple[Optional[int], Optional[int]]:
@@ -326,106 +307,42 @@ def _frame_size(args, default: Tuple[int, int]) -> Tuple[Optional[int], Optional
     return args.width or default[0], args.height or default[1]
 
 
-def _model_scene(args, default_size: Tuple[int, int]):
-    """The Scene for one model (Scene.from_model: framed camera, studio lights), the options applied.
+def _check_options(args, kind: str, default_size) -> None:
+    """The checks that need no file, before the (possibly slow) loading, worded for the command line."""
+    from .framebuffer import MAX_DIMENSION
+    from .shaders import PROGRAMS
+    if args.program is not None and args.program not in PROGRAMS:
+        raise CLIError(f"--program: unknown program {args.program!r}; registered programs: "
+                       f"{', '.join(sorted(PROGRAMS))}")
+    w, h = _frame_size(args, default_size)
+    if max(w, h) > MAX_DIMENSION:
+        raise CLIError(f"image size {w}×{h}: a side may be at most {MAX_DIMENSION} pixels (MAX_DIMENSION)")
+    if args.texture and not os.path.isfile(args.texture):
+        raise CLIError(f"--texture: {args.texture}: no such file")
+    if args.texture and kind == ".toml":
+        raise CLIError("--texture applies to an OBJ model; in a scene file give the material a diffuse_texture")
 
-    The model is read here rather than by Scene.from_model so that its problems are
-    worded for the command line (``--texture``) and its warnings are one line each.
-    """
-    from .models import load_model
-    from .scene import Scene
 
+def _options(args) -> dict:
+    """The command line's options as the keyword arguments of softpipe.render and softpipe.turntable."""
+    width, height = args.size if args.size else (args.width, args.height)
+    return dict(width=width, height=height, program=args.program, texture=args.texture or None,
+                background=args.background, samples=args.samples, msaa=args.msaa, cull=args.cull,
+                wireframe=args.wireframe, wire_color=args.wire_color, azimuth=args.azimuth,
+                elevation=args.elevation, fovy=args.fovy)
+
+
+def _prepare(args, default_size):
+    """The Scene softpipe.render draws for these options (softpipe.drawing.prepare_scene); warnings one line each."""
+    from .drawing import prepare_scene
+    kind = _check_input(args.input)
+    _check_options(args, kind, default_size)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        try:
-            mesh = load_model(args.input)
-        except UnicodeError as e:
-            raise CLIError(f"{args.input}: cannot read: {e}") from None
-    for w in caught:
-        _note(args, f"warning: {w.message}")
-    if mesh.triangle_count == 0:
-        raise CLIError(f"{args.input}: the file has no faces (f lines) to render")
-    if args.texture:
-        if not os.path.isfile(args.texture):
-            raise CLIError(f"--texture: {args.texture}: no such file")
-        if mesh.uvs is None:
-            raise CLIError(f"{args.input} has no texture coordinates (vt), so --texture cannot be applied")
-    width, height = _frame_size(args, default_size)
-    with warnings.catch_warnings(record=True) as caught:  # a material's texture that cannot be read
-        warnings.simplefilter("always")
-        scene = Scene.from_model(mesh, texture=args.texture or None, width=width, height=height,
-                                 azimuth=30.0 if args.azimuth is None else args.azimuth,
-                                 elevation=20.0 if args.elevation is None else args.elevation,
-                                 fovy=35.0 if args.fovy is None else args.fovy, path=args.input)
-    for w in caught:
-        _note(args, f"warning: {w.message}")
-    return _apply_options(args, scene, model=True)
-
-
-def _load_scene_file(args, default_size):
-    from .scenefile import load_scene
-    if args.texture:
-        raise CLIError("--texture applies to an OBJ model; in a scene file give the material a diffuse_texture")
-    with warnings.catch_warnings(record=True):
-        warnings.simplefilter("always")
-        scene = load_scene(args.input)
-    for message in scene.warnings:
+        scene = prepare_scene(args.input, default_size=default_size, **_options(args))
+    for message in dict.fromkeys(str(w.message) for w in caught):
         _note(args, f"warning: {message}")
-    if args.size or args.width or args.height:
-        w, h = _frame_size(args, (scene.width, scene.height))
-        scene = scene.replace(width=w, height=h)
-    if args.fovy is not None:
-        if scene.camera is not None:
-            scene = scene.replace(camera=scene.camera.replace(fovy=args.fovy))
-        else:
-            scene = scene.replace(frame=dataclasses.replace(scene.frame, fovy=args.fovy))
-    if (args.azimuth is not None or args.elevation is not None) and scene.camera is not None:
-        raise CLIError(f"{args.input}: --azimuth/--elevation apply to a framed camera, and this scene's "
-                       "[camera] gives an eye")
-    if scene.camera is None and (args.azimuth is not None or args.elevation is not None):
-        f = scene.frame
-        scene = scene.replace(frame=dataclasses.replace(
-            f, azimuth=f.azimuth if args.azimuth is None else args.azimuth,
-            elevation=f.elevation if args.elevation is None else args.elevation))
-    return _apply_options(args, scene, model=False)
-
-
-def _apply_options(args, scene, model: bool):
-    from .framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
-    from .sampling import pattern_named
     from .shaders import PROGRAMS
-    changes = {}
-    if args.background is not None:
-        bg = tuple(args.background)
-        changes["background"] = bg + ((1.0,) if len(bg) == 3 else ())
-    samples = args.samples or ("rgss4" if args.msaa and scene.samples in ("1", "center", "none") else None)
-    if samples:
-        changes["samples"] = samples
-    if args.msaa:
-        changes["sample_shading"] = "center"
-    if args.program is not None:
-        if args.program not in PROGRAMS:
-            raise CLIError(f"--program: unknown program {args.program!r}; registered programs: "
-                           f"{', '.join(sorted(PROGRAMS))}")
-        changes["program"] = args.program
-        for obj in scene.objects:
-            obj.program = None
-    if args.cull is not None:
-        changes["cull"] = args.cull
-        for obj in scene.objects:
-            obj.cull = None
-    if args.wireframe:
-        changes["wireframe"] = True
-    if args.wire_color is not None:
-        changes["wireframe_color"] = tuple(args.wire_color[:3])
-    scene = scene.replace(**changes)
-    count = len(pattern_named(scene.samples))
-    if max(scene.width, scene.height) > MAX_DIMENSION:
-        raise CLIError(f"image size {scene.width}×{scene.height}: a side may be at most {MAX_DIMENSION} pixels "
-                       "(MAX_DIMENSION)")
-    if scene.width * scene.height * count > MAX_TOTAL_SAMPLES:
-        raise CLIError(f"image size {scene.width}×{scene.height} × {count} samples exceeds the limit "
-                       f"MAX_TOTAL_SAMPLES = {MAX_TOTAL_SAMPLES}")
     if args.texture and "textured" not in PROGRAMS and args.program is None:
         _note(args, "note: no 'textured' program is registered yet, so the texture is passed as uniform "
                     f"'texture' but not shown; drawing with {scene_program(scene)!r}")
@@ -437,113 +354,47 @@ def scene_program(scene) -> str:
     return ", ".join(sorted({program_for(o, scene.program) for o in scene.objects}))
 
 
-def _check_options(args, default_size) -> None:
-    """The checks that need no file, before the (possibly slow) loading."""
-    from .framebuffer import MAX_DIMENSION
-    from .shaders import PROGRAMS
-    if args.program is not None and args.program not in PROGRAMS:
-        raise CLIError(f"--program: unknown program {args.program!r}; registered programs: "
-                       f"{', '.join(sorted(PROGRAMS))}")
-    w, h = _frame_size(args, default_size)
-    if max(w, h) > MAX_DIMENSION:
-        raise CLIError(f"image size {w}×{h}: a side may be at most {MAX_DIMENSION} pixels (MAX_DIMENSION)")
-    if args.texture and not os.path.isfile(args.texture):
-        raise CLIError(f"--texture: {args.texture}: no such file")
-
-
-def _prepare(args, default_size):
-    kind = _check_input(args.input)
-    _check_options(args, default_size)
-    if kind == ".obj":
-        return _model_scene(args, default_size)
-    return _load_scene_file(args, default_size)
-
-
 def _default_output(args, ext: str) -> str:
     return args.output or os.path.join("out", Path(args.input).stem + ext)
 
 
-def _safe_name(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-") or "draw"
-
-
 def _render(args) -> int:
-    from .pictures import draw_wireframe
-    from .drawing import render_scene
+    from .drawing import RENDER_SIZE, render
     start = time.perf_counter()
     output = _default_output(args, ".png")
-    fmt = _image_format(output)
-    scene = _prepare(args, (640, 480))
-    camera = scene.view_camera()
-    n = len(scene.objects)
+    _image_format(output)
+    scene = _prepare(args, RENDER_SIZE)
 
     def progress(k, total, obj):
         if total > 1:
             _progress(args, f"draw {k + 1}/{total}: {obj.name} ({obj.mesh.triangle_count} triangles)")
 
     results: list = []
-    wire = scene.wireframe
-    fb = render_scene(scene.replace(wireframe=False), camera=camera, trace=bool(args.stages), results=results,
-                      progress=progress)
-    if args.stages:
-        stage_dir = Path(args.stages)
-        for k, r in enumerate(results):
-            folder = stage_dir if n == 1 else stage_dir / f"{k + 1:02d}-{_safe_name(r.name)}"
-            paths = r.trace.save_pictures(folder)
-            for name, path in paths.items():
-                print(f"softpipe render: stage picture {path}")
-    if wire:
-        draw_wireframe(fb, [r.primitives for r in results], scene.wireframe_color)
-    path = Path(output)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    image = fb.to_image()
-    image.save(path, format=fmt)
+    fb = render(scene, stages=args.stages, results=results, progress=progress)
+    for r in results:
+        for path in r.pictures.values():
+            print(f"softpipe render: stage picture {path}")
+    path = fb.save(output)
     programs = ", ".join(dict.fromkeys(r.program for r in results))
     print(f"softpipe render: wrote {path.resolve()} ({scene.width}×{scene.height}, {scene.triangle_count} "
           f"triangles, program {programs}, {time.perf_counter() - start:.2f} s)")
     return 0
 
 
-def _orbit(camera, degrees: float):
-    """The camera with its eye turned about the vertical axis through its target."""
-    import numpy as np
-    from .transforms import rotate_y
-    eye, target = np.asarray(camera.eye), np.asarray(camera.target)
-    offset = (rotate_y(degrees) @ np.append(eye - target, 0.0))[:3]
-    return camera.replace(eye=tuple(target + offset))
-
-
 def _turntable(args) -> int:
-    from .drawing import render_scene
+    from .drawing import TURNTABLE_SIZE, animation_format, frame_duration, turntable
     start = time.perf_counter()
     output = _default_output(args, ".gif")
-    fmt = _image_format(output, animated=True)
-    scene = _prepare(args, (320, 240))
-    base = scene.view_camera()
-    first = scene.frame.azimuth
-    images = []
-    for i in range(args.frames):
-        turn = 360.0 * i / args.frames
-        camera = _orbit(base, turn) if scene.camera is not None else scene.view_camera(azimuth=first + turn)
-        fb = render_scene(scene, camera=camera)
-        images.append(fb.to_image())
-        _progress(args, f"frame {i + 1}/{args.frames}")
-    path = Path(output)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    duration = max(int(round(100.0 / args.fps)), 1) * 10  # GIF stores hundredths of a second
-    if fmt == "GIF":
-        frames = [im.quantize(colors=256, method=_median_cut()) for im in images]
-    else:
-        frames = images
-    frames[0].save(path, format=fmt, save_all=True, append_images=frames[1:], duration=duration, loop=0)
+    try:
+        animation_format(output)
+    except ValueError as e:
+        raise CLIError(str(e)) from None
+    scene = _prepare(args, TURNTABLE_SIZE)
+    path = turntable(scene, output, frames=args.frames, fps=args.fps,
+                     progress=lambda i, n: _progress(args, f"frame {i}/{n}"))
     print(f"softpipe turntable: wrote {path.resolve()} ({args.frames} frames, {scene.width}×{scene.height}, "
-          f"{duration} ms each, {time.perf_counter() - start:.2f} s)")
+          f"{frame_duration(args.fps)} ms each, {time.perf_counter() - start:.2f} s)")
     return 0
-
-
-def _median_cut():
-    from PIL import Image
-    return Image.Quantize.MEDIANCUT
 
 
 # ---------------------------------------------------------------------------- main

@@ -230,8 +230,11 @@ def test_bad_scene_file(capsys, tmp_path):
     (["--program", "nope"], "--program: unknown program 'nope'; registered programs: "),
     (["--cull", "sideways"], "argument --cull: invalid choice: 'sideways'"),
     (["--samples", "grid5"], "argument --samples: sample pattern 'grid5': grid needs a square number"),
-    (["--background", "mauve-ish"], "argument --background: expected a color"),
-    (["--background", "2,0,0"], "argument --background: color components must be in 0..1"),
+    (["--background", "mauve-ish"], "argument --background: unknown color 'mauve-ish': expected a CSS name such as "
+                                    "'red', '#rrggbb'"),
+    (["--background", "gren"], "argument --background: unknown color 'gren' (did you mean 'green'?)"),
+    (["--background", "2,0,0"], "argument --background: color '2,0,0': color components must be in 0..1"),
+    (["--wire-color", "0,1"], "argument --wire-color: color '0,1': expected 3 or 4 numbers (r,g,b[,a]), got 2"),
     (["--azimuth", "north"], "argument --azimuth: expected an angle in degrees, got 'north'"),
     (["--fovy", "190"], "argument --fovy: expected a field of view in (0, 180) degrees"),
     (["-o", "x.xyz"], "x.xyz: cannot write images with extension '.xyz'"),
@@ -260,14 +263,51 @@ def test_texture_needs_uvs(capsys, tmp_path):
     plain.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     Image.new("RGB", (2, 2)).save(tmp_path / "t.png")
     code, _, err = run(capsys, "render", plain, "--texture", tmp_path / "t.png", "-o", tmp_path / "x.png")
-    assert code == 2 and "has no texture coordinates (vt), so --texture cannot be applied" in one_error_line(err)
+    assert code == 2
+    assert one_error_line(err) == (f"softpipe render: error: {plain} has no texture coordinates (vt), so a texture "
+                                   "cannot be applied")
+
+
+def test_program_textured_needs_uvs(capsys, tmp_path):
+    plain = tmp_path / "plain.obj"
+    plain.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    for command, output in (("render", "x.png"), ("turntable", "x.gif")):
+        code, _, err = run(capsys, command, plain, "--program", "textured", "-o", tmp_path / output)
+        assert code == 2
+        assert one_error_line(err, command) == (f"softpipe {command}: error: {plain}: the model has no texture "
+                                                "coordinates (vt), so program 'textured' cannot draw it")
+    scene = tmp_path / "s.toml"
+    scene.write_text('[[meshes]]\nobj = "plain.obj"\nprogram = "textured"\n')
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "x.png")
+    assert code == 2
+    assert one_error_line(err).endswith(f"{scene}: mesh 'plain' has no texture coordinates (vt), so program "
+                                        "'textured' cannot draw it")
+
+
+def test_version(capsys):
+    import softpipe
+    code, out, err = run(capsys, "--version")
+    assert code == 0 and out.strip() == f"softpipe {softpipe.__version__}" and err == ""
+    done = subprocess.run([sys.executable, "-m", "softpipe", "--version"], capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == f"softpipe {softpipe.__version__}"
+
+
+def test_named_colors(capsys, model, tmp_path):
+    out = tmp_path / "c.png"
+    code, _, err = run(capsys, "render", model, "-o", out, "--size", "16x12", "--background", "red")
+    assert code == 0, err
+    assert tuple(np.asarray(Image.open(out))[0, 0]) == (255, 0, 0)
+    code, _, err = run(capsys, "render", model, "-o", out, "--size", "16x12", "--background", "#ff8000")
+    assert code == 0 and tuple(np.asarray(Image.open(out))[0, 0]) == (255, 128, 0)
 
 
 def test_angles_need_a_framed_camera(capsys, tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text('[camera]\neye = [0, 0, 5]\n[[meshes]]\nshape = "cube"\n')
     code, _, err = run(capsys, "render", scene, "--azimuth", "10", "-o", tmp_path / "x.png")
-    assert code == 2 and "--azimuth/--elevation apply to a framed camera" in one_error_line(err)
+    assert code == 2
+    assert one_error_line(err) == (f"softpipe render: error: {scene}: azimuth/elevation apply to a framed camera, "
+                                   "and this scene's [camera] gives an eye")
 
 
 def test_not_a_model(capsys, tmp_path):

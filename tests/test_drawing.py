@@ -246,7 +246,16 @@ def _module_imports(name: str, anywhere: bool) -> set:
     ("scene", True, {"drawing", "pipeline", "pictures", "scenefile", "cli", "demo"}),   # the model draws nothing
     # reading draws nothing
     ("scenefile", False, {"drawing", "pipeline", "pictures", "cli", "demo"}),
-    ("drawing", True, {"scenefile", "cli", "demo"}),                                   # drawing reads no files
+    ("drawing", True, {"cli", "demo"}),
+    ("drawing", False, {"scenefile"}),
 ])
 def test_lower_modules_do_not_import_higher_ones(module, anywhere, never):
     assert not _module_imports(module, anywhere) & never
+
+
+def test_drawing_reads_a_scene_file_only_for_render():
+    """draw_mesh and render_scene read no files; softpipe.render(PATH.toml) reads one, in one function."""
+    tree = ast.parse((SOFTPIPE / "drawing.py").read_text())
+    readers = {fn.name for fn in ast.walk(tree) if isinstance(fn, ast.FunctionDef)
+               for node in ast.walk(fn) if isinstance(node, ast.ImportFrom) and node.module == "scenefile"}
+    assert readers == {"_load_input"}
