@@ -73,32 +73,73 @@ class PixelEvent:
 
 
 class PixelHistory(list):
-    """The :class:`PixelEvent` list of one pixel; prints as a table."""
+    """The :class:`PixelEvent` list of one pixel; prints as a table (an HTML table in Jupyter)."""
 
     def __init__(self, x: int, y: int, events: List[PixelEvent], before: tuple):
         super().__init__(events)
         self.x, self.y, self.before = x, y, before
 
-    def __str__(self) -> str:
-        def fmt(v):
-            if isinstance(v, tuple):
-                return "(" + ", ".join(f"{c:.4g}" for c in v) + ")"
-            return f"{v:.4g}" if isinstance(v, float) else str(v)
+    @staticmethod
+    def _fmt(v) -> str:
+        if isinstance(v, tuple):
+            return "(" + ", ".join(f"{c:.4g}" for c in v) + ")"
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
 
-        head = f"pixel ({self.x}, {self.y}): {len(self)} fragment(s); color before the draw {fmt(self.before)}"
+    def _heading(self) -> str:
+        return (f"pixel ({self.x}, {self.y}): {len(self)} fragment(s); color before the draw "
+                f"{self._fmt(self.before)}")
+
+    def table(self):
+        """(column names, rows of cell strings): the table that ``str()`` and Jupyter show."""
         if not self:
-            return head
+            return [], []
+        fmt = self._fmt
         names = list(self[0].varyings._fields)
         cols = ["#", "prim", "sample", "depth"] + names + ["shader output", "depth test", "color after"]
         rows = [[str(e.index), str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
                 + [fmt(getattr(e.varyings, n)) for n in names]
-                + [fmt(e.color), e.verdict, fmt(e.color_after)] for e in self]
+                + [fmt(e.color), str(e.verdict), fmt(e.color_after)] for e in self]
+        return cols, rows
+
+    def __str__(self) -> str:
+        head = self._heading()
+        cols, rows = self.table()
+        if not rows:
+            return head
         widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(cols)]
         line = lambda r: "  ".join(v.ljust(w) for v, w in zip(r, widths))  # noqa: E731
         return "\n".join([head, line(cols), line(["-" * w for w in widths])] + [line(r) for r in rows])
 
     def _repr_pretty_(self, p, cycle):
         p.text(str(self))
+
+    def _repr_html_(self) -> str:
+        """The table as HTML for Jupyter: every value escaped, a color swatch beside each RGBA."""
+        from html import escape
+
+        def swatch(value) -> str:
+            if not (isinstance(value, tuple) and len(value) == 4
+                    and all(isinstance(c, float) and np.isfinite(c) for c in value)):
+                return ""
+            r, g, b = (int(round(min(max(c, 0.0), 1.0) * 255)) for c in value[:3])
+            style = (f"display:inline-block;width:0.9em;height:0.9em;margin-right:0.3em;vertical-align:middle;"
+                     f"border:1px solid #888;background:rgb({r},{g},{b})")
+            return f'<span style="{escape(style)}"></span>'
+
+        cols, rows = self.table()
+        out = ['<div class="softpipe-pixel-history">', f"<p>{escape(self._heading())}</p>"]
+        if rows:
+            colored = {len(cols) - 3: "color", len(cols) - 1: "color_after"}
+            out.append('<table><thead><tr>' + "".join(f"<th>{escape(c)}</th>" for c in cols) + "</tr></thead><tbody>")
+            for event, row in zip(self, rows):
+                cells = []
+                for i, cell in enumerate(row):
+                    mark = swatch(getattr(event, colored[i])) if i in colored else ""
+                    cells.append(f"<td>{mark}{escape(cell)}</td>")
+                out.append("<tr>" + "".join(cells) + "</tr>")
+            out.append("</tbody></table>")
+        out.append("</div>")
+        return "\n".join(out)
 
 
 class Trace:
