@@ -3,6 +3,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 
@@ -16,6 +17,14 @@ def test_readme_examples_run_and_draw(tmp_path, monkeypatch):
         exec(compile(block, str(README), "exec"), namespace)
     fb = namespace["fb"]
     assert (tmp_path / "triangle.png").exists()
+    # From Python: softpipe.render and softpipe.turntable with the command line's defaults
+    with Image.open(tmp_path / "teapot.png") as teapot:
+        assert teapot.size == (640, 480)
+    pixels = namespace["pixels"]
+    assert pixels.shape == (240, 320, 3) and pixels.dtype == np.uint8
+    assert tuple(pixels[0, 0]) == (255, 255, 255) and (pixels != 255).any(axis=2).sum() > 5000
+    with Image.open(tmp_path / "spin.gif") as spin:
+        assert spin.n_frames == 12 and spin.size == (320, 240)
     # the stripes shader brightened every other 4-pixel column band of the triangle
     lit = fb.color[..., :3].sum(axis=2) > 0
     rows, cols = np.nonzero(lit)
