@@ -20,6 +20,7 @@ from __future__ import annotations
 import itertools
 import os
 import queue
+import sys
 import threading
 import time
 
@@ -50,8 +51,15 @@ def in_bands(kernel, rows: int, *args, grain: int = 1) -> None:
     started after it, the bands under way are given
     :data:`INTERRUPT_GRACE_S` to end, and the KeyboardInterrupt is raised.
     An error in a band stops the others from starting new bands and is
-    raised here, once every band under way has ended.
+    raised here, once every band under way has ended. Under
+    ``NUMBA_DISABLE_JIT=1``, or with a debugger or profiler on the calling
+    thread, the kernel runs in the calling thread instead, in one piece.
     """
+    if numba.config.DISABLE_JIT or sys.gettrace() is not None or sys.getprofile() is not None:
+        # Python kernels (or a debugger or profiler watching this thread): run them here, where
+        # a breakpoint stops and a profiler counts; they would hold the GIL anyway.
+        kernel(0, rows, *args)
+        return
     count = max(1, min(threads(), -(-rows // max(grain, 1))))
     bands = max(1, min(rows, count * 8)) if rows > 1 else 1
     bounds = np.linspace(0, rows, bands + 1).astype(np.int64)
