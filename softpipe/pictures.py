@@ -9,7 +9,12 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 drawn first, so the others show over them)
 ``coverage``    each pixel colored by the primitive id of the last fragment written there
 ``depth``       the depth buffer after the draw (near = white, cleared = black)
-``overdraw``    fragments per pixel as a heat map (black 0, blue 1, … white many)
+``overdraw``    how many times the pixel was covered: the samples the draw's fragments
+                cover there ÷ the samples per pixel, as a heat map (black 0, blue 1,
+                green 2, yellow 3, red 4, white 6 or more; in between, a mix). One
+                triangle over a whole pixel is 1 with one sample or with ``rgss4``
+                alike; at an edge it covers half of, 0.5 (and two triangles sharing the
+                edge, 1)
 ``final``       the color buffer after the draw
 
 The pictures are for looking, not for the pipeline: the wireframes use a
@@ -26,7 +31,8 @@ from typing import Any, Dict, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["stage_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "PICTURES"]
+__all__ = ["stage_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "overdraw", "PICTURES",
+           "HEAT_STOPS", "OVERDRAW_DEFINITION"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
 
@@ -77,10 +83,17 @@ def _id_colors(ids: np.ndarray) -> np.ndarray:
     return (rgb * 255).astype(np.uint8)
 
 
+#: The overdraw picture's colors at 0, 1, 2, … 6 (and more) coverings of a pixel.
+HEAT_STOPS = np.array([[0, 0, 0], [40, 60, 220], [40, 200, 80], [240, 220, 40], [230, 50, 40], [255, 140, 140],
+                       [255, 255, 255]], dtype=np.float64)
+
+#: What the overdraw picture counts, as its key on a contact sheet says it.
+OVERDRAW_DEFINITION = "overdraw = covered samples / samples per pixel"
+
+
 def _heat(counts: np.ndarray) -> np.ndarray:
-    """Black → blue → green → yellow → red → white for 0, 1, 2, 3, 4, ≥ 6 fragments."""
-    stops = np.array([[0, 0, 0], [40, 60, 220], [40, 200, 80], [240, 220, 40], [230, 50, 40], [255, 140, 140],
-                      [255, 255, 255]], dtype=np.float64)
+    """Black → blue → green → yellow → red → white for 0, 1, 2, 3, 4, ≥ 6 (linear in between)."""
+    stops = HEAT_STOPS
     c = np.clip(counts.astype(np.float64), 0, len(stops) - 1)
     lo = np.floor(c).astype(int)
     hi = np.minimum(lo + 1, len(stops) - 1)
@@ -129,13 +142,26 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
         g = np.where(depth < 1.0, 0.25 + 0.75 * (hi - depth) / max(hi - lo, 1e-12), 0.0)
     pics["depth"] = np.repeat((g * 255).astype(np.uint8)[..., None], 3, axis=2)
 
-    counts = np.zeros((h, w), np.int64)
-    if len(f):
-        np.add.at(counts, (f.y, f.x), 1)
-    pics["overdraw"] = _heat(counts)
+    pics["overdraw"] = _heat(overdraw(trace))
 
     pics["final"] = fb.to_uint8(alpha=False)
     return pics
+
+
+def overdraw(trace) -> np.ndarray:
+    """How many times each pixel was covered, float64 [H, W]: covered samples ÷ samples per pixel.
+
+    Each fragment is one covered sample, so with one sample per pixel this is the
+    number of fragments at the pixel. With multisampling (``rgss4``) a triangle that
+    covers the whole pixel still counts 1 (not its 4 samples), one that covers 2 of
+    its 4 samples counts 0.5, and the picture reads on the same key (0, 1, 2, …) as a
+    single-sampled one. Depth-failed fragments count: it is the rasterizer's work.
+    """
+    counts = np.zeros((trace.height, trace.width), np.float64)
+    f = trace.fragments
+    if len(f):
+        np.add.at(counts, (f.y, f.x), 1.0)
+    return counts / max(int(getattr(trace.call.framebuffer, "samples", 1)), 1)
 
 
 def _cut_outlines(trace) -> np.ndarray:
@@ -155,20 +181,45 @@ def _cut_outlines(trace) -> np.ndarray:
 
 def contact_sheet(pictures: Dict[str, np.ndarray], columns: int = 3, label_height: int = 18,
                   background=(24, 24, 28)):
-    """One labelled pillow Image with every picture, in order, ``columns`` per row."""
+    """One labelled pillow Image with every picture, in order, ``columns`` per row.
+
+    When one of the pictures is ``overdraw``, a row under them is its key: what it
+    counts (:data:`OVERDRAW_DEFINITION`, when the sheet is wide enough) and the colors
+    of 0, 1, … 6+.
+    """
     from PIL import Image, ImageDraw
     names = list(pictures)
     h, w = next(iter(pictures.values())).shape[:2]
     rows = -(-len(names) // columns)
     gap = 4
-    sheet = Image.new("RGB", (columns * (w + gap) + gap, rows * (h + label_height + gap) + gap), background)
+    key = label_height if "overdraw" in pictures else 0
+    width, height = columns * (w + gap) + gap, rows * (h + label_height + gap) + gap
+    sheet = Image.new("RGB", (width, height + key), background)
     draw = ImageDraw.Draw(sheet)
     for k, name in enumerate(names):
         r, c = divmod(k, columns)
         x0, y0 = gap + c * (w + gap), gap + r * (h + label_height + gap)
         draw.text((x0 + 2, y0 + 3), name, fill=(230, 230, 230))
         sheet.paste(Image.fromarray(pictures[name]), (x0, y0 + label_height))
+    if key:
+        _overdraw_key(draw, gap + 2, height, width - gap - 2, key)
     return sheet
+
+
+def _overdraw_key(draw, x: int, y: int, right: int, height: int) -> None:
+    """The overdraw picture's key in the row at y: its definition, then a swatch per count."""
+    labels = [str(k) for k in range(len(HEAT_STOPS) - 1)] + [f"{len(HEAT_STOPS) - 1}+"]
+    swatch = 16
+    room = right - x - swatch * len(labels)
+    text = next((t for t in (OVERDRAW_DEFINITION + ":", "overdraw:") if draw.textlength(t) + 6 <= room), "")
+    draw.text((x, y + 2), text, fill=(230, 230, 230))
+    x += int(draw.textlength(text)) + 6 if text else 0
+    for k, label in enumerate(labels):
+        color = tuple(int(c) for c in HEAT_STOPS[k])
+        draw.rectangle([x, y + 1, x + swatch - 2, y + height - 4], fill=color)
+        ink = (0, 0, 0) if sum(color) > 380 else (235, 235, 235)
+        draw.text((x + 2, y + 2), label, fill=ink)
+        x += swatch
 
 
 def save_stage_pictures(trace, directory) -> Dict[str, Path]:

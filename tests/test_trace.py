@@ -184,3 +184,35 @@ def test_trace_of_a_multisampled_draw_shows_samples():
     samples = {e.sample for e in trace.pixel_history(x, y)}
     assert samples and samples <= {0, 1, 2, 3}
     assert trace.shaded.invocations < len(f)
+
+
+def test_overdraw_counts_coverings_not_samples_so_multisampling_reads_on_the_same_key():
+    """Issue 14: the overdraw picture counted fragments, so under rgss4 one triangle read as 4 (red)."""
+    from softpipe.pictures import HEAT_STOPS, OVERDRAW_DEFINITION, contact_sheet, overdraw
+    from softpipe.sampling import rotated_grid_4x
+    quad = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1]], float)
+    small = np.array([[-0.5, -0.5, 0, 1], [0.6, -0.4, 0, 1], [0.1, 0.7, 0, 1]], float)  # over the quad
+    for pattern in (None, rotated_grid_4x()):
+        fb = sp.Framebuffer(24, 18) if pattern is None else sp.Framebuffer(24, 18, pattern=pattern)
+        positions = np.concatenate([quad, small])
+        trace = sp.draw(fb, positions, varyings={"color": np.ones((9, 3))}, depth_test="always", trace=True)
+        if pattern is not None:
+            assert len(trace.fragments) > 4 * 24 * 18                   # four samples a pixel...
+        counts = overdraw(trace)
+        # ...but the quad covers every pixel once: its two triangles share the diagonal, and
+        # the samples of an edge pixel split between them add up to one covering
+        inside = np.zeros((18, 24), bool)
+        inside[trace.fragments.y[trace.fragments.triangle == 2], trace.fragments.x[trace.fragments.triangle == 2]] = True
+        full = inside & (counts == 2.0)
+        assert ((counts >= 1.0) & (counts <= 2.0)).all()
+        assert (counts[~inside] == 1.0).all() and full.sum() > 40
+        pic = trace.pictures()["overdraw"]
+        assert (pic[~inside] == HEAT_STOPS[1]).all() and (pic[full] == HEAT_STOPS[2]).all()
+    # the key under the pictures says what is counted and shows the colors
+    sheet = np.asarray(contact_sheet(trace.pictures()))
+    key = sheet[-18:]
+    for color in HEAT_STOPS[1:5]:
+        assert (key == color.astype(np.uint8)).all(axis=2).sum() > 50
+    assert "covered samples / samples per pixel" in OVERDRAW_DEFINITION
+    assert sheet.shape[0] == np.asarray(contact_sheet({k: v for k, v in trace.pictures().items()
+                                                         if k != "overdraw"})).shape[0] + 18
