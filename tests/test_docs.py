@@ -9,6 +9,8 @@
 * Each stage page starts with the scene of ``scripts/make_docs_pictures.py``,
   word for word; the script runs and writes the pictures the pages show, and
   the committed pictures in docs/images are the ones it draws today.
+* A ```console block of docs/07-debugging.md that runs ``softpipe ...`` prints
+  what it shows, but for the folder of the image it wrote and the seconds it took.
 * Every relative link and image in docs/ points at a file that exists, and the
   line numbers docs/07-debugging.md gives for breakpoints in raster.py are right.
 """
@@ -19,6 +21,7 @@ import inspect
 import io
 import os
 import re
+import shlex
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -155,6 +158,37 @@ def test_the_picture_script_writes_every_picture(tmp_path):
         assert committed.exists(), f"docs/images/{name} is missing: run python scripts/make_docs_pictures.py"
         assert np.array_equal(np.asarray(Image.open(committed)), np.asarray(Image.open(out / name))), (
             f"docs/images/{name} is out of date: run python scripts/make_docs_pictures.py")
+
+
+def _command_blocks(text: str) -> List[tuple]:
+    """The ```console blocks that run `softpipe ...`: (line, argv, the lines shown)."""
+    out = []
+    for m in FENCE.finditer(text):
+        lines = m.group(2).splitlines()
+        if m.group(1) == "console" and lines and lines[0].startswith("$ softpipe "):
+            out.append((text.count("\n", 0, m.start(2)) + 1, shlex.split(lines[0][2:])[1:], lines[1:]))
+    return out
+
+
+def _stable(line: str) -> str:
+    """A printed line without what changes from run to run: the folder written to and the seconds."""
+    line = re.sub(r"wrote \S*?([^/\s]+) \(", r"wrote \1 (", line)
+    return re.sub(r", [0-9.]+ s\)$", ", … s)", line.rstrip())
+
+
+def test_the_debugging_page_command_lines_print_what_it_shows(tmp_path, monkeypatch, capsys):
+    from softpipe.cli import main
+    page = DOCS / "07-debugging.md"
+    blocks = _command_blocks(page.read_text())
+    assert blocks, "07-debugging.md runs no softpipe command"
+    monkeypatch.chdir(tmp_path)
+    for line, argv, shown in blocks:
+        capsys.readouterr()
+        assert main(argv) == 0, f"{page.name}:{line}: softpipe {' '.join(argv)} failed"
+        printed = capsys.readouterr().out.splitlines()
+        assert [_stable(s) for s in printed] == [_stable(s) for s in shown], (
+            f"{page.name}:{line}: softpipe {' '.join(argv)} prints something else than the page shows:\n"
+            + "\n".join(printed))
 
 
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)|<img [^>]*src=\"([^\"]+)\"")
