@@ -17,7 +17,6 @@ the triangle setup for derivatives) and the :class:`~softpipe.assembly.Primitive
 """
 from __future__ import annotations
 
-from collections import namedtuple
 from dataclasses import dataclass
 from typing import Callable, Optional
 
@@ -26,7 +25,7 @@ import numpy as np
 from . import kernels
 from .assembly import Primitives
 from .raster import Fragments
-from .shader import FragInfo, wants_derivatives
+from .shader import wants_derivatives
 
 __all__ = ["ShadedFragments", "run_fragment_stage", "default_fragment_shader", "color_rgb", "color_rgba"]
 
@@ -107,10 +106,10 @@ def run_fragment_stage(frags: Fragments, prims: Primitives, fragment_shader: Opt
     if n == 0:
         return ShadedFragments(np.empty((0, 4), np.float32), np.zeros(0, dtype=bool), 0)
     if shading == "sample":
-        shaded = _shade(shader, fragment_shader is not None, frags, prims, uniforms)
+        shaded = _shade(shader, frags, prims, uniforms)
         return ShadedFragments(shaded, np.isnan(shaded[:, 3]), n)
     heads = pixel_runs(frags)
-    shaded = _shade(shader, fragment_shader is not None, frags.take(heads), prims, uniforms)
+    shaded = _shade(shader, frags.take(heads), prims, uniforms)
     color = np.repeat(shaded, np.diff(np.append(heads, n)), axis=0)
     return ShadedFragments(color, np.isnan(color[:, 3]), len(heads))
 
@@ -122,22 +121,11 @@ def derivative_gradients(shader: Callable, setup) -> np.ndarray:
     return np.zeros((0, 2, 3))
 
 
-def _shade(shader, probe: bool, frags: Fragments, prims: Primitives, uniforms) -> np.ndarray:
+def _shade(shader, frags: Fragments, prims: Primitives, uniforms) -> np.ndarray:
     color = np.empty((len(frags), 4), dtype=np.float32)
     kernel = kernels.fragment_kernel(shader, prims.layout)
-    explain = (lambda: _probe(shader, frags, prims, uniforms)) if probe else None
-    kernels.run_compiled("fragment", shader, kernel, explain, frags.triangle, frags.frag_x, frags.frag_y,
-                         frags.depth, frags.bary, prims.inv_w, prims.varyings, prims.front_facing,
-                         prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+    args = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
+            prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+    kernels.run_compiled("fragment", shader, kernel, *args,
+                         site=kernels.fragment_site(shader, kernel, args, frags.x, frags.y, frags.sample))
     return color
-
-
-def _probe(shader, frags, prims, uniforms) -> None:
-    """Run the shader on the first fragment in Python: when numba fails, its error is clearer."""
-    t = int(frags.triangle[0])
-    values = prims.layout.unpack(prims.varyings[t, 2])
-    V = namedtuple("Varyings", list(values) or ["none"])
-    args = [float(v) if np.ndim(v) == 0 else tuple(float(c) for c in v) for v in values.values()] or [0.0]
-    frag = FragInfo(float(frags.frag_x[0]), float(frags.frag_y[0]), float(frags.depth[0]),
-                    bool(prims.front_facing[t]), int(prims.primitive_id[t]))
-    kernels.probe_fragment_shader(shader, V(*args), uniforms, frag)

@@ -11,42 +11,67 @@ Python, so a breakpoint in a shader stops there.
   barycentrics, with their qualifiers), ``fragment_loop`` (the reference path: one
   row per fragment) and ``visible_loop`` (the fast path: the samples the
   visibility pass kept, with barycentrics, depth and position from the same
-  triangle setup functions the rasterizer uses).
+  triangle setup functions the rasterizer uses). The color a fragment shader
+  returns goes through :func:`rgba`, which refuses (when numba types it) anything
+  but 4 numbers.
+- **What a shader is compiled with** (:func:`shader_globals_key`): numba reads a
+  function's globals once, when it compiles it. So the module globals a shader
+  reads (numbers, bools, strings, tuples, numpy arrays), and those its helpers
+  read, are part of the key a compiled loop is kept under: a draw after one of
+  them changed compiles a new loop, a draw after none did compiles nothing. The
+  loop is compiled from a copy of the shader whose globals are a snapshot, in
+  which each plain Python function it calls (recursively, from any module) is
+  an ``njit``'ed copy of its own: helpers need no decorator. The user's function
+  itself is untouched: ``NUMBA_DISABLE_JIT=1``, ``trace.debug_fragment`` and the
+  probes run it as written.
 - **The cache**: softpipe's own shaders get their generated module written to
   ``$SOFTPIPE_CACHE_DIR`` (default ``~/.cache/softpipe/kernels``) so numba's
-  on-disk cache can find them in the next process; a user's shader is compiled
-  once per process.
+  on-disk cache can find them in the next process (the file's name hashes the
+  globals' values too); a user's shader is compiled once per process and set of
+  global values.
 - **Errors**: :func:`run_compiled` turns numba's errors into a
-  :class:`~softpipe.shader.ShaderError` naming the shader, its file and line.
+  :class:`~softpipe.shader.ShaderError` that says in a few lines what is wrong
+  and names the user's file and line (numba's own text is on
+  ``err.numba_message``, and in the message with ``SOFTPIPE_SHADER_DEBUG=1``).
+  An exception the shader raises while it runs is reported with the invocation
+  it happened on (the fragment's pixel, sample and primitive, or the vertex):
+  the compiled loop is re-run on halves of the batch to find it, then that one
+  invocation runs as plain Python for the exception and its line.
 - **Analysis**: :func:`may_discard` (does a shader return DISCARD: decides the
   fast path), :func:`probe_vertex_shader` (the varyings a vertex shader makes).
 
 A generated module imports only :mod:`softpipe.shader` (the contract), this
-module (``jit_function``, ``short_repr``) and, for the fragment loops, the
+module (``jit_function``, ``rgba``, ``short_repr``) and, for the fragment loops, the
 triangle setup's per-sample functions (:mod:`softpipe.setup`:
 ``pixel_coverage``, ``shading_point``, ``sample_depth``, the ones the rasterizer
 calls): ``_HEADER`` and ``_FRAGMENT_IMPORTS`` below are every import it has.
 """
 from __future__ import annotations
 
+import difflib
+import dis
 import hashlib
 import importlib
 import importlib.util
-import inspect
+import linecache
 import os
 import re
 import sys
 import types
+import weakref
 from pathlib import Path
 from typing import Any, Callable, Dict, Sequence, Tuple
 
 import numba
+import numpy as np
+from numba.extending import overload
 
-from .shader import ShaderError, VaryingLayout, _field_size, python_function, shader_name, wants_derivatives
+from .shader import (ShaderError, VaryingLayout, _field_size, _names_from_class_name, python_function, shader_name,
+                     wants_derivatives)
 
 __all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
            "kernel_source", "run_compiled", "may_discard", "probe_vertex_shader", "probe_fragment_shader",
-           "jit_function"]
+           "jit_function", "rgba", "shader_globals_key", "vertex_site", "fragment_site", "visible_site"]
 
 def jit_function(fn: Callable) -> Callable:
     """``fn`` as a numba dispatcher (compiling a plain function on first call)."""
@@ -57,6 +82,220 @@ def jit_function(fn: Callable) -> Callable:
     if numba.config.DISABLE_JIT:
         return fn
     return numba.njit(fn, inline="always")
+
+
+# ----------------------------------------------- globals and helpers: the snapshot
+
+def _is_softpipe(fn) -> bool:
+    mod = getattr(python_function(fn), "__module__", None) or ""
+    return mod == "softpipe" or mod.startswith("softpipe.")
+
+
+_NUMBA_KNOWS: "weakref.WeakSet" = weakref.WeakSet()
+
+
+def _numba_knows(fn) -> bool:
+    """Has numba an implementation of this plain function already (``register_jitable``, ``overload``)?"""
+    try:
+        if fn in _NUMBA_KNOWS:
+            return True
+    except TypeError:
+        return False
+    from numba.core.registry import cpu_target
+    ctx = cpu_target.typing_context
+    ctx.refresh()                       # registrations made since numba last looked
+    try:
+        ctx.resolve_value_type(fn)
+    except Exception:
+        return False
+    _NUMBA_KNOWS.add(fn)
+    return True
+
+
+def _helper_kind(value) -> str | None:
+    """"plain" for a Python function numba cannot call as it is, "jit" for a user's njit'ed
+    function, None for anything else (numbers, numba's own and softpipe's functions, modules…)."""
+    if isinstance(value, numba.core.registry.CPUDispatcher):
+        return None if _is_softpipe(value) else "jit"
+    if isinstance(value, types.FunctionType):
+        if _is_softpipe(value) or _numba_knows(value):
+            return None
+        return "plain"
+    return None
+
+
+_NAMES: Dict[Any, Tuple[str, ...]] = {}
+
+
+def _global_names(code) -> Tuple[str, ...]:
+    """The names a code object (and the functions and lambdas nested in it) may read as globals."""
+    names = _NAMES.get(code)
+    if names is None:
+        found = dict.fromkeys(code.co_names)
+        for const in code.co_consts:
+            if isinstance(const, types.CodeType):
+                found.update(dict.fromkeys(_global_names(const)))
+        names = _NAMES[code] = tuple(found)
+    return names
+
+
+def _value_key(value):
+    """A key for a global value numba freezes into the code it compiles, or None (not such a value)."""
+    if isinstance(value, (bool, np.bool_)):
+        return ("bool", bool(value))
+    if isinstance(value, (int, float, complex, str, np.number)):
+        return (type(value).__name__, repr(value))
+    if isinstance(value, tuple):
+        parts = tuple(_value_key(v) for v in value)
+        return (type(value).__qualname__,) + tuple(("?", id(v)) if k is None else k for k, v in zip(parts, value))
+    if isinstance(value, np.ndarray) and value.dtype != object:
+        digest = hashlib.sha1(np.ascontiguousarray(value).view(np.uint8).reshape(-1)).hexdigest()
+        return ("ndarray", value.dtype.str, value.shape, digest)
+    return None
+
+
+_LIBRARY_DIRS = tuple({os.path.join(os.path.realpath(p), "") for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)})
+
+
+def _user_module(value) -> bool:
+    """A module of the user's (not softpipe, not installed, not the standard library): its functions
+    called as ``module.helper(…)`` are helpers, its numbers globals like the shader's own."""
+    if not isinstance(value, types.ModuleType) or _is_softpipe(value) or value.__name__ == "softpipe":
+        return False
+    file = getattr(value, "__file__", None)
+    return bool(file) and not os.path.realpath(file).startswith(_LIBRARY_DIRS)
+
+
+def _reads(f) -> list:
+    """(name, value) of what a function may read besides its arguments: the globals its code names,
+    its closure's cells, and (as ``module.name``) the attributes it names of a user's module."""
+    code, glob = f.__code__, f.__globals__
+    names = _global_names(code)
+    out = []
+    for name in names:
+        if name not in glob:
+            continue
+        value = glob[name]
+        out.append((name, value))
+        if _user_module(value):
+            attrs = vars(value)
+            out += [(f"{name}.{attr}", attrs[attr]) for attr in names if attr in attrs]
+    for name, cell in zip(code.co_freevars, f.__closure__ or ()):
+        try:
+            out.append((name, cell.cell_contents))
+        except ValueError:              # an empty cell
+            pass
+    return out
+
+
+def _function_key(fn, seen: set) -> tuple:
+    f = python_function(fn)
+    if not isinstance(f, types.FunctionType):
+        return ()
+    if id(f) in seen:
+        return ("recursive",)
+    seen.add(id(f))
+    items = []
+    for name, value in _reads(f):
+        key = _global_key(value, seen)
+        if key is not None:
+            items.append((name, key))
+    return tuple(items)
+
+
+def _global_key(value, seen: set):
+    if _helper_kind(value) is not None:
+        f = python_function(value)
+        return ("function", f.__code__, _function_key(f, seen))
+    return _value_key(value)
+
+
+def shader_globals_key(shader: Callable) -> tuple:
+    """What a shader is compiled for besides its code: the values of the globals it reads.
+
+    The names its code (and the plain Python helpers it calls, recursively)
+    reads whose value is a number, bool, string, tuple or numpy array, with
+    that value (an array by its bytes). softpipe's own helper functions are
+    left out: their globals are constants.
+    """
+    return _function_key(shader, set())
+
+
+def _key_text(key) -> str:
+    """The key as text that is the same in every process (for the on-disk cache's file names)."""
+    if isinstance(key, types.CodeType):
+        return f"{key.co_filename}:{key.co_firstlineno}:{key.co_qualname if hasattr(key, 'co_qualname') else ''}"
+    if isinstance(key, tuple):
+        return "(" + ",".join(_key_text(k) for k in key) + ")"
+    return repr(key)
+
+
+def _copy_function(f: types.FunctionType, memo: dict, make: Callable) -> Callable:
+    """``make(copy)`` of ``f`` where the copy's globals are a snapshot with its helpers replaced, recursively."""
+    if id(f) in memo:
+        return memo[id(f)]
+    glob = dict(f.__globals__)
+    cells = None
+    if f.__closure__:
+        cells = []
+        for cell in f.__closure__:
+            try:
+                value = cell.cell_contents
+            except ValueError:
+                cells.append(cell)
+                continue
+            cells.append(types.CellType(_snapshot_helper(value, memo) if _helper_kind(value) else value))
+        cells = tuple(cells)
+    copy = types.FunctionType(f.__code__, glob, f.__name__, f.__defaults__, cells)
+    copy.__kwdefaults__ = f.__kwdefaults__
+    copy.__qualname__, copy.__module__, copy.__doc__ = f.__qualname__, f.__module__, f.__doc__
+    result = memo[id(f)] = make(copy)
+    names = _global_names(f.__code__)
+    for name in names:
+        value = glob.get(name)
+        if value is None:
+            continue
+        if _helper_kind(value) is not None:
+            glob[name] = _snapshot_helper(value, memo)
+        elif _user_module(value) and any(_helper_kind(vars(value).get(a)) for a in names):
+            glob[name] = _module_snapshot(value, names, memo)
+    return result
+
+
+def _module_snapshot(module: types.ModuleType, names, memo: dict) -> types.ModuleType:
+    """A stand-in for a user's module whose helpers (the attributes in ``names``) are njit'ed copies."""
+    key = ("module", id(module))
+    proxy = memo.get(key)
+    if proxy is None:
+        proxy = memo[key] = types.ModuleType(module.__name__, module.__doc__)
+        proxy.__dict__.update(vars(module))
+    for attr in names:
+        value = vars(module).get(attr)
+        if value is not None and _helper_kind(value) is not None:
+            setattr(proxy, attr, _snapshot_helper(value, memo))
+    return proxy
+
+
+_JIT_OPTIONS = ("fastmath", "error_model", "inline", "boundscheck", "nogil")
+
+
+def _snapshot_helper(value, memo: dict) -> Callable:
+    """A helper the shader calls, as numba compiles it: an njit'ed copy over a snapshot of its globals."""
+    options = {}
+    if isinstance(value, numba.core.registry.CPUDispatcher):
+        options = {k: v for k, v in value.targetoptions.items() if k in _JIT_OPTIONS}
+    return _copy_function(python_function(value), memo, lambda copy: numba.njit(copy, **options))
+
+
+def shader_snapshot(shader: Callable) -> Callable:
+    """The function numba compiles for ``shader``: a copy whose globals are today's values, its plain
+    Python helpers njit'ed copies of themselves (recursively). A numba dispatcher stays one."""
+    f = python_function(shader)
+    if not isinstance(f, types.FunctionType):
+        return shader
+    if isinstance(shader, numba.core.registry.CPUDispatcher):
+        return _snapshot_helper(shader, {})
+    return _copy_function(f, {}, lambda copy: copy)
 
 
 # ------------------------------------------------------------ code generation
@@ -129,7 +368,7 @@ _HEADER = ("# Generated by softpipe.kernels: the loop that runs one shader over 
            "import numba\n"
            "from collections import namedtuple\n"
            "from softpipe.shader import Derivatives, FragInfo\n"
-           "from softpipe.kernels import jit_function, short_repr\n")
+           "from softpipe.kernels import jit_function, rgba, short_repr\n")
 #: What the fragment loops call besides the shader: the triangle setup's per-sample functions,
 #: the very ones the rasterizer calls (a vertex loop does not need them, so they are not in _HEADER).
 _FRAGMENT_IMPORTS = "from softpipe.setup import pixel_coverage, sample_depth, shading_point\n"
@@ -151,29 +390,61 @@ def _module_source(body: str, shader: Callable, preamble: str, cached: bool) -> 
             + "\n\n" + body)
 
 
-def _compile_module(body: str, shader: Callable, preamble: str, kind: str):
-    """The generated module for a shader: a cached file for softpipe's own shaders, else exec'd."""
+def _compile_module(body: str, shader: Callable, preamble: str, kind: str, globals_key: tuple = ()):
+    """The generated module for a shader: a cached file for softpipe's own shaders, else exec'd.
+
+    A cached file imports the shader by name, and numba reads its globals as they
+    are when it compiles; the file's name hashes their values (``globals_key``),
+    so a changed value is a new file. An exec'd module gets the shader's snapshot
+    (:func:`shader_snapshot`), unless numba is off: then it runs the user's own function.
+    """
     if _importable(shader) is not None and not numba.config.DISABLE_JIT:
         source = _module_source(body, shader, preamble, cached=True)
-        digest = hashlib.sha256((source + _package_hash() + numba.__version__).encode()).hexdigest()[:20]
+        digest = hashlib.sha256((source + _package_hash() + numba.__version__ + _key_text(globals_key)).encode()
+                                ).hexdigest()[:20]
         try:
             return _load_cached(source, f"softpipe_{kind}_{digest}")
         except OSError:
             pass  # an unwritable cache directory: compile in memory instead
     source = _module_source(body, shader, preamble, cached=False)
-    return _exec_module(source, shader, kind)
+    compiled = python_function(shader) if numba.config.DISABLE_JIT else shader_snapshot(shader)
+    return _exec_module(source, shader, kind, compiled=compiled)
 
 
-def _exec_module(source: str, shader: Callable, kind: str, python: bool = False):
-    """exec a generated module; with ``python``, numba is left out entirely (for debugging)."""
+def _exec_module(source: str, shader: Callable, kind: str, python: bool = False, compiled: Callable | None = None):
+    """exec a generated module; with ``python``, numba is left out entirely (for debugging).
+
+    ``compiled`` is the function the module's ``shader`` is made from (default: the user's own).
+    """
     module = types.ModuleType(f"softpipe_{kind}_loop")
-    module._shader_py = python_function(shader)
+    module._shader_py = python_function(shader) if compiled is None else compiled
     if python:
         # The same source, run as plain Python: JIT and jit_function become no-ops.
         source = source.replace("shader = jit_function(_shader_py)", "shader = _shader_py")
-        source = source.replace("JIT = numba.njit(cache=False, nogil=True)", "JIT = lambda f: f")
+        source = re.sub(r"JIT = numba\.njit\([^)]*\)", "JIT = lambda f: f", source)
+        source = re.sub(r"^from \S+ import \S+ as _shader_py\n", "", source, flags=re.M)
     exec(compile(source, f"<softpipe {kind} loop for {shader_name(shader)}>", "exec"), module.__dict__)
     module.__softpipe_source__ = source
+    return module
+
+
+#: How many compiled versions (sets of global values) of one shader and layout are kept.
+_VERSIONS_KEPT = 8
+_VERSIONS: Dict[Any, list] = {}
+
+
+def _cached_module(base: tuple, shader: Callable, build: Callable):
+    """The module kept for ``base`` and the shader's globals today, built (compiled) when there is none."""
+    globals_key = shader_globals_key(shader)
+    key = base + (globals_key,)
+    module = _KERNELS.get(key)
+    if module is None:
+        module = build(globals_key)
+        _KERNELS[key] = module
+        versions = _VERSIONS.setdefault(base, [])
+        versions.append(key)
+        while len(versions) > _VERSIONS_KEPT:      # a global animated per frame must not keep every loop
+            _KERNELS.pop(versions.pop(0), None)
     return module
 
 
@@ -201,25 +472,6 @@ def kernel_source(kind: str, shader: Callable, layout: "VaryingLayout") -> str:
     return fragment_module(shader, layout).__softpipe_source__
 
 
-def _describe_compile_error(kind: str, shader: Callable, err: Exception) -> ShaderError:
-    """Name the shader, its file and the first meaningful line of numba's complaint."""
-    f = python_function(shader)
-    try:
-        file = inspect.getsourcefile(f)
-        line = inspect.getsourcelines(f)[1]
-        where = f"{file}:{line}"
-    except (OSError, TypeError):
-        where = "<unknown file>"
-    text = str(err)
-    locs = re.findall(r'File "([^"]+)", line (\d+)', text)
-    shader_locs = [f"{p}:{n}" for p, n in locs if "<softpipe" not in p and "softpipe_" not in p]
-    detail = text.strip().splitlines()
-    summary = next((l.strip() for l in detail if l.strip() and not l.startswith("-")), text)
-    at = f" (at {shader_locs[0]})" if shader_locs else ""
-    return ShaderError(f"{kind} shader {shader_name(shader)} defined at {where} could not be compiled by numba"
-                       f"{at}: {summary}\n--- numba said ---\n{text}")
-
-
 def _namedtuple_line(var: str, typename: str, names: Sequence[str]) -> str:
     unique = f"{typename}_@TAG@"
     return (f"{unique} = namedtuple({unique!r}, {list(names)!r})\n{unique}.__repr__ = short_repr\n"
@@ -234,9 +486,7 @@ def short_repr(self) -> str:
 
 def vertex_kernel(shader: Callable, attr_sizes: Sequence[Tuple[str, int]], out_layout: VaryingLayout):
     """The compiled loop that runs ``shader`` over every vertex."""
-    key = ("vertex", python_function(shader), tuple(attr_sizes), out_layout.fields)
-    module = _KERNELS.get(key)
-    if module is None:
+    def build(globals_key):
         names = [n for n, _ in attr_sizes]
         attr_exprs = ", ".join(_tuple_expr(f"a_{n}", "i", 0, s) if s > 1 else f"a_{n}[i, 0]"
                                for n, s in attr_sizes)
@@ -254,9 +504,10 @@ def vertex_kernel(shader: Callable, attr_sizes: Sequence[Tuple[str, int]], out_l
             else:
                 lines += [f"        out_varyings[i, {off + c}] = v[{j}][{c}]  # {n}.{'xyzw'[c]}"
                           for c in range(size)]
-        module = _compile_module("\n".join(lines) + "\n", shader,
-                                 _namedtuple_line("Attributes", "Attributes", names), "vertex")
-        _KERNELS[key] = module
+        return _compile_module("\n".join(lines) + "\n", shader,
+                               _namedtuple_line("Attributes", "Attributes", names), "vertex", globals_key)
+
+    module = _cached_module(("vertex", python_function(shader), tuple(attr_sizes), out_layout.fields), shader, build)
     return module.vertex_loop
 
 
@@ -351,7 +602,7 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         f"def fragment_loop({_FRAGMENT_ARGS}, uniforms, out_color):",
         "    for i in range(triangle.shape[0]):",
         f"        {inputs} = fragment_inputs(i, {_FRAGMENT_ARGS})",
-        f"        c = {call}",
+        f"        c = rgba({call})",
         "        out_color[i, 0] = c[0]",
         "        out_color[i, 1] = c[1]",
         "        out_color[i, 2] = c[2]",
@@ -399,7 +650,7 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         "                                                       positions, shading)",
         "                    z = sample_depth(edges, plane, t, i, j, depth_sample, offsets)",
         f"                    {inputs} = interpolate(t, b0, b1, b2, fx, fy, z, {_TRIANGLE_ARGS})",
-        f"                    c = {call}",
+        f"                    c = rgba({call})",
         "                    out_color[s, row, i, 0] = c[0]",
         "                    out_color[s, row, i, 1] = c[1]",
         "                    out_color[s, row, i, 2] = c[2]",
@@ -424,13 +675,9 @@ def _fragment_module(shader: Callable, layout: VaryingLayout, derivatives: bool)
     b_k directly; ``flat`` takes the provoking vertex's value, which primitive
     assembly has copied to every corner.
     """
-    key = ("fragment", python_function(shader), layout.fields, derivatives)
-    module = _KERNELS.get(key)
-    if module is None:
-        module = _compile_module(_fragment_body(layout, derivatives), shader, _fragment_preamble(layout),
-                                 "fragment")
-        _KERNELS[key] = module
-    return module
+    return _cached_module(("fragment", python_function(shader), layout.fields, derivatives), shader,
+                          lambda globals_key: _compile_module(_fragment_body(layout, derivatives), shader,
+                                                              _fragment_preamble(layout), "fragment", globals_key))
 
 
 def fragment_kernel(shader: Callable, layout: VaryingLayout):
@@ -478,48 +725,508 @@ def probe_vertex_shader(shader: Callable, attributes, uniforms) -> Tuple[Tuple[f
     try:
         out = f(attributes, uniforms)
     except Exception as e:  # the user's code: report where, keep the cause
-        raise ShaderError(f"vertex shader {shader_name(shader)} raised {type(e).__name__}: {e}") from e
+        raise _raised_error("vertex", shader, e, "vertex 0", e) from _from_shader(e, shader)
     if not (isinstance(out, tuple) and len(out) == 2):
         raise ShaderError(f"vertex shader {shader_name(shader)} must return (clip_position, varyings), "
-                          f"got {type(out).__name__}")
+                          f"got {type(out).__name__}", **_def_site(shader))
     clip, varyings = out
     if not (isinstance(clip, tuple) and len(clip) == 4):
         raise ShaderError(f"vertex shader {shader_name(shader)}: clip position must be a tuple of 4 floats, "
-                          f"got {clip!r}")
+                          f"got {clip!r}", **_def_site(shader))
     if not (isinstance(varyings, tuple) and hasattr(varyings, "_fields")):
         raise ShaderError(f"vertex shader {shader_name(shader)}: varyings must be a namedtuple, "
-                          f"got {type(varyings).__name__}")
+                          f"got {type(varyings).__name__}", **_def_site(shader))
     sizes = [(n, _field_size(n, "varying", v)) for n, v in zip(varyings._fields, varyings)]
     return clip, VaryingLayout.from_sizes(sizes)
 
 
 def probe_fragment_shader(shader: Callable, varyings, uniforms, frag) -> None:
-    """Run a fragment shader once in plain Python: a clear error beats numba's."""
+    """Run a fragment shader once in plain Python and check what it returns (as :func:`rgba` does)."""
     f = python_function(shader)
     try:
         out = f(varyings, uniforms, frag)
     except Exception as e:
-        raise ShaderError(f"fragment shader {shader_name(shader)} raised {type(e).__name__}: {e}") from e
-    if not (isinstance(out, tuple) and len(out) == 4):
-        raise ShaderError(f"fragment shader {shader_name(shader)} must return an RGBA tuple of 4 floats "
-                          f"(or DISCARD), got {out!r}")
+        raise _raised_error("fragment", shader, e, None, e) from _from_shader(e, shader)
+    try:
+        rgba(out)
+    except _BadReturn as e:
+        raise _return_error("fragment", shader, e) from None
 
 
-def run_compiled(kind: str, shader: Callable, kernel: Callable, explain: Callable | None, *args) -> None:
-    """Call a generated loop; turn numba's errors into a ShaderError naming the shader.
+# ------------------------------------------------------------------ return values
 
-    When numba cannot compile the shader, ``explain`` (if given) first runs it
-    once as plain Python, whose error (a wrong return value, a Python
-    exception) is usually the clearer one.
+class _BadReturn(Exception):
+    """A fragment shader's color is not 4 numbers; the message says what it is."""
+
+
+_NUMBERS = (int, float, np.integer, np.floating, bool, np.bool_)
+
+
+def _python_value_text(value) -> str:
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, list):
+        return f"a list ({len(value)} items)"
+    if isinstance(value, tuple):
+        if all(isinstance(c, float) for c in value):
+            return f"a tuple of {len(value)} floats"
+        return f"a tuple of {len(value)} values"
+    if value is None:
+        return "None"
+    if isinstance(value, np.ndarray):
+        return "a numpy array"
+    if isinstance(value, _NUMBERS):
+        return "a single number"
+    return f"a {type(value).__name__}"
+
+
+def _numba_type_text(ty) -> str:
+    nt = numba.core.types
+    if isinstance(ty, (nt.UnicodeType, nt.UnicodeCharSeq, nt.CharSeq)):
+        return "a string"
+    if isinstance(ty, (nt.List, nt.ListType)):
+        return "a list"
+    if isinstance(ty, nt.Optional):
+        return f"{_numba_type_text(ty.type)} or None (a path without a return?)"
+    if isinstance(ty, nt.NoneType):
+        return "None (no return statement?)"
+    if isinstance(ty, nt.BaseTuple):
+        parts = list(ty)
+        if all(isinstance(t, nt.Float) for t in parts):
+            return f"a tuple of {len(parts)} floats"
+        return f"a tuple of {len(parts)} values"
+    if isinstance(ty, nt.Array):
+        return "a numpy array"
+    if isinstance(ty, (nt.Number, nt.Boolean)):
+        return "a single number"
+    return f"a value of type {ty}"
+
+
+def rgba(color):
+    """The color a fragment shader returned, checked: a tuple of 4 numbers (DISCARD is one).
+
+    numba checks it once, when it compiles the loop (see the overload below); as
+    plain Python (``NUMBA_DISABLE_JIT=1``) it is checked on every call.
+    """
+    if not (isinstance(color, tuple) and len(color) == 4 and all(isinstance(c, _NUMBERS) for c in color)):
+        raise _BadReturn(_python_value_text(color))
+    return color
+
+
+@overload(rgba)
+def _rgba_typed(color):
+    nt = numba.core.types
+    if isinstance(color, nt.BaseTuple) and len(list(color)) == 4 and all(
+            isinstance(t, (nt.Number, nt.Boolean)) for t in color):
+        return lambda color: color
+    raise _BadReturn(_numba_type_text(color))     # not a NumbaError: numba lets it through as it is
+
+
+def _return_lines(f) -> list:
+    """Line numbers of a function's return statements (not of nested functions)."""
+    code = getattr(f, "__code__", None)
+    if code is None:
+        return []
+    return sorted({line for inst, line in _instructions(code) if inst.opname in ("RETURN_VALUE", "RETURN_CONST")
+                   and line is not None})
+
+
+def _return_error(kind: str, shader: Callable, e: _BadReturn) -> ShaderError:
+    f = python_function(shader)
+    lines = _return_lines(f)
+    site = {"file": f.__code__.co_filename, "line": lines[0]} if lines else _def_site(shader)
+    message = (f"{kind} shader {shader_name(shader)} must return an RGBA tuple of 4 floats (or DISCARD), "
+               f"got {e}\n{_frame_text(site['file'], site['line'], f.__name__)}")
+    return ShaderError(message, numba_message=f"rgba(): the shader's return type is {e}", **site)
+
+
+# ------------------------------------------------------------------ where in the user's code
+
+def _instructions(code):
+    """(instruction, line number) of a code object's bytecode."""
+    line = None
+    for inst in dis.get_instructions(code):
+        positions = getattr(inst, "positions", None)
+        if positions is not None and positions.lineno is not None:
+            line = positions.lineno
+        elif inst.starts_line:
+            line = inst.starts_line
+        yield inst, line
+
+
+def _codes(code):
+    yield code
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            yield from _codes(const)
+
+
+def _user_functions(shader: Callable) -> list:
+    """The shader and the helpers compiled with it (those that are not numba's or softpipe's), in call order."""
+    out, seen = [], set()
+
+    def walk(f):
+        f = python_function(f)
+        if not isinstance(f, types.FunctionType) or id(f) in seen:
+            return
+        seen.add(id(f))
+        out.append(f)
+        for _, value in _reads(f):
+            if _helper_kind(value) is not None:
+                walk(value)
+
+    walk(shader)
+    return out
+
+
+def _def_site(shader: Callable) -> dict:
+    f = python_function(shader)
+    code = getattr(f, "__code__", None)
+    if code is None:
+        return {}
+    return {"file": code.co_filename, "line": code.co_firstlineno}
+
+
+def _frame_text(file: str | None, line: int | None, name: str) -> str:
+    """A traceback's two lines for file:line: ``File "…", line N, in name`` and the source line."""
+    if file is None:
+        return ""
+    text = f'  File "{file}", line {line}, in {name}'
+    source = linecache.getline(file, line).strip() if line else ""
+    return text + (f"\n    {source}" if source else "")
+
+
+_LOCATION = re.compile(r'File "(?P<f1>[^"]+)", line (?P<l1>\d+)|\bat (?P<f2>[^\s<][^\n]*?) \((?P<l2>\d+)\)')
+
+
+def _same_file(numba_path: str, filename: str) -> bool:
+    return (numba_path == filename or filename.endswith(os.sep + numba_path)
+            or os.path.abspath(numba_path) == os.path.abspath(filename))
+
+
+def _numba_site(text: str, functions: list) -> dict | None:
+    """The first place numba's text names that is in the shader or one of its helpers."""
+    for m in _LOCATION.finditer(text):
+        path, line = (m.group("f1"), m.group("l1")) if m.group("f1") else (m.group("f2"), m.group("l2"))
+        line = int(line)
+        for f in functions:
+            code = f.__code__
+            if not _same_file(path, code.co_filename):
+                continue
+            lines = {n for c in _codes(code) for _, _, n in c.co_lines() if n is not None}
+            if line in lines:
+                return {"file": code.co_filename, "line": line, "function": f.__name__}
+    return None
+
+
+def _name_site(functions: list, name: str, ops: Tuple[str, ...]) -> dict | None:
+    """Where the shader or a helper loads ``name`` (a global, or an attribute), first found."""
+    for f in functions:
+        for code in _codes(f.__code__):
+            for inst, line in _instructions(code):
+                if inst.opname in ops and inst.argval == name and line is not None:
+                    return {"file": code.co_filename, "line": line, "function": f.__name__}
+    return None
+
+
+# ------------------------------------------------------------------ compile errors
+
+_GLOBAL_OPS = ("LOAD_GLOBAL", "LOAD_NAME")
+_ATTR_OPS = ("LOAD_ATTR", "LOAD_METHOD")
+_OPERATORS = {"add": "+", "sub": "-", "mul": "*", "truediv": "/", "floordiv": "//", "mod": "%", "pow": "**",
+              "neg": "unary -", "iadd": "+=", "isub": "-=", "imul": "*=", "itruediv": "/=", "lt": "<", "gt": ">",
+              "le": "<=", "ge": ">=", "eq": "==", "ne": "!="}
+_GLOBALS_HINT = "a shader may read globals that are numbers, bools, tuples, numpy arrays or functions"
+_VECTOR_HINT = ("vectors are tuples: use the GLSL functions of softpipe.shading (add, sub, scale, mul, dot, "
+                "length, normalize, …) rather than operators or numpy")
+
+
+def _plain_types(text: str) -> str:
+    """numba's type names in words: ``UniTuple(float64 x 3)`` → ``tuple of 3 float64``."""
+    text = re.sub(r"_[0-9a-f]{12}\b", "", text)
+    text = re.sub(r"Literal\[\w+\]\(([^()]*)\)", r"\1", text)
+    text = re.sub(r"UniTuple\((\w+) x (\d+)\)", r"tuple of \2 \1", text)
+    text = re.sub(r"(reflected )?list\((\w+)\)(<iv=[^>]*>)?", r"list of \2", text)
+    text = re.sub(r"array\((\w+), (\d)d, \w\)", r"\2-D array of \1", text)
+    return text.replace("unicode_type", "str")
+
+
+def _namedtuple_fields(typename: str, kernel) -> Tuple[str, Tuple[str, ...] | None]:
+    """(what a shader calls it, its fields) for a namedtuple type numba names in an error."""
+    if typename.startswith("Uniforms_"):
+        return "uniforms", tuple(_names_from_class_name(typename))
+    owners = {"Varyings": "varyings", "Attributes": "attributes", "FragInfo": "frag", "Derivatives": "derivatives"}
+    owner = owners.get(re.sub(r"_[0-9a-f]{12}$", "", typename), typename)
+    places = [getattr(getattr(kernel, "py_func", kernel), "__globals__", {})]
+    places += [vars(m) for n, m in list(sys.modules.items()) if n.startswith("softpipe") and m is not None]
+    for place in places:
+        for value in list(place.values()):
+            if isinstance(value, type) and value.__name__ == typename and hasattr(value, "_fields"):
+                return owner, tuple(value._fields)
+    return owner, None
+
+
+def _what_numba_says(text: str) -> str:
+    """numba's first line that says something (not "Failed in nopython mode pipeline")."""
+    for line in text.splitlines():
+        line = line.strip()
+        if line and not line.startswith(("Failed in", "During:", "File ")) and "- Resolution failure" not in line:
+            return line
+    return text.strip().splitlines()[0] if text.strip() else "(no message)"
+
+
+def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dict | None, str]:
+    """(what is wrong, where, a hint) from numba's message."""
+    m = re.search(r"Unknown attribute '(\w+)' of type ([\w.]+)", text)
+    if m:
+        attr, typename = m.groups()
+        site = _numba_site(text, functions) or _name_site(functions, attr, _ATTR_OPS)
+        if typename in ("UniTuple", "Tuple"):
+            return f"a tuple has no attribute {attr!r}", site, _VECTOR_HINT + " (v[0], not v.x)"
+        owner, fields = _namedtuple_fields(typename, kernel)
+        what = f"{owner} has no field {attr!r}"
+        if fields:
+            close = difflib.get_close_matches(attr, fields, n=1)
+            if close:
+                what += f" (did you mean {close[0]!r}?)"
+            what += f"; its fields are: {', '.join(fields)}"
+        elif fields is not None:
+            what += f"; there are no {owner}"
+        return what, site, ""
+    m = re.search(r"NameError: name '(\w+)' is not defined", text)
+    if m:
+        name = m.group(1)
+        site = _name_site(functions, name, _GLOBAL_OPS)
+        owner = next((f for f in functions if site and f.__name__ == site["function"]), None)
+        if owner is not None and name in owner.__globals__:
+            # numba says so of a global it has no type for, inlined into the loop
+            return (f"the global {name!r} (a {type(owner.__globals__[name]).__name__}) cannot be used in "
+                    "compiled code", site, _GLOBALS_HINT)
+        return (f"name {name!r} is not defined", site,
+                "define it (a plain Python function is compiled with the shader) or import it in the shader's module")
+    if "linalg" in text or "scipy" in text:
+        site = _name_site(functions, "linalg", _ATTR_OPS)
+        return ("numpy.linalg cannot be used in a shader (compiled, it needs scipy; and vectors are tuples)", site,
+                "for a vector's length use softpipe.shading.length(v); dot, normalize, cross, distance are there too")
+    m = re.search(r"Untyped global name '(\w+)'(?:: Cannot determine Numba type of <class '([\w.]+)'>)?", text)
+    if m:
+        name, kind = m.groups()
+        return (f"the global {name!r}{f' (a {kind})' if kind else ''} cannot be used in compiled code",
+                _numba_site(text, functions) or _name_site(functions, name, _GLOBAL_OPS),
+                _GLOBALS_HINT)
+    m = re.search(r"Can't unify return type from the following types: ([^\n]*)", text)
+    if m:
+        return (f"its return statements return different types ({_plain_types(m.group(1))})",
+                _numba_site(text, functions), "return the same kind of value everywhere: floats, 1.0 not 1")
+    m = re.search(r"Cannot unify (.*?) for '(\w+)'", text)
+    if m:
+        return (f"the variable {m.group(2)!r} holds different types ({_plain_types(m.group(1))})",
+                _numba_site(text, functions), "give it one type on every path: floats, 1.0 not 1")
+    m = re.search(r"No implementation of function Function\(<(?:built-in )?function (\w+)[^>]*>\) found for "
+                  r"signature:\s*>>> \w+\(([^\n]*)\)", text)
+    if m:
+        fn, args = m.group(1), _plain_types(m.group(2))
+        site = _numba_site(text, functions)
+        if fn in _OPERATORS:
+            return f"cannot compute {_OPERATORS[fn]} of ({args})", site, _VECTOR_HINT
+        return f"{fn}() cannot be called with ({args})", site, _VECTOR_HINT if "tuple" in args else ""
+    return _plain_types(_what_numba_says(text)), _numba_site(text, functions), ""
+
+
+def _describe_compile_error(kind: str, shader: Callable, err: Exception, kernel=None) -> ShaderError:
+    """One short paragraph: what is wrong, the user's file and line, a hint; numba's text on the side."""
+    text = str(err) or type(err).__name__
+    if not isinstance(err, numba.core.errors.NumbaError):
+        text = f"{type(err).__name__}: {text}"
+    functions = _user_functions(shader)
+    try:
+        what, site, hint = _explain_compile_error(text, kernel, functions)
+    except Exception:           # never hide the error behind a bug in explaining it
+        what, site, hint = _what_numba_says(text), None, ""
+    f = python_function(shader)
+    if site is None:
+        site = dict(_def_site(shader), function=getattr(f, "__name__", "?"))
+    lines = [f"{kind} shader {shader_name(shader)} cannot be compiled: {what}"]
+    frame = _frame_text(site.get("file"), site.get("line"), site.get("function", "?"))
+    if frame:
+        lines.append(frame)
+    if hint:
+        lines.append(f"  ({hint})")
+    lines.append("  (the compiler's full text is err.numba_message; SOFTPIPE_SHADER_DEBUG=1 adds it here)")
+    message = "\n".join(lines)
+    if os.environ.get("SOFTPIPE_SHADER_DEBUG", "") not in ("", "0"):
+        message += "\n--- numba's message ---\n" + text
+    return ShaderError(message, file=site.get("file"), line=site.get("line"), numba_message=text)
+
+
+_NUMBA_DIR = os.path.dirname(numba.__file__) + os.sep
+
+
+def _while_compiling(err: Exception) -> bool:
+    """Was ``err`` raised by numba compiling the loop (not by the compiled loop running)?"""
+    if isinstance(err, numba.core.errors.NumbaError):
+        return True
+    tb = err.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code.co_filename.startswith(_NUMBA_DIR):
+            return True
+        tb = tb.tb_next
+    return False
+
+
+# ------------------------------------------------------------------ run-time errors
+
+def _from_shader(exc: BaseException, shader: Callable) -> BaseException:
+    """``exc`` with its traceback starting at the shader's frame (softpipe's own frames left out)."""
+    code = getattr(python_function(shader), "__code__", None)
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_frame.f_code is not code:
+        tb = tb.tb_next
+    if tb is not None:
+        exc.__traceback__ = tb
+    return exc
+
+
+def _raise_site(exc: BaseException, shader: Callable) -> dict | None:
+    """The deepest frame of the exception's traceback in the shader or one of its helpers."""
+    codes = {c for f in _user_functions(shader) for c in _codes(f.__code__)}
+    site, tb = None, exc.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code in codes:
+            site = {"file": tb.tb_frame.f_code.co_filename, "line": tb.tb_lineno,
+                    "function": tb.tb_frame.f_code.co_name}
+        tb = tb.tb_next
+    return site
+
+
+def _raised_error(kind: str, shader: Callable, exc: BaseException, where: str | None,
+                  python_exc: BaseException | None) -> ShaderError:
+    lines = [f"{kind} shader {shader_name(shader)} raised {type(exc).__name__}: {exc}"]
+    if where:
+        lines[0] += f", on {where}"
+    site = _raise_site(python_exc, shader) if python_exc is not None else None
+    if site:
+        lines.append(_frame_text(site["file"], site["line"], site["function"]))
+    site = site or {}
+    return ShaderError("\n".join(lines), file=site.get("file"), line=site.get("line"), invocation=where)
+
+
+def _bisect(run: Callable, count: int) -> int | None:
+    """An index in [0, count) on which ``run(lo, hi)`` raises, found by halving the range (None: none does)."""
+    lo, hi = 0, count
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        try:
+            run(lo, mid)
+        except Exception:
+            hi = mid
+            continue
+        lo = mid
+    if hi <= lo:
+        return None
+    try:
+        run(lo, hi)
+    except Exception:
+        return lo
+    return None
+
+
+def _plain(value):
+    """numpy scalars (as the Python loop reads them from arrays) as Python's: 1.0 / 0.0 raises, as compiled."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, tuple):
+        items = [_plain(v) for v in value]
+        return type(value)(*items) if hasattr(value, "_fields") else tuple(items)
+    return value
+
+
+def _locate(kind: str, shader: Callable, kernel, count: int, run: Callable, describe: Callable):
+    """(the invocation in words, the exception it raises as plain Python) for a loop that raised.
+
+    The compiled loop is run on halves of the batch until one invocation (or, for
+    the fast path, one image row) is left; that one runs again as plain Python,
+    through the generated module executed as Python, the shader wrapped to note
+    its arguments and the loop's variables when it raises.
+    """
+    index = _bisect(lambda lo, hi: run(kernel, lo, hi), count)
+    if index is None:
+        return None, None
+    func = getattr(kernel, "py_func", kernel)
+    twin = _exec_module(func.__globals__["__softpipe_source__"], shader, kind, python=True)
+    noted: Dict[str, Any] = {}
+    user = python_function(shader)
+
+    def noting(*args):
+        try:
+            return user(*(_plain(a) for a in args))
+        except Exception as e:
+            noted.update(exc=e, args=args, locals=dict(sys._getframe(1).f_locals))
+            raise
+
+    twin.shader = noting
+    try:
+        run(getattr(twin, func.__name__), index, index + 1)
+    except Exception:
+        pass
+    return describe(index, noted), noted.get("exc")
+
+
+def vertex_site(shader: Callable, kernel, count: int, args: tuple) -> Callable:
+    """For :func:`run_compiled`: how to find the vertex a ``vertex_loop(lo, hi, *args)`` raised on."""
+    return lambda: _locate("vertex", shader, kernel, count, lambda k, lo, hi: k(lo, hi, *args),
+                           lambda i, noted: f"vertex {i}")
+
+
+def fragment_site(shader: Callable, kernel, args: tuple, x, y, sample) -> Callable:
+    """For :func:`run_compiled`: how to find the fragment a reference ``fragment_loop(*args)`` raised on;
+    ``x``, ``y``, ``sample``: the fragments' pixels (image coordinates) and samples."""
+    def run(k, lo, hi):
+        k(*(a[lo:hi] for a in args[:5]), *args[5:-1], args[-1][lo:hi])
+
+    def describe(i, noted):
+        return (f"the fragment at pixel ({int(x[i])}, {int(y[i])}), sample {int(sample[i])}, "
+                f"primitive {int(args[8][args[0][i]])} (fragment #{i})")
+
+    return lambda: _locate("fragment", shader, kernel, len(args[0]), run, describe)
+
+
+def visible_site(shader: Callable, kernel, rows: int, args: tuple) -> Callable:
+    """For :func:`run_compiled`: how to find the sample a fast-path ``visible_loop(lo, hi, *args)`` raised on."""
+    def describe(row, noted):
+        v = noted.get("locals", {})
+        if not {"i", "s", "row"} <= set(v):
+            return f"a fragment in image row {row}"
+        frag = noted["args"][2]
+        return f"the fragment at pixel ({int(v['i'])}, {int(v['row'])}), sample {int(v['s'])}, " \
+               f"primitive {int(frag.primitive_id)}"
+
+    return lambda: _locate("fragment", shader, kernel, rows, lambda k, lo, hi: k(lo, hi, *args), describe)
+
+
+def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Callable | None = None) -> None:
+    """Call a generated loop; turn what goes wrong into a ShaderError naming the shader and the user's line.
+
+    A compile error (numba's, or a color that is not 4 numbers) is described in a
+    few lines, numba's text kept on ``numba_message``. An exception the shader
+    raised while it ran is reported with the invocation it happened on, which
+    ``site`` (:func:`fragment_site`, :func:`visible_site`, :func:`vertex_site`) finds.
     """
     try:
         kernel(*args)
-    except (numba.core.errors.TypingError, numba.core.errors.LoweringError,
-            numba.core.errors.UnsupportedError) as e:
-        if explain is not None:
-            explain()
-        raise _describe_compile_error(kind, shader, e) from None
+    except _BadReturn as e:
+        raise _return_error(kind, shader, e) from None
     except ShaderError:
         raise
-    except Exception as e:   # raised by the shader's own code while it ran
-        raise ShaderError(f"{kind} shader {shader_name(shader)} raised {type(e).__name__}: {e}") from e
+    except Exception as e:
+        if _while_compiling(e):
+            raise _describe_compile_error(kind, shader, e, kernel) from None
+        where, python_exc = None, None
+        if site is not None:
+            try:
+                where, python_exc = site()
+            except Exception:         # finding the invocation must not hide the error itself
+                pass
+        shown = python_exc if python_exc is not None else e
+        cause = _from_shader(python_exc, shader) if python_exc is not None else e
+        raise _raised_error(kind, shader, shown, where, python_exc) from cause

@@ -67,7 +67,19 @@ QUALIFIERS = ("smooth", "noperspective", "flat")
 
 
 class ShaderError(Exception):
-    """A shader could not be compiled or run; the message names the shader and line."""
+    """A shader could not be compiled or run; the message says what is wrong and names the shader,
+    its file and line.
+
+    Attributes: ``file`` and ``line`` (where in the shader's code, when known),
+    ``invocation`` (for an error raised while it ran: the fragment or vertex, in
+    words) and ``numba_message`` (for a compile error: numba's full text, which
+    ``SOFTPIPE_SHADER_DEBUG=1`` adds to the message).
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 invocation: str | None = None, numba_message: str | None = None):
+        super().__init__(message)
+        self.file, self.line, self.invocation, self.numba_message = file, line, invocation, numba_message
 
 
 def shader_name(fn: Callable) -> str:

@@ -149,7 +149,8 @@ def _run_shader(vertex_shader: Callable, inputs: Dict[str, np.ndarray], uniforms
     packed = np.empty((n, layout.width), dtype=np.float64)
     args = (*inputs.values(), uniforms, position, packed)
     # compile (or load) once, in this thread, where errors are reported clearly; then run in bands
-    kernels.run_compiled("vertex", vertex_shader, kernel, None, 0, 0, *args)
-    kernels.run_compiled("vertex", vertex_shader, lambda *a: in_bands(kernel, n, *a, grain=4096), None, *args)
+    kernels.run_compiled("vertex", vertex_shader, kernel, 0, 0, *args)
+    kernels.run_compiled("vertex", vertex_shader, lambda *a: in_bands(kernel, n, *a, grain=4096), *args,
+                         site=kernels.vertex_site(vertex_shader, kernel, n, args))
     return VertexOut(position, packed, layout)
 

@@ -464,8 +464,9 @@ def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader
     kernel = kernels.visible_kernel(shader, prims.layout)
     args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
     # compile (or load) once, in this thread, where errors are reported clearly
-    kernels.run_compiled("fragment", shader, kernel, None, 0, 0, *args)
-    kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), None, *args)
+    kernels.run_compiled("fragment", shader, kernel, 0, 0, *args)
+    kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), *args,
+                         site=kernels.visible_site(shader, kernel, fb.height, args))
     return ShadedSamples(written, _invocations(visibility.vis, shading))
 
 

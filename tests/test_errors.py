@@ -249,8 +249,16 @@ def python_helper(x):
 
 
 def uses_python_helper(varyings, uniforms, frag):
-    """Runs in Python, but numba cannot call a plain Python function."""
-    return (python_helper(frag.x), 0.0, 0.0, 1.0)
+    """A plain Python helper: compiled with the shader (issue #14)."""
+    return (python_helper(0.25), 0.0, 0.0, 1.0)
+
+
+def uses_a_dict(varyings, uniforms, frag):
+    """Runs in Python, but a dict global cannot be compiled."""
+    return (PALETTE["red"], 0.0, 0.0, 1.0)
+
+
+PALETTE = {"red": 1.0}
 
 
 def raises_on_the_right(varyings, uniforms, frag):
@@ -263,11 +271,20 @@ def returns_rgb(varyings, uniforms, frag):
     return (1.0, 0.0, 0.0)
 
 
+def test_a_plain_python_helper_compiles():
+    fb = softpipe.Framebuffer(4, 4)
+    softpipe.draw(fb, TRI, varyings=RGB, fragment_shader=uses_python_helper)
+    assert fb.color[3, 0, 0] == 0.5
+
+
 def test_fragment_shader_numba_cannot_compile():
-    with pytest.raises(ShaderError, match=r"fragment shader test_errors\.uses_python_helper defined at "
-                                          r".*test_errors\.py:\d+ could not be compiled by numba") as info:
-        draw(fragment_shader=uses_python_helper)
-    assert "python_helper" in str(info.value)
+    with pytest.raises(ShaderError, match=r"fragment shader test_errors\.uses_a_dict cannot be compiled: "
+                                          r"the global 'PALETTE' \(a dict\) cannot be used in compiled code\n"
+                                          r'  File ".*test_errors\.py", line \d+, in uses_a_dict\n'
+                                          r'    return \(PALETTE\["red"\], 0\.0, 0\.0, 1\.0\)') as info:
+        draw(fragment_shader=uses_a_dict)
+    assert info.value.line == uses_a_dict.__code__.co_firstlineno + 2
+    assert "PALETTE" in info.value.numba_message
 
 
 def test_fragment_shader_that_raises():
