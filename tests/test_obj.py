@@ -423,16 +423,19 @@ def test_spot_keeps_its_uv_seam_records_but_shades_smoothly_across_them():
 
 def test_a_rendered_row_across_a_teapot_seam_has_no_step():
     """The seam in pixels: drawn with the `normals` program (the eye-space normal as a color),
-    the largest color step between two neighbouring pixels of one row on the surface. Take
-    the pair of pixels where per-record normals made the largest step (a patch border): there
-    the step was 0.117 (ten times the row's median step), and welded it is like its neighbours."""
+    the step between two neighbouring pixels of one row on the surface (the largest of the
+    three channels). Take the pair of pixels where per-record normals made the largest step
+    (a patch border): there it was 0.077, twelve times the row's median step (0.0065), and
+    welded it is 0.0067, like its neighbours."""
+    from softpipe.camera import Camera
     from softpipe.drawing import render_scene
     from softpipe.scene import Scene
 
     mesh = load_obj(ASSETS / "teapot.obj")
+    camera = Camera(eye=(4.33, 3.99, 5.99), target=(0.74, 1.38, -0.22), fovy=35.0, near=5.0, far=12.0)
     drawn = {}
     for name, m in (("before", mesh.with_normals(weld=False)), ("after", mesh)):
-        fb = render_scene(Scene.from_model(m, width=200, height=150, program="normals"))
+        fb = render_scene(Scene.from_model(m, width=200, height=150, program="normals"), camera=camera)
         drawn[name] = fb.color[..., :3].astype(np.float64), fb.depth
     depth = drawn["after"][1]
     covered = depth < 1.0
@@ -441,9 +444,10 @@ def test_a_rendered_row_across_a_teapot_seam_has_no_step():
     step = {k: np.abs(np.diff(c, axis=1)).max(axis=2) * same_surface for k, (c, _) in drawn.items()}
     y, x = np.unravel_index(np.argmax(step["before"] - step["after"]), same_surface.shape)
     row = step["after"][y][same_surface[y]]
-    assert step["before"][y, x] > 0.08 and step["before"][y, x] > 6 * np.median(row)   # the seam was there
-    assert step["after"][y, x] < 0.02 and step["after"][y, x] < 2 * np.median(row)     # and is gone
-    assert row.max() < 0.025                                                           # the whole row is smooth
+    median = np.median(row)
+    assert step["before"][y, x] > 0.05 and step["before"][y, x] > 6 * median   # the seam was there
+    assert step["after"][y, x] < 2 * median                                    # and is gone
+    assert row.max() < 3 * median                                              # the whole row is smooth
 
 
 def test_suzanne_normals_follow_their_v_double_slash_vn_indices():
