@@ -236,8 +236,13 @@ class Mesh:
             key = np.column_stack([key, g.astype(np.float64)])
         if self.vertex_count == 0:
             return np.zeros(0, dtype=np.int64)
-        _, inverse = np.unique(key, axis=0, return_inverse=True)
-        return inverse.reshape(-1).astype(np.int64)
+        order = np.lexsort(key.T[::-1])  # by x, then y, then z (then group)
+        ranked = key[order]
+        new = np.ones(len(order), dtype=bool)
+        new[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
+        classes = np.empty(len(order), dtype=np.int64)
+        classes[order] = np.cumsum(new) - 1
+        return classes
 
     def vertex_normals(self, mode: NormalWeighting = "area", weld: bool = True, groups: Any = None) -> np.ndarray:
         """Per-vertex unit normals averaged from the faces around each position, float64 [N, 3].
