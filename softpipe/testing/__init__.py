@@ -1,0 +1,24 @@
+"""softpipe.testing: pixel-exact tests of graphics code (a rasterizer, a shader, a renderer).
+
+- :func:`coverage`, :func:`covered_pixels`: the exact pixels (or samples)
+  triangles cover under OpenGL's rules, from softpipe's own rasterizer.
+  ``positions`` are window coordinates in pixels, y up (OpenGL), or clip
+  coordinates with ``space="clip"``; result arrays are images (row 0 at the top).
+- :func:`reference_coverage`: the same, by a slow exact (Fraction) rasterizer
+  written independently of softpipe's, to test a rasterizer of one's own against.
+- :func:`assert_pixels_equal`: arrays, Framebuffers or image files, pixel by
+  pixel, with a message that says how many pixels differ, where, the worst one,
+  and an ASCII map; ``diff_path=`` writes a diff image.
+- :func:`ascii_picture`, :func:`from_ascii`: expectations as pictures in the source.
+- :func:`check_golden` and the pytest plugin :mod:`softpipe.testing.plugin`
+  (the ``golden`` fixture, ``pytest --softpipe-update-golden``).
+
+docs/testing.md shows them at work.
+"""
+from .compare import assert_pixels_equal, check_golden, diff_image, to_8bit
+from .coverage import Coverage, coverage, covered_pixels
+from .pictures import ascii_picture, from_ascii
+from .reference import reference_coverage
+
+__all__ = ["coverage", "covered_pixels", "Coverage", "reference_coverage", "assert_pixels_equal", "ascii_picture",
+           "from_ascii", "check_golden", "diff_image", "to_8bit"]

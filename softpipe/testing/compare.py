@@ -1,0 +1,335 @@
+"""Comparing pictures pixel by pixel: :func:`assert_pixels_equal` and golden images.
+
+Anything with pixels is taken: a Framebuffer (its 8-bit RGB picture, what
+``fb.save`` writes), a :class:`~softpipe.testing.Coverage` (its mask), a numpy
+array [H, W] or [H, W, C], a pillow Image, or the path of an image file.
+Coordinates in messages are x = column from the left, y = row from the top
+(the array's own indices: ``a[y, x]``).
+"""
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+from typing import Optional, Union
+
+import numpy as np
+
+__all__ = ["assert_pixels_equal", "as_pixels", "diff_image", "to_8bit", "check_golden", "MAP_COLUMNS", "MAP_ROWS"]
+
+#: The ASCII map of a failure shows at most this much of the differing region.
+MAP_COLUMNS, MAP_ROWS = 64, 32
+#: Pixels of context drawn around the differences.
+MAP_MARGIN = 1
+
+
+def as_pixels(value, name: str) -> np.ndarray:
+    """``value`` as an array [H, W] or [H, W, C] (C ≤ 4), or a one-line error naming ``name``."""
+    from ..framebuffer import Framebuffer
+    from .coverage import Coverage
+
+    if isinstance(value, Framebuffer):
+        return np.asarray(value)
+    if isinstance(value, Coverage):
+        return value.mask
+    if isinstance(value, (str, os.PathLike)):
+        path = Path(value)
+        if not path.is_file():
+            raise FileNotFoundError(f"{name}: no image file at {str(path)!r}")
+        value = _open_image(path, name)
+    try:
+        from PIL import Image
+        if isinstance(value, Image.Image):
+            value = _image_array(value)
+    except ImportError:   # pragma: no cover - pillow is a dependency
+        pass
+    try:
+        a = np.asarray(value)
+    except Exception as e:
+        raise TypeError(f"{name} must be an image (array, Framebuffer, file), got {type(value).__name__}: {e}") \
+            from None
+    if not (a.dtype == bool or np.issubdtype(a.dtype, np.number)):
+        raise TypeError(f"{name} must hold numbers or booleans, got dtype {a.dtype}")
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    if not (a.ndim == 2 or (a.ndim == 3 and 2 <= a.shape[2] <= 4)) or a.shape[0] == 0 or a.shape[1] == 0:
+        raise ValueError(f"{name} must be an image [H, W] or [H, W, C] with C ≤ 4, got shape {list(a.shape)}")
+    return a
+
+
+def _open_image(path: Path, name: str):
+    from PIL import Image, UnidentifiedImageError
+    try:
+        with Image.open(path) as im:
+            im.load()
+            return im
+    except (UnidentifiedImageError, OSError) as e:
+        raise ValueError(f"{name}: {str(path)!r} is not an image pillow can read ({e})") from None
+
+
+def _image_array(im) -> np.ndarray:
+    if im.mode == "P":
+        im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+    elif im.mode == "1":
+        im = im.convert("L")
+    return np.asarray(im)
+
+
+# ----------------------------------------------------------- the comparison
+
+def _format_value(v) -> str:
+    v = np.asarray(v)
+    if v.ndim == 0:
+        return _scalar(v.item())
+    return "(" + ", ".join(_scalar(x) for x in v.tolist()) + ")"
+
+
+def _scalar(x) -> str:
+    if isinstance(x, bool):
+        return str(x)
+    if isinstance(x, float):
+        return f"{x:.6g}"
+    return str(x)
+
+
+def _span(lo: int, hi: int) -> str:
+    return f"{lo}..{hi}" if hi > lo else f"{lo}"
+
+
+def _check_mask(mask, shape, name="mask") -> Optional[np.ndarray]:
+    if mask is None:
+        return None
+    m = as_pixels(mask, name)
+    if m.dtype != bool:
+        raise TypeError(f"{name} must be a bool array [H, W] (True: compare this pixel), got dtype {m.dtype}")
+    if m.shape != shape:
+        raise ValueError(f"{name} has shape {list(m.shape)}, the images {list(shape)}")
+    return m
+
+
+def _check_tolerance(tolerance) -> float:
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(tolerance) or tolerance < 0:
+        raise ValueError(f"tolerance must be a finite number ≥ 0, got {tolerance!r}")
+    return float(tolerance)
+
+
+def _difference(a: np.ndarray, b: np.ndarray):
+    """Per pixel, the largest difference over its channels (inf where exactly one is NaN)."""
+    if a.dtype == bool:
+        d = (a != b).astype(np.float64)
+    else:
+        fa, fb = a.astype(np.float64), b.astype(np.float64)
+        with np.errstate(invalid="ignore"):
+            d = np.abs(fa - fb)
+        nan_a, nan_b = np.isnan(fa), np.isnan(fb)
+        d[nan_a & nan_b] = 0.0
+        d[nan_a ^ nan_b] = np.inf
+        d[np.isinf(fa) & (fa == fb)] = 0.0
+    return d.max(axis=2) if d.ndim == 3 else d
+
+
+def _map(a, b, differs, compared, y0, y1, x0, x1) -> list:
+    """The ASCII map of rows y0..y1, columns x0..x1, each row labelled with its y."""
+    width = len(str(y1))
+    lines = []
+    for y in range(y0, y1 + 1):
+        row = []
+        for x in range(x0, x1 + 1):
+            if compared is not None and not compared[y, x]:
+                row.append("~")
+            elif a.dtype == bool:
+                g, w = bool(a[y, x]), bool(b[y, x])
+                row.append("#" if g and w else "+" if g else "-" if w else ".")
+            else:
+                row.append("X" if differs[y, x] else ".")
+        lines.append(f"  {y:>{width}} {''.join(row)}")
+    return lines
+
+
+def compare(actual, expected, *, tolerance=0, mask=None, actual_name="actual", expected_name="expected"):
+    """(message or None, actual array, expected array, differing pixels): the work of :func:`assert_pixels_equal`."""
+    a = as_pixels(actual, actual_name)
+    b = as_pixels(expected, expected_name)
+    tolerance = _check_tolerance(tolerance)
+    if a.shape != b.shape:
+        raise ValueError(f"{actual_name} has shape {list(a.shape)} and {expected_name} {list(b.shape)}: "
+                         "they cannot be compared pixel by pixel")
+    if (a.dtype == bool) != (b.dtype == bool):
+        which, other = (actual_name, expected_name) if a.dtype == bool else (expected_name, actual_name)
+        raise TypeError(f"{which} is a mask (bool) and {other} is not ({(b if a.dtype == bool else a).dtype}): "
+                        "compare masks with masks")
+    compared = _check_mask(mask, a.shape[:2])
+    diff = _difference(a, b)
+    differs = diff > tolerance
+    if compared is not None:
+        differs &= compared
+    n = int(differs.sum())
+    if n == 0:
+        return None, a, b, differs
+    h, w = differs.shape
+    ys, xs = np.nonzero(differs)
+    worst = np.where(differs, diff, -1.0)
+    wy, wx = np.unravel_index(int(np.argmax(worst)), worst.shape)
+    total = h * w if compared is None else int(compared.sum())
+    head = f"{n} of {total} pixels differ (tolerance {tolerance:g}"
+    head += f"; {h * w - total} pixels masked out)" if compared is not None else ")"
+    lines = [head,
+             f"differences in x {_span(xs.min(), xs.max())}, y {_span(ys.min(), ys.max())} "
+             "(x: column from the left, y: row from the top)"]
+    which = "first differing pixel" if a.dtype == bool else "worst pixel"
+    worst_line = f"{which} x={wx}, y={wy}: {actual_name} {_format_value(a[wy, wx])}, " \
+                 f"{expected_name} {_format_value(b[wy, wx])}"
+    if a.dtype != bool:
+        worst_line += f", difference {_scalar(float(diff[wy, wx]))}"
+    lines.append(worst_line)
+    y0, y1 = max(ys.min() - MAP_MARGIN, 0), min(ys.max() + MAP_MARGIN, h - 1)
+    x0, x1 = max(xs.min() - MAP_MARGIN, 0), min(xs.max() + MAP_MARGIN, w - 1)
+    shown_y1, shown_x1 = min(y1, y0 + MAP_ROWS - 1), min(x1, x0 + MAP_COLUMNS - 1)
+    legend = (f"# both, + {actual_name} only, - {expected_name} only, . neither" if a.dtype == bool
+              else "X differs, . equal")
+    if compared is not None:
+        legend += ", ~ masked out"
+    cut = "" if (shown_y1, shown_x1) == (y1, x1) else f" (the first {shown_y1 - y0 + 1} rows and " \
+                                                       f"{shown_x1 - x0 + 1} columns of y {_span(y0, y1)}, " \
+                                                       f"x {_span(x0, x1)})"
+    lines.append(f"map of x {_span(x0, shown_x1)}, y {_span(y0, shown_y1)}{cut} ({legend}):")
+    lines += _map(a, b, differs, compared, y0, shown_y1, x0, shown_x1)
+    return "\n".join(lines), a, b, differs
+
+
+def assert_pixels_equal(actual, expected, *, tolerance=0, mask=None,
+                        diff_path: Union[None, str, "os.PathLike[str]"] = None) -> None:
+    """Fail unless ``actual`` and ``expected`` hold the same pixels (within ``tolerance``).
+
+    Parameters
+    ----------
+    actual, expected : array [H, W] or [H, W, C], Framebuffer, Coverage, pillow Image or image file
+        A Framebuffer is its 8-bit RGB picture (``np.asarray(fb)``); a Coverage its mask.
+        Masks (bool) are compared with masks only.
+    tolerance : number ≥ 0
+        A pixel differs when any channel differs by more than this, in the
+        arrays' own units (0…255 for 8-bit images). 0: exactly equal.
+    mask : bool [H, W], optional
+        The pixels to compare (True); the others are not looked at.
+    diff_path : path, optional
+        On failure, write a diff image there (PNG): differing pixels red, the
+        others the expected image dimmed to gray, masked-out pixels dark blue.
+
+    Raises
+    ------
+    AssertionError
+        Saying how many pixels differ, where (their bounding box), the worst
+        pixel with both values, and an ASCII map of the differing region: for
+        masks ``#`` both, ``+`` actual only, ``-`` expected only, ``.`` neither;
+        for images ``X`` differs, ``.`` equal.
+    """
+    __tracebackhide__ = True
+    message, a, b, differs = compare(actual, expected, tolerance=tolerance, mask=mask)
+    if message is None:
+        return
+    if diff_path is not None:
+        path = write_png(diff_image(b, differs, _check_mask(mask, a.shape[:2])), diff_path)
+        message += f"\ndiff image: {path}"
+    raise AssertionError(message)
+
+
+def _gray(b: np.ndarray) -> np.ndarray:
+    """The expected image as 8-bit gray, [H, W]."""
+    if b.dtype == bool:
+        return np.where(b, 255, 0).astype(np.float64)
+    f = b.astype(np.float64)
+    if f.ndim == 3:
+        f = f[:, :, :3].mean(axis=2) if f.shape[2] >= 3 else f[:, :, 0]
+    if b.dtype != np.uint8:
+        hi = np.nanmax(np.abs(f)) if np.isfinite(f).any() else 1.0
+        f = f / (hi if hi > 1.0 else 1.0) * 255.0
+    return np.nan_to_num(f, nan=0.0, posinf=255.0, neginf=0.0)
+
+
+def diff_image(expected: np.ndarray, differs: np.ndarray, compared: Optional[np.ndarray] = None) -> np.ndarray:
+    """uint8 RGB [H, W, 3]: differing pixels red, the rest the expected picture dimmed to gray,
+    pixels not compared dark blue."""
+    g = (40 + 0.35 * _gray(expected)).astype(np.uint8)
+    out = np.stack([g, g, g], axis=2)
+    if compared is not None:
+        out[~compared] = (0, 0, 96)
+    out[differs] = (255, 0, 0)
+    return out
+
+
+def to_8bit(image, name: str = "image") -> np.ndarray:
+    """An image as 8-bit, as stored in a PNG: uint8 [H, W] or [H, W, 2|3|4].
+
+    A Framebuffer is its 8-bit RGB picture; a bool mask 0 and 255; a float array
+    ``round(clamp(v, 0, 1)·255)`` (half to even, as Framebuffer.to_uint8); an
+    integer array must already lie in 0…255.
+    """
+    a = as_pixels(image, name)
+    if a.dtype == bool:
+        return np.where(a, 255, 0).astype(np.uint8)
+    if np.issubdtype(a.dtype, np.floating):
+        if np.isnan(a).any():
+            raise ValueError(f"{name} holds NaN, which has no 8-bit value")
+        return np.rint(np.clip(a.astype(np.float64), 0.0, 1.0) * 255.0).astype(np.uint8)
+    if a.size and (a.min() < 0 or a.max() > 255):
+        raise ValueError(f"{name} holds integers outside 0…255 ({int(a.min())}…{int(a.max())}); "
+                         "an 8-bit image cannot store them")
+    return a.astype(np.uint8)
+
+
+def png_bytes(a: np.ndarray) -> bytes:
+    from PIL import Image
+    buf = io.BytesIO()
+    Image.fromarray(a).save(buf, format="PNG", optimize=True)
+    return buf.getvalue()
+
+
+def write_png(a: np.ndarray, path) -> Path:
+    """Write uint8 ``a`` as a PNG at ``path`` (whole or not at all; folders made); returns the path."""
+    from ..files import atomic_write
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = png_bytes(a)
+    atomic_write(path, lambda f: f.write(data))
+    return path
+
+
+# ----------------------------------------------------------- golden images
+
+def check_golden(image, golden_path, *, tolerance=0, mask=None, update: bool = False,
+                 output_dir=None) -> str:
+    """Compare ``image`` with the PNG at ``golden_path``; the work of the pytest ``golden`` fixture.
+
+    The image is made 8-bit first (:func:`to_8bit`) and compared with the
+    stored 8-bit PNG: ``tolerance`` is in 8-bit levels (0: the same bytes).
+    Returns "passed", "created" or "updated"; raises AssertionError when the
+    golden image is missing (it is written, to be looked at and committed) or
+    differs (``output_dir`` then receives NAME.actual.png and NAME.diff.png).
+    With ``update`` a missing or different golden image is (re)written instead.
+    """
+    __tracebackhide__ = True
+    golden_path = Path(golden_path)
+    actual = to_8bit(image, "image")
+    if not golden_path.exists():
+        write_png(actual, golden_path)
+        if update:
+            return "created"
+        raise AssertionError(f"golden image {golden_path} did not exist; it is written now from this run: look at "
+                             "it, commit it, and run the test again")
+    message, a, b, differs = compare(actual, golden_path, tolerance=tolerance, mask=mask,
+                                     actual_name="actual", expected_name="golden")
+    if message is None:
+        return "passed"
+    if update:
+        write_png(actual, golden_path)
+        return "updated"
+    out = Path(output_dir) if output_dir is not None else golden_path.parent
+    stem = golden_path.stem
+    actual_file = write_png(actual, out / f"{stem}.actual.png")
+    diff_file = write_png(diff_image(b, differs, _check_mask(mask, a.shape[:2])), out / f"{stem}.diff.png")
+    raise AssertionError(f"{message}\n"
+                         f"golden image: {golden_path}\n"
+                         f"this run:     {actual_file}\n"
+                         f"diff:         {diff_file}\n"
+                         "(if the new image is right: pytest --softpipe-update-golden rewrites the golden image)")

@@ -1,0 +1,119 @@
+"""Pixels as ASCII pictures, and back: expectations written as pictures in a test's source.
+
+A picture has one line per image row, **top row first** (row 0 of an array, of
+a Framebuffer, of a PNG), one character per pixel. ``#`` is a covered pixel
+(True) and ``.`` an empty one (False); integer arrays (primitive ids, counts)
+are drawn with ``.`` for −1, ``0``–``9`` and ``a``–``z`` for 0…35; images and
+other values through a legend ``{character: value}``.
+"""
+from __future__ import annotations
+
+import string
+import textwrap
+from typing import Mapping, Optional
+
+import numpy as np
+
+__all__ = ["ascii_picture", "from_ascii", "DIGITS"]
+
+#: The characters of integer pictures: value k is DIGITS[k] (0…35); −1 (no primitive) is ".".
+DIGITS = string.digits + string.ascii_lowercase
+
+
+def ascii_picture(image, legend: Optional[Mapping[str, object]] = None) -> str:
+    """An array, Coverage, Framebuffer or image file as an ASCII picture (top row first).
+
+    - bool [H, W] (a mask, a :class:`~softpipe.testing.Coverage`): ``#`` True, ``.`` False;
+    - integers [H, W]: ``.`` for −1 and below, ``0``–``9``, ``a``–``z`` for 0…35;
+    - with ``legend`` ({character: value}, as :func:`from_ascii` takes it), any
+      array or image: each pixel's character is the one whose value it equals
+      (all channels), ``?`` where none does;
+    - an image ([H, W, C], a Framebuffer, a file) without a legend: ``.`` where the
+      pixel is black (every color channel 0), ``#`` elsewhere.
+    """
+    from .compare import as_pixels
+
+    a = as_pixels(image, "image")
+    if legend is not None:
+        return _with_legend(a, _check_legend(legend))
+    if a.ndim == 3:
+        if a.dtype == bool:
+            raise ValueError(f"image must be [H, W] to draw; a mask with samples has shape {list(a.shape)}: "
+                             "draw one sample (mask[:, :, s]) or mask.any(axis=2)")
+        a = (a[:, :, :3] != 0).any(axis=2)
+    if a.dtype == bool:
+        return "\n".join("".join("#" if v else "." for v in row) for row in a)
+    if np.issubdtype(a.dtype, np.integer):
+        if a.size and a.max() >= len(DIGITS):
+            raise ValueError(f"image holds the integer {int(a.max())}; an integer picture shows 0…{len(DIGITS) - 1} "
+                             "(pass legend= for other values)")
+        return "\n".join("".join(DIGITS[v] if v >= 0 else "." for v in row.tolist()) for row in a)
+    raise ValueError(f"image of dtype {a.dtype} needs legend={{character: value}} to be drawn")
+
+
+def _check_legend(legend) -> dict:
+    if not isinstance(legend, Mapping) or not legend:
+        raise TypeError(f"legend must be a non-empty dict {{character: value}}, got {legend!r}")
+    for ch in legend:
+        if not isinstance(ch, str) or len(ch) != 1 or ch.isspace():
+            raise ValueError(f"legend keys must be single visible characters, got {ch!r}")
+    return dict(legend)
+
+
+def _with_legend(a: np.ndarray, legend: dict) -> str:
+    rows = []
+    for row in a:
+        line = []
+        for v in row:
+            for ch, value in legend.items():
+                if np.array_equal(np.asarray(v), np.asarray(value)):
+                    line.append(ch)
+                    break
+            else:
+                line.append("?")
+        rows.append("".join(line))
+    return "\n".join(rows)
+
+
+def from_ascii(picture: str, legend: Optional[Mapping[str, object]] = None, dtype=None) -> np.ndarray:
+    """An ASCII picture (top row first) back to an array: the inverse of :func:`ascii_picture`.
+
+    The text may be indented and start or end with blank lines (a triple-quoted
+    string in a test): it is dedented and trimmed. Without ``legend``, a picture
+    of ``#`` and ``.`` is a bool mask [H, W]; one of digits, letters and ``.`` an
+    int64 array (``.`` is −1). With ``legend`` ({character: value}), each
+    character becomes its value: [H, W] for scalars, [H, W, C] for colors.
+    """
+    if not isinstance(picture, str):
+        raise TypeError(f"picture must be a str, got {type(picture).__name__}")
+    lines = [line.rstrip() for line in textwrap.dedent(picture).splitlines()]
+    while lines and not lines[0]:
+        lines.pop(0)
+    while lines and not lines[-1]:
+        lines.pop()
+    if not lines:
+        raise ValueError("picture is empty: it needs at least one row of characters")
+    for k, line in enumerate(lines):
+        if len(line) != len(lines[0]):
+            raise ValueError(f"picture row {k} has {len(line)} characters and row 0 has {len(lines[0])}: "
+                             "every row must be as long")
+    chars = set("".join(lines))
+    if legend is not None:
+        legend = _check_legend(legend)
+        missing = sorted(chars - set(legend))
+        if missing:
+            raise ValueError(f"picture uses {''.join(missing)!r}, which legend does not list")
+        values = {ch: np.asarray(v) for ch, v in legend.items()}
+        shapes = {v.shape for v in values.values()}
+        if len(shapes) != 1:
+            raise ValueError(f"legend values must all have one shape, got {sorted(map(list, shapes))}")
+        out = np.array([[values[ch] for ch in line] for line in lines])
+        return out if dtype is None else out.astype(dtype)
+    if chars <= set("#."):
+        out = np.array([[ch == "#" for ch in line] for line in lines], dtype=bool)
+    elif chars <= set(DIGITS + "."):
+        out = np.array([[DIGITS.index(ch) if ch != "." else -1 for ch in line] for line in lines], np.int64)
+    else:
+        raise ValueError(f"picture uses {''.join(sorted(chars))!r}: without legend= a picture is '#' and '.' "
+                         "(a mask) or digits, letters and '.' (integers)")
+    return out if dtype is None else out.astype(dtype)
