@@ -42,7 +42,8 @@ def test_material_loader_keywords_still_work():
     (dict(kd=(-0.1, 0, 0)), ValueError, "Material.kd must be finite and non-negative"),
     (dict(ks=(math.inf, 0, 0)), ValueError, "Material.ks must be finite and non-negative"),
     (dict(ka=(1, 2)), ValueError, "Material.ka must have 3 components"),
-    (dict(ke="red"), TypeError, "Material.ke must be an RGB triple"),
+    (dict(ke=[None, 0, 0]), TypeError, "Material.ke must be an RGB triple"),
+    (dict(ke="reed"), ValueError, "Material.ke: unknown color 'reed'"),  # a name is a color (softpipe.colors)
     (dict(shininess=-1), ValueError, "Material.shininess must be finite and >= 0"),
     (dict(shininess=math.nan), ValueError, "Material.shininess must be finite"),
     (dict(ior=0), ValueError, "Material.ior must be > 0"),
