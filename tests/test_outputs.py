@@ -10,7 +10,6 @@ import pytest
 from PIL import Image
 
 import softpipe as sp
-from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.cli import main
 from softpipe.colors import color_names, parse_color
