@@ -204,7 +204,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "frames it, under a key/fill/rim set of three directional lights that follow the camera.\n"
                     f"INPUT a bundled model's name ({models}): that model, the same way.\n"
                     "INPUT.toml: a scene file (see examples/scene.toml); the options below override its "
-                    "[render] settings, and --azimuth/--elevation its framed camera.",
+                    "[render] settings, and --azimuth/--elevation its framed camera.\n\n"
+                    "In Python: softpipe.render(INPUT, width=..., program=..., ...).save(IMAGE) makes the same "
+                    "image (the options are its keywords).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     render.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
     render.add_argument("-o", "--output", metavar="IMAGE",
@@ -225,7 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "INPUT is a .obj model, a bundled model's name or a .toml scene file (a scene with its own "
                     "[camera] eye turns that eye about the target). The studio lights follow the camera, so the model is seen turning "
                     "under fixed lights. Frames that come out identical (a symmetric model) are merged by the "
-                    "GIF writer.",
+                    "GIF writer. GIF frames get 256 colors each, dithered (Floyd-Steinberg).\n\n"
+                    "In Python: softpipe.turntable(INPUT, ANIMATION, frames=..., fps=..., ...) writes the same file.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     turn.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
     turn.add_argument("-o", "--output", metavar="ANIMATION", help="a .gif (or .png) to write; default out/NAME.gif")

@@ -54,7 +54,7 @@ def one_error_line(err: str, command: str = "render") -> str:
 def test_help_lists_every_command(capsys):
     code, out, _ = run(capsys, "--help")
     assert code == 0
-    for command in ("render", "turntable", "demo", "programs"):
+    for command in ("render", "turntable", "demo", "programs", "--version"):
         assert command in out
 
 
@@ -70,6 +70,8 @@ def test_each_command_has_complete_help(capsys, command, options):
     assert code == 0
     for option in options:
         assert option in out
+    if command in ("render", "turntable"):
+        assert f"In Python: softpipe.{command}(INPUT" in " ".join(out.split())
     if command == "render":
         assert "'phong' when registered, else 'normals'" in " ".join(out.split())
         for name in PROGRAMS:
