@@ -103,6 +103,11 @@ class Framebuffer:
         contiguous in memory (what the rasterizer's inner loop walks along).
 
     A new framebuffer is cleared to opaque black, (0, 0, 0, 1), and depth 1.0.
+
+    As a picture: ``np.asarray(fb)`` is 8-bit RGB [H, W, 3] (:meth:`__array__` says
+    why), so ``PIL.Image.fromarray(np.asarray(fb))``, ``plt.imshow(fb)`` and
+    ``imageio.imwrite("x.png", fb)`` take it as it is; :meth:`save` writes any format
+    pillow knows to a path or a binary file; in Jupyter ``fb`` shows the picture.
     """
 
     def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER):
