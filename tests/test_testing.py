@@ -74,6 +74,17 @@ def test_samples_cull_and_clip_space():
     assert coverage(clip, 4, 4, space="clip").pixels() == covered_pixels(RIGHT, 4, 4)
 
 
+def test_clip_space_pieces_keep_their_triangles_id():
+    clip = [(-1, -1, -2, 1), (1, -1, 0, 1), (0, 1, 0, 1),     # cut by the near plane into two pieces
+            (-1, -1, 0, 1), (1, -1, 0, 1), (-1, 1, 0, 1)]
+    cov = coverage(clip, 8, 8, space="clip")
+    second = coverage(clip[3:], 8, 8, space="clip").mask
+    only_first = cov.mask & ~second
+    assert second.any() and only_first.any()
+    assert (cov.primitive_id[second] == 1).all() and (cov.primitive_id[only_first] == 0).all()
+    assert (cov.primitive_id[~cov.mask] == -1).all()
+
+
 coordinate = st.one_of(st.integers(-3 * 256, 14 * 256).map(lambda v: v / 256),     # on the snapping grid
                        st.integers(-6, 28).map(lambda v: v / 2),                   # pixel corners and centres
                        st.floats(-3.0, 14.0, allow_nan=False))                     # anything
@@ -132,7 +143,14 @@ BAD_CALLS = [
     (lambda: coverage(RIGHT, 4, 4, space="screen"), ValueError,
      "space must be one of ('window', 'clip'), got 'screen'"),
     (lambda: coverage(RIGHT, 4, 4, samples=[0.5, 0.5]), ValueError,
-     "samples must have shape [S, 2] (positions in the pixel), got [2]"),
+     "samples: must have shape [S, 2] (positions in the pixel), got [2]"),
+    (lambda: coverage(RIGHT, 4, 4, samples="grid5"), ValueError,
+     "samples: sample pattern 'grid5': grid needs a square number of samples, got 5"),
+    (lambda: coverage(RIGHT, 4, 4, samples=[(0.5, 1.5)]), ValueError,
+     "samples: sample positions must lie in [0, 1) × [0, 1)"),
+    (lambda: coverage(RIGHT, 8192, 8192, samples="rgss4"), ValueError,
+     "a coverage of 8192×8192 pixels × 4 samples is more than MAX_COVERAGE_SAMPLES = 2^26 samples; test on a "
+     "smaller image"),
     (lambda: coverage(RIGHT, 4, 4, indices=[[0, 1, 5]]), ValueError,
      "indices[2] = 5 is out of range for 3 vertices"),
     (lambda: reference_coverage([(0, 0), (1, 0)], 4, 4), ValueError,
@@ -325,6 +343,27 @@ def test_the_golden_fixture_creates_passes_fails_with_a_diff_and_updates(pyteste
     run().assert_outcomes(passed=1)
 
 
+NAMING_TEST = '''
+import numpy as np
+import pytest
+
+@pytest.mark.parametrize("n", [1])
+def test_named(golden, n):
+    assert golden(np.zeros((2, 2), bool)) == "created"
+    assert golden(np.ones((2, 2), bool), "second") == "created"
+    with pytest.raises(ValueError) as info:
+        golden(np.ones((2, 2), bool), "second")
+    assert str(info.value) == "golden image second.png was already compared in this test: give each call its own name="
+'''
+
+
+def test_golden_images_are_named_after_the_test(pytester):
+    pytester.makepyfile(test_naming=NAMING_TEST)
+    pytester.runpytest("-p", "softpipe.testing.plugin", "-p", "no:cacheprovider",
+                       "--softpipe-update-golden").assert_outcomes(passed=1)
+    assert sorted(p.name for p in (pytester.path / "golden").iterdir()) == ["second.png", "test_named-1.png"]
+
+
 def test_check_golden_stores_8_bit_and_says_what_it_did(tmp_path):
     mask = from_ascii(RIGHT_PICTURE)
     path = tmp_path / "g" / "mask.png"
@@ -349,7 +388,9 @@ def test_the_examples_catch_the_naive_rasterizer(pytester):
     assert "test_two_triangles_sharing_an_edge_draw_every_pixel_once[naive]" in failed
     assert "test_against_the_exact_reference[naive]" in failed
     assert sum(name.startswith("test_random_triangles_cover_what_opengl_covers[naive") for name in failed) == 5
-    assert outcomes == {"failed": 9, "passed": 16}, outcomes       # every "fixed" test and the golden scene pass
+    # every "fixed" test and the golden scene pass (a warning, if any, is pytest's: the plugin's module was
+    # imported by this run already, when softpipe is installed with the plugin's entry point)
+    assert (outcomes.get("failed"), outcomes.get("passed")) == (9, 16), outcomes
     result.stdout.fnmatch_lines([
         "E * 4 of 25 pixels differ (tolerance 0)",
         "E * first differing pixel x=0, y=1: actual True, expected False",

@@ -32,7 +32,8 @@ from ..shader import VaryingLayout
 from ..transforms import Viewport
 from ..vertex import run_vertex_stage
 
-__all__ = ["Coverage", "coverage", "covered_pixels", "SPACES", "as_pattern", "check_size"]
+__all__ = ["Coverage", "coverage", "covered_pixels", "SPACES", "MAX_COVERAGE_SAMPLES", "as_pattern", "check_size",
+           "check_samples"]
 
 #: What ``positions`` are: window coordinates in pixels (y up), or clip coordinates.
 SPACES = ("window", "clip")
@@ -103,21 +104,30 @@ def check_size(width, height) -> Tuple[int, int]:
     return int(width), int(height)
 
 
+#: The most samples (width × height × samples per pixel) a coverage is computed for: 2^26 (1.1 GB of arrays).
+MAX_COVERAGE_SAMPLES = 1 << 26
+
+
+def check_samples(width: int, height: int, samples: int) -> None:
+    if width * height * samples > MAX_COVERAGE_SAMPLES:
+        raise ValueError(f"a coverage of {width}×{height} pixels × {samples} samples is more than "
+                         f"MAX_COVERAGE_SAMPLES = 2^26 samples; test on a smaller image")
+
+
 def as_pattern(samples) -> Optional[SamplePattern]:
     """``samples=``: None (pixel centres), a SamplePattern, a pattern name ("rgss4", "grid16", …)
     or a sequence of (x, y) positions in the pixel, in [0, 1), y up."""
     if samples is None or isinstance(samples, SamplePattern):
         return samples
-    if isinstance(samples, str):
-        return pattern_named(samples)
     try:
+        if isinstance(samples, str):
+            return pattern_named(samples)
         pos = np.asarray(samples, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"samples must be None, a SamplePattern, a pattern name or [S, 2] positions, "
-                        f"got {type(samples).__name__}") from None
-    if pos.ndim != 2 or pos.shape[1] != 2:
-        raise ValueError(f"samples must have shape [S, 2] (positions in the pixel), got {list(pos.shape)}")
-    return SamplePattern(pos)
+        if pos.ndim != 2 or pos.shape[1] != 2:
+            raise ValueError(f"must have shape [S, 2] (positions in the pixel), got {list(pos.shape)}")
+        return SamplePattern(pos)
+    except (TypeError, ValueError) as e:
+        raise type(e)(f"samples: {e}") from None
 
 
 def _positions(positions, space: str) -> np.ndarray:
@@ -222,14 +232,15 @@ def coverage(positions, width: int, height: int, *, indices=None, samples=None, 
     pattern = as_pattern(samples)
     prims = primitives_for(positions, width, height, indices=indices, cull=cull, front_face=front_face,
                            space=space)
-    frags = rasterize(prims, width, height, pattern or CENTER)
     s = 1 if pattern is None else len(pattern)
+    check_samples(width, height, s)
+    frags = rasterize(prims, width, height, pattern or CENTER)
     count = np.zeros((height, width, s), np.int64)
-    ids = np.full((height, width, s), -1, np.int64)
+    last = np.full((height, width, s), -1, np.int64)
     where = (frags.y, frags.x, frags.sample)
     np.add.at(count, where, 1)
-    # fragments come in primitive order and primitive ids grow with it: the last is the largest
-    np.maximum.at(ids, where, frags.primitive_id)
+    np.maximum.at(last, where, frags.triangle)          # the last triangle in primitive order
+    ids = np.where(last >= 0, prims.primitive_id[np.maximum(last, 0)] if len(prims) else -1, -1)
     if pattern is None:
         count, ids = count[:, :, 0], ids[:, :, 0]
     return Coverage(mask=count > 0, primitive_id=ids, count=count, pattern=pattern)

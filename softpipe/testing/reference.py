@@ -116,7 +116,7 @@ def reference_coverage(positions, width: int, height: int, *, indices=None, samp
     keep images small (a few thousand samples per triangle).
     """
     from ..assembly import CULL_MODES, FRONT_FACES, triangle_indices
-    from .coverage import Coverage, as_pattern, check_size
+    from .coverage import Coverage, as_pattern, check_samples, check_size
 
     width, height = check_size(width, height)
     if cull not in CULL_MODES:
@@ -129,6 +129,7 @@ def reference_coverage(positions, width: int, height: int, *, indices=None, samp
     tri = triangle_indices("triangles", indices, len(pos))
     offsets = CENTRE if pattern is None else [(Fraction(float(x)), Fraction(float(y))) for x, y in pattern.positions]
     s_count = len(offsets)
+    check_samples(width, height, s_count)
     count = np.zeros((height, width, s_count), np.int64)
     ids = np.full((height, width, s_count), -1, np.int64)
     for t, (a, b, c) in enumerate(tri.tolist()):
