@@ -164,7 +164,7 @@ BAD_CALLS = [
     (lambda: assert_pixels_equal(np.zeros((2, 2), bool), np.zeros((2, 2), np.uint8)), TypeError,
      "actual is a mask (bool) and expected is not (uint8): compare masks with masks"),
     (lambda: assert_pixels_equal(np.zeros(5), np.zeros(5)), ValueError,
-     "actual must be an image [H, W] or [H, W, C] with C ≤ 4, got shape [5]"),
+     "actual must be an image [H, W] or [H, W, C] with C ≤ 4 (or a mask [H, W, samples]), got shape [5]"),
     (lambda: assert_pixels_equal(np.zeros((2, 2)), "no/such.png"), FileNotFoundError,
      "expected: no image file at 'no/such.png'"),
     (lambda: assert_pixels_equal(np.zeros((2, 2)), np.zeros((2, 2)), tolerance=-1), ValueError,
@@ -248,6 +248,24 @@ map of x 0..2, y 0..2 (X differs, . equal, ~ masked out):
   0 ...
   1 .X.
   2 ..~"""
+
+
+def test_sample_masks_and_pictures_as_expectations():
+    assert_pixels_equal(coverage(RIGHT, 4, 4), RIGHT_PICTURE)            # a str with line breaks is a picture
+    a = coverage(RIGHT, 5, 4, samples="grid16")
+    b = coverage([(0, 0.1), (4.3, 0), (0, 3.7)], 5, 4, samples="grid16")
+    with pytest.raises(AssertionError) as info:
+        assert_pixels_equal(a, b)
+    assert str(info.value) == """\
+4 of 20 pixels differ (tolerance 0)
+differences in x 0..4, y 0..3 (x: column from the left, y: row from the top)
+first differing pixel x=0, y=0: actual samples ....#...##..###., expected samples ........##..###.
+map of x 0..4, y 0..3 (# same samples, + actual has more, - expected has more, X each has samples the other \
+lacks, . none):
+  0 +....
+  1 ##...
+  2 ##-..
+  3 ###--"""
 
 
 def test_framebuffers_files_and_floats_compare():

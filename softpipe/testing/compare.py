@@ -32,6 +32,9 @@ def as_pixels(value, name: str) -> np.ndarray:
         return np.asarray(value)
     if isinstance(value, Coverage):
         return value.mask
+    if isinstance(value, str) and "\n" in value:          # an ASCII picture, written in the test
+        from .pictures import from_ascii
+        return from_ascii(value)
     if isinstance(value, (str, os.PathLike)):
         path = Path(value)
         if not path.is_file():
@@ -52,8 +55,10 @@ def as_pixels(value, name: str) -> np.ndarray:
         raise TypeError(f"{name} must hold numbers or booleans, got dtype {a.dtype}")
     if a.ndim == 3 and a.shape[2] == 1:
         a = a[:, :, 0]
-    if not (a.ndim == 2 or (a.ndim == 3 and 2 <= a.shape[2] <= 4)) or a.shape[0] == 0 or a.shape[1] == 0:
-        raise ValueError(f"{name} must be an image [H, W] or [H, W, C] with C ≤ 4, got shape {list(a.shape)}")
+    channels_ok = a.ndim == 3 and (2 <= a.shape[2] <= 4 or (a.dtype == bool and a.shape[2] >= 1))
+    if not (a.ndim == 2 or channels_ok) or a.shape[0] == 0 or a.shape[1] == 0:
+        raise ValueError(f"{name} must be an image [H, W] or [H, W, C] with C ≤ 4 (or a mask [H, W, samples]), "
+                         f"got shape {list(a.shape)}")
     return a
 
 
@@ -79,6 +84,8 @@ def _image_array(im) -> np.ndarray:
 
 def _format_value(v) -> str:
     v = np.asarray(v)
+    if v.dtype == bool and v.ndim == 1:                     # the samples of a pixel
+        return "samples " + "".join("#" if x else "." for x in v.tolist())
     if v.ndim == 0:
         return _scalar(v.item())
     return "(" + ", ".join(_scalar(x) for x in v.tolist()) + ")"
@@ -129,6 +136,18 @@ def _difference(a: np.ndarray, b: np.ndarray):
     return d.max(axis=2) if d.ndim == 3 else d
 
 
+def _mask_char(g, w) -> str:
+    """A pixel of two masks (or of two masks' samples): # both, + actual only, - expected only, . neither;
+    X where the samples differ both ways."""
+    g, w = np.atleast_1d(g), np.atleast_1d(w)
+    extra, missing = bool((g & ~w).any()), bool((w & ~g).any())
+    if extra and missing:
+        return "X"
+    if extra or missing:
+        return "+" if extra else "-"
+    return "#" if g.any() else "."
+
+
 def _map(a, b, differs, compared, y0, y1, x0, x1) -> list:
     """The ASCII map of rows y0..y1, columns x0..x1, each row labelled with its y."""
     width = len(str(y1))
@@ -139,8 +158,7 @@ def _map(a, b, differs, compared, y0, y1, x0, x1) -> list:
             if compared is not None and not compared[y, x]:
                 row.append("~")
             elif a.dtype == bool:
-                g, w = bool(a[y, x]), bool(b[y, x])
-                row.append("#" if g and w else "+" if g else "-" if w else ".")
+                row.append(_mask_char(a[y, x], b[y, x]))
             else:
                 row.append("X" if differs[y, x] else ".")
         lines.append(f"  {y:>{width}} {''.join(row)}")
@@ -188,6 +206,9 @@ def compare(actual, expected, *, tolerance=0, mask=None, actual_name="actual", e
     shown_y1, shown_x1 = min(y1, y0 + MAP_ROWS - 1), min(x1, x0 + MAP_COLUMNS - 1)
     legend = (f"# both, + {actual_name} only, - {expected_name} only, . neither" if a.dtype == bool
               else "X differs, . equal")
+    if a.dtype == bool and a.ndim == 3:
+        legend = (f"# same samples, + {actual_name} has more, - {expected_name} has more, X each has samples the "
+                  "other lacks, . none")
     if compared is not None:
         legend += ", ~ masked out"
     cut = "" if (shown_y1, shown_x1) == (y1, x1) else f" (the first {shown_y1 - y0 + 1} rows and " \
@@ -237,7 +258,7 @@ def assert_pixels_equal(actual, expected, *, tolerance=0, mask=None,
 def _gray(b: np.ndarray) -> np.ndarray:
     """The expected image as 8-bit gray, [H, W]."""
     if b.dtype == bool:
-        return np.where(b, 255, 0).astype(np.float64)
+        return (b.mean(axis=2) if b.ndim == 3 else b.astype(np.float64)) * 255.0
     f = b.astype(np.float64)
     if f.ndim == 3:
         f = f[:, :, :3].mean(axis=2) if f.shape[2] >= 3 else f[:, :, 0]
