@@ -6,4 +6,6 @@ softpipe.raster (see softpipe/testing/reference.py). The suite uses
 ``snap`` and ``picture``; users get the same rules as
 ``softpipe.testing.reference_coverage``.
 """
-from softpipe.testing.reference import covered, picture, reference_coverage, snap  # noqa: F401
+from softpipe.testing.reference import covered, picture, reference_coverage, snap
+
+__all__ = ["covered", "picture", "reference_coverage", "snap"]

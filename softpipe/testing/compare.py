@@ -15,69 +15,14 @@ from typing import Optional, Union
 
 import numpy as np
 
-__all__ = ["assert_pixels_equal", "as_pixels", "diff_image", "to_8bit", "check_golden", "MAP_COLUMNS", "MAP_ROWS"]
+from .pictures import as_pixels
+
+__all__ = ["assert_pixels_equal", "diff_image", "to_8bit", "check_golden", "MAP_COLUMNS", "MAP_ROWS"]
 
 #: The ASCII map of a failure shows at most this much of the differing region.
 MAP_COLUMNS, MAP_ROWS = 64, 32
 #: Pixels of context drawn around the differences.
 MAP_MARGIN = 1
-
-
-def as_pixels(value, name: str) -> np.ndarray:
-    """``value`` as an array [H, W] or [H, W, C] (C ≤ 4), or a one-line error naming ``name``."""
-    from ..framebuffer import Framebuffer
-    from .coverage import Coverage
-
-    if isinstance(value, Framebuffer):
-        return np.asarray(value)
-    if isinstance(value, Coverage):
-        return value.mask
-    if isinstance(value, str) and "\n" in value:          # an ASCII picture, written in the test
-        from .pictures import from_ascii
-        return from_ascii(value)
-    if isinstance(value, (str, os.PathLike)):
-        path = Path(value)
-        if not path.is_file():
-            raise FileNotFoundError(f"{name}: no image file at {str(path)!r}")
-        value = _open_image(path, name)
-    try:
-        from PIL import Image
-        if isinstance(value, Image.Image):
-            value = _image_array(value)
-    except ImportError:   # pragma: no cover - pillow is a dependency
-        pass
-    try:
-        a = np.asarray(value)
-    except Exception as e:
-        raise TypeError(f"{name} must be an image (array, Framebuffer, file), got {type(value).__name__}: {e}") \
-            from None
-    if not (a.dtype == bool or np.issubdtype(a.dtype, np.number)):
-        raise TypeError(f"{name} must hold numbers or booleans, got dtype {a.dtype}")
-    if a.ndim == 3 and a.shape[2] == 1:
-        a = a[:, :, 0]
-    channels_ok = a.ndim == 3 and (2 <= a.shape[2] <= 4 or (a.dtype == bool and a.shape[2] >= 1))
-    if not (a.ndim == 2 or channels_ok) or a.shape[0] == 0 or a.shape[1] == 0:
-        raise ValueError(f"{name} must be an image [H, W] or [H, W, C] with C ≤ 4 (or a mask [H, W, samples]), "
-                         f"got shape {list(a.shape)}")
-    return a
-
-
-def _open_image(path: Path, name: str):
-    from PIL import Image, UnidentifiedImageError
-    try:
-        with Image.open(path) as im:
-            im.load()
-            return im
-    except (UnidentifiedImageError, OSError) as e:
-        raise ValueError(f"{name}: {str(path)!r} is not an image pillow can read ({e})") from None
-
-
-def _image_array(im) -> np.ndarray:
-    if im.mode == "P":
-        im = im.convert("RGBA" if "transparency" in im.info else "RGB")
-    elif im.mode == "1":
-        im = im.convert("L")
-    return np.asarray(im)
 
 
 # ----------------------------------------------------------- the comparison

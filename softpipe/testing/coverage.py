@@ -21,7 +21,7 @@ Framebuffer, a PNG and :func:`~softpipe.testing.ascii_picture`, so window pixel
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import List, Optional, Tuple, Union
+from typing import List, Optional, Tuple
 
 import numpy as np
 

@@ -5,16 +5,22 @@ a Framebuffer, of a PNG), one character per pixel. ``#`` is a covered pixel
 (True) and ``.`` an empty one (False); integer arrays (primitive ids, counts)
 are drawn with ``.`` for −1, ``0``–``9`` and ``a``–``z`` for 0…35; images and
 other values through a legend ``{character: value}``.
+
+:func:`as_pixels` is how every function of softpipe.testing takes pixels: a
+Framebuffer (its 8-bit RGB picture), a Coverage (its mask), an array, a pillow
+Image, an image file, or an ASCII picture (a str with line breaks).
 """
 from __future__ import annotations
 
+import os
 import string
 import textwrap
+from pathlib import Path
 from typing import Mapping, Optional
 
 import numpy as np
 
-__all__ = ["ascii_picture", "from_ascii", "DIGITS"]
+__all__ = ["ascii_picture", "from_ascii", "as_pixels", "DIGITS"]
 
 #: The characters of integer pictures: value k is DIGITS[k] (0…35); −1 (no primitive) is ".".
 DIGITS = string.digits + string.ascii_lowercase
@@ -31,8 +37,6 @@ def ascii_picture(image, legend: Optional[Mapping[str, object]] = None) -> str:
     - an image ([H, W, C], a Framebuffer, a file) without a legend: ``.`` where the
       pixel is black (every color channel 0), ``#`` elsewhere.
     """
-    from .compare import as_pixels
-
     a = as_pixels(image, "image")
     if legend is not None:
         return _with_legend(a, _check_legend(legend))
@@ -117,3 +121,61 @@ def from_ascii(picture: str, legend: Optional[Mapping[str, object]] = None, dtyp
         raise ValueError(f"picture uses {''.join(sorted(chars))!r}: without legend= a picture is '#' and '.' "
                          "(a mask) or digits, letters and '.' (integers)")
     return out if dtype is None else out.astype(dtype)
+
+
+# ------------------------------------------------- pixels in any form, as arrays
+
+def as_pixels(value, name: str) -> np.ndarray:
+    """``value`` as an array [H, W] or [H, W, C] (C ≤ 4), or a one-line error naming ``name``."""
+    from ..framebuffer import Framebuffer
+    from .coverage import Coverage
+
+    if isinstance(value, Framebuffer):
+        return np.asarray(value)
+    if isinstance(value, Coverage):
+        return value.mask
+    if isinstance(value, str) and "\n" in value:          # an ASCII picture, written in the test
+        return from_ascii(value)
+    if isinstance(value, (str, os.PathLike)):
+        path = Path(value)
+        if not path.is_file():
+            raise FileNotFoundError(f"{name}: no image file at {str(path)!r}")
+        value = _open_image(path, name)
+    try:
+        from PIL import Image
+        if isinstance(value, Image.Image):
+            value = _image_array(value)
+    except ImportError:   # pragma: no cover - pillow is a dependency
+        pass
+    try:
+        a = np.asarray(value)
+    except Exception as e:
+        raise TypeError(f"{name} must be an image (array, Framebuffer, file), got {type(value).__name__}: {e}") \
+            from None
+    if not (a.dtype == bool or np.issubdtype(a.dtype, np.number)):
+        raise TypeError(f"{name} must hold numbers or booleans, got dtype {a.dtype}")
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    channels_ok = a.ndim == 3 and (2 <= a.shape[2] <= 4 or (a.dtype == bool and a.shape[2] >= 1))
+    if not (a.ndim == 2 or channels_ok) or a.shape[0] == 0 or a.shape[1] == 0:
+        raise ValueError(f"{name} must be an image [H, W] or [H, W, C] with C ≤ 4 (or a mask [H, W, samples]), "
+                         f"got shape {list(a.shape)}")
+    return a
+
+
+def _open_image(path: Path, name: str):
+    from PIL import Image, UnidentifiedImageError
+    try:
+        with Image.open(path) as im:
+            im.load()
+            return im
+    except (UnidentifiedImageError, OSError) as e:
+        raise ValueError(f"{name}: {str(path)!r} is not an image pillow can read ({e})") from None
+
+
+def _image_array(im) -> np.ndarray:
+    if im.mode == "P":
+        im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+    elif im.mode == "1":
+        im = im.convert("L")
+    return np.asarray(im)
