@@ -766,7 +766,7 @@ def _python_value_text(value) -> str:
     if isinstance(value, str):
         return "a string"
     if isinstance(value, list):
-        return f"a list ({len(value)} items)"
+        return "a list"
     if isinstance(value, tuple):
         if all(isinstance(c, float) for c in value):
             return f"a tuple of {len(value)} floats"

@@ -184,11 +184,19 @@ def test_the_users_own_function_runs_under_disable_jit():
         fb2 = sp.Framebuffer(4, 4)
         sp.draw(fb2, full, [0, 1, 2, 0, 2, 3], varyings={"color": np.ones((4, 3))}, fragment_shader=shader)
         print(fb.color[1, 1, 0], fb2.color[1, 1, 0])
+        def listing(varyings, uniforms, frag):
+            return [1.0, 0.0, 0.0, 1.0]
+        try:
+            sp.draw(fb2, full, [0, 1, 2, 0, 2, 3], varyings={"color": np.ones((4, 3))}, fragment_shader=listing)
+        except sp.ShaderError as e:
+            print(str(e).splitlines()[0])
     """)
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["0.5", "1.0"]
+    assert out.stdout.splitlines() == [
+        "0.5 1.0",
+        "fragment shader __main__.listing must return an RGBA tuple of 4 floats (or DISCARD), got a list"]
 
 
 # ------------------------------------------------------------ compile errors
