@@ -173,7 +173,8 @@ def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str
     framebuffer : Framebuffer
     mesh : Mesh or trimesh-like
         A :class:`~softpipe.mesh.Mesh`, or anything with ``.vertices`` and ``.faces``
-        (:func:`as_mesh`). Its normals are used when it has them, else computed (area-weighted). A
+        (:func:`as_mesh`). Its normals are used when it has them, else computed
+        (area-weighted, shared by vertex records at one position). A
         faceted program (``flat``) gets ``mesh.flat_shaded()``: one normal per face. A
         mesh with several materials is drawn once per material, in order.
     camera : Camera
