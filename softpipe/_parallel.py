@@ -22,7 +22,6 @@ import os
 import queue
 import sys
 import threading
-import time
 
 import numba
 import numpy as np
@@ -46,8 +45,8 @@ def in_bands(kernel, rows: int, *args, grain: int = 1) -> None:
     Up to 8 bands per thread, taken in turn by whichever thread is free, so
     that a band heavier than the others does not leave a thread idle for long;
     a band has at least ``grain`` items (below that, starting a thread costs
-    more than it saves). The kernels run on helper threads while the calling
-    thread waits, so Ctrl-C (or any signal) is handled at once: no band is
+    more than it saves; less work than one band runs in the calling thread).
+    The kernels run on helper threads while the calling thread waits, so Ctrl-C (or any signal) is handled at once: no band is
     started after it, the bands under way are given
     :data:`INTERRUPT_GRACE_S` to end, and the KeyboardInterrupt is raised.
     An error in a band stops the others from starting new bands and is
@@ -55,17 +54,21 @@ def in_bands(kernel, rows: int, *args, grain: int = 1) -> None:
     ``NUMBA_DISABLE_JIT=1``, or with a debugger or profiler on the calling
     thread, the kernel runs in the calling thread instead, in one piece.
     """
-    if numba.config.DISABLE_JIT or sys.gettrace() is not None or sys.getprofile() is not None:
-        # Python kernels (or a debugger or profiler watching this thread): run them here, where
-        # a breakpoint stops and a profiler counts; they would hold the GIL anyway.
+    if rows <= max(grain, 1) or numba.config.DISABLE_JIT or sys.gettrace() is not None \
+            or sys.getprofile() is not None:
+        # Less than one band of work (a thread would cost more than it saves), or Python kernels
+        # (or a debugger or profiler watching this thread): run here, where a breakpoint stops
+        # and a profiler counts; Python kernels would hold the GIL anyway.
         kernel(0, rows, *args)
         return
     count = max(1, min(threads(), -(-rows // max(grain, 1))))
-    bands = max(1, min(rows, count * 8)) if rows > 1 else 1
+    bands = min(rows, count * 8)
     bounds = np.linspace(0, rows, bands + 1).astype(np.int64)
     next_band = itertools.count().__next__       # atomic under the GIL
+    next_ended = itertools.count(1).__next__
     stop, errors = [False], []
-    finished = threading.Semaphore(0)
+    done = threading.Lock()                      # released by the last worker to end
+    done.acquire()
 
     def work() -> None:
         try:
@@ -77,31 +80,22 @@ def in_bands(kernel, rows: int, *args, grain: int = 1) -> None:
             stop[0] = True
             errors.append(e)
         finally:
-            finished.release()
+            if next_ended() == count:
+                done.release()
 
     pool = _pool(count)
     for _ in range(count):
         pool.submit(work)
-    ended = 0
     try:
-        while ended < count:
-            if finished.acquire(timeout=0.25):            # a timed wait lets signals through
-                ended += 1
+        while not done.acquire(timeout=0.25):     # a timed wait lets signals through
+            pass
     except BaseException:
         stop[0] = True
-        _wait_or_abandon(finished, count - ended, pool)
+        if not done.acquire(timeout=INTERRUPT_GRACE_S):
+            pool.abandon()                        # a band that never ends: leave its threads behind
         raise
     if errors:
         raise errors[0]
-
-
-def _wait_or_abandon(finished: threading.Semaphore, running: int, pool: "_Workers") -> None:
-    """After an interrupt: wait a little for the bands under way; threads still busy then are left behind."""
-    deadline = time.monotonic() + INTERRUPT_GRACE_S
-    for _ in range(running):
-        if not finished.acquire(timeout=max(0.0, deadline - time.monotonic())):
-            pool.abandon()
-            return
 
 
 class _Workers:

@@ -65,6 +65,10 @@ def available_memory() -> int | None:
     return None
 
 
+#: Needs below this are not checked (no machine softpipe runs on has less free).
+CHECK_MEMORY_FROM = 64 << 20
+
+
 def check_memory(what: str, need: int) -> None:
     """Raise MemoryError, with the estimate, when ``what`` needs more than the memory available.
 
@@ -72,6 +76,8 @@ def check_memory(what: str, need: int) -> None:
     fails at once with a sentence instead of deep inside numpy (or the system
     swapping for minutes).
     """
+    if need < CHECK_MEMORY_FROM:
+        return                          # reading /proc/meminfo costs more than such a draw
     have = available_memory()
     if have is not None and need > have:
         raise MemoryError(f"{what} needs about {need / 2**30:.1f} GiB, and this machine has "

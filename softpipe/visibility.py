@@ -419,7 +419,6 @@ def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeSta
 
 # ------------------------------------------------------------ shading what is visible
 
-@dataclass
 class ShadedSamples:
     """What the fast path's shading did: the shader ran on the visible samples and wrote their color.
 
@@ -430,10 +429,20 @@ class ShadedSamples:
     invocations : int
         Fragment shader invocations (one per written sample; with multisampling,
         one per pixel and visible triangle).
+
+    Both are computed when first asked for (a full-frame pass each), not by every draw.
     """
 
-    written: np.ndarray
-    invocations: int
+    def __init__(self, visibility: Visibility, shading: str):
+        self.visibility, self.shading = visibility, shading
+
+    @property
+    def written(self) -> np.ndarray:
+        return self.visibility.vis >= 0
+
+    @property
+    def invocations(self) -> int:
+        return _invocations(self.visibility.vis, self.shading)
 
     def __repr__(self) -> str:
         return f"ShadedSamples({int(self.written.sum())} samples written, {self.invocations} shader invocations)"
@@ -457,9 +466,8 @@ def visible_loop_args(prims: Primitives, visibility: Visibility, fb, shader: Cal
 def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader: Optional[Callable], uniforms,
                   shading: str = "sample") -> ShadedSamples:
     """Run the shader on the samples a :class:`Visibility` kept, writing their color into ``fb``."""
-    written = visibility.vis >= 0
     if len(prims) == 0:
-        return ShadedSamples(written, 0)
+        return ShadedSamples(visibility, shading)
     shader = fragment_shader or default_fragment_shader(prims.layout)
     kernel = kernels.visible_kernel(shader, prims.layout)
     args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
@@ -467,7 +475,7 @@ def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader
     kernels.run_compiled("fragment", shader, kernel, 0, 0, *args)
     kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), *args,
                          site=kernels.visible_site(shader, kernel, fb.height, args))
-    return ShadedSamples(written, _invocations(visibility.vis, shading))
+    return ShadedSamples(visibility, shading)
 
 
 def _invocations(vis: np.ndarray, shading: str) -> int:

@@ -70,6 +70,7 @@ def test_a_draw_whose_triangles_cannot_fit_fails_before_assembly_with_the_estima
     pos, varyings = _triangles(10_000)
     fb = sp.Framebuffer(64, 64)
     before = fb.samples_color.copy()
+    monkeypatch.setattr(_runtime, "CHECK_MEMORY_FROM", 0)      # small numbers here, checked all the same
     monkeypatch.setattr(_runtime, "available_memory", lambda: 1 << 20)
     with pytest.raises(MemoryError, match=r"drawing 10,000 triangles \(assembly and triangle setup, 232 bytes "
                                           r"each\) needs about 0\.0 GiB, and this machine has 0\.0 GiB available"):
@@ -88,9 +89,20 @@ def test_a_trace_too_large_for_memory_fails_before_it_keeps_the_fragments(monkey
     covered = int(sp.DrawCall(sp.Framebuffer(64, 64), pos, varyings=varyings, path="reference").run(trace=True)
                   .fragments.__len__())
     need = covered * pipeline.BYTES_PER_TRACED_FRAGMENT
+    monkeypatch.setattr(_runtime, "CHECK_MEMORY_FROM", 0)
     assert covered > 1000 and need > 20 * 232                 # the trace, not the triangles, is what is too large
     monkeypatch.setattr(_runtime, "available_memory", lambda: need - 1)
     with pytest.raises(MemoryError, match=rf"tracing {covered:,} fragments"):
         sp.draw(fb, pos, varyings=varyings, trace=True)
     monkeypatch.setattr(_runtime, "available_memory", lambda: need)
     assert len(sp.draw(fb, pos, varyings=varyings, trace=True)) == covered
+
+
+def test_small_needs_are_not_checked_at_all(monkeypatch):
+    from softpipe import _runtime
+    asked = []
+    monkeypatch.setattr(_runtime, "available_memory", lambda: asked.append(1) or 0)
+    _runtime.check_memory("a small draw", _runtime.CHECK_MEMORY_FROM - 1)
+    assert not asked
+    with pytest.raises(MemoryError, match="a large draw needs about 0.1 GiB"):
+        _runtime.check_memory("a large draw", _runtime.CHECK_MEMORY_FROM)
