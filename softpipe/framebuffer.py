@@ -101,6 +101,10 @@ class Framebuffer:
     samples_color : float32 [S, H, W, 4], samples_depth : float32 [S, H, W]
         Every sample: one image plane per sample, so that a row of one sample is
         contiguous in memory (what the rasterizer's inner loop walks along).
+    width, height, pattern, samples, samples_color, samples_depth
+        Read-only: assigning them raises AttributeError, because the kernels index the
+        arrays without bounds checks. The arrays are written in place
+        (``fb.samples_color[...] = c``); each read hands out a checked view of them.
 
     A new framebuffer is cleared to opaque black, (0, 0, 0, 1), and depth 1.0.
 
@@ -114,15 +118,79 @@ class Framebuffer:
         if not isinstance(pattern, SamplePattern):
             raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
         _check_size(width, height, len(pattern))
-        self.width, self.height, self.pattern = int(width), int(height), pattern
         s = len(pattern)
-        self.samples_color = np.empty((s, self.height, self.width, 4), dtype=np.float32)
-        self.samples_depth = np.empty((s, self.height, self.width), dtype=np.float32)
+        object.__setattr__(self, "_width", int(width))
+        object.__setattr__(self, "_height", int(height))
+        object.__setattr__(self, "_pattern", pattern)
+        object.__setattr__(self, "_count", s)
+        object.__setattr__(self, "_samples_color", np.empty((s, self._height, self._width, 4), dtype=np.float32))
+        object.__setattr__(self, "_samples_depth", np.empty((s, self._height, self._width), dtype=np.float32))
         self.clear()
+
+    # The size, the pattern and the two arrays are read-only: the kernels write into the
+    # arrays by index without bounds checks, trusting that they are [S, H, W(, 4)] float32,
+    # C-contiguous, with S, H, W those of the pattern, height and width. Every read of
+    # ``samples_color`` / ``samples_depth`` checks that the framebuffer's own array still is
+    # so and hands out a new view of it: writing into it (``fb.samples_color[...] = c``)
+    # changes the framebuffer, while changing the view's shape, dtype or strides does not.
+
+    _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth")
+
+    def __setattr__(self, name, value):
+        if name in self._READ_ONLY or name.startswith("_"):
+            raise AttributeError(f"Framebuffer.{name} is read-only: the kernels rely on the size, sample pattern "
+                                 f"and arrays the framebuffer was made with; make a new Framebuffer("
+                                 f"width, height, pattern) instead, or write into the arrays in place "
+                                 f"(fb.samples_color[...] = ...)")
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name):
+        raise AttributeError(f"Framebuffer.{name} cannot be deleted")
+
+    @property
+    def width(self) -> int:
+        """Width in pixels (read-only)."""
+        return self._width
+
+    @property
+    def height(self) -> int:
+        """Height in pixels (read-only)."""
+        return self._height
+
+    @property
+    def pattern(self) -> SamplePattern:
+        """The sample pattern (read-only), checked to still have :attr:`samples` int64 offsets."""
+        p, s = self._pattern, self._count
+        offsets, positions = getattr(p, "offsets", None), getattr(p, "positions", None)
+        if not (isinstance(offsets, np.ndarray) and offsets.shape == (s, 2) and offsets.dtype == np.int64
+                and offsets.flags.c_contiguous and isinstance(positions, np.ndarray) and positions.shape == (s, 2)
+                and positions.dtype == np.float64 and positions.flags.c_contiguous):
+            raise RuntimeError(f"this framebuffer's sample pattern was changed after it was made (it had {s} "
+                               "sample(s)); the kernels cannot draw into it safely")
+        return p
 
     @property
     def samples(self) -> int:
-        return len(self.pattern)
+        """Samples per pixel (read-only)."""
+        return self._count
+
+    @property
+    def samples_color(self) -> np.ndarray:
+        """float32 [S, H, W, 4], C-contiguous: every sample's color (a view: write into it in place)."""
+        return self._checked(self._samples_color, (self._count, self._height, self._width, 4), "samples_color")
+
+    @property
+    def samples_depth(self) -> np.ndarray:
+        """float32 [S, H, W], C-contiguous: every sample's depth (a view: write into it in place)."""
+        return self._checked(self._samples_depth, (self._count, self._height, self._width), "samples_depth")
+
+    @staticmethod
+    def _checked(a: np.ndarray, shape, name: str) -> np.ndarray:
+        if not (a.shape == shape and a.dtype == np.float32 and a.flags.c_contiguous and a.flags.writeable):
+            raise RuntimeError(f"Framebuffer.{name} was changed in place (it is {a.dtype} {list(a.shape)}, "
+                               f"{'' if a.flags.c_contiguous else 'not '}C-contiguous, not float32 {list(shape)}); "
+                               "the kernels cannot draw into it safely")
+        return a.view()
 
     def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0) -> "Framebuffer":
         """Set every sample to ``color`` and ``depth``; returns the framebuffer.
@@ -188,9 +256,15 @@ class Framebuffer:
         return self.samples_depth.min(axis=0)
 
     def to_uint8(self, alpha: bool = True) -> np.ndarray:
-        """The color as 8-bit [H, W, 4] (or [H, W, 3]): round(clamp(c, 0, 1)·255), half to even."""
-        c = np.clip(self.color[..., : 4 if alpha else 3].astype(np.float64), 0.0, 1.0)
-        return np.rint(c * 255.0).astype(np.uint8)
+        """The color as 8-bit [H, W, 4] (or [H, W, 3]): round(clamp(c, 0, 1)·255), half to even.
+
+        The one place softpipe turns colors into bytes (``np.asarray(fb)``, :meth:`save`,
+        the stage pictures, Jupyter), whichever path drew them. A NaN channel (a shader
+        that divided 0 by 0, say) becomes 0, +inf 255 and −inf 0, silently (no numpy
+        warning): NaN counts as no light.
+        """
+        c = np.nan_to_num(self.color[..., : 4 if alpha else 3].astype(np.float64), nan=0.0, posinf=1.0, neginf=0.0)
+        return np.rint(np.clip(c, 0.0, 1.0) * 255.0).astype(np.uint8)
 
     def to_image(self, alpha: bool = False):
         """A pillow Image (RGB by default, RGBA with ``alpha=True``)."""
@@ -205,7 +279,9 @@ class Framebuffer:
         ----------
         file : str, path-like or binary file object
             A path: its extension says the format (``.png``, ``.jpg``, ``.bmp``, ``.tif``,
-            ``.webp``, … any format pillow writes) and missing folders are made. A file
+            ``.webp``, … any format pillow writes) and missing folders are made; the file is
+            written whole or not at all (:func:`softpipe.files.atomic_write`: a full disk or
+            Ctrl-C leaves the previous file of that name as it was). A file
             object opened for writing bytes (``open(…, "wb")``, ``io.BytesIO()``): give
             ``format=`` unless it has a ``name`` with an extension.
         alpha : bool
@@ -238,9 +314,10 @@ class Framebuffer:
         if alpha and fmt in ("JPEG", "PCX", "EPS", "PPM", "MPO"):
             raise ValueError(f"{fmt} images have no alpha channel; save with alpha=False or as .png")
         if is_path:
+            from .files import atomic_write
             path = Path(file)
             path.parent.mkdir(parents=True, exist_ok=True)
-            image.save(path, format=fmt)
+            atomic_write(path, lambda f: image.save(f, format=fmt))
             return path
         image.save(file, format=fmt)
         return file
