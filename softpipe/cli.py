@@ -173,6 +173,9 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
     g.add_argument("--elevation", type=_angle, metavar="DEG",
                    help="camera angle above the horizontal (xz) plane (default 20)")
     g.add_argument("--fovy", type=_fovy, metavar="DEG", help="vertical field of view in degrees (default 35)")
+    p.add_argument("--allow-outside-paths", action="store_true",
+                   help="let the OBJ or scene file name files outside its own folder (mtllib, map_Kd, meshes, "
+                        "textures: absolute paths, ~, ..); only for files you trust. FIFOs and devices stay refused")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -332,7 +335,7 @@ def _options(args) -> dict:
     return dict(width=width, height=height, program=args.program, texture=args.texture or None,
                 background=args.background, samples=args.samples, msaa=args.msaa, cull=args.cull,
                 wireframe=args.wireframe, wire_color=args.wire_color, azimuth=args.azimuth,
-                elevation=args.elevation, fovy=args.fovy)
+                elevation=args.elevation, fovy=args.fovy, allow_outside=args.allow_outside_paths)
 
 
 def _prepare(args, default_size):

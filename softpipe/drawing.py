@@ -349,7 +349,8 @@ def input_kind(model) -> str:
     return kind
 
 
-def _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy) -> Tuple[Scene, bool]:
+def _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy,
+                allow_outside: bool = False) -> Tuple[Scene, bool]:
     """The Scene for a model name, an OBJ or TOML path, a mesh or a Scene; and whether it is one model."""
     size = {"width": width or default_size[0], "height": height or default_size[1]}
     angles = {"azimuth": 30.0 if azimuth is None else azimuth, "elevation": 20.0 if elevation is None else elevation,
@@ -364,9 +365,14 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
         kind, path = input_kind(model), os.fspath(model_path(model))
         if kind == ".obj":
             label = os.fspath(model)
+            if allow_outside:   # Scene.from_model reads with the default policy (files in the OBJ's folder)
+                from .models import load_model
+                model = load_model(model, allow_outside=True)
+                if model.triangle_count == 0:
+                    raise ValueError(f"{label}: the file has no faces (f lines) to render")
             return Scene.from_model(model, texture=texture, **angles, **size, path=label), True
         from .scenefile import load_scene  # the one place drawing reads a scene file: render()'s input
-        scene = load_scene(path)
+        scene = load_scene(path, allow_outside=allow_outside)
     # a scene (file or object): its own settings, changed only by what is given
     if texture is not None:
         raise ValueError(f"{scene.path}: texture= applies to one model; in a scene give the material a "
@@ -393,7 +399,7 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
                   program: Optional[str] = None, texture=None, background=None, samples: Optional[str] = None,
                   msaa: bool = False, cull: Optional[str] = None, wireframe: bool = False, wire_color=None,
                   azimuth: Optional[float] = None, elevation: Optional[float] = None, fovy: Optional[float] = None,
-                  default_size: Tuple[int, int] = RENDER_SIZE) -> Scene:
+                  default_size: Tuple[int, int] = RENDER_SIZE, allow_outside: bool = False) -> Scene:
     """The :class:`~softpipe.scene.Scene` that :func:`render` draws (the options of ``softpipe render``).
 
     Takes the arguments of :func:`render` (which see) and ``default_size``, the size
@@ -424,7 +430,8 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
             changes["wireframe_color"] = parse_color(wire_color)[:3]
         except (TypeError, ValueError) as e:
             raise ValueError(f"wire_color: {e}") from None
-    scene, one_model = _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy)
+    scene, one_model = _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy,
+                                   allow_outside)
     samples = samples or ("rgss4" if msaa and scene.samples in ("1", "center", "none") else None)
     if samples:
         changes["samples"] = samples
@@ -464,7 +471,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
            cull: Optional[str] = None, wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
            elevation: Optional[float] = None, fovy: Optional[float] = None, camera: Optional[Camera] = None,
            stages=None, trace: bool = False, results: Optional[list] = None,
-           progress: Optional[Callable[[int, int, SceneObject], None]] = None) -> Framebuffer:
+           progress: Optional[Callable[[int, int, SceneObject], None]] = None,
+           allow_outside: bool = False) -> Framebuffer:
     """``softpipe render MODEL`` in Python: the same picture, as a :class:`Framebuffer`.
 
     ``softpipe.render("teapot").save("teapot.png")`` writes what ``softpipe render
@@ -509,6 +517,10 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
         Receives one :class:`DrawResult` per draw.
     progress : callable, optional
         ``progress(k, n, object)`` before draw k of n.
+    allow_outside : bool
+        Let the OBJ or scene file name files outside its own folder (``mtllib``,
+        ``map_Kd``, meshes, textures; :func:`softpipe.files.resolve_inside`), for files
+        you trust (``--allow-outside-paths``). FIFOs and devices stay refused.
 
     Raises
     ------
@@ -518,7 +530,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
     """
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
-                          wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy)
+                          wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
+                          allow_outside=allow_outside)
     from .pictures import draw_wireframe
 
     camera = camera or scene.view_camera()
@@ -571,7 +584,7 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
               samples: Optional[str] = None, msaa: bool = False, cull: Optional[str] = None,
               wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
               elevation: Optional[float] = None, fovy: Optional[float] = None,
-              progress: Optional[Callable[[int, int], None]] = None) -> Path:
+              progress: Optional[Callable[[int, int], None]] = None, allow_outside: bool = False) -> Path:
     """``softpipe turntable MODEL`` in Python: the camera circling the model, written as an animation.
 
     ``softpipe.turntable("suzanne", "spin.gif", frames=36)`` writes what ``softpipe
@@ -593,6 +606,8 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
         320×240 for a model by default; the other options are :func:`render`'s.
     progress : callable, optional
         ``progress(i, frames)`` after frame i (from 1) is drawn.
+    allow_outside : bool
+        As :func:`render` takes it.
 
     Returns
     -------
@@ -607,7 +622,7 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
-                          default_size=TURNTABLE_SIZE)
+                          default_size=TURNTABLE_SIZE, allow_outside=allow_outside)
     base = scene.view_camera()
     first = scene.frame.azimuth
     images = []

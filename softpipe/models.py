@@ -107,11 +107,12 @@ def texture_path(name: PathLike) -> Optional[Path]:
     return None
 
 
-def load_model(name_or_path: PathLike, **kwargs):
+def load_model(name_or_path: PathLike, *, allow_outside: bool = False, **kwargs):
     """Load a bundled model by name, or any OBJ file by path, as a :class:`~softpipe.mesh.Mesh`.
 
-    ``model_path(name_or_path)`` then :func:`softpipe.obj.load_obj` (``kwargs`` are
-    passed on to it). For a bundled model with a texture (``"spot"``), the mesh's
+    ``model_path(name_or_path)`` then :func:`softpipe.obj.load_obj` (``allow_outside`` and
+    ``kwargs`` are passed on to it: files the OBJ names outside its folder are refused
+    unless ``allow_outside=True``). For a bundled model with a texture (``"spot"``), the mesh's
     material gets ``diffuse_texture`` = the bundled texture's path, as an MTL
     ``map_Kd`` line would give it; the command line and scene files then draw it
     textured. Nothing else is changed: the mesh is as the file holds it (not
@@ -119,7 +120,7 @@ def load_model(name_or_path: PathLike, **kwargs):
     """
     from .obj import load_obj
 
-    mesh = load_obj(model_path(name_or_path), **kwargs)
+    mesh = load_obj(model_path(name_or_path), allow_outside=allow_outside, **kwargs)
     texture = texture_path(name_or_path)
     if texture is not None and mesh.uvs is not None and not mesh.materials \
             and not mesh.material.diffuse_texture:

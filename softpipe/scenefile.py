@@ -594,7 +594,7 @@ class _Reader:
                 warnings.simplefilter("always")
                 try:
                     # a bundled model by name: load_model also gives "spot" its texture
-                    mesh = load_obj(path) if name is None else load_model(name)
+                    mesh = load_obj(path, allow_outside=self.allow_outside) if name is None else load_model(name)
                 except OBJError as e:
                     raise self.error(f"key 'obj' in {t.label}: {e}", table=t.label, key="obj") from None
                 except (OSError, UnicodeError) as e:
