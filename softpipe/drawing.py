@@ -584,7 +584,8 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
               samples: Optional[str] = None, msaa: bool = False, cull: Optional[str] = None,
               wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
               elevation: Optional[float] = None, fovy: Optional[float] = None,
-              progress: Optional[Callable[[int, int], None]] = None, allow_outside: bool = False) -> Path:
+              progress: Optional[Callable[[int, int], None]] = None, allow_outside: bool = False,
+              format: Optional[str] = None) -> Path:
     """``softpipe turntable MODEL`` in Python: the camera circling the model, written as an animation.
 
     ``softpipe.turntable("suzanne", "spin.gif", frames=36)`` writes what ``softpipe
@@ -595,9 +596,12 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
     ----------
     model
         As :func:`render` takes it (a scene with its own camera turns that eye about its target).
-    path : str or path-like
+    path : str, path-like or binary file object
         A ``.gif`` (256 colors per frame, dithered: :func:`gif_frame`) or a ``.png``
-        (an animated PNG, every color kept).
+        (an animated PNG, every color kept). Its folder is made and checked before any
+        frame is drawn, and the file is written whole or not at all
+        (:func:`softpipe.files.atomic_write`). A file object opened for writing bytes
+        gets a GIF, or an animated PNG with ``format="png"``.
     frames : int
         Frames in one turn about the vertical axis (1 to :data:`MAX_FRAMES`).
     fps : float
@@ -611,14 +615,22 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
 
     Returns
     -------
-    Path
-        The file written.
+    Path or the file object
+        Where it was written.
     """
     if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or not 1 <= frames <= MAX_FRAMES:
         raise ValueError(f"frames must be a whole number from 1 to {MAX_FRAMES}, got {frames!r}")
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0.1 <= fps <= 100.0:
         raise ValueError(f"fps must be in 0.1..100 frames per second, got {fps!r}")
-    fmt = animation_format(path)
+    is_path = isinstance(path, (str, os.PathLike))
+    if not is_path and not callable(getattr(path, "write", None)):
+        raise TypeError(f"turntable() takes a path or a binary file object, got {type(path).__name__}")
+    fmt = animation_format(path if is_path else "." + (format or "gif").lower().lstrip("."))
+    if is_path:                  # a bad folder is said before the frames are drawn, not after
+        from .files import check_writable
+        out = Path(path)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        check_writable(out)
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
@@ -632,11 +644,17 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
         images.append(render_scene(scene, camera=camera).to_image())
         if progress is not None:
             progress(i + 1, int(frames))
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
     duration = frame_duration(fps)
     pictures = [gif_frame(im) for im in images] if fmt == "GIF" else images
-    pictures[0].save(out, format=fmt, save_all=True, append_images=pictures[1:], duration=duration, loop=0)
+
+    def write(f) -> None:
+        pictures[0].save(f, format=fmt, save_all=True, append_images=pictures[1:], duration=duration, loop=0)
+
+    if not is_path:
+        write(path)
+        return path
+    from .files import atomic_write
+    atomic_write(out, write)     # whole or not at all: Ctrl-C or a full disk leaves the previous file
     return out
 
 

@@ -223,18 +223,26 @@ def _overdraw_key(draw, x: int, y: int, right: int, height: int) -> None:
 
 
 def save_stage_pictures(trace, directory) -> Dict[str, Path]:
-    """Write each stage picture as ``NN-name.png`` and ``contact-sheet.png`` into ``directory``."""
+    """Write each stage picture as ``NN-name.png`` and ``contact-sheet.png`` into ``directory``.
+
+    Each file is written whole or not at all (:func:`softpipe.files.atomic_write`).
+    """
     from PIL import Image
+    from .files import atomic_write
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     pics = stage_pictures(trace)
     paths = {}
+
+    def save(image, path: Path) -> None:
+        atomic_write(path, lambda f: image.save(f, format="PNG"))
+
     for k, (name, img) in enumerate(pics.items()):
         path = directory / f"{k + 1:02d}-{name}.png"
-        Image.fromarray(img).save(path)
+        save(Image.fromarray(img), path)
         paths[name] = path
     paths["contact-sheet"] = directory / "contact-sheet.png"
-    contact_sheet(pics).save(paths["contact-sheet"])
+    save(contact_sheet(pics), paths["contact-sheet"])
     return paths
 
 
