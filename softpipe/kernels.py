@@ -57,6 +57,8 @@ import linecache
 import os
 import re
 import sys
+import tempfile
+import threading
 import types
 import weakref
 from pathlib import Path
@@ -433,12 +435,39 @@ _VERSIONS_KEPT = 8
 _VERSIONS: Dict[Any, list] = {}
 
 
+#: Held while a kernel module is built, written to the cache or loaded, and while numba
+#: compiles a generated loop (:func:`run_compiled`): two threads asking for the same loop
+#: build it once, and a fork waits for it (:func:`_before_fork`).
+_COMPILE_LOCK = threading.RLock()
+
+
+def _before_fork() -> None:
+    """Before ``os.fork``: wait until no thread builds a kernel or compiles with numba, and hold both
+    locks across the fork, so the child does not inherit a lock held by a thread it does not have."""
+    _COMPILE_LOCK.acquire()
+    numba.core.compiler_lock.global_compiler_lock.acquire()
+
+
+def _after_fork() -> None:
+    numba.core.compiler_lock.global_compiler_lock.release()
+    _COMPILE_LOCK.release()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(before=_before_fork, after_in_parent=_after_fork, after_in_child=_after_fork)
+
+
 def _cached_module(base: tuple, shader: Callable, build: Callable):
     """The module kept for ``base`` and the shader's globals today, built (compiled) when there is none."""
     globals_key = shader_globals_key(shader)
     key = base + (globals_key,)
     module = _KERNELS.get(key)
-    if module is None:
+    if module is not None:
+        return module
+    with _COMPILE_LOCK:
+        module = _KERNELS.get(key)          # another thread may have built it meanwhile
+        if module is not None:
+            return module
         module = build(globals_key)
         _KERNELS[key] = module
         versions = _VERSIONS.setdefault(base, [])
@@ -453,16 +482,34 @@ def _load_cached(source: str, module_name: str):
     directory.mkdir(parents=True, exist_ok=True)
     _importable_cache(directory)
     path = directory / f"{module_name}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)   # atomic: a concurrent process never sees half a file
-    spec = importlib.util.spec_from_file_location(module_name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
-    spec.loader.exec_module(module)
-    module.__softpipe_source__ = source
-    return module
+    with _COMPILE_LOCK:                 # one thread of this process at a time
+        loaded = sys.modules.get(module_name)
+        if loaded is not None and getattr(loaded, "__softpipe_source__", None) == source:
+            return loaded
+        if not path.exists() or path.read_text() != source:
+            # a temporary file of our own (unique across processes and threads), then an atomic
+            # rename: a concurrent writer never sees, nor truncates, half a file
+            fd, tmp = tempfile.mkstemp(prefix=f".{module_name}.", suffix=".tmp", dir=directory)
+            try:
+                with os.fdopen(fd, "w") as f:
+                    f.write(source)
+                os.replace(tmp, path)
+            except BaseException:
+                try:
+                    os.unlink(tmp)
+                except OSError:
+                    pass
+                raise
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            sys.modules.pop(module_name, None)
+            raise
+        module.__softpipe_source__ = source
+        return module
 
 
 def kernel_source(kind: str, shader: Callable, layout: "VaryingLayout") -> str:
@@ -1204,6 +1251,11 @@ def visible_site(shader: Callable, kernel, rows: int, args: tuple) -> Callable:
     return lambda: _locate("fragment", shader, kernel, rows, lambda k, lo, hi: k(lo, hi, *args), describe)
 
 
+def _needs_compiling(kernel) -> bool:
+    """Is ``kernel`` a numba dispatcher with nothing compiled yet (its first call compiles)?"""
+    return isinstance(kernel, numba.core.registry.CPUDispatcher) and not kernel.overloads
+
+
 def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Callable | None = None) -> None:
     """Call a generated loop; turn what goes wrong into a ShaderError naming the shader and the user's line.
 
@@ -1213,7 +1265,11 @@ def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Cal
     ``site`` (:func:`fragment_site`, :func:`visible_site`, :func:`vertex_site`) finds.
     """
     try:
-        kernel(*args)
+        if _needs_compiling(kernel):
+            with _COMPILE_LOCK:         # one compile at a time; a fork waits for it
+                kernel(*args)
+        else:
+            kernel(*args)
     except _BadReturn as e:
         raise _return_error(kind, shader, e) from None
     except ShaderError:
