@@ -354,3 +354,32 @@ def test_turntable_of_a_scene_with_its_own_camera(capsys, model, tmp_path):
 def test_turntable_errors(capsys, model, options, expected):
     code, _, err = run(capsys, "turntable", model, *options)
     assert code == 2 and expected in one_error_line(err, "turntable")
+
+
+def test_allow_outside_paths(capsys, tmp_path):
+    """Files named outside the model's (scene's) folder are refused unless --allow-outside-paths (issue #13)."""
+    models = tmp_path / "models"
+    models.mkdir()
+    (tmp_path / "shared.mtl").write_text("newmtl red\nKd 1 0 0\n")
+    (tmp_path / "outside.obj").write_text(TETRA)
+    (models / "tetra.obj").write_text("mtllib ../shared.mtl\nusemtl red\n" + TETRA)
+    (models / "scene.toml").write_text('[[meshes]]\nobj = "../outside.obj"\n')
+    code, _, err = run(capsys, "render", models / "tetra.obj", "-o", tmp_path / "refused.png", "--size", "32x24")
+    assert code == 0, err
+    assert "warning: " in err and "material library '../shared.mtl' leads out of the folder" in err
+    code, _, err = run(capsys, "render", models / "tetra.obj", "-o", tmp_path / "allowed.png", "--size", "32x24",
+                       "--allow-outside-paths")
+    assert code == 0 and "leads out" not in err, err
+    refused = np.asarray(Image.open(tmp_path / "refused.png"), np.int32)
+    allowed = np.asarray(Image.open(tmp_path / "allowed.png"), np.int32)
+    assert (allowed[..., 0] - allowed[..., 1]).max() > (refused[..., 0] - refused[..., 1]).max() + 50  # red
+    code, _, err = run(capsys, "render", models / "scene.toml", "-o", tmp_path / "s.png")
+    assert code == 2 and "'../outside.obj' leads out of the folder" in one_error_line(err)
+    code, _, err = run(capsys, "render", models / "scene.toml", "-o", tmp_path / "s.png", "--size", "32x24",
+                       "--allow-outside-paths", "-q")
+    assert code == 0, err
+    code, _, err = run(capsys, "turntable", models / "scene.toml", "-o", tmp_path / "t.gif", "--frames", "2",
+                       "--size", "32x24", "--allow-outside-paths", "-q")
+    assert code == 0, err
+    code, out, _ = run(capsys, "render", "--help")
+    assert "--allow-outside-paths" in out

@@ -469,3 +469,83 @@ def _timed_load(path):
     start = time.perf_counter()
     load_obj(path)
     return time.perf_counter() - start
+
+
+# ---------------------------------------------------------------------------- size and complexity
+
+
+def _seconds(call, repeats=3):
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        call()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def _named_objects(n):
+    return "v 0 0 0\nv 1 0 0\nv 0 1 0\n" + "".join(f"o part{k}\nf 1 2 3\n" for k in range(n))
+
+
+def test_object_names_load_in_linear_time():
+    """10⁵ `o` names: five times the names must not take (about) 25 times as long.
+
+    A complexity check, not a speed one (speed is the benchmarks' business): the
+    label list was quadratic, and 10⁵ names took most of a minute."""
+    small, large = _named_objects(20_000), _named_objects(100_000)
+    mesh = parse_obj(large, "many.obj")
+    assert len(mesh.source.objects) == 100_000 and mesh.source.objects[-1] == "part99999"
+    np.testing.assert_array_equal(mesh.source.object_ids[:3], [0, 1, 2])
+    ratio = _seconds(lambda: parse_obj(large, "many.obj")) / _seconds(lambda: parse_obj(small, "many.obj"))
+    assert ratio < 10, f"5x the names took {ratio:.1f}x as long: quadratic"
+
+
+def test_repeated_object_and_group_names_share_one_entry():
+    text = SQUARE + "o a\ng x\nf 1 2 3\no b\ng y\nf 1 3 4\no a\ng x\nf 2 3 4\n"
+    report = parse_quiet(text).source
+    assert report.objects == ("a", "b") and report.groups == ("x", "y")
+    np.testing.assert_array_equal(report.object_ids, [0, 1, 0])
+    np.testing.assert_array_equal(report.group_ids, [0, 1, 0])
+
+
+def test_long_backslash_continuations_load_in_linear_time():
+    def text(n):
+        return SQUARE + "f 1 2 \\\n" + "\\\n" * n + "3\n"
+
+    mesh = parse_quiet(text(10))
+    np.testing.assert_array_equal(mesh.indices, [[0, 1, 2]])
+    assert mesh.source.triangle_lines.tolist() == [5]
+    small, large = text(200_000), text(1_000_000)
+    ratio = _seconds(lambda: parse_obj(large)) / _seconds(lambda: parse_obj(small))
+    assert ratio < 10, f"5x the continued lines took {ratio:.1f}x as long: quadratic"
+
+
+HUGE = "x" * 10_000_000
+
+
+@pytest.mark.parametrize("text, parse, start", [
+    ("v 0 0 " + HUGE + "\n", parse_obj, "big.obj:1: expected 3 numbers after 'v', got 'v 0 0 xxx"),
+    (SQUARE + "f 1 2 " + HUGE + "\n", parse_obj, "big.obj:5: expected a face corner v, v/vt, v//vn or v/vt/vn, got"),
+    (SQUARE + "f 1 2 3/" + HUGE + "\n", parse_obj, "big.obj:5: expected a face corner"),
+    (SQUARE + "s " + HUGE + "\n", parse_obj, "big.obj:5: expected a smoothing group number"),
+    ("newmtl a\nKd 1 " + HUGE + "\n", parse_mtl, "big.obj:2: expected 3 numbers after 'Kd', got 'Kd 1 xxx"),
+    ("newmtl a\nd " + HUGE + "\n", parse_mtl, "big.obj:2: expected 1 number after 'd', got 'd xxx"),
+])
+def test_a_10_mb_line_gives_a_short_error(text, parse, start):
+    with pytest.raises(OBJError) as info:
+        parse(text, "big.obj")
+    message = str(info.value)
+    assert message.startswith(start) and len(message) < 500, message[:300]
+    assert "10,000,0" in message                                     # says how long the line was
+
+
+def test_a_10_mb_name_gives_short_warnings_and_a_short_report(tmp_path):
+    text = "mtllib " + HUGE + "\n" + SQUARE + HUGE + " 1\nusemtl " + HUGE + "\nf 1 2 3\n"
+    with pytest.warns(OBJWarning) as record:
+        mesh = parse_obj(text, "big.obj", base_dir=tmp_path)
+    assert record and all(len(str(w.message)) < 1000 for w in record)
+    assert len(repr(mesh.source)) < 50_000                           # the skipped keyword is cut short
+    (tmp_path / "m.mtl").write_text("newmtl " + HUGE + "\nmap_Kd gone.png\n")
+    with pytest.warns(OBJWarning) as record:
+        load_mtl(tmp_path / "m.mtl")
+    assert all(len(str(w.message)) < 1000 for w in record)
