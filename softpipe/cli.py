@@ -10,6 +10,13 @@
 Errors are one line on stderr and exit status 2; ``--help`` documents every option.
 Every render prints where it wrote and how long it took; progress goes to stderr.
 
+Outputs (``-o``): the extension chooses the format (an unknown one is refused), a
+missing folder is made, and the folder must be writable and the output not a folder;
+all of this is checked before anything is rendered. Files are written whole or not at all
+(:func:`softpipe.files.atomic_write`): Ctrl-C or a full disk leaves the previous file.
+``-o -`` writes the picture to stdout instead (PNG for render and demo, GIF for
+turntable) and the "wrote" line goes to stderr.
+
 This module only turns options into the keyword arguments of :func:`softpipe.render`
 and :func:`softpipe.turntable` (``softpipe.drawing``), checks them with messages that
 name the options, and calls those: the Python API and the command line make the same
@@ -214,7 +221,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
     render.add_argument("-o", "--output", metavar="IMAGE",
                         help="image to write; the format follows the extension (.png, .jpg, .bmp, .tif, ...); "
-                             "default out/NAME.png")
+                             "default out/NAME.png; '-' writes a PNG to stdout")
     _add_view_options(render, "640x480")
     render.add_argument("--stages", metavar="DIR",
                         help="also trace every draw and write each stage's picture (vertices, primitives, coverage, "
@@ -234,7 +241,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "In Python: softpipe.turntable(INPUT, ANIMATION, frames=..., fps=..., ...) writes the same file.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     turn.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
-    turn.add_argument("-o", "--output", metavar="ANIMATION", help="a .gif (or .png) to write; default out/NAME.gif")
+    turn.add_argument("-o", "--output", metavar="ANIMATION",
+                      help="a .gif (or .png) to write; default out/NAME.gif; '-' writes a GIF to stdout")
     turn.add_argument("--frames", type=_frames, default=36, metavar="N",
                       help=f"number of frames in one turn (default 36, at most {MAX_FRAMES})")
     turn.add_argument("--fps", type=_fps, default=15.0, help="frames per second when played (default 15)")
@@ -244,7 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="render the default scene to a PNG and print its path",
                           description="Render the default scene (a few shapes on a ground plane, in "
                                       "perspective) to a PNG and print where it was written.")
-    demo.add_argument("-o", "--output", default="out/demo.png", help="PNG to write (default: out/demo.png)")
+    demo.add_argument("-o", "--output", metavar="IMAGE",
+                      help="image to write; the format follows the extension (.png, .jpg, .bmp, .tif, ...); "
+                           "default out/demo.png; '-' writes a PNG to stdout")
     demo.add_argument("--width", type=_size, default=640, help="image width in pixels (default 640)")
     demo.add_argument("--height", type=_size, default=480, help="image height in pixels (default 480)")
     demo.set_defaults(run=_demo)
@@ -262,10 +272,10 @@ def build_parser() -> argparse.ArgumentParser:
 def _demo(args) -> int:
     from .demo import render_demo
     start = time.perf_counter()
+    output = _checked_output(args, args.output or os.path.join("out", "demo.png"), _image_format)
     fb = render_demo(args.width, args.height)
-    path = fb.save(args.output)
-    print(f"softpipe demo: wrote {path.resolve()} ({args.width}×{args.height}, "
-          f"{time.perf_counter() - start:.2f} s)")
+    where = _save_image(fb, output)
+    _wrote(args, output, f"wrote {where} ({args.width}×{args.height}, {time.perf_counter() - start:.2f} s)")
     return 0
 
 
@@ -364,11 +374,77 @@ def _default_output(args, ext: str) -> str:
     return args.output or os.path.join("out", Path(args.input).stem + ext)
 
 
+#: ``-o -``: the picture goes to stdout.
+STDOUT = "-"
+
+
+def _checked_output(args, output: str, format_of) -> str:
+    """``output``, checked before any rendering: its format (``format_of``), its folder, not a folder itself.
+
+    A missing folder is made (as ``fb.save`` makes it), here, before rendering; one that
+    cannot be made (a file in the way) or written is an error.
+    """
+    if output == STDOUT:
+        if sys.stdout.isatty():
+            raise CLIError("-o - writes the picture's bytes to stdout; redirect it to a file or a pipe")
+        return output
+    if os.path.isdir(output):
+        raise CLIError(f"-o: cannot write {output}: it is a folder")
+    format_of(output)
+    from .files import check_writable
+    folder = os.path.dirname(os.path.abspath(output))
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as e:
+        blocking = folder
+        while not os.path.lexists(blocking) and os.path.dirname(blocking) != blocking:
+            blocking = os.path.dirname(blocking)
+        reason = (f"{blocking} is a file, not a folder" if os.path.lexists(blocking) and not os.path.isdir(blocking)
+                  else f"cannot make the folder {folder}: {e.strerror}")
+        raise CLIError(f"-o: cannot write {output}: {reason}") from None
+    try:
+        check_writable(output)
+    except OSError as e:
+        raise CLIError(f"-o: {e}") from None
+    return output
+
+
+def _animation_format(path: str) -> str:
+    from .drawing import animation_format
+    try:
+        return animation_format(path)
+    except ValueError as e:
+        raise CLIError(str(e)) from None
+
+
+def _to_stdout(data: bytes) -> None:
+    sys.stdout.flush()
+    sys.stdout.buffer.write(data)
+    sys.stdout.buffer.flush()
+
+
+def _save_image(fb, output: str) -> str:
+    """Write ``fb`` to ``output`` (a file, whole or not at all, or stdout as PNG); how to name where it went."""
+    if output == STDOUT:
+        import io
+        buffer = io.BytesIO()
+        fb.save(buffer, format="png")
+        _to_stdout(buffer.getvalue())
+        return "PNG to stdout"
+    return str(fb.save(output).resolve())
+
+
+def _wrote(args, output: str, message: str) -> None:
+    """The command's last line: on stdout, or on stderr when stdout holds the picture."""
+    print(f"softpipe {args.command}: {message}", file=sys.stderr if output == STDOUT else sys.stdout)
+
+
 def _render(args) -> int:
     from .drawing import RENDER_SIZE, render
     start = time.perf_counter()
-    output = _default_output(args, ".png")
-    _image_format(output)
+    output = _checked_output(args, _default_output(args, ".png"), _image_format)
+    if args.stages and os.path.exists(args.stages) and not os.path.isdir(args.stages):
+        raise CLIError(f"--stages: {args.stages} is a file, not a folder")
     scene = _prepare(args, RENDER_SIZE)
 
     def progress(k, total, obj):
@@ -379,27 +455,30 @@ def _render(args) -> int:
     fb = render(scene, stages=args.stages, results=results, progress=progress)
     for r in results:
         for path in r.pictures.values():
-            print(f"softpipe render: stage picture {path}")
-    path = fb.save(output)
+            _wrote(args, output, f"stage picture {path}")
+    where = _save_image(fb, output)
     programs = ", ".join(dict.fromkeys(r.program for r in results))
-    print(f"softpipe render: wrote {path.resolve()} ({scene.width}×{scene.height}, {scene.triangle_count} "
-          f"triangles, program {programs}, {time.perf_counter() - start:.2f} s)")
+    _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
+                         f"program {programs}, {time.perf_counter() - start:.2f} s)")
     return 0
 
 
 def _turntable(args) -> int:
-    from .drawing import TURNTABLE_SIZE, animation_format, frame_duration, turntable
+    from .drawing import TURNTABLE_SIZE, frame_duration, turntable
     start = time.perf_counter()
-    output = _default_output(args, ".gif")
-    try:
-        animation_format(output)
-    except ValueError as e:
-        raise CLIError(str(e)) from None
+    output = _checked_output(args, _default_output(args, ".gif"), _animation_format)
     scene = _prepare(args, TURNTABLE_SIZE)
-    path = turntable(scene, output, frames=args.frames, fps=args.fps,
-                     progress=lambda i, n: _progress(args, f"frame {i}/{n}"))
-    print(f"softpipe turntable: wrote {path.resolve()} ({args.frames} frames, {scene.width}×{scene.height}, "
-          f"{frame_duration(args.fps)} ms each, {time.perf_counter() - start:.2f} s)")
+    progress = lambda i, n: _progress(args, f"frame {i}/{n}")  # noqa: E731
+    if output == STDOUT:
+        import io
+        buffer = io.BytesIO()
+        turntable(scene, buffer, frames=args.frames, fps=args.fps, progress=progress, format="gif")
+        _to_stdout(buffer.getvalue())
+        where = "GIF to stdout"
+    else:
+        where = turntable(scene, output, frames=args.frames, fps=args.fps, progress=progress).resolve()
+    _wrote(args, output, f"wrote {where} ({args.frames} frames, {scene.width}×{scene.height}, "
+                         f"{frame_duration(args.fps)} ms each, {time.perf_counter() - start:.2f} s)")
     return 0
 
 

@@ -625,7 +625,7 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
     is_path = isinstance(path, (str, os.PathLike))
     if not is_path and not callable(getattr(path, "write", None)):
         raise TypeError(f"turntable() takes a path or a binary file object, got {type(path).__name__}")
-    fmt = animation_format(path if is_path else "." + (format or "gif").lower().lstrip("."))
+    fmt = animation_format(path if is_path else "animation." + (format or "gif").lower().lstrip("."))
     if is_path:                  # a bad folder is said before the frames are drawn, not after
         from .files import check_writable
         out = Path(path)
