@@ -195,6 +195,8 @@ def _read_text(path: str) -> str:
 
 #: How much of an unknown keyword ``OBJReport.skipped`` keeps.
 _KEYWORD_CHARS = 40
+#: How much of a library's name ``OBJReport.mtllibs`` keeps (longer ones cannot name a file).
+_PATH_CHARS = 4096
 
 
 def _short(text: str, limit: int = _KEYWORD_CHARS) -> str:
@@ -586,10 +588,10 @@ class _OBJParser:
                 try:
                     path = resolve_inside(self.base_dir, lib, allow_outside=self.allow_outside)
                 except PathPolicyError as e:
-                    libs.append(lib)
+                    libs.append(_short(lib, _PATH_CHARS))
                     self.warn(f"{self.file}:{i + 1}: material library {e}; using default materials")
                     continue
-                libs.append(os.path.join(self.base_dir, lib))
+                libs.append(_short(os.path.join(self.base_dir, lib), _PATH_CHARS))
                 if not os.path.isfile(path):
                     self.warn(f"{self.file}:{i + 1}: material library {excerpt(os.path.join(self.base_dir, lib))} "
                               "not found; using default materials")
