@@ -270,6 +270,7 @@ def test_a_map_kd_link_out_of_the_folder_is_refused_and_one_inside_is_kept(objtr
     assert mats["b"].diffuse_texture == os.path.join(os.path.realpath(objtree), "inside.png")
 
 
+@pytest.mark.filterwarnings("ignore:.*material 'leaked' is not defined")
 def test_allow_outside_reads_files_outside_the_folder(objtree, monkeypatch):
     monkeypatch.setenv("HOME", os.fspath(objtree.parent))
     outside = os.path.realpath(objtree.parent)
@@ -288,6 +289,7 @@ def test_allow_outside_reads_files_outside_the_folder(objtree, monkeypatch):
         parse_obj(text, "t.obj", base_dir=objtree)
 
 
+@pytest.mark.filterwarnings("ignore:.*material 'leaked' is not defined")
 def test_a_scene_passes_its_allow_outside_to_the_obj_loader(objtree):
     (objtree / "m.obj").write_text("mtllib ../secret.mtl\n" + USES)
     (objtree / "scene.toml").write_text('[[meshes]]\nobj = "m.obj"\n')
