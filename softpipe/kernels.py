@@ -72,7 +72,7 @@ from .shader import (ShaderError, VaryingLayout, _field_size, _names_from_class_
                      wants_derivatives)
 
 __all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
-           "kernel_source", "run_compiled", "may_discard", "probe_vertex_shader", "probe_fragment_shader",
+           "kernel_source", "run_compiled", "may_discard", "alpha_is_finite", "may_raise", "probe_vertex_shader", "probe_fragment_shader",
            "jit_function", "rgba", "shader_globals_key", "vertex_site", "fragment_site", "visible_site"]
 
 def jit_function(fn: Callable) -> Callable:
@@ -658,7 +658,7 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         "",
         "@JIT",
         "def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plane, offsets, positions,",
-        f"                 shading, {_TRIANGLE_ARGS}, uniforms, out_color):",
+        f"                 shading, {_TRIANGLE_ARGS}, uniforms, out_color, saved_color, started, status):",
         '    """Shade the samples the visibility pass kept (visibility.py), image rows row_lo:row_hi.',
         "",
         "    Barycentrics, depth and position come from the triangle setup's functions (setup.py), as",
@@ -668,10 +668,27 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         "    ``shading`` 1 or 2 (multisampling at the pixel centre or at the centroid): a triangle is",
         "    shaded once per pixel, as the rasterizer's run of its samples there is, with the depth",
         "    of the first sample it covers (visible or not); its other visible samples copy the color.",
+        "",
+        "    So that a draw that fails leaves the framebuffer as it was (visibility.shade_visible):",
+        "    before a row is shaded, the colors its visible samples hold are copied to saved_color",
+        "    (unless it is empty) and started[row] is set; a NaN alpha (DISCARD, which the reference",
+        "    path discards) is not written: status[0] = 1 and every band stops at its next row.",
         '    """',
         "    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]",
+        "    save = saved_color.shape[0] > 0",
         "    for row in range(row_lo, row_hi):",
+        "        if status[0] != 0:",
+        "            return",
         "        j = height - 1 - row",
+        "        if save:",
+        "            for tile_x in range(touched.shape[1]):",
+        "                if touched[j // tile_h, tile_x]:",
+        "                    for s in range(samples):",
+        "                        for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):",
+        "                            if vis[s, row, i] >= 0:",
+        "                                for c in range(4):",
+        "                                    saved_color[s, row, i, c] = out_color[s, row, i, c]",
+        "            started[row] = True",
         "        for tile_x in range(touched.shape[1]):",
         "            if not touched[j // tile_h, tile_x]:",
         "                continue",
@@ -698,6 +715,9 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         "                    z = sample_depth(edges, plane, t, i, j, depth_sample, offsets)",
         f"                    {inputs} = interpolate(t, b0, b1, b2, fx, fy, z, {_TRIANGLE_ARGS})",
         f"                    c = rgba({call})",
+        "                    if not c[3] == c[3]:       # NaN alpha: the reference path discards it",
+        "                        status[0] = 1",
+        "                        return",
         "                    out_color[s, row, i, 0] = c[0]",
         "                    out_color[s, row, i, 1] = c[1]",
         "                    out_color[s, row, i, 2] = c[2]",
@@ -737,26 +757,130 @@ def visible_kernel(shader: Callable, layout: VaryingLayout):
     return fragment_module(shader, layout).visible_loop
 
 
-def may_discard(shader: Callable, _seen=None) -> bool:
-    """Does the shader (or a Python function it calls) name ``DISCARD``? Decides the fast path.
+def _is_nan(value) -> bool:
+    return isinstance(value, (float, np.floating)) and value != value
 
-    A shader that discards must say so by returning softpipe.DISCARD; this
-    looks for that name in its code and, recursively, in the functions it calls.
+
+def _discard_value(value) -> bool:
+    """Is ``value`` DISCARD, a color with a NaN alpha, or a NaN number (a global, a closure's cell)?"""
+    if isinstance(value, tuple):
+        return len(value) == 4 and _is_nan(value[3])
+    return _is_nan(value)
+
+
+#: Names that spell NaN in a shader's code: ``math.nan``, ``np.nan``, ``float("nan")`` (a constant).
+_NAN_NAMES = {"DISCARD", "nan", "NaN", "NAN"}
+
+
+def may_discard(shader: Callable, _seen=None) -> bool:
+    """Does the shader (or a function it calls) look as if it may return DISCARD or a NaN alpha?
+
+    A hint, not a proof: it names ``DISCARD`` or NaN (``math.nan``, ``np.nan``,
+    ``float("nan")``), or reads a global or closure variable holding DISCARD, a
+    color with a NaN alpha or a NaN number, here or, recursively, in a Python
+    function it calls (whatever the name it is called by). Such a shader takes
+    the reference path. The fast path does not rely on it: its shading loop
+    checks every alpha, and a NaN one sends the draw back to the reference path
+    (see :mod:`softpipe.visibility`).
     """
     seen = set() if _seen is None else _seen
     f = python_function(shader)
-    code = getattr(f, "__code__", None)
-    if code is None or code in seen:
+    if not isinstance(f, types.FunctionType) or id(f) in seen:
         return False
-    seen.add(code)
-    names = set(code.co_names)
-    for const in code.co_consts:          # nested functions and lambdas
-        if hasattr(const, "co_names"):
-            names |= set(const.co_names)
-    if "DISCARD" in names:
+    seen.add(id(f))
+    for code in _codes(f.__code__):
+        if _NAN_NAMES & set(code.co_names):
+            return True
+        for const in code.co_consts:
+            if _discard_value(const) or (isinstance(const, str) and const.strip().lower().lstrip("+-") == "nan"):
+                return True
+    for _, value in _reads(f):
+        if _discard_value(value):
+            return True
+        if callable(value) and isinstance(python_function(value), types.FunctionType) and not _is_softpipe(value):
+            if may_discard(value, seen):
+                return True
+    return False
+
+
+_RAISING_BINARY = ("/", "//", "%", "/=", "//=", "%=")
+_RAISING_OPNAMES = ("RAISE_VARARGS", "BINARY_TRUE_DIVIDE", "BINARY_FLOOR_DIVIDE", "BINARY_MODULO",
+                    "INPLACE_TRUE_DIVIDE", "INPLACE_FLOOR_DIVIDE", "INPLACE_MODULO")
+#: Modules whose functions a compiled shader may call without them raising (numba's math returns NaN).
+_QUIET_MODULES = ("math",)
+
+
+def may_raise(shader: Callable, _seen=None) -> bool:
+    """Can the compiled shader raise while it runs? (False is a proof, True may be a false alarm)
+
+    Compiled, a shader raises only where its code says ``raise`` or ``assert``,
+    or divides (``/``, ``//``, ``%``: ZeroDivisionError), or in a function it
+    calls that does; anything this does not know (a callable that is not a
+    Python function, a module other than ``math``) counts as raising, and so
+    does everything under ``NUMBA_DISABLE_JIT`` or ``NUMBA_BOUNDSCHECK``. The
+    fast path keeps the colors it overwrites only for a shader that may raise.
+    """
+    if numba.config.DISABLE_JIT or numba.config.BOUNDSCHECK:
         return True
-    glob = getattr(f, "__globals__", {})
-    return any(callable(glob.get(n)) and may_discard(glob[n], seen) for n in names if n in glob)
+    seen = set() if _seen is None else _seen
+    f = python_function(shader)
+    if not isinstance(f, types.FunctionType):
+        return True
+    if id(f) in seen:
+        return False
+    seen.add(id(f))
+    for code in _codes(f.__code__):
+        for inst in dis.get_instructions(code):
+            if inst.opname in _RAISING_OPNAMES or (inst.opname == "BINARY_OP"
+                                                   and inst.argrepr in _RAISING_BINARY):
+                return True
+    for _, value in _reads(f):
+        if isinstance(value, types.ModuleType):
+            if value.__name__ not in _QUIET_MODULES and not _is_softpipe(value) and not _user_module(value):
+                return True
+        elif isinstance(value, type) or isinstance(value, types.BuiltinFunctionType):
+            continue                # namedtuple classes, float, min, max, abs…
+        elif callable(value):
+            if may_raise(value, seen):
+                return True
+    return False
+
+
+def alpha_is_finite(shader: Callable) -> bool:
+    """Is every alpha the shader returns a finite number written in its code? (a proof, or False)
+
+    True when each ``return`` of the shader returns a 4-tuple whose last item is
+    a finite number literal, ``return (r, g, b, 1.0)``, or a constant tuple
+    with one. Anything else (a variable, a helper's result) is not proven.
+    """
+    f = python_function(shader)
+    code = getattr(f, "__code__", None)
+    if code is None:
+        return False
+    insts = list(dis.get_instructions(code))
+    returns = 0
+    for k, inst in enumerate(insts):
+        if inst.opname == "RETURN_CONST":
+            values = [inst.argval]
+        elif inst.opname == "RETURN_VALUE":
+            prev = insts[k - 1] if k else None
+            if prev is None or prev.is_jump_target or inst.is_jump_target:
+                return False
+            if prev.opname == "LOAD_CONST":
+                values = [prev.argval]
+            elif prev.opname == "BUILD_TUPLE" and prev.argval == 4 and k >= 2 and \
+                    insts[k - 2].opname == "LOAD_CONST":
+                values = [(0.0, 0.0, 0.0, insts[k - 2].argval)]
+            else:
+                return False
+        else:
+            continue
+        returns += 1
+        for v in values:
+            if not (isinstance(v, tuple) and len(v) == 4 and isinstance(v[3], (int, float))
+                    and not isinstance(v[3], bool) and np.isfinite(v[3])):
+                return False
+    return returns > 0
 
 
 def python_fragment_module(shader: Callable, layout: VaryingLayout):

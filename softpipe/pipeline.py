@@ -45,7 +45,8 @@ from .setup import SHADING_POSITIONS, pixel_rect, setup_triangles
 from .shader import make_uniforms
 from .transforms import Viewport
 from .vertex import run_vertex_stage
-from .visibility import FAST_PATH_MIN_SAMPLES, PATHS, choose_path, shade_visible, visibility_pass  # noqa: F401
+from .visibility import (FAST_PATH_MIN_SAMPLES, PATHS, DiscardOnFastPath, choose_path, shade_visible,  # noqa: F401
+                         shading_may_fail, visibility_pass)
 
 __all__ = ["draw", "DrawCall", "Stage", "MAX_FRAGMENTS_PER_BATCH", "STAGES"]
 
@@ -204,12 +205,21 @@ class DrawCall:
             check_memory(f"tracing {total:,} fragments ({BYTES_PER_TRACED_FRAGMENT} bytes each, kept by the trace)",
                          total * BYTES_PER_TRACED_FRAGMENT)
         clock("raster")
-        for batch, (first, last) in enumerate(_batches(counts, MAX_FRAGMENTS_PER_BATCH)):
+        batches = list(_batches(counts, MAX_FRAGMENTS_PER_BATCH))
+        # A shader that raises leaves the framebuffer as it was: with one batch nothing is merged
+        # before every fragment is shaded; with more (millions of fragments), a copy is kept.
+        saved = (fb.samples_color.copy(), fb.samples_depth.copy()) if len(batches) > 1 else None
+        for batch, (first, last) in enumerate(batches):
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
                               setup=setup)
             clock("raster")
             yield Stage("raster", frags, batch)
-            shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
+            try:
+                shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
+            except BaseException:
+                if saved is not None:
+                    fb.samples_color[...], fb.samples_depth[...] = saved
+                raise
             clock("fragment")
             yield Stage("fragment", shaded, batch)
             merged = merge(frags, shaded, self.state, fb, record=record)
@@ -219,10 +229,21 @@ class DrawCall:
     def _fast_stages(self, prims, setup, clock) -> Iterator[Stage]:
         """Early depth: the visibility pass, then the shader on the visible samples only."""
         fb = self.framebuffer
-        visibility = visibility_pass(prims, setup, fb, self.state)
+        undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
+        visibility = visibility_pass(prims, setup, fb, self.state, undo=undo)
         clock("raster")
         yield Stage("visibility", visibility)
-        shaded = shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
+        try:
+            shaded = shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
+        except DiscardOnFastPath as e:
+            # the depth is as it was before the draw: draw it again in the reference order (even with
+            # path="fast": only the reference path can draw what a discarded fragment lets show)
+            self.path_taken = "reference"
+            self.path_reason = (f"{e} on the fast path, which then drew it again on the reference path "
+                                "(a discarded fragment lets what is behind it show)")
+            clock("fragment")
+            yield from self._reference_stages(prims, setup, clock, record=False)
+            return
         clock("fragment")
         yield Stage("fragment", shaded)
 

@@ -34,7 +34,7 @@ the two paths to identical color and depth.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple
 
 import numba
@@ -51,7 +51,8 @@ from .setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, covers, dept
                     plane_depth, sample_depth, shading_point)
 
 __all__ = ["TILE_W", "TILE_H", "NARROW", "Visibility", "ShadedSamples", "bin_triangles", "visibility_pass",
-           "shade_visible", "choose_path", "fast_path_blocker", "PATHS", "FAST_PATH_MIN_SAMPLES"]
+           "shade_visible", "choose_path", "fast_path_blocker", "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath",
+           "shading_may_fail"]
 
 #: Tiles are wide and short: rows inside a tile are long enough for the compiler's
 #: vectorized loop to pay off, and a tile's depth and visibility (128×32×8 bytes)
@@ -74,6 +75,11 @@ def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable]) ->
         return "blending is on (the result depends on every fragment, not only the last)"
     if fragment_shader is not None and kernels.may_discard(fragment_shader):
         return "the fragment shader may return DISCARD"
+    if state.depth_test == "notequal" and state.depth_write and not (
+            fragment_shader is not None and kernels.alpha_is_finite(fragment_shader)):
+        # the one compare function under which discarding a hidden fragment can change which one shows
+        return ("depth test 'notequal' with depth writes, and a fragment shader whose alpha is not a finite "
+                "literal (a hidden fragment it discarded could change the picture)")
     return None
 
 
@@ -280,7 +286,7 @@ def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, f
 
 @numba.njit(cache=True)
 def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
-                 depth, vis, touched):
+                 depth, vis, touched, saved_depth):
     """One tile of the visibility pass: its triangles, in primitive order (see :func:`raster_tiles`)."""
     hiz = depth_write and (func == LESS or func == LEQUAL)
     ox_lo, ox_hi = offsets[:, 0].min(), offsets[:, 0].max()
@@ -292,11 +298,20 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
         for row in range(height - 1 - y_hi, height - y_lo):
             vis[s, row, x_lo:x_hi + 1] = -1
     far = 0.0
+    save = saved_depth.shape[0] > 0
     if hiz and starts[tile + 1] > starts[tile]:
         for s in range(offsets.shape[0]):
             for row in range(height - 1 - y_hi, height - y_lo):
-                for i in range(x_lo, x_hi + 1):
-                    far = max(far, depth[s, row, i])
+                drow = depth[s, row]
+                if save:        # the tile's depth before this draw, to undo it (shade_visible)
+                    srow = saved_depth[s, row]
+                    for i in range(x_lo, x_hi + 1):
+                        srow[i] = drow[i]
+                        far = max(far, drow[i])
+                else:
+                    for i in range(x_lo, x_hi + 1):
+                        far = max(far, drow[i])
+        save = False
     for k in range(starts[tile], starts[tile + 1]):
         t = items[k]
         i0, i1 = max(box[t, 0], x_lo), min(box[t, 1], x_hi)
@@ -314,6 +329,12 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
                 continue
             if whole_tile and _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
                 far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
+        if save and not touched[tile]:      # (without hierarchical depth: saved when first touched)
+            for s in range(offsets.shape[0]):
+                for row in range(height - 1 - y_hi, height - y_lo):
+                    drow, srow = depth[s, row], saved_depth[s, row]
+                    for i in range(x_lo, x_hi + 1):
+                        srow[i] = drow[i]
         touched[tile] = True
         if i1 - i0 < NARROW:
             _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
@@ -325,7 +346,7 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
 
 @numba.njit(cache=True, nogil=True)
 def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func,
-                 depth_write, depth, vis, touched):
+                 depth_write, depth, vis, touched, saved_depth):
     """The visibility pass over tiles [tile_lo, tile_hi); see the module docstring.
 
     Hierarchical depth (LESS/LEQUAL with writes): each tile keeps an upper bound
@@ -333,11 +354,12 @@ def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles
     cannot pass anywhere there and is skipped; a triangle that covers the whole
     tile lowers the bound to its own farthest depth there. ``touched[tile]`` is
     set for every tile where some triangle was depth-tested (the others keep no
-    visible sample of this draw: shading skips them).
+    visible sample of this draw: shading skips them); unless ``saved_depth`` is
+    empty, such a tile's depth is first copied there (to undo the draw).
     """
     for tile in range(tile_lo, tile_hi):
         _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func,
-                     depth_write, depth, vis, touched)
+                     depth_write, depth, vis, touched, saved_depth)
 
 
 @dataclass
@@ -354,11 +376,26 @@ class Visibility:
     touched : bool [tiles_y, tiles_x]
         Tiles (TILE_W × TILE_H pixels, in window coordinates: tile row 0 at the
         bottom) where some triangle was depth-tested; the others hold no ``vis`` entry.
+    saved_depth : float32 [S, H, W] or None
+        The framebuffer's depth before the pass, in the touched tiles (elsewhere
+        unset), while shading may still undo the draw; None once it cannot (or
+        when the pass wrote no depth).
     """
 
     vis: np.ndarray
     setup: TriangleSetup
     touched: np.ndarray
+    saved_depth: Optional[np.ndarray] = field(default=None, repr=False)
+
+    def restore_depth(self, fb) -> None:
+        """Put back the depth the pass replaced (the touched tiles' ``saved_depth``)."""
+        if self.saved_depth is None:
+            return
+        depth, h, w = fb.samples_depth, self.vis.shape[1], self.vis.shape[2]
+        for ty, tx in zip(*np.nonzero(self.touched)):
+            rows = slice(max(h - (ty + 1) * TILE_H, 0), h - ty * TILE_H)
+            cols = slice(tx * TILE_W, min((tx + 1) * TILE_W, w))
+            depth[:, rows, cols] = self.saved_depth[:, rows, cols]
 
     def __repr__(self) -> str:
         return (f"Visibility({int((self.vis >= 0).sum())} visible samples of {self.vis.size}, "
@@ -400,8 +437,34 @@ def _visible_fragments(s_idx, rows, cols, tri, edges, bias, plane, height, offse
         pos[0, k], pos[1, k] = fx, fy
 
 
-def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeState) -> Visibility:
-    """Binning and the tiled visibility pass of a draw's set-up triangles; the framebuffer's depth is updated."""
+def shading_may_fail(fragment_shader: Optional[Callable], layout) -> bool:
+    """Can shading on the fast path fail, raising or returning a NaN alpha? (False is a proof.)
+
+    False for a shader that cannot raise (:func:`~softpipe.kernels.may_raise`) and
+    returns a finite literal alpha (:func:`~softpipe.kernels.alpha_is_finite`), such
+    as the default shader of an RGB ``color``: its draw keeps nothing to undo.
+    """
+    may_raise, may_nan = _failure_modes(fragment_shader or default_fragment_shader(layout), layout)
+    return may_raise or may_nan
+
+
+def _failure_modes(shader: Callable, layout) -> Tuple[bool, bool]:
+    """(may it raise, may its alpha be NaN), read from its code once per compiled loop (the loop is
+    kept per shader, layout and values of the globals it reads, helpers included)."""
+    module = kernels.fragment_module(shader, layout)
+    modes = getattr(module, "_softpipe_failure_modes", None)
+    if modes is None:
+        modes = module._softpipe_failure_modes = (kernels.may_raise(shader), not kernels.alpha_is_finite(shader))
+    return modes
+
+
+def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeState,
+                    undo: bool = True) -> Visibility:
+    """Binning and the tiled visibility pass of a draw's set-up triangles; the framebuffer's depth is updated.
+
+    ``undo``: keep the depth it replaces (``Visibility.saved_depth``), so that
+    :func:`shade_visible` can put it back if shading fails (see :func:`shading_may_fail`).
+    """
     w, h, offsets = fb.width, fb.height, fb.pattern.offsets
     func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
     depth_write = bool(state.depth_write) and func >= 0
@@ -412,9 +475,12 @@ def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeSta
         vis.fill(-1)
         return Visibility(vis, setup, touched)
     starts, items = bin_triangles(setup.box, tiles_x, tiles_y)
+    # the depth the pass replaces, kept (tile by tile, as each is first touched) until shading succeeded
+    undo = undo and depth_write
+    saved = _scratch(fb.samples_depth) if undo else np.empty((0, 0, 0), np.float32)
     in_bands(raster_tiles, tiles_x * tiles_y, setup.edges, setup.bias, setup.plane, setup.box, starts, items,
-             tiles_x, w, h, offsets, func, depth_write, fb.samples_depth, vis, touched.reshape(-1))
-    return Visibility(vis, setup, touched)
+             tiles_x, w, h, offsets, func, depth_write, fb.samples_depth, vis, touched.reshape(-1), saved)
+    return Visibility(vis, setup, touched, saved if undo else None)
 
 
 # ------------------------------------------------------------ shading what is visible
@@ -448,6 +514,54 @@ class ShadedSamples:
         return f"ShadedSamples({int(self.written.sum())} samples written, {self.invocations} shader invocations)"
 
 
+class DiscardOnFastPath(Exception):
+    """The fast path's shader returned a NaN alpha (DISCARD) at a visible sample.
+
+    The reference path discards such a fragment, and then what lies behind it
+    shows: only the reference path can draw that. When this is raised
+    :func:`shade_visible` has put the depth back as it was before the draw, and
+    the colors it wrote are ones the reference path writes over (the fragment
+    the fast path shaded at a sample passes the depth test there on the
+    reference path too, for every compare function but "notequal" with depth
+    writes, which :func:`fast_path_blocker` keeps for shaders with a literal alpha).
+    """
+
+
+#: Buffers for what a draw may have to undo, kept between draws: a new one's pages cost more
+#: to map (page faults: 6 ms for a 1920×1080 color buffer) than the copies made into them.
+_SCRATCH: dict = {}
+_SCRATCH_KEPT = 4
+
+
+def _scratch(like: np.ndarray) -> np.ndarray:
+    """A buffer shaped like ``like`` for what a draw may have to undo (only the parts used are written).
+
+    Taken from the ones kept (each is used by one draw at a time: two draws at once get two)
+    and handed back by :func:`_release`.
+    """
+    key = (like.shape, like.dtype.str)
+    try:
+        return _SCRATCH.pop(key)         # atomic under the GIL
+    except KeyError:
+        return np.empty_like(like)
+
+
+def _release(buffer: Optional[np.ndarray]) -> None:
+    """Keep a scratch buffer for the next draw of this size."""
+    if buffer is None or buffer.size == 0:
+        return
+    _SCRATCH[(buffer.shape, buffer.dtype.str)] = buffer
+    while len(_SCRATCH) > _SCRATCH_KEPT:       # the oldest size goes
+        _SCRATCH.pop(next(iter(_SCRATCH)), None)
+
+
+def _restore_colors(color, saved, vis, started) -> None:
+    """Put back the colors of the visible samples of the rows shading started."""
+    for row in np.nonzero(started)[0]:
+        m = vis[:, row] >= 0
+        color[:, row][m] = saved[:, row][m]
+
+
 def visible_loop_args(prims: Primitives, visibility: Visibility, fb, shader: Callable, uniforms,
                       shading: str = "sample") -> tuple:
     """The arguments of the generated ``visible_loop`` after its rows (row_lo, row_hi).
@@ -460,21 +574,60 @@ def visible_loop_args(prims: Primitives, visibility: Visibility, fb, shader: Cal
     pattern, s = fb.pattern, visibility.setup
     return (visibility.vis, visibility.touched, TILE_W, TILE_H, s.edges, s.bias, s.plane, pattern.offsets,
             pattern.positions, SHADING_POSITIONS.index(shading), prims.inv_w, prims.varyings, prims.front_facing,
-            prims.primitive_id, derivative_gradients(shader, s), uniforms, fb.samples_color)
+            prims.primitive_id, derivative_gradients(shader, s), uniforms, fb.samples_color,
+            np.empty((0, 0, 0, 4), np.float32), np.zeros(fb.height, np.bool_), np.zeros(1, np.int64))
 
 
 def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader: Optional[Callable], uniforms,
                   shading: str = "sample") -> ShadedSamples:
-    """Run the shader on the samples a :class:`Visibility` kept, writing their color into ``fb``."""
-    if len(prims) == 0:
-        return ShadedSamples(visibility, shading)
-    shader = fragment_shader or default_fragment_shader(prims.layout)
-    kernel = kernels.visible_kernel(shader, prims.layout)
-    args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
-    # compile (or load) once, in this thread, where errors are reported clearly
-    kernels.run_compiled("fragment", shader, kernel, 0, 0, *args)
-    kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), *args,
-                         site=kernels.visible_site(shader, kernel, fb.height, args))
+    """Run the shader on the samples a :class:`Visibility` kept, writing their color into ``fb``.
+
+    If the shader raises, the framebuffer's depth and color are put back as they
+    were before the visibility pass (the colors it overwrote are kept while it
+    runs when :func:`~softpipe.kernels.may_raise` says it may raise) and the
+    error is raised. If it returns a NaN alpha (DISCARD) at a visible sample,
+    shading stops, that sample is not written, the depth is put back and
+    :class:`DiscardOnFastPath` is raised: the caller draws again on the
+    reference path, which writes every sample the fast path wrote.
+    """
+    saved_color = None
+    try:
+        if len(prims) == 0:
+            return ShadedSamples(visibility, shading)
+        shader = fragment_shader or default_fragment_shader(prims.layout)
+        kernel = kernels.visible_kernel(shader, prims.layout)
+        args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
+        started, status = args[-2], args[-1]
+        if _failure_modes(shader, prims.layout)[0]:
+            # the colors it overwrites are kept, to put back if it raises (a NaN alpha needs no
+            # colors back: the reference path then draws every sample the fast path wrote)
+            saved_color = _scratch(fb.samples_color)
+            args = args[:-3] + (saved_color, started, status)
+        # compile (or load) once, in this thread, where errors are reported clearly
+        kernels.run_compiled("fragment", shader, kernel, 0, 0, *args)
+
+        def site():        # finding the invocation that raised re-runs the loop: on copies
+            rerun = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
+            rerun = rerun[:-4] + (fb.samples_color.copy(),) + rerun[-3:]
+            return kernels.visible_site(shader, kernel, fb.height, rerun)()
+
+        try:
+            kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, fb.height, *a), *args, site=site)
+        except BaseException:
+            if saved_color is not None:
+                _restore_colors(fb.samples_color, saved_color, visibility.vis, started)
+            raise
+        if status[0]:
+            raise DiscardOnFastPath("the fragment shader returned a NaN alpha (DISCARD) at a visible sample")
+    except BaseException:
+        visibility.restore_depth(fb)
+        _release(visibility.saved_depth)
+        visibility.saved_depth = None
+        raise
+    finally:
+        _release(saved_color)
+    _release(visibility.saved_depth)
+    visibility.saved_depth = None          # the draw stands: nothing to undo
     return ShadedSamples(visibility, shading)
 
 
