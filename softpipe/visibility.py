@@ -284,6 +284,14 @@ def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, f
                 _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
 
 
+@numba.njit(cache=True, inline="never")
+def _save_tile(depth, saved_depth, row_lo, row_hi, col_lo, col_hi):
+    for s in range(depth.shape[0]):
+        for row in range(row_lo, row_hi):
+            for i in range(col_lo, col_hi):
+                saved_depth[s, row, i] = depth[s, row, i]
+
+
 @numba.njit(cache=True)
 def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
                  depth, vis, touched, saved_depth):
@@ -302,16 +310,8 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
     if hiz and starts[tile + 1] > starts[tile]:
         for s in range(offsets.shape[0]):
             for row in range(height - 1 - y_hi, height - y_lo):
-                drow = depth[s, row]
-                if save:        # the tile's depth before this draw, to undo it (shade_visible)
-                    srow = saved_depth[s, row]
-                    for i in range(x_lo, x_hi + 1):
-                        srow[i] = drow[i]
-                        far = max(far, drow[i])
-                else:
-                    for i in range(x_lo, x_hi + 1):
-                        far = max(far, drow[i])
-        save = False
+                for i in range(x_lo, x_hi + 1):
+                    far = max(far, depth[s, row, i])
     for k in range(starts[tile], starts[tile + 1]):
         t = items[k]
         i0, i1 = max(box[t, 0], x_lo), min(box[t, 1], x_hi)
@@ -329,12 +329,8 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
                 continue
             if whole_tile and _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
                 far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
-        if save and not touched[tile]:      # (without hierarchical depth: saved when first touched)
-            for s in range(offsets.shape[0]):
-                for row in range(height - 1 - y_hi, height - y_lo):
-                    drow, srow = depth[s, row], saved_depth[s, row]
-                    for i in range(x_lo, x_hi + 1):
-                        srow[i] = drow[i]
+        if save and not touched[tile]:      # the tile's depth before this draw, to undo it (shade_visible)
+            _save_tile(depth, saved_depth, height - 1 - y_hi, height - y_lo, x_lo, x_hi + 1)
         touched[tile] = True
         if i1 - i0 < NARROW:
             _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
