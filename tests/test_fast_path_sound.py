@@ -224,3 +224,25 @@ def test_a_shader_that_raises_in_a_later_batch_leaves_the_framebuffer_unchanged(
     fb, before, call, error = run("reference", raising, 5, uniforms={"cut": 150.0, "alpha": 1.0})
     assert isinstance(error, sp.ShaderError)
     assert (fb.samples_color.tobytes(), fb.samples_depth.tobytes()) == before
+
+
+def test_the_built_in_programs_still_take_the_fast_path():
+    """The analysis must not send softpipe's own shaders (which matter for speed) to the reference path."""
+    import importlib
+    import pkgutil
+
+    import softpipe.shaders
+    from softpipe.fragment import color_rgb, color_rgba
+    from softpipe.output import MergeState
+    from softpipe.visibility import fast_path_blocker
+    found = [color_rgb, color_rgba]
+    for info in pkgutil.iter_modules(softpipe.shaders.__path__):
+        module = importlib.import_module(f"softpipe.shaders.{info.name}")
+        found += [f for name, f in vars(module).items() if name.endswith("_fragment") and callable(f)
+                  and getattr(f, "__module__", None) == module.__name__]
+    assert len(found) > 8
+    for shader in found:
+        assert fast_path_blocker(MergeState(), shader) is None, shader
+    # nothing to keep for the default RGB shader; a shader that raises keeps the colors it overwrites
+    assert not kernels.may_raise(color_rgb) and kernels.alpha_is_finite(color_rgb)
+    assert kernels.may_raise(raising) and not kernels.may_raise(by_alias)
