@@ -8,7 +8,7 @@ Stages (one module each): :mod:`~softpipe.transforms` → :mod:`~softpipe.vertex
 :mod:`softpipe.shaders`.
 """
 from . import _runtime  # noqa: F401  (first: process settings, see its docstring)
-from . import glsl, lighting, shapes
+from . import glsl, lighting, shading, shapes
 from .assembly import Primitives, assemble
 from .camera import Camera
 from .colors import parse_color

@@ -57,7 +57,6 @@ import linecache
 import os
 import re
 import sys
-import tempfile
 import threading
 import types
 import weakref
@@ -68,6 +67,7 @@ import numba
 import numpy as np
 from numba.extending import overload
 
+from .files import atomic_write
 from .shader import (ShaderError, VaryingLayout, _field_size, _names_from_class_name, python_function, shader_name,
                      wants_derivatives)
 
@@ -489,17 +489,7 @@ def _load_cached(source: str, module_name: str):
         if not path.exists() or path.read_text() != source:
             # a temporary file of our own (unique across processes and threads), then an atomic
             # rename: a concurrent writer never sees, nor truncates, half a file
-            fd, tmp = tempfile.mkstemp(prefix=f".{module_name}.", suffix=".tmp", dir=directory)
-            try:
-                with os.fdopen(fd, "w") as f:
-                    f.write(source)
-                os.replace(tmp, path)
-            except BaseException:
-                try:
-                    os.unlink(tmp)
-                except OSError:
-                    pass
-                raise
+            atomic_write(path, lambda f: f.write(source.encode()))
         spec = importlib.util.spec_from_file_location(module_name, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
