@@ -30,6 +30,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+import types
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 
@@ -127,8 +128,10 @@ class DrawCall:
         self.framebuffer, self.viewport = framebuffer, viewport
         self.positions, self.indices, self.varyings, self.attributes = positions, indices, varyings, attributes
         for name, f in (("vertex_shader", vertex_shader), ("fragment_shader", fragment_shader)):
-            if f is not None and not callable(f):
-                raise TypeError(f"{name} must be a function, got {type(f).__name__}")
+            if f is not None and not isinstance(getattr(f, "py_func", f), types.FunctionType):
+                raise TypeError(f"{name} must be a function (def or lambda, or a numba.njit one), got "
+                                f"{type(f).__name__}; a shader's extra inputs are uniforms (a functools.partial "
+                                "or a callable object cannot be compiled)")
         self.vertex_shader, self.fragment_shader = vertex_shader, fragment_shader
         self.uniforms = make_uniforms(uniforms)
         self.topology, self.interpolation, self.cull, self.front_face = topology, interpolation, cull, front_face

@@ -46,6 +46,7 @@ calls (GLSL math, lighting) are offered by :mod:`softpipe.shading`.
 from __future__ import annotations
 
 import inspect
+import keyword
 import math
 from collections import namedtuple
 from dataclasses import dataclass
@@ -152,6 +153,16 @@ def __getattr__(attr: str):
     raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
+def check_name(what: str, name) -> None:
+    """A shader reads its inputs by attribute (``varyings.normal``): a name must be a Python
+    identifier and not a keyword (``varyings.lambda`` is not Python)."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"{what} name {name!r} is not a valid Python identifier")
+    if keyword.iskeyword(name):
+        raise ValueError(f"{what} name {name!r} is a Python keyword: a shader could not read it "
+                         f"(`….{name}` is not Python); rename it, e.g. {name + '_'!r}")
+
+
 def make_uniforms(uniforms: Mapping[str, Any] | None):
     """The shader's ``uniforms`` namedtuple from a dict.
 
@@ -165,8 +176,7 @@ def make_uniforms(uniforms: Mapping[str, Any] | None):
         raise TypeError(f"uniforms must be a dict of name → value, got {type(uniforms).__name__}")
     names = tuple(uniforms)
     for n in names:
-        if not isinstance(n, str) or not n.isidentifier():
-            raise ValueError(f"uniform name {n!r} is not a valid Python identifier")
+        check_name("uniform", n)
     cls = _uniforms_class(names)
     if not names:
         return cls(0.0)

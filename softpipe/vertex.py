@@ -19,7 +19,7 @@ import numpy as np
 
 from . import kernels
 from ._parallel import in_bands
-from .shader import VaryingLayout
+from .shader import VaryingLayout, check_name
 
 __all__ = ["VertexOut", "run_vertex_stage"]
 
@@ -80,8 +80,7 @@ def _varying_arrays(varyings: Optional[Mapping[str, Any]], n: int) -> Dict[str, 
         raise TypeError(f"varyings must be a dict of name → [N, k] array, got {type(varyings).__name__}")
     out = {}
     for name, value in varyings.items():
-        if not isinstance(name, str) or not name.isidentifier():
-            raise ValueError(f"varying name {name!r} is not a valid identifier")
+        check_name("varying", name)
         arr = as_float_array(f"varyings[{name!r}]", value, ncols=(1, 2, 3, 4), allow_1d=True)
         if arr.shape[0] != n:
             raise ValueError(f"varyings[{name!r}] has {arr.shape[0]} rows but positions has {n}")
@@ -126,8 +125,7 @@ def run_vertex_stage(positions, varyings: Optional[Mapping[str, Any]] = None,
     for name, value in (attributes or {}).items():
         if name == "position":
             raise ValueError("attributes must not contain 'position': it is the positions argument")
-        if not isinstance(name, str) or not name.isidentifier():
-            raise ValueError(f"attribute name {name!r} is not a valid identifier")
+        check_name("attribute", name)
         arr = as_float_array(f"attributes[{name!r}]", value, ncols=(1, 2, 3, 4), allow_1d=True)
         if arr.shape[0] != len(pos):
             raise ValueError(f"attributes[{name!r}] has {arr.shape[0]} rows but positions has {len(pos)}")

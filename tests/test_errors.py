@@ -163,7 +163,7 @@ def test_varyings_of_the_wrong_shape_or_type():
         draw(varyings={"color": np.full((3, 3), "red")})
     with pytest.raises(TypeError, match=r"varyings must be a dict of name → \[N, k\] array, got list"):
         draw(varyings=[np.ones((3, 3))])
-    with pytest.raises(ValueError, match=r"varying name 'my color' is not a valid identifier"):
+    with pytest.raises(ValueError, match=r"varying name 'my color' is not a valid Python identifier"):
         draw(varyings={"my color": np.ones((3, 3))})
 
 
@@ -317,8 +317,28 @@ def test_vertex_shader_errors_name_the_shader():
 
 
 def test_a_shader_that_is_not_a_function():
-    with pytest.raises(TypeError, match=r"shader must be a function, got int"):
+    with pytest.raises(TypeError, match=r"shader must be a function \(def or lambda, or a numba.njit one\), got int"):
         draw(fragment_shader=5)
+
+
+def test_a_partial_shader_is_refused_with_the_way_out():
+    import functools
+
+    def tinted(varyings, uniforms, frag, k):
+        return (k, 0.0, 0.0, 1.0)
+    with pytest.raises(TypeError, match=r"got partial; a shader's extra inputs are uniforms"):
+        draw(fragment_shader=functools.partial(tinted, k=0.5))
+
+
+@pytest.mark.parametrize("what", ["varying", "attribute", "uniform"])
+def test_a_keyword_as_an_input_name_is_refused_with_a_rename(what):
+    import softpipe as sp
+    clip = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [0, 1, 0, 1]], float)
+    kw = {"varying": {"varyings": {"lambda": np.ones((3, 3))}},
+          "attribute": {"attributes": {"lambda": np.ones(3)}, "vertex_shader": lambda a, u: ((0.0, 0.0, 0.0, 1.0),)},
+          "uniform": {"varyings": {"color": np.ones((3, 3))}, "uniforms": {"lambda": 1.0}}}[what]
+    with pytest.raises(ValueError, match=rf"{what} name 'lambda' is a Python keyword.*rename it, e.g. 'lambda_'"):
+        sp.draw(sp.Framebuffer(8, 8), clip, **kw)
 
 
 def fragment_shader_that_raises_on_the_right(varyings, uniforms, frag):
