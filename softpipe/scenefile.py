@@ -110,6 +110,7 @@ from .sampling import pattern_named
 # once, and old ``scenefile.studio_lights`` callers keep working.
 from .scene import (FrameSpec, Scene, SceneObject, default_program, framed_camera, program_for,  # noqa: F401
                     studio_lights)
+from .colors import parse_color
 from .files import PathPolicyError, check_regular_file, resolve_inside
 from .shaders import PROGRAMS
 from .transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
@@ -234,11 +235,20 @@ vec3 = numbers(3)
 
 
 def color(v: Any) -> Any:
-    """A color: one number (gray) or [r, g, b]."""
+    """A color: one number (gray), [r, g, b], or a name or hex string (:func:`softpipe.colors.parse_color`)."""
     if _is_number(v):
         return _float(v)
+    if isinstance(v, str):
+        try:
+            c = parse_color(v)
+        except ValueError as e:
+            raise _Bad(f"must be a color: {e}") from None
+        if len(c) != 3:
+            raise _Bad(f"must be an RGB color, got {_describe(v)} with an alpha")
+        return c
     if not isinstance(v, list) or len(v) != 3:
-        raise _Bad(f"must be a number (gray) or an array [r, g, b], got {_describe(v)}")
+        raise _Bad(f"must be a number (gray), an array [r, g, b] or a color name such as \"red\", "
+                   f"got {_describe(v)}")
     return tuple(_float(c, "a number (gray) or an array [r, g, b]") for c in v)
 
 

@@ -291,7 +291,7 @@ def test_unknown_keys(text, expected):
     ('[camera]\neye = [0, 0, 3]\nazimuth = 10\n', "key 'azimuth' in [camera] cannot be used here"),
     ('[camera]\nfovy = 200\n', "[camera]: Camera.fovy must be in (0, 180) degrees"),
     ('[camera]\nframe = 1\n', "key 'frame' in [camera] must be true or false, got integer 1"),
-    ('ambient = "dim"\n', "key 'ambient' in the top level must be a number (gray) or an array [r, g, b]"),
+    ('ambient = "dim"\n', "key 'ambient' in the top level must be a color: unknown color 'dim'"),
     ('[[lights]]\nposition = [0, 0, 0]\n', "[[lights]] #1: needs key 'kind': 'directional', 'point' or 'spot'"),
     ('[[lights]]\nkind = "laser"\n', "key 'kind' in [[lights]] #1 must be one of 'directional', 'point', 'spot'"),
     ('[[lights]]\nkind = "point"\n', "[[lights]] #1: Light.position is required for a point light"),
@@ -300,7 +300,8 @@ def test_unknown_keys(text, expected):
     ('[[lights]]\nkind = "spot"\nposition = [0, 0, 0]\nspot_direction = [0, -1, 0]\ncutoff = 120\n',
      "[[lights]] #1: Light.cutoff must be in [0, 90] degrees"),
     ('lights = 3\n', "'lights' must be an array of tables ([[lights]]), got integer 3"),
-    ('[materials.gold]\nkd = [1, 2]\n', "key 'kd' in [materials.gold] must be a number (gray) or an array [r, g, b]"),
+    ('[materials.gold]\nkd = [1, 2]\n', "key 'kd' in [materials.gold] must be a number (gray), an array [r, g, b] or "
+                                       "a color name"),
     ('[materials.gold]\nkd = -1\n', "[materials.gold]: Material.kd must be finite and non-negative"),
     ('materials = 3\n', "'materials' must be a table of [materials.NAME] tables, got integer 3"),
     ('[materials]\ngold = 3\n', "[materials.gold] must be a table, got integer 3"),
@@ -425,3 +426,11 @@ def test_looking_straight_down_is_framed():
     scene = parse(SMALL + '[camera]\nelevation = 90\n[[meshes]]\nshape = "cube"\n')
     cam = scene.view_camera()
     assert cam.eye[1] > 1 and np.allclose(cam.eye[::2], 0, atol=1e-9)
+
+
+def test_colors_may_be_named_in_a_scene_file():
+    scene = parse_scene('[materials.m]\nkd = "red"\nks = "#808080"\n[[meshes]]\nshape = "cube"\nmaterial = "m"\n')
+    m = scene.objects[0].mesh.material
+    assert tuple(m.kd) == (1.0, 0.0, 0.0) and tuple(m.ks) == (128 / 255,) * 3
+    with pytest.raises(SceneError, match=r"kd.*unknown color 'redd' \(did you mean 'red'\?\)"):
+        parse_scene('[materials.m]\nkd = "redd"\n[[meshes]]\nshape = "cube"\nmaterial = "m"\n')
