@@ -80,7 +80,7 @@ def test_each_command_has_complete_help(capsys, command, options):
 
 def test_help_examples_use_the_bundled_models(capsys):
     out = run(capsys, "--help")[1]
-    assert "softpipe render bunny -o bunny.png" in out and "../shared" not in out
+    assert "softpipe render bunny -o bunny.png" in out and "shared" not in out      # no folder a clone lacks
     assert "bunny, teapot, suzanne, spot, armadillo" in out
 
 
@@ -360,13 +360,13 @@ def test_allow_outside_paths(capsys, tmp_path):
     """Files named outside the model's (scene's) folder are refused unless --allow-outside-paths (issue #13)."""
     models = tmp_path / "models"
     models.mkdir()
-    (tmp_path / "shared.mtl").write_text("newmtl red\nKd 1 0 0\n")
+    (tmp_path / "beside.mtl").write_text("newmtl red\nKd 1 0 0\n")
     (tmp_path / "outside.obj").write_text(TETRA)
-    (models / "tetra.obj").write_text("mtllib ../shared.mtl\nusemtl red\n" + TETRA)
+    (models / "tetra.obj").write_text("mtllib ../beside.mtl\nusemtl red\n" + TETRA)
     (models / "scene.toml").write_text('[[meshes]]\nobj = "../outside.obj"\n')
     code, _, err = run(capsys, "render", models / "tetra.obj", "-o", tmp_path / "refused.png", "--size", "32x24")
     assert code == 0, err
-    assert "warning: " in err and "material library '../shared.mtl' leads out of the folder" in err
+    assert "warning: " in err and "material library '../beside.mtl' leads out of the folder" in err
     code, _, err = run(capsys, "render", models / "tetra.obj", "-o", tmp_path / "allowed.png", "--size", "32x24",
                        "--allow-outside-paths")
     assert code == 0 and "leads out" not in err, err
