@@ -126,8 +126,7 @@ def blinn_phong_fragment(varyings, uniforms, frag):
     P = varyings.position
     N = normalize(varyings.normal)
     V = normalize(neg(P))
-    c = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting.global_ambient,
-                        uniforms.lighting.lights, BLINN_PHONG)
+    c = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting, BLINN_PHONG)
     return (c[0], c[1], c[2], 1.0)
 
 
@@ -136,8 +135,7 @@ def phong_fragment(varyings, uniforms, frag):
     P = varyings.position
     N = normalize(varyings.normal)
     V = normalize(neg(P))
-    c = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting.global_ambient,
-                        uniforms.lighting.lights, PHONG)
+    c = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting, PHONG)
     return (c[0], c[1], c[2], 1.0)
 
 

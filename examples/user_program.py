@@ -7,7 +7,8 @@ out, with Lambert's diffuse factor (N·L) (§3) replaced by "wrap lighting",
 ((N·L + w)/(1 + w))₊, which lets the light reach around the terminator (a cheap
 stand-in for light scattered under a skin or a cloth). w = 0 is Lambert again.
 w is an optional uniform (``uniform_or``); everything else is the built-in
-lighting's own functions. Nothing is registered: a Program, or the two
+lighting's own functions, including the shadow term V_j (``light_visibility``: 1
+when the light has no shadow map). Nothing is registered: a Program, or the two
 functions given to ``softpipe.draw``, is all softpipe needs.
 """
 from common import image, key_light, render, save_sheet
@@ -15,8 +16,8 @@ from common import image, key_light, render, save_sheet
 from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.shading import (LIGHT_AMBIENT, LIGHT_DIFFUSE, LIGHT_SPECULAR, Material, Program, add, ambient,
-                              blinn_phong_specular, dot, emission, facing_normal, light_at, light_vec3, mul, scale,
-                              standard_vertex, toward_eye, uniform_or)
+                              blinn_phong_specular, dot, emission, facing_normal, light_at, light_vec3,
+                              light_visibility, mul, scale, standard_vertex, toward_eye, uniform_or)
 
 
 def wrapped_fragment(varyings, uniforms, frag):
@@ -33,7 +34,8 @@ def wrapped_fragment(varyings, uniforms, frag):
         wrapped = max((dot(N, L) + w) / (1.0 + w), 0.0)              # the changed term
         diffuse = scale(mul(m.kd, light_vec3(lights, j, LIGHT_DIFFUSE)), wrapped)
         specular = blinn_phong_specular(m.ks, light_vec3(lights, j, LIGHT_SPECULAR), N, L, V, m.shininess)
-        term = add(add(ambient(m.ka, light_vec3(lights, j, LIGHT_AMBIENT)), diffuse), specular)
+        shadowed = mul(add(diffuse, specular), light_visibility(uniforms.lighting.shadows, j, P))  # V_j
+        term = add(ambient(m.ka, light_vec3(lights, j, LIGHT_AMBIENT)), shadowed)
         color = add(color, scale(term, f))
     return (color[0], color[1], color[2], m.opacity)
 

@@ -26,6 +26,8 @@ from .sampling import CENTER, SamplePattern, grid, jittered, random_pattern, rot
 from .drawing import draw_mesh, render, render_scene, standard_uniforms, turntable
 from .scene import Scene
 from .shader import DISCARD, FragInfo, ShaderError, make_uniforms
+from .shadowmap import ShadowSettings, ShadowUniform
+from .shadows import ShadowMaps, render_shadow_maps
 from .texture import Texture2D, TextureUniform
 from .trace import PixelHistory, Trace
 from .transforms import (Viewport, compose, frustum, identity, look_at, normal_matrix, opencv_camera,

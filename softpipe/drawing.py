@@ -45,6 +45,7 @@ from .pipeline import DrawCall
 from .sampling import pattern_named
 from .scene import Scene, SceneObject, program_for, studio_lights
 from .shaders import Program, get_program
+from .shadows import render_shadow_maps
 from .shaders.common import lighting_uniform
 from .transforms import compose, normal_matrix
 
@@ -263,7 +264,8 @@ def _texture(texture):
 
 def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool = False,
                  results: Optional[list] = None,
-                 progress: Optional[Callable[[int, int, SceneObject], None]] = None) -> Framebuffer:
+                 progress: Optional[Callable[[int, int, SceneObject], None]] = None,
+                 shadow_maps: Optional[list] = None) -> Framebuffer:
     """Draw every object of ``scene`` into a new framebuffer (and the wireframe, if asked).
 
     Parameters
@@ -277,19 +279,30 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
         Receives one :class:`DrawResult` per object, named as the object.
     progress : callable, optional
         ``progress(k, n, object)`` is called before draw k of n.
+    shadow_maps : list, optional
+        Receives the :class:`~softpipe.shadows.ShadowMaps` when a light casts shadows.
 
     Returns
     -------
     Framebuffer
         ``scene.width`` × ``scene.height``, the scene's sample pattern, cleared to its
-        background, every object drawn in order with :func:`draw_mesh`.
+        background, every object drawn in order with :func:`draw_mesh`. Lights with
+        ``shadows`` set get their shadow maps first (:func:`softpipe.shadows.render_shadow_maps`,
+        from the objects whose ``cast_shadows`` is true).
     """
     from .pictures import draw_wireframe
 
     camera = camera or scene.view_camera()
     fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples))
     fb.clear(scene.background)
-    lighting = scene.lighting_for(camera).uniform(camera.view)  # once for every draw: eye space
+    lights = scene.lighting_for(camera)
+    if any(light.shadows is not None for light in lights.lights):
+        maps = render_shadow_maps(scene.objects, lights)
+        if shadow_maps is not None:
+            shadow_maps.append(maps)
+        lighting = maps.lighting_uniform(lights, camera.view)
+    else:
+        lighting = lights.uniform(camera.view)  # once for every draw: eye space
     drawn: List[DrawResult] = []
     for k, obj in enumerate(scene.objects):
         if progress is not None:

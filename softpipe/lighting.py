@@ -11,7 +11,13 @@ f_att, f_spot, η and m are FORMULAS.md's, defined once in :mod:`softpipe.shadin
 All vectors are in eye space and of unit length unless said.
 
 Colors are RGB 3-tuples multiplied per channel. Lights arrive packed in eye
-space, one row per light (``softpipe.material.pack_lights``; columns ``LIGHT_*``).
+space, one row per light (``softpipe.material.pack_lights``; columns ``LIGHT_*``),
+in the ``lighting`` uniform (a :class:`~softpipe.material.LightingUniform`: the
+global ambient, the packed lights and their shadow maps). The sums over lights
+(:func:`opengl_lighting`, :func:`hall_local`, :func:`cook_torrance_lighting`)
+multiply light j's diffuse and specular terms by its visibility V_j
+(:func:`softpipe.shadowmap.light_visibility`; FORMULAS §11 and §21): 1 without
+shadow maps, 0 in a shadow, a color behind glass. Ambient terms are not shadowed (§10).
 
 Conventions
 -----------
@@ -37,8 +43,9 @@ from softpipe.glsl import add, dot, length, mul, normalize, pow_, scale, sub
 from softpipe.material import (
     LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL, LIGHT_KIND,
     LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION,
-    LIGHT_SPOT_EXPONENT, MaterialUniform,
+    LIGHT_SPOT_EXPONENT, LightingUniform, MaterialUniform,
 )
+from softpipe.shadowmap import light_visibility
 
 Vec3 = Tuple[float, float, float]
 Color = Tuple[float, float, float]
@@ -187,15 +194,16 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
 
 
 @njit(cache=True, inline="always")
-def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global_ambient: Color,
-                    lights: np.ndarray, specular_model: int) -> Color:
-    """The OpenGL lighting equation, summed over all lights (FORMULAS §10).
+def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
+                    specular_model: int) -> Color:
+    """The OpenGL lighting equation, summed over all lights (FORMULAS §10), with shadows.
 
     I = ke + ka·I_a,global
-        + Σ_j f_att,j · f_spot,j · [ ka·I_a,j + B_j·( kd·I_d,j·(N·L_j) + ks·I_s,j·spec_j ) ]
+        + Σ_j f_att,j · f_spot,j · [ ka·I_a,j + V_j·B_j·( kd·I_d,j·(N·L_j) + ks·I_s,j·spec_j ) ]
 
     with spec_j = (N·H_j)₊ⁿ for ``specular_model`` = BLINN_PHONG (0, OpenGL's) or
-    (R_j·V)₊ⁿ for PHONG (1).
+    (R_j·V)₊ⁿ for PHONG (1), and V_j light j's visibility at P
+    (:func:`~softpipe.shadowmap.light_visibility`, FORMULAS §11/§21; 1 without shadows).
 
     Parameters
     ----------
@@ -203,23 +211,26 @@ def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global
         Eye-space point, unit normal (on the viewer's side) and unit vector to the eye.
     material
         A :class:`~softpipe.material.MaterialUniform`.
-    global_ambient
-        I_a,global.
-    lights
-        The packed eye-space lights, [num_lights, LIGHT_COLUMNS] float64.
+    lighting
+        The ``lighting`` uniform: ``global_ambient`` (I_a,global), ``lights`` (packed
+        in eye space, [num_lights, LIGHT_COLUMNS]) and ``shadows``.
     specular_model
         BLINN_PHONG or PHONG.
     """
     m = material
-    color = add(emission(m.ke), ambient(m.ka, global_ambient))
+    lights = lighting.lights
+    color = add(emission(m.ke), ambient(m.ka, lighting.global_ambient))
     for j in range(lights.shape[0]):
         L, f = light_at(P, lights, j)
         Ia, Id, Is = light_colors(lights, j)
-        if specular_model == PHONG:
-            specular = phong_specular(m.ks, Is, N, L, V, m.shininess)
-        else:
-            specular = blinn_phong_specular(m.ks, Is, N, L, V, m.shininess)
-        term = add(add(ambient(m.ka, Ia), lambert(m.kd, Id, N, L)), specular)
+        term = ambient(m.ka, Ia)
+        if f > 0.0 and dot(N, L) > 0.0:  # B_j = 1: the only case with light to shadow
+            if specular_model == PHONG:
+                specular = phong_specular(m.ks, Is, N, L, V, m.shininess)
+            else:
+                specular = blinn_phong_specular(m.ks, Is, N, L, V, m.shininess)
+            lit = add(lambert(m.kd, Id, N, L), specular)
+            term = add(term, mul(lit, light_visibility(lighting.shadows, j, P)))
         color = add(color, scale(term, f))
     return color
 
@@ -267,31 +278,36 @@ def hall_transmission(kt: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, eta: floa
 
 
 @njit(cache=True)
-def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, global_ambient: Color,
-               lights: np.ndarray, eta: float) -> Color:
-    """The local terms of the Hall model (FORMULAS §13), summed over all lights.
+def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
+               eta: float) -> Color:
+    """The local terms of the Hall model (FORMULAS §13), summed over all lights, with shadows.
 
     I = ka·I_a
-        + Σ_j f_j·[ ks·I_s,j·B_j·(N·H_j)₊ⁿ          (specular reflection of lights)
-                  + kt·I_s,j·B′_j·(−N·H′_j)₊ⁿ′      (specular transmission, §14)
-                  + kd·I_d,j·B_j·(N·L_j) ]          (diffuse)
+        + Σ_j f_j·[ ka·I_a,j + V_j·( ks·I_s,j·B_j·(N·H_j)₊ⁿ      (specular reflection of lights)
+                                   + kt·I_s,j·B′_j·(−N·H′_j)₊ⁿ′  (specular transmission, §14)
+                                   + kd·I_d,j·B_j·(N·L_j) ) ]    (diffuse)
 
     The material's RGB ks, kt, kd, ka are Hall's products k_s·F_s, k_t·F_t,
     k_d·F_d and k_a·F_d (a coefficient times a color). I_a is the global ambient
     plus each light's ambient (times f_j), as in §10; f_j = f_att·f_spot; B′_j = 1
     for a light behind the surface (N·L_j < 0). η is as in
     :func:`transmitted_half_vector` (``material.ior`` for a viewer in air); n′ is
-    ``material.transmission_shininess``. The reflected and transmitted rays
+    ``material.transmission_shininess``; V_j is light j's visibility
+    (:func:`~softpipe.shadowmap.light_visibility`). The reflected and transmitted rays
     (k_r, k_t terms with T^d) belong to a ray tracer and are not included.
     """
     m = material
-    color = ambient(m.ka, global_ambient)
+    lights = lighting.lights
+    color = ambient(m.ka, lighting.global_ambient)
     for j in range(lights.shape[0]):
         L, f = light_at(P, lights, j)
         Ia, Id, Is = light_colors(lights, j)
-        reflected = add(blinn_phong_specular(m.ks, Is, N, L, V, m.shininess), lambert(m.kd, Id, N, L))
-        transmitted = hall_transmission(m.kt, Is, N, L, V, eta, m.transmission_shininess)
-        term = add(add(ambient(m.ka, Ia), reflected), transmitted)
+        term = ambient(m.ka, Ia)
+        if f > 0.0:
+            reflected = add(blinn_phong_specular(m.ks, Is, N, L, V, m.shininess), lambert(m.kd, Id, N, L))
+            transmitted = hall_transmission(m.kt, Is, N, L, V, eta, m.transmission_shininess)
+            lit = add(reflected, transmitted)
+            term = add(term, mul(lit, light_visibility(lighting.shadows, j, P)))
         color = add(color, scale(term, f))
     return color
 
@@ -405,27 +421,28 @@ def cook_torrance(N: Vec3, L: Vec3, V: Vec3, m: float, n1: float, n2: float) -> 
 
 @njit(cache=True)
 def cook_torrance_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform,
-                           global_ambient: Color, lights: np.ndarray) -> Color:
-    """§10 with Cook-Torrance in place of the Phong lobe, summed over all lights.
+                           lighting: LightingUniform) -> Color:
+    """§10 with Cook-Torrance in place of the Phong lobe, summed over all lights, with shadows.
 
     I = ke + ka·I_a,global
-        + Σ_j f_j·[ ka·I_a,j + B_j·(N·L_j)·( kd·I_d,j + ks·I_s,j·f_s,j ) ]
+        + Σ_j f_j·[ ka·I_a,j + V_j·B_j·(N·L_j)·( kd·I_d,j + ks·I_s,j·f_s,j ) ]
 
     f_s from :func:`cook_torrance` with m = ``material.roughness``, F from air
     (n1 = 1) into ``material.ior``: a material with ior = 1 has no specular term.
     The diffuse term is §3's (no 1/π), so switching from §10 keeps its brightness.
     """
     mt = material
-    color = add(emission(mt.ke), ambient(mt.ka, global_ambient))
+    lights = lighting.lights
+    color = add(emission(mt.ke), ambient(mt.ka, lighting.global_ambient))
     for j in range(lights.shape[0]):
         L, f = light_at(P, lights, j)
         Ia, Id, Is = light_colors(lights, j)
         term = ambient(mt.ka, Ia)
         n_dot_l = dot(N, L)
-        if n_dot_l > 0.0:  # B_j = 1
+        if f > 0.0 and n_dot_l > 0.0:  # B_j = 1
             f_s = cook_torrance(N, L, V, mt.roughness, 1.0, mt.ior)
             lit = add(mul(mt.kd, Id), scale(mul(mt.ks, Is), f_s))
-            term = add(term, scale(lit, n_dot_l))
+            term = add(term, mul(scale(lit, n_dot_l), light_visibility(lighting.shadows, j, P)))
         color = add(color, scale(term, f))
     return color
 

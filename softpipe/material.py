@@ -68,6 +68,7 @@ from typing import Iterable, Optional, Sequence, Tuple
 import numpy as np
 
 from .colors import parse_color
+from .shadowmap import ShadowSettings, no_shadows
 
 RGB = Tuple[float, float, float]
 Vec3 = Tuple[float, float, float]
@@ -259,6 +260,11 @@ class Light:
         Lights other than spots keep the default 180.
     exponent
         The spot exponent e ≥ 0 (§8); spot lights only.
+    shadows
+        False (the default), True, or a :class:`~softpipe.shadowmap.ShadowSettings`:
+        whether the light casts shadows, through a shadow map
+        (:mod:`softpipe.shadows`). True means the default settings. Read back as
+        None or the settings.
     """
 
     kind: str
@@ -272,8 +278,15 @@ class Light:
     cutoff: float = 180.0
     exponent: float = 0.0
     name: str = field(default="light", compare=False)
+    shadows: Optional[ShadowSettings] = field(default=None, kw_only=True)
 
     def __post_init__(self) -> None:
+        if self.shadows is True:
+            object.__setattr__(self, "shadows", ShadowSettings())
+        elif self.shadows is False:
+            object.__setattr__(self, "shadows", None)
+        elif self.shadows is not None and not isinstance(self.shadows, ShadowSettings):
+            raise TypeError(f"Light.shadows must be True, False or a ShadowSettings, got {self.shadows!r}")
         if not isinstance(self.kind, str):
             raise TypeError(f"Light.kind must be a string, got {self.kind!r}")
         if self.kind not in _KIND_CODES:
@@ -424,9 +437,11 @@ def _cos_degrees(beta: float) -> float:
     return math.cos(math.radians(beta))
 
 
-LightingUniform = namedtuple("LightingUniform", ["global_ambient", "lights"])
-LightingUniform.__doc__ = """Lighting as a shader sees it: ``global_ambient`` (RGB tuple) and
-``lights``, the packed eye-space array of :func:`pack_lights`."""
+LightingUniform = namedtuple("LightingUniform", ["global_ambient", "lights", "shadows"])
+LightingUniform.__doc__ = """Lighting as a shader sees it: ``global_ambient`` (RGB tuple),
+``lights``, the packed eye-space array of :func:`pack_lights`, and ``shadows``, their
+shadow maps (a :class:`~softpipe.shadowmap.ShadowUniform`; :func:`~softpipe.shadowmap.no_shadows`
+when there are none)."""
 
 
 @dataclass(frozen=True)
@@ -450,5 +465,10 @@ class Lighting:
         object.__setattr__(self, "global_ambient", _rgb("global_ambient", self.global_ambient, owner="Lighting"))
 
     def uniform(self, view_matrix: np.ndarray) -> LightingUniform:
-        """The lights in eye space for this camera, as a :class:`LightingUniform`."""
-        return LightingUniform(self.global_ambient, pack_lights(self.lights, view_matrix))
+        """The lights in eye space for this camera, as a :class:`LightingUniform`, without shadow maps.
+
+        :func:`softpipe.shadows.render_shadow_maps` makes the maps of the lights that cast
+        shadows; its ``uniform(view_matrix)`` is this one with them.
+        """
+        return LightingUniform(self.global_ambient, pack_lights(self.lights, view_matrix),
+                               no_shadows(len(self.lights)))

@@ -42,7 +42,7 @@ from .fragment import ShadedFragments, default_fragment_shader, run_fragment_sta
 from .framebuffer import Framebuffer
 from .output import MergeResult, MergeState, merge
 from .raster import Fragments, count_fragments, rasterize
-from .setup import SHADING_POSITIONS, pixel_rect, setup_triangles
+from .setup import SHADING_POSITIONS, apply_polygon_offset, pixel_rect, setup_triangles
 from .shader import make_uniforms
 from .transforms import Viewport
 from .vertex import run_vertex_stage
@@ -106,6 +106,19 @@ def _batches(counts: np.ndarray, limit: int):
         yield first, len(counts)
 
 
+def _polygon_offset(value) -> Optional[Tuple[float, float]]:
+    """None, or (factor, units) as two finite floats."""
+    if value is None:
+        return None
+    try:
+        factor, units = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"polygon_offset must be (factor, units), two numbers, got {value!r}") from None
+    if not (np.isfinite(factor) and np.isfinite(units)):
+        raise ValueError(f"polygon_offset must be finite, got {value!r}")
+    return factor, units
+
+
 class DrawCall:
     """One draw: its inputs, checked, and the stages that run it.
 
@@ -119,7 +132,7 @@ class DrawCall:
                  interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
                  depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
-                 path: str = "auto"):
+                 path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None):
         if not isinstance(framebuffer, Framebuffer):
             raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
         viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
@@ -142,6 +155,7 @@ class DrawCall:
         if path not in PATHS:
             raise ValueError(f"path must be one of {PATHS}, got {path!r}")
         self.path = path
+        self.polygon_offset = _polygon_offset(polygon_offset)
         #: seconds spent in each stage by the last run, keyed by :data:`TIMED` on both paths (on
         #: the fast path "raster" is the visibility pass, with its depth test, and "output" is 0:
         #: shading writes the visible samples' color)
@@ -184,6 +198,8 @@ class DrawCall:
         clock(None)
         fb = self.framebuffer
         setup = setup_triangles(prims.window, pixel_rect(fb.width, fb.height, self.viewport), fb.pattern.offsets)
+        if self.polygon_offset is not None:
+            apply_polygon_offset(setup, prims.window, *self.polygon_offset)
         clock("setup")
         stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
                                                                                                record)
@@ -322,6 +338,10 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     cull : "none" | "back" | "front" (default "none")
     front_face : "ccw" | "cw" (default "ccw")
     viewport : Viewport, optional; the whole framebuffer by default
+    polygon_offset : (factor, units), optional
+        OpenGL's ``glPolygonOffset``: every triangle's depth is moved by
+        factor·DZ + units·r (:func:`softpipe.setup.apply_polygon_offset`); a shadow
+        map's depth bias.
     sample_shading : "sample" | "center" | "centroid"
         With a multisample framebuffer: shade every sample (supersampling, the
         default), or once per pixel and primitive at the pixel centre or at the

@@ -65,7 +65,9 @@ class SceneObject:
     """One draw: a single-material mesh, its model matrix and how to shade it.
 
     ``program`` and ``cull`` are None to use the scene's; ``texture`` is the
-    :class:`~softpipe.texture.Texture2D` of the material's ``diffuse_texture``.
+    :class:`~softpipe.texture.Texture2D` of the material's ``diffuse_texture``;
+    ``cast_shadows`` false leaves the object out of the shadow maps (it still
+    receives shadows).
     """
 
     name: str
@@ -74,6 +76,7 @@ class SceneObject:
     program: Optional[str] = None
     cull: Optional[str] = None
     texture: Any = None
+    cast_shadows: bool = True
 
     def world_positions(self) -> np.ndarray:
         """The mesh's positions after its model matrix (affine: no divide), [N, 3]."""

@@ -24,6 +24,9 @@ OpenGL's, as Mesa implements them (DESIGN.md):
    evaluated as ``z_0 + (E_1 (z_1 − z_0) + E_2 (z_2 − z_0)) / area``
    (:func:`depth_at`: the one expression both paths use, so their depth buffers
    are the same bytes).
+   A draw with a **polygon offset** (``glPolygonOffset(factor, units)``) moves
+   each triangle's plane by ``factor·DZ + units·r`` before anything reads it
+   (:func:`apply_polygon_offset`): the shadow maps' depth bias.
 5. **Bounding box**: the pixels whose samples may lie inside, clamped to the
    scissor rectangle (the viewport within the framebuffer).
 6. **Where a fragment is shaded** (:func:`shading_point`): at its sample; or,
@@ -41,7 +44,7 @@ from ._parallel import in_bands
 from .sampling import SUBPIXEL
 
 __all__ = ["TriangleSetup", "setup_triangles", "snap", "edge_function", "owns_samples_on_edge", "edge_values",
-           "covers", "plane_depth", "depth_at", "pixel_coverage", "shading_point", "SHADING_POSITIONS", "pixel_rect"]
+           "covers", "plane_depth", "depth_at", "apply_polygon_offset", "pixel_coverage", "shading_point", "SHADING_POSITIONS", "pixel_rect"]
 
 #: Where a fragment's barycentrics (its shading inputs) are taken: every sample on
 #: its own (ordinary and supersampled rendering), or once per pixel at its centre
@@ -186,6 +189,32 @@ def setup_triangles(window: np.ndarray, rect: np.ndarray, offsets: np.ndarray) -
     if n:
         in_bands(setup_kernel, n, window, rect, offsets, s.edges, s.bias, s.area, s.plane, s.box, grain=4096)
     return s
+
+
+def apply_polygon_offset(setup: TriangleSetup, window: np.ndarray, factor: float, units: float) -> None:
+    """Move every triangle's depth plane away from the viewer by OpenGL's polygon offset.
+
+    o = factor·DZ + units·r (the GL 4.6 specification, §14.6.5), where DZ =
+    max(|∂z/∂x|, |∂z/∂y|) is the triangle's depth slope per window pixel and r the
+    smallest difference the float32 depth buffer resolves at the triangle's
+    largest depth: 2^(e − 23) for a largest depth of m·2^e, 1 ≤ m < 2. The
+    offset is added to z_0 of the plane, so both paths see it; depth is still
+    clamped to [0, 1] where it is evaluated. This is the slope-scaled plus constant
+    bias of a shadow map's depth pass (the rasterizer's counterpart of a shadow ray's
+    ε, FORMULAS §21).
+    """
+    if not len(setup):
+        return
+    ok = setup.area != 0
+    inv_area = np.where(ok, SUBPIXEL / np.where(ok, setup.area, 1), 0.0)
+    dz = setup.plane[:, 1:3]                                   # (z_1 − z_0, z_2 − z_0)
+    dz_dx = (setup.edges[:, 1, 0] * dz[:, 0] + setup.edges[:, 2, 0] * dz[:, 1]) * inv_area
+    dz_dy = (setup.edges[:, 1, 1] * dz[:, 0] + setup.edges[:, 2, 1] * dz[:, 1]) * inv_area
+    slope = np.maximum(np.abs(dz_dx), np.abs(dz_dy))
+    z_max = np.clip(window[:, :, 2].max(axis=1), 0.0, 1.0)
+    _, exponent = np.frexp(z_max)                               # z = m·2^E with 0.5 ≤ m < 1
+    r = np.ldexp(1.0, np.maximum(exponent - 1, -126) - 23)
+    setup.plane[:, 0] += factor * slope + units * r
 
 
 # --------------------------------------------------- per sample, per pixel

@@ -115,12 +115,15 @@ The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
     light_at                 (L, f_att · f_spot) of light j at P (§7–§9)
     light_vec3               three columns of light j: ``light_vec3(lights, j, LIGHT_DIFFUSE)`` is I_d
     light_colors             (I_a, I_d, I_s) of light j
+    light_visibility         V_j: the RGB share of light j that reaches P past the
+                             shadow casters (:mod:`softpipe.shadowmap`, §11, §21);
+                             ``light_visibility(uniforms.lighting.shadows, j, P)``
     LIGHT_KIND, LIGHT_AMBIENT, LIGHT_DIFFUSE, LIGHT_SPECULAR, LIGHT_POSITION,
     LIGHT_ATTENUATION, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_COS_CUTOFF,
     LIGHT_SPOT_EXPONENT, LIGHT_COLUMNS     the columns of a packed light
     LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT             the values of LIGHT_KIND
 What the uniforms are made from (:mod:`softpipe.material`, :mod:`softpipe.shaders.common`)
-    Material, MaterialUniform, Light, Lighting, LightingUniform,
+    Material, MaterialUniform, Light, Lighting, LightingUniform, ShadowSettings,
     lighting_uniform         the ``lighting`` uniform for a camera's view matrix
 """
 from .glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, length, mat3_mul_vec3,
@@ -136,6 +139,7 @@ from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DI
                        LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
                        LightingUniform, Material, MaterialUniform)
 from .shader import DISCARD, Derivatives, FragInfo, ShaderError
+from .shadowmap import ShadowSettings, light_visibility
 from .shaders import Program
 from .shaders.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
                              standard_vertex, toward_eye, uniform_or)
@@ -163,10 +167,10 @@ __all__ = [
     "fresnel_rs_rp", "fresnel", "fresnel_schlick",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting", "gooch",
     # the packed lights
-    "light_at", "light_vec3", "light_colors",
+    "light_at", "light_vec3", "light_colors", "light_visibility",
     "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR", "LIGHT_POSITION",
     "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF", "LIGHT_SPOT_EXPONENT",
     "LIGHT_COLUMNS", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
     # what the uniforms are made from
-    "Material", "MaterialUniform", "Light", "Lighting", "LightingUniform", "lighting_uniform",
+    "Material", "MaterialUniform", "Light", "Lighting", "LightingUniform", "ShadowSettings", "lighting_uniform",
 ]

@@ -562,6 +562,15 @@ class Texture2D:
         self.height, self.width = level0.shape[:2]
         self._uniform = self._pack()
 
+    @classmethod
+    def from_framebuffer(cls, framebuffer, **options) -> "Texture2D":
+        """Render to texture: a framebuffer's (resolved) color as a texture, ``options`` as the constructor's.
+
+        The framebuffer's top row becomes the image's top row, so texture coordinate
+        v = 0 is the framebuffer's bottom row (window row 0), as in OpenGL.
+        """
+        return cls(np.ascontiguousarray(framebuffer.resolve()), **options)
+
     def _pack(self) -> TextureUniform:
         widths = np.array([lv.shape[1] for lv in self.levels], dtype=np.int64)
         heights = np.array([lv.shape[0] for lv in self.levels], dtype=np.int64)

@@ -12,6 +12,8 @@ import numba
 import numpy as np
 import pytest
 
+from softpipe.material import LightingUniform
+from softpipe.shadowmap import no_shadows
 from softpipe.lighting import (
     BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular, cook_torrance,
     cook_torrance_lighting, emission, fresnel, fresnel_rs_rp, fresnel_schlick, geometry_g, gooch,
@@ -42,6 +44,12 @@ def uniform(**kw):
     return Material(**kw).__softpipe_uniform__()
 
 
+def lit(global_ambient, lights):
+    """The lighting uniform of packed ``lights`` without shadow maps."""
+    lights = np.asarray(lights, dtype=np.float64)
+    return LightingUniform(tuple(global_ambient), lights, no_shadows(len(lights)))
+
+
 def close(got, expected, rel=1e-12, abs_=1e-14):
     np.testing.assert_allclose(np.asarray(got, dtype=float), np.asarray(expected, dtype=float),
                                rtol=rel, atol=abs_)
@@ -54,14 +62,14 @@ def test_emission_only():
     assert emission(ke) == ke
     lights = pack_lights([Light.point((0, 0, 2), ambient=1.0)], np.eye(4))
     m = uniform(ke=ke, ka=0, kd=0, ks=0)
-    close(opengl_lighting((0.0, 0.0, 0.0), N_UP, N_UP, m, (0.5, 0.5, 0.5), lights, BLINN_PHONG), ke)
+    close(opengl_lighting((0.0, 0.0, 0.0), N_UP, N_UP, m, lit((0.5, 0.5, 0.5), lights), BLINN_PHONG), ke)
 
 
 def test_ambient_only():
     ka, ia = (0.2, 0.4, 0.6), (0.5, 0.5, 0.25)
     close(ambient(ka, ia), np.multiply(ka, ia))
     m = uniform(ke=0, ka=ka, kd=0, ks=0)
-    close(opengl_lighting((0.0, 0.0, 0.0), N_UP, N_UP, m, ia, NO_LIGHTS, BLINN_PHONG), np.multiply(ka, ia))
+    close(opengl_lighting((0.0, 0.0, 0.0), N_UP, N_UP, m, lit(ia, NO_LIGHTS), BLINN_PHONG), np.multiply(ka, ia))
 
 
 def test_each_lights_ambient_is_attenuated_but_not_cut_by_b():
@@ -71,7 +79,7 @@ def test_each_lights_ambient_is_attenuated_but_not_cut_by_b():
     lights = pack_lights([Light.point((0, 0, -r), ambient=ia, attenuation=(a, b, c))], np.eye(4))
     m = uniform(ke=0, ka=ka, kd=0.9, ks=0.9)
     expected = np.multiply(ka, ga) + np.multiply(ka, ia) / (a + b * r + c * r * r)
-    close(opengl_lighting((0.0, 0.0, 0.0), N_UP, N_UP, m, ga, lights, BLINN_PHONG), expected)
+    close(opengl_lighting((0.0, 0.0, 0.0), N_UP, N_UP, m, lit(ga, lights), BLINN_PHONG), expected)
 
 
 # --- §3, §4: Lambert and B -------------------------------------------------
@@ -99,7 +107,7 @@ def test_b_cuts_off_light_from_below(theta):
 def test_light_from_below_gives_only_ambient_and_emission():
     m = uniform(ke=(0.01, 0.02, 0.03), ka=0.1, kd=0.8, ks=0.5)
     lights = pack_lights([Light.directional((0.0, 0.3, 1.0))], np.eye(4))  # travels up: from below
-    got = opengl_lighting((0.0, 0.0, -3.0), N_UP, N_UP, m, (0.2, 0.2, 0.2), lights, PHONG)
+    got = opengl_lighting((0.0, 0.0, -3.0), N_UP, N_UP, m, lit((0.2, 0.2, 0.2), lights), PHONG)
     close(got, np.array((0.01, 0.02, 0.03)) + 0.1 * 0.2)
 
 
@@ -157,7 +165,7 @@ def test_point_light_attenuates_diffuse(r):
     lights = pack_lights([Light.point((P[0], P[1], P[2] + r), diffuse=ID, specular=0, attenuation=(a, b, c))],
                          np.eye(4))
     m = uniform(ke=0, ka=0, kd=KD, ks=0)
-    got = opengl_lighting(P, N_UP, tuple(unit(np.negative(P))), m, BLACK, lights, BLINN_PHONG)
+    got = opengl_lighting(P, N_UP, tuple(unit(np.negative(P))), m, lit(BLACK, lights), BLINN_PHONG)
     close(got, np.multiply(KD, ID) / (a + b * r + c * r * r))
 
 
@@ -165,7 +173,7 @@ def test_directional_light_is_not_attenuated():
     lights = pack_lights([Light.directional((0.0, 0.0, -1.0), diffuse=ID, specular=0)], np.eye(4))
     m = uniform(ke=0, ka=0, kd=KD, ks=0)
     for P in ((0.0, 0.0, -1.0), (0.0, 0.0, -1000.0)):
-        close(opengl_lighting(P, N_UP, N_UP, m, BLACK, lights, BLINN_PHONG), np.multiply(KD, ID))
+        close(opengl_lighting(P, N_UP, N_UP, m, lit(BLACK, lights), BLINN_PHONG), np.multiply(KD, ID))
 
 
 def spot_scene(beta, e, angle):
@@ -176,7 +184,7 @@ def spot_scene(beta, e, angle):
     m = uniform(ke=0, ka=0, kd=KD, ks=0)
     L = unit(np.negative(P))
     N = tuple(L)  # facing the light: N·L = 1
-    return opengl_lighting(P, N, N, m, BLACK, lights, BLINN_PHONG)
+    return opengl_lighting(P, N, N, m, lit(BLACK, lights), BLINN_PHONG)
 
 
 @pytest.mark.parametrize("beta,e", [(30.0, 4.0), (45.0, 0.0), (10.0, 100.0)])
@@ -202,7 +210,7 @@ def test_spot_with_cutoff_180_is_a_point_light():
     lights = pack_lights([Light.spot((0, 0, 0), (0, 0, -1), cutoff=180, exponent=50, diffuse=ID, specular=0)],
                          np.eye(4))
     m = uniform(ke=0, ka=0, kd=KD, ks=0)
-    close(opengl_lighting(P, (0.0, 0.0, -1.0), (0.0, 0.0, -1.0), m, BLACK, lights, BLINN_PHONG),
+    close(opengl_lighting(P, (0.0, 0.0, -1.0), (0.0, 0.0, -1.0), m, lit(BLACK, lights), BLINN_PHONG),
           np.multiply(KD, ID))
 
 
@@ -270,11 +278,11 @@ def test_several_lights_add_up_in_eye_space(specular_model):
     P = tuple((view @ np.append(P_world, 1.0))[:3])
     N = tuple(view[:3, :3] @ N_world)
     V = tuple(unit(np.negative(P)))
-    got = opengl_lighting(P, N, V, mat.__softpipe_uniform__(), u.global_ambient, u.lights, specular_model)
+    got = opengl_lighting(P, N, V, mat.__softpipe_uniform__(), lit(u.global_ambient, u.lights), specular_model)
     close(got, expected, rel=1e-11)
 
     # and the sum is more than any one light: each light contributes
-    one_by_one = [opengl_lighting(P, N, V, mat.__softpipe_uniform__(), BLACK, u.lights[j:j + 1].copy(),
+    one_by_one = [opengl_lighting(P, N, V, mat.__softpipe_uniform__(), lit(BLACK, u.lights[j:j + 1].copy()),
                                   specular_model) for j in range(len(SCENE_LIGHTS))]
     base = np.array(mat.ke)
     close(np.sum([np.subtract(x, base) for x in one_by_one], axis=0) + base + np.multiply(mat.ka, ga), expected,
@@ -378,7 +386,7 @@ def test_hall_local_sums_its_terms():
                 + np.multiply(KS, IS) * (np.array(N_UP) @ H) ** n
                 + np.multiply(KD, ID) * (np.array(N_UP) @ L_front)
                 + np.multiply(mat.kt, IS) * max(-(np.array(N_UP) @ Ht), 0.0) ** 30.0)
-    got = hall_local((0.0, 0.0, -2.0), N_UP, V, mat.__softpipe_uniform__(), ga, lights, 1.5)
+    got = hall_local((0.0, 0.0, -2.0), N_UP, V, mat.__softpipe_uniform__(), lit(ga, lights), 1.5)
     close(got, expected)
 
 
@@ -434,7 +442,7 @@ def test_cook_torrance_lighting_one_light():
     lights = pack_lights([Light.directional(tuple(-L), diffuse=ID, specular=IS)], np.eye(4))
     f_s = cook_torrance(N_UP, tuple(L), V, 0.3, 1.0, 1.5)  # its own value is tested above
     expected = 0.1 * 0.2 + (np.multiply(KD, ID) + np.multiply(KS, IS) * f_s) * L[2]
-    got = cook_torrance_lighting((0.0, 0.0, -1.0), N_UP, V, mat.__softpipe_uniform__(), (0.2, 0.2, 0.2), lights)
+    got = cook_torrance_lighting((0.0, 0.0, -1.0), N_UP, V, mat.__softpipe_uniform__(), lit((0.2, 0.2, 0.2), lights))
     close(got, expected)
 
 
@@ -458,9 +466,9 @@ def test_degenerate_geometry_stays_finite():
                           Light.directional((1.0, 0.0, 0.0))], np.eye(4))       # grazing: N·L = 0
     for N, V in ((N_UP, N_UP), ((0.0, 0.0, 0.0), N_UP), (N_UP, (1.0, 0.0, 0.0)), (N_UP, (0.0, 0.0, 0.0))):
         for model in (BLINN_PHONG, PHONG):
-            assert np.all(np.isfinite(opengl_lighting(P, N, V, m, (0.2, 0.2, 0.2), lights, model)))
-        assert np.all(np.isfinite(hall_local(P, N, V, m, (0.2, 0.2, 0.2), lights, 1.5)))
-        assert np.all(np.isfinite(cook_torrance_lighting(P, N, V, m, (0.2, 0.2, 0.2), lights)))
+            assert np.all(np.isfinite(opengl_lighting(P, N, V, m, lit((0.2, 0.2, 0.2), lights), model)))
+        assert np.all(np.isfinite(hall_local(P, N, V, m, lit((0.2, 0.2, 0.2), lights), 1.5)))
+        assert np.all(np.isfinite(cook_torrance_lighting(P, N, V, m, lit((0.2, 0.2, 0.2), lights))))
     assert np.isfinite(beckmann_d(1e-200, 0.3)) and np.isfinite(beckmann_d(1e-5, 0.3))
     assert np.isfinite(cook_torrance(N_UP, (1e-300, 0.0, 1.0), (1.0, 0.0, 1e-300), 0.3, 1.0, 1.5))
     assert np.isfinite(attenuation(0.0, 1.0, 1.0, 0.0))
@@ -479,10 +487,10 @@ def identity_cases():
     N = tuple(unit((0.2, 0.3, 0.9)))
     V = tuple(unit(np.negative(P)))
     return [
-        (opengl_lighting, (P, N, V, mat, u.global_ambient, u.lights, BLINN_PHONG)),
-        (opengl_lighting, (P, N, V, mat, u.global_ambient, u.lights, PHONG)),
-        (hall_local, (P, N, V, mat, u.global_ambient, u.lights, 1.45)),
-        (cook_torrance_lighting, (P, N, V, mat, u.global_ambient, u.lights)),
+        (opengl_lighting, (P, N, V, mat, u, BLINN_PHONG)),
+        (opengl_lighting, (P, N, V, mat, u, PHONG)),
+        (hall_local, (P, N, V, mat, u, 1.45)),
+        (cook_torrance_lighting, (P, N, V, mat, u)),
         (gooch, (N, tuple(unit((1.0, 1.0, 1.0))), (0.5, 0.4, 0.3), (0.0, 0.0, 0.4), (0.4, 0.4, 0.0), 0.2, 0.6)),
         (fresnel, (0.3, 1.0, 1.52)),
         (fresnel_schlick, (0.3, 1.0, 1.52)),

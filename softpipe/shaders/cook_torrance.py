@@ -27,8 +27,7 @@ def cook_torrance_fragment(varyings, uniforms, frag):
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
     m = uniforms.material
-    light = uniforms.lighting
-    color = cook_torrance_lighting(P, N, V, m, light.global_ambient, light.lights)
+    color = cook_torrance_lighting(P, N, V, m, uniforms.lighting)
     return rgba(color, m.opacity)
 
 

@@ -30,8 +30,7 @@ def gouraud_vertex(attributes, uniforms):
     clip, P, N = eye_space(attributes, uniforms)
     N = normalize(N)
     V = toward_eye(P, uniforms.projection)
-    light = uniforms.lighting
-    color = opengl_lighting(P, N, V, uniforms.material, light.global_ambient, light.lights, BLINN_PHONG)
+    color = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting, BLINN_PHONG)
     return clip, GouraudVaryings(rgba(saturate(color), uniforms.material.opacity))
 
 
@@ -40,8 +39,7 @@ def gouraud_phong_specular_vertex(attributes, uniforms):
     clip, P, N = eye_space(attributes, uniforms)
     N = normalize(N)
     V = toward_eye(P, uniforms.projection)
-    light = uniforms.lighting
-    color = opengl_lighting(P, N, V, uniforms.material, light.global_ambient, light.lights, PHONG)
+    color = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting, PHONG)
     return clip, GouraudVaryings(rgba(saturate(color), uniforms.material.opacity))
 
 

@@ -26,8 +26,7 @@ def hall_fragment(varyings, uniforms, frag):
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
     m = uniforms.material
-    light = uniforms.lighting
-    color = hall_local(P, N, V, m, light.global_ambient, light.lights, m.ior)
+    color = hall_local(P, N, V, m, uniforms.lighting, m.ior)
     return rgba(color, m.opacity)
 
 

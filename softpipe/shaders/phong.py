@@ -25,8 +25,7 @@ def phong_fragment(varyings, uniforms, frag):
     P = varyings.position
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
-    light = uniforms.lighting
-    color = opengl_lighting(P, N, V, uniforms.material, light.global_ambient, light.lights, BLINN_PHONG)
+    color = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting, BLINN_PHONG)
     return rgba(color, uniforms.material.opacity)
 
 
@@ -35,8 +34,7 @@ def phong_phong_specular_fragment(varyings, uniforms, frag):
     P = varyings.position
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
-    light = uniforms.lighting
-    color = opengl_lighting(P, N, V, uniforms.material, light.global_ambient, light.lights, PHONG)
+    color = opengl_lighting(P, N, V, uniforms.material, uniforms.lighting, PHONG)
     return rgba(color, uniforms.material.opacity)
 
 

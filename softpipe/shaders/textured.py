@@ -47,8 +47,7 @@ def textured_fragment(varyings, uniforms, frag, derivatives):
     P = varyings.position
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
-    light = uniforms.lighting
-    color = opengl_lighting(P, N, V, textured, light.global_ambient, light.lights, BLINN_PHONG)
+    color = opengl_lighting(P, N, V, textured, uniforms.lighting, BLINN_PHONG)
     return rgba(color, t[3] * m.opacity)
 
 

@@ -1,0 +1,331 @@
+"""Shadow maps: a depth pass from every light that casts shadows (FORMULAS §21, rasterized).
+
+A shadow ray asks "is anything between p and the light?" (§21). A rasterizer
+answers every such question of a light at once: it draws the scene *from the
+light* into a depth-only target, the shadow map, and a fragment shader later
+compares a point's depth from the light with what the map holds
+(:mod:`softpipe.shadowmap`). This module makes the maps; it is a pass that runs
+the ordinary pipeline (:class:`softpipe.DrawCall`) with the light as the camera.
+
+Per light kind (FORMULAS §9):
+
+directional
+    An orthographic projection along the light's direction, fitted to the bounds
+    of the shadow casters (the shadow of anything else cannot fall anywhere).
+spot
+    A perspective projection from the light's position along S, its field of view
+    the cone's 2β (up to β = :data:`~softpipe.shadowmap.MAX_SPOT_MAP_CUTOFF`; a
+    wider spot is treated as a point light), near and far fitted to the casters.
+point
+    A cube map: six perspective faces along ±x, ±y, ±z, each a little wider than
+    90° so that PCF never reads across a seam
+    (:func:`~softpipe.shadowmap.cube_face_half_extent`).
+
+Two depth passes per map: the opaque casters, and the transparent ones (a
+material with ``kt`` ≠ 0, transmitting kt; or with opacity < 1, transmitting
+1 − opacity), whose nearest layer's depth and transmission color give the notes'
+weighted shadow (§21): light behind glass is dimmed and tinted, not cut off.
+
+The depth bias is the depth pass's polygon offset
+(:func:`softpipe.setup.apply_polygon_offset`), set per light by
+:class:`~softpipe.shadowmap.ShadowSettings`. The maps have ``cull="none"``: a
+caster's faces turned away from the light are drawn too (a plane, an open mesh).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .framebuffer import Framebuffer
+from .material import Light, Lighting, LightingUniform
+from .pipeline import DrawCall
+from .shadowmap import MAX_SPOT_MAP_CUTOFF, ShadowSettings, ShadowUniform, cube_face_half_extent
+from .transforms import frustum, look_at, orthographic
+
+__all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of",
+           "transmission_of"]
+
+# Directions of a cube map's faces, with an up vector for each (any that is not parallel will do:
+# a face is looked up by projecting with its own matrices, not by a face convention).
+CUBE_FACES = (((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, -1)),
+              ((0, -1, 0), (0, 0, 1)), ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0)))
+CUBE_FACE_NAMES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+@dataclass
+class ShadowCaster:
+    """A mesh that casts shadows, in world space.
+
+    ``transmission`` is None for an opaque caster, else the RGB share of light it lets through.
+    """
+
+    name: str
+    positions: np.ndarray   # float64 [N, 3], world space
+    indices: np.ndarray     # int [M, 3]
+    transmission: Optional[Tuple[float, float, float]] = None
+
+
+def transmission_of(material) -> Optional[Tuple[float, float, float]]:
+    """What a caster of this material lets through: kt when nonzero, 1 − opacity when < 1, else None."""
+    if any(c > 0.0 for c in material.kt):
+        return tuple(float(c) for c in material.kt)
+    if material.opacity < 1.0:
+        return (1.0 - material.opacity,) * 3
+    return None
+
+
+def casters_of(objects) -> List[ShadowCaster]:
+    """The shadow casters among scene objects (:class:`softpipe.scene.SceneObject`): those with
+    ``cast_shadows`` true, each mesh in world space."""
+    out = []
+    for obj in objects:
+        if not getattr(obj, "cast_shadows", True):
+            continue
+        mesh = obj.mesh
+        for _, part in (mesh.by_material() if len(getattr(mesh, "materials", ()) or ()) > 1 else [(None, mesh)]):
+            p = part.positions @ obj.model[:3, :3].T + obj.model[:3, 3]
+            out.append(ShadowCaster(obj.name, np.ascontiguousarray(p, np.float64),
+                                    np.asarray(part.indices).reshape(-1, 3), transmission_of(part.material)))
+    return out
+
+
+# ------------------------------------------------------------------ fitting the light's frusta
+
+def _basis_view(eye: np.ndarray, forward: np.ndarray) -> np.ndarray:
+    """A view matrix at ``eye`` looking along ``forward`` (any up not parallel to it)."""
+    forward = forward / np.linalg.norm(forward)
+    up = (0.0, 1.0, 0.0) if abs(forward[1]) < 0.9 else (1.0, 0.0, 0.0)
+    return look_at(eye, eye + forward, up)
+
+
+def _in_view(view: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return points @ view[:3, :3].T + view[:3, 3]
+
+
+def _depth_range(depths: np.ndarray, near_floor: float) -> Tuple[float, float]:
+    """(near, far) around positive distances ``depths``, with a margin; near ≥ near_floor·far."""
+    far = float(depths.max()) * 1.01 + 1e-6
+    near = max(float(depths.min()) * 0.99, far * near_floor)
+    return near, far
+
+
+def light_frusta(light: Light, settings: ShadowSettings, points: np.ndarray) -> List[Tuple[np.ndarray, np.ndarray]]:
+    """The (view, projection) pairs of a light's shadow map(s), fitted to the casters' ``points``.
+
+    One pair for a directional light and a spot of cutoff ≤ MAX_SPOT_MAP_CUTOFF, six
+    (a cube map, in the order of :data:`CUBE_FACE_NAMES`) for a point light and a
+    wider spot; none when no caster lies where the light can throw its shadow.
+    """
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    if not len(points):
+        return []
+    if light.kind == "directional":
+        d = np.asarray(light.direction, np.float64)
+        view = _basis_view(points.mean(axis=0), d)
+        q = _in_view(view, points)
+        (x0, y0), (x1, y1) = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
+        # PCF reads r + 1 texels beyond a caster's edge: keep them inside the map
+        pad_x = (x1 - x0) * (settings.pcf + 2) / settings.resolution + 1e-6
+        pad_y = (y1 - y0) * (settings.pcf + 2) / settings.resolution + 1e-6
+        depth = -q[:, 2]
+        span = float(depth.max() - depth.min())
+        near, far = float(depth.min()) - 0.01 * span - 1e-6, float(depth.max()) + 0.01 * span + 1e-6
+        return [(view, orthographic(x0 - pad_x, x1 + pad_x, y0 - pad_y, y1 + pad_y, near, far))]
+    eye = np.asarray(light.position, np.float64)
+    if light.kind == "spot" and light.cutoff <= MAX_SPOT_MAP_CUTOFF:
+        view = _basis_view(eye, np.asarray(light.spot_direction, np.float64))
+        depth = -_in_view(view, points)[:, 2]
+        depth = depth[depth > 0.0]
+        if not len(depth):
+            return []
+        near, far = _depth_range(depth, 1e-4)
+        # the cone's half angle β, widened by the PCF margin in texels
+        t = np.tan(np.radians(light.cutoff)) / max(1.0 - 2.0 * (settings.pcf + 2) / settings.resolution, 0.25)
+        return [(view, frustum(-t * near, t * near, -t * near, t * near, near, far))]
+    a = cube_face_half_extent(settings.resolution, settings.pcf)
+    offsets = points - eye
+    distance = np.abs(offsets).max(axis=1)             # the major-axis distance, ≤ any face's depth
+    if not np.any(distance > 0.0):
+        return []
+    near, far = _depth_range(distance[distance > 0.0] / a, 1e-4)
+    far = max(far, float(np.linalg.norm(offsets, axis=1).max()) * 1.01)
+    out = []
+    for forward, up in CUBE_FACES:
+        view = look_at(eye, eye + np.asarray(forward, np.float64), up)
+        out.append((view, frustum(-a * near, a * near, -a * near, a * near, near, far)))
+    return out
+
+
+# ------------------------------------------------------------------ the depth passes
+
+def _transmission_fragment(varyings, uniforms, frag):
+    t = uniforms.transmission
+    return (t[0], t[1], t[2], 1.0)
+
+
+def _depth_fragment(varyings, uniforms, frag):
+    return (0.0, 0.0, 0.0, 1.0)
+
+
+@dataclass
+class ShadowMap:
+    """One rendered shadow map (one face of a cube map).
+
+    Attributes
+    ----------
+    light_index : int
+        Which light of the :class:`ShadowMaps` it belongs to.
+    face : str
+        "" for a single map, else the cube face ("+x", "-x", …).
+    view, projection : float64 [4, 4]
+        World → light eye, light eye → light clip.
+    settings : ShadowSettings
+    depth : float32 [res, res]
+        The nearest opaque caster's window depth per texel (row 0 at the bottom), 1 where none.
+    transparent_depth : float32 [res, res]
+        The nearest transparent caster's depth, 1 where none.
+    transmission : float32 [res, res, 3]
+        That caster's transmission, 1 where none.
+    seconds : float
+        Time the two depth passes took.
+    """
+
+    light_index: int
+    face: str
+    view: np.ndarray
+    projection: np.ndarray
+    settings: ShadowSettings
+    depth: np.ndarray
+    transparent_depth: np.ndarray
+    transmission: np.ndarray
+    seconds: float = 0.0
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """World → the map's clip space."""
+        return self.projection @ self.view
+
+    def picture(self) -> np.ndarray:
+        """The depth map as an 8-bit gray image [res, res] (top row first): near dark, far light,
+        stretched over the depths present; no caster is white."""
+        d = self.depth[::-1].astype(np.float64)
+        covered = d < 1.0
+        out = np.full(d.shape, 255, np.uint8)
+        if covered.any():
+            lo, hi = d[covered].min(), d[covered].max()
+            out[covered] = np.round(20 + 200 * (d[covered] - lo) / max(hi - lo, 1e-12)).astype(np.uint8)
+        return out
+
+
+def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: np.ndarray,
+                settings: ShadowSettings, light_index: int, face: str) -> ShadowMap:
+    start = time.perf_counter()
+    res = settings.resolution
+    matrix = projection @ view
+    opaque = Framebuffer(res, res)
+    clear = Framebuffer(res, res).clear((1.0, 1.0, 1.0, 1.0)) if any(c.transmission for c in casters) else None
+    for c in casters:
+        clip = np.ascontiguousarray(np.c_[c.positions, np.ones(len(c.positions))] @ matrix.T)
+        if c.transmission is None:
+            target, shader, uniforms = opaque, _depth_fragment, None
+        else:
+            target, shader, uniforms = clear, _transmission_fragment, {"transmission": c.transmission}
+        DrawCall(target, clip, c.indices, None, None, shader, uniforms, cull="none",
+                 polygon_offset=settings.polygon_offset).run()
+    if clear is None:
+        transparent_depth, transmission = np.ones((res, res), np.float32), np.ones((res, res, 3), np.float32)
+    else:
+        # a framebuffer's rows are an image's, top first; a map's are window rows, bottom first
+        transparent_depth = np.ascontiguousarray(clear.depth[::-1])
+        transmission = np.ascontiguousarray(clear.color[::-1, :, :3])
+    return ShadowMap(light_index, face, view, projection, settings, np.ascontiguousarray(opaque.depth[::-1]),
+                     transparent_depth,
+                     transmission, time.perf_counter() - start)
+
+
+@dataclass
+class ShadowMaps:
+    """The shadow maps of a set of lights, and the uniform a shader reads them by.
+
+    Attributes
+    ----------
+    lights : tuple of Light
+        The lights, in the order of the ``lighting`` uniform.
+    maps : list of ShadowMap
+        Every map; light j's are ``maps[first:first + count]`` with
+        (first, count) = ``light_maps[j]``.
+    light_maps : int64 [num_lights, 2]
+    """
+
+    lights: Tuple[Light, ...]
+    maps: List[ShadowMap] = field(default_factory=list)
+    light_maps: np.ndarray = None
+
+    @property
+    def seconds(self) -> Dict[str, float]:
+        """Time per map, keyed by light name (and cube face)."""
+        return {f"{self.lights[m.light_index].name}{' ' + m.face if m.face else ''}": m.seconds
+                for m in self.maps}
+
+    def uniform(self, view_matrix: np.ndarray) -> ShadowUniform:
+        """The maps packed for shaders working in the eye space of ``view_matrix`` (world → eye)."""
+        inverse_view = np.linalg.inv(np.asarray(view_matrix, np.float64))
+        sizes = [m.depth.size for m in self.maps]
+        offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64) if sizes else np.zeros(0, np.int64)
+        maps = np.array([[o, m.depth.shape[1], m.depth.shape[0], m.settings.pcf] for o, m in zip(offsets, self.maps)],
+                        np.int64).reshape(-1, 4)
+        matrices = np.array([m.matrix @ inverse_view for m in self.maps], np.float64).reshape(-1, 4, 4)
+        if self.maps:
+            depth = np.concatenate([np.stack([m.depth.ravel(), m.transparent_depth.ravel()], axis=1)
+                                    for m in self.maps]).astype(np.float32)
+            transmission = np.concatenate([m.transmission.reshape(-1, 3) for m in self.maps]).astype(np.float32)
+        else:
+            depth, transmission = np.zeros((0, 2), np.float32), np.zeros((0, 3), np.float32)
+        return ShadowUniform(self.light_maps.copy(), maps, matrices, np.ascontiguousarray(depth),
+                             np.ascontiguousarray(transmission))
+
+    def lighting_uniform(self, lighting: Lighting, view_matrix: np.ndarray) -> LightingUniform:
+        """``lighting.uniform(view_matrix)`` with these shadow maps."""
+        if tuple(lighting.lights) != tuple(self.lights):
+            raise ValueError("these shadow maps were made for other lights than the lighting's")
+        return lighting.uniform(view_matrix)._replace(shadows=self.uniform(view_matrix))
+
+    def visibility(self, light_index: int, point: Sequence[float]) -> Tuple[float, float, float]:
+        """V_j of light ``light_index`` at a world-space point, as the shaders compute it (RGB)."""
+        from .shadowmap import light_visibility
+        shadows = self.uniform(np.eye(4))   # eye space = world space
+        p = tuple(float(v) for v in point)
+        return tuple(light_visibility(shadows, light_index, p))
+
+
+def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
+    """Draw the shadow maps of every light of ``lighting`` whose ``shadows`` is set.
+
+    Parameters
+    ----------
+    objects : list of SceneObject or ShadowCaster
+        The scene's objects (those with ``cast_shadows`` false are left out), or
+        casters made by :func:`casters_of`.
+    lighting : Lighting
+
+    Returns
+    -------
+    ShadowMaps
+    """
+    casters = [o if isinstance(o, ShadowCaster) else None for o in objects]
+    if any(c is None for c in casters):
+        casters = casters_of(objects)
+    points = np.concatenate([c.positions for c in casters]) if casters else np.zeros((0, 3))
+    out = ShadowMaps(tuple(lighting.lights), [], np.zeros((len(lighting.lights), 2), np.int64))
+    for j, light in enumerate(lighting.lights):
+        if light.shadows is None:
+            continue
+        frusta = light_frusta(light, light.shadows, points)
+        out.light_maps[j] = (len(out.maps), len(frusta))
+        names = CUBE_FACE_NAMES if len(frusta) == 6 else ("",)
+        for (view, projection), face in zip(frusta, names):
+            out.maps.append(_render_map(casters, view, projection, light.shadows, j, face))
+    return out
