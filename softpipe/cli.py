@@ -171,6 +171,8 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
                         "'texture'")
     g.add_argument("--cull", choices=("back", "front", "none"),
                    help="which faces to drop: back (default), front or none")
+    g.add_argument("--shadows", action="store_true",
+                   help="every light casts shadows (shadow maps); a model alone stands on a floor to show them")
     g.add_argument("--wireframe", action="store_true",
                    help="draw the triangle edges (after clipping and culling) over the image; hidden edges stay hidden")
     g.add_argument("--wire-color", type=_color, metavar="COLOR", help="wireframe color (default white)")
@@ -257,6 +259,8 @@ def build_parser() -> argparse.ArgumentParser:
                            "default out/demo.png; '-' writes a PNG to stdout")
     demo.add_argument("--width", type=_size, default=640, help="image width in pixels (default 640)")
     demo.add_argument("--height", type=_size, default=480, help="image height in pixels (default 480)")
+    demo.add_argument("--no-shadows", action="store_true",
+                      help="the same scene without shadows (every light reaches every point)")
     demo.set_defaults(run=_demo)
 
     programs = sub.add_parser("programs", help="list the shading programs and sample patterns",
@@ -273,7 +277,7 @@ def _demo(args) -> int:
     from .demo import render_demo
     start = time.perf_counter()
     output = _checked_output(args, args.output or os.path.join("out", "demo.png"), _image_format)
-    fb = render_demo(args.width, args.height)
+    fb = render_demo(args.width, args.height, shadows=not args.no_shadows)
     where = _save_image(fb, output)
     _wrote(args, output, f"wrote {where} ({args.width}×{args.height}, {time.perf_counter() - start:.2f} s)")
     return 0
@@ -345,7 +349,8 @@ def _options(args) -> dict:
     return dict(width=width, height=height, program=args.program, texture=args.texture or None,
                 background=args.background, samples=args.samples, msaa=args.msaa, cull=args.cull,
                 wireframe=args.wireframe, wire_color=args.wire_color, azimuth=args.azimuth,
-                elevation=args.elevation, fovy=args.fovy, allow_outside=args.allow_outside_paths)
+                elevation=args.elevation, fovy=args.fovy, allow_outside=args.allow_outside_paths,
+                shadows=args.shadows)
 
 
 def _prepare(args, default_size):

@@ -8,10 +8,15 @@ a sphere and a torus on a ground plane, lit by three kinds of light (FORMULAS §
 * a white spot light above the teapot, with a soft edge (cutoff 28°, exponent 6, §8);
 
 and OpenGL's global ambient. Every object is shaded per fragment with the
-``phong`` program (normals interpolated, Blinn-Phong, FORMULAS §10, §12).
+``phong`` program (normals interpolated, Blinn-Phong, FORMULAS §10, §12). All three
+lights cast shadows (shadow maps, :mod:`softpipe.shadows`: the sun's orthographic
+map, the spot's perspective one and the lamp's cube map); the ground receives them
+and casts none. ``render_demo(shadows=False)`` (``softpipe demo --no-shadows``) is the
+same scene with every light reaching every point.
 """
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 from typing import List, Tuple
 
@@ -24,6 +29,8 @@ from .material import Light, Lighting, Material
 from .mesh import Mesh
 from .models import load_model
 from .drawing import draw_mesh
+from .scene import SceneObject
+from .shadows import render_shadow_maps
 from .shaders import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401  (register)
 from .shaders.common import lighting_uniform
 from .transforms import compose, rotate_x, rotate_y, scale, translate
@@ -91,12 +98,20 @@ def demo_objects() -> List[Tuple[Mesh, np.ndarray]]:
     return objects
 
 
-def render_demo(width: int = 640, height: int = 480, program: str = "phong") -> Framebuffer:
-    """Render the default scene into a new framebuffer."""
+def render_demo(width: int = 640, height: int = 480, program: str = "phong", shadows: bool = True) -> Framebuffer:
+    """Render the default scene into a new framebuffer (with every light's shadows unless ``shadows`` is False)."""
     fb = Framebuffer(width, height)
     fb.clear((0.05, 0.06, 0.09, 1.0))
     camera = demo_camera()
-    lighting = lighting_uniform(demo_lighting(), camera.view)  # in eye space once, for every draw
+    lights = demo_lighting()
+    if shadows:
+        lights = Lighting([dataclasses.replace(light, shadows=True) for light in lights.lights],
+                          global_ambient=lights.global_ambient)
+        casters = [SceneObject(mesh.name, mesh, model, cast_shadows=k > 0)      # the ground (first) casts none
+                   for k, (mesh, model) in enumerate(demo_objects())]
+        lighting = render_shadow_maps(casters, lights).lighting_uniform(lights, camera.view)
+    else:
+        lighting = lighting_uniform(lights, camera.view)  # in eye space once, for every draw
     for mesh, model in demo_objects():
         draw_mesh(fb, mesh, camera, program, model=model, lighting=lighting)
     return fb

@@ -286,7 +286,8 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
     -------
     Framebuffer
         ``scene.width`` × ``scene.height``, the scene's sample pattern, cleared to its
-        background, every object drawn in order with :func:`draw_mesh`. Lights with
+        background, every object drawn in order with :func:`draw_mesh` (and the ground,
+        :meth:`~softpipe.scene.Scene.drawn_objects`). Lights with
         ``shadows`` set get their shadow maps first (:func:`softpipe.shadows.render_shadow_maps`,
         from the objects whose ``cast_shadows`` is true).
     """
@@ -295,18 +296,19 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
     camera = camera or scene.view_camera()
     fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples))
     fb.clear(scene.background)
+    objects = scene.drawn_objects(camera)
     lights = scene.lighting_for(camera)
     if any(light.shadows is not None for light in lights.lights):
-        maps = render_shadow_maps(scene.objects, lights)
+        maps = render_shadow_maps(objects, lights)
         if shadow_maps is not None:
             shadow_maps.append(maps)
         lighting = maps.lighting_uniform(lights, camera.view)
     else:
         lighting = lights.uniform(camera.view)  # once for every draw: eye space
     drawn: List[DrawResult] = []
-    for k, obj in enumerate(scene.objects):
+    for k, obj in enumerate(objects):
         if progress is not None:
-            progress(k, len(scene.objects), obj)
+            progress(k, len(objects), obj)
         first = len(drawn)
         draw_mesh(fb, obj.mesh, camera, program_for(obj, scene.program), model=obj.model, lighting=lighting,
                   texture=obj.texture, cull=obj.cull or scene.cull, sample_shading=scene.sample_shading,
@@ -412,7 +414,8 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
                   program: Optional[str] = None, texture=None, background=None, samples: Optional[str] = None,
                   msaa: bool = False, cull: Optional[str] = None, wireframe: bool = False, wire_color=None,
                   azimuth: Optional[float] = None, elevation: Optional[float] = None, fovy: Optional[float] = None,
-                  default_size: Tuple[int, int] = RENDER_SIZE, allow_outside: bool = False) -> Scene:
+                  default_size: Tuple[int, int] = RENDER_SIZE, allow_outside: bool = False,
+                  shadows: bool = False) -> Scene:
     """The :class:`~softpipe.scene.Scene` that :func:`render` draws (the options of ``softpipe render``).
 
     Takes the arguments of :func:`render` (which see) and ``default_size``, the size
@@ -459,6 +462,10 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
         objects = [dataclasses.replace(o, cull=None) for o in objects]
     if wireframe:
         changes["wireframe"] = True
+    if shadows:
+        changes["shadows"] = True
+        if one_model:   # a model alone has nothing to throw its shadow on: stand it on a floor
+            changes["ground"] = True
     scene = scene.replace(objects=list(objects), **changes)
     count = len(pattern_named(scene.samples))
     if max(scene.width, scene.height) > MAX_DIMENSION:
@@ -485,7 +492,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
            elevation: Optional[float] = None, fovy: Optional[float] = None, camera: Optional[Camera] = None,
            stages=None, trace: bool = False, results: Optional[list] = None,
            progress: Optional[Callable[[int, int, SceneObject], None]] = None,
-           allow_outside: bool = False) -> Framebuffer:
+           allow_outside: bool = False, shadows: bool = False) -> Framebuffer:
     """``softpipe render MODEL`` in Python: the same picture, as a :class:`Framebuffer`.
 
     ``softpipe.render("teapot").save("teapot.png")`` writes what ``softpipe render
@@ -534,6 +541,9 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
         Let the OBJ or scene file name files outside its own folder (``mtllib``,
         ``map_Kd``, meshes, textures; :func:`softpipe.files.resolve_inside`), for files
         you trust (``--allow-outside-paths``). FIFOs and devices stay refused.
+    shadows : bool
+        Every light casts shadows (shadow maps, :mod:`softpipe.shadows`); a model alone
+        is stood on a floor that receives them (``--shadows``).
 
     Raises
     ------
@@ -544,7 +554,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
-                          allow_outside=allow_outside)
+                          allow_outside=allow_outside, shadows=shadows)
     from .pictures import draw_wireframe
 
     camera = camera or scene.view_camera()
@@ -598,7 +608,7 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
               wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
               elevation: Optional[float] = None, fovy: Optional[float] = None,
               progress: Optional[Callable[[int, int], None]] = None, allow_outside: bool = False,
-              format: Optional[str] = None) -> Path:
+              format: Optional[str] = None, shadows: bool = False) -> Path:
     """``softpipe turntable MODEL`` in Python: the camera circling the model, written as an animation.
 
     ``softpipe.turntable("suzanne", "spin.gif", frames=36)`` writes what ``softpipe
@@ -623,8 +633,8 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
         320×240 for a model by default; the other options are :func:`render`'s.
     progress : callable, optional
         ``progress(i, frames)`` after frame i (from 1) is drawn.
-    allow_outside : bool
-        As :func:`render` takes it.
+    allow_outside, shadows : bool
+        As :func:`render` takes them.
 
     Returns
     -------
@@ -647,7 +657,7 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
-                          default_size=TURNTABLE_SIZE, allow_outside=allow_outside)
+                          default_size=TURNTABLE_SIZE, allow_outside=allow_outside, shadows=shadows)
     base = scene.view_camera()
     first = scene.frame.azimuth
     images = []

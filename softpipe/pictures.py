@@ -16,6 +16,11 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 alike; at an edge it covers half of, 0.5 (and two triangles sharing the
                 edge, 1)
 ``final``       the color buffer after the draw
+``shadow map k``  when the draw's ``lighting`` uniform carries shadow maps, each map's
+                depth as the light saw it (near dark, far light, no caster white;
+                :mod:`softpipe.shadows`), scaled to the framebuffer's height; named
+                ``shadow map k, light j`` or ``…, light j, face +x`` for a cube map
+                (its file: ``07-shadow-map-k-light-j.png``)
 
 The pictures are for looking, not for the pipeline: the wireframes use a
 simple line drawer here, not the rasterizer.
@@ -26,12 +31,13 @@ triangles a draw kept, hidden where the surface covers them (``softpipe render
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Dict, Sequence, Tuple
 
 import numpy as np
 
-__all__ = ["stage_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "overdraw", "PICTURES",
+__all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "overdraw", "PICTURES",
            "HEAT_STOPS", "OVERDRAW_DEFINITION"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
@@ -145,6 +151,35 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
     pics["overdraw"] = _heat(overdraw(trace))
 
     pics["final"] = fb.to_uint8(alpha=False)
+    pics.update(shadow_map_pictures(trace.call.uniforms, h, w))
+    return pics
+
+
+def shadow_map_pictures(uniforms, height: int, width: int) -> Dict[str, np.ndarray]:
+    """The shadow maps a draw's ``lighting`` uniform carries, each as a [height, width, 3] picture."""
+    shadows = getattr(getattr(uniforms, "lighting", None), "shadows", None)
+    if shadows is None or not len(shadows.maps):
+        return {}
+    from .shadowmap import CUBE_FACE_NAMES
+    owner = {}
+    for j, (first, count) in enumerate(shadows.light_maps):
+        for k in range(first, first + count):
+            owner[k] = f"light {j}" + (f", face {CUBE_FACE_NAMES[k - first]}" if count == 6 else "")
+    pics = {}
+    for k, (offset, w, h, _, _) in enumerate(shadows.maps):
+        depth = shadows.depth[offset:offset + w * h].reshape(h, w)[::-1]      # window rows → image rows
+        covered = depth < 1.0
+        g = np.full(depth.shape, 255, np.uint8)
+        if covered.any():
+            lo, hi = depth[covered].min(), depth[covered].max()
+            g[covered] = np.round(20 + 200 * (depth[covered] - lo) / max(hi - lo, 1e-12)).astype(np.uint8)
+        side = min(height, width)                     # nearest-neighbour scaling into a square, centred
+        rows = (np.arange(side) * h // side)
+        cols = (np.arange(side) * w // side)
+        img = np.full((height, width, 3), 24, np.uint8)
+        x0, y0 = (width - side) // 2, (height - side) // 2
+        img[y0:y0 + side, x0:x0 + side] = g[rows[:, None], cols[None, :], None]
+        pics[f"shadow map {k}, {owner.get(k, 'no light')}"] = img
     return pics
 
 
@@ -238,7 +273,7 @@ def save_stage_pictures(trace, directory) -> Dict[str, Path]:
         atomic_write(path, lambda f: image.save(f, format="PNG"))
 
     for k, (name, img) in enumerate(pics.items()):
-        path = directory / f"{k + 1:02d}-{name}.png"
+        path = directory / f"{k + 1:02d}-{re.sub(r'[^A-Za-z0-9+-]+', '-', name).strip('-')}.png"
         save(Image.fromarray(img), path)
         paths[name] = path
     paths["contact-sheet"] = directory / "contact-sheet.png"

@@ -89,8 +89,11 @@ class Scene:
     """A scene: objects, camera, lights and render settings.
 
     ``camera`` None means framed (by ``frame``); ``lights`` None means the studio set
-    of :func:`studio_lights`, which follows the camera. ``path`` names the scene in
-    error messages; ``warnings`` keeps what loading it warned about.
+    of :func:`studio_lights`, which follows the camera. ``shadows`` true makes every
+    light cast shadows (those that have no ShadowSettings of their own get the
+    defaults); ``ground`` adds a floor under the objects (:func:`ground_object`) that
+    receives shadows but casts none and is left out of the framing. ``path`` names the
+    scene in error messages; ``warnings`` keeps what loading it warned about.
     """
 
     objects: List[SceneObject] = field(default_factory=list)
@@ -108,6 +111,8 @@ class Scene:
     wireframe: bool = False
     wireframe_color: Tuple[float, float, float] = (0.95, 0.95, 0.95)
     materials: Dict[str, Material] = field(default_factory=dict)
+    shadows: bool = False
+    ground: bool = False
     path: str = "<string>"
     warnings: List[str] = field(default_factory=list)
 
@@ -256,7 +261,45 @@ class Scene:
     def lighting_for(self, camera: Camera) -> Lighting:
         """The scene's lights (or the studio set, placed for ``camera``) and its global ambient."""
         lights = studio_lights(camera) if self.lights is None else self.lights
+        if self.shadows:
+            lights = tuple(light if light.shadows else dataclasses.replace(light, shadows=True) for light in lights)
         return Lighting(lights, global_ambient=self.ambient)
+
+    def drawn_objects(self, camera: Camera) -> List[SceneObject]:
+        """The objects a render draws: the scene's, and the ground when ``ground`` is set."""
+        if not self.ground:
+            return list(self.objects)
+        return list(self.objects) + [ground_object(self, camera)]
+
+
+#: The ground's material: a light neutral gray, matte, so that shadows read clearly on it.
+GROUND_MATERIAL = Material(ka=(0.6, 0.6, 0.6), kd=(0.6, 0.6, 0.6), ks=(0.0, 0.0, 0.0), name="ground")
+
+
+def ground_object(scene: "Scene", camera: Camera) -> SceneObject:
+    """A square floor under the scene's objects, perpendicular to the camera's up.
+
+    It touches the lowest point of the objects (so a model stands on it and its
+    contact shadow shows), is ten times their size across, is drawn with ``phong``
+    and casts no shadow.
+    """
+    from .shapes import plane
+    points = scene.world_points()
+    up = np.asarray(camera.up, np.float64)
+    up = up / np.linalg.norm(up)
+    heights = points @ up
+    centre = points.mean(axis=0)
+    centre = centre - (centre @ up - heights.min()) * up
+    size = 10.0 * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0))) or 10.0
+    # a rotation taking the plane's +y to ``up``, then the move to ``centre``
+    helper = np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    x = np.cross(up, np.cross(helper, up))
+    x /= np.linalg.norm(x)
+    z = np.cross(x, up)
+    model = np.eye(4)
+    model[:3, 0], model[:3, 1], model[:3, 2], model[:3, 3] = x, up, z, centre
+    return SceneObject("ground", plane(size, material=GROUND_MATERIAL), model, program="phong", cull="none",
+                       cast_shadows=False)
 
 
 def _read_model(model: Union[str, "os.PathLike[str]"], label: str, caught: List[str]) -> Mesh:

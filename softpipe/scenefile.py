@@ -24,10 +24,13 @@ explained; in short::
     cull = "back"                     # "back", "front" or "none"
     wireframe = false                 # draw the triangle edges over the image
     wireframe_color = [1, 1, 1]
+    shadows = false                   # every light casts shadows (shadow maps)
+    ground = false                    # a floor under the meshes that receives shadows
 
     [[lights]]                        # any number; without any, a key/fill/rim studio set
     kind = "point"                    # "directional", "point" or "spot"
     position = [2, 3, 2]              # and the other Light fields; color = diffuse and specular
+    shadows = true                    # or { resolution = 2048, pcf = 2, offset_factor = 3, offset_units = 16 }
 
     [materials.gold]                  # Material fields by name; diffuse_texture = "file.png"
     kd = [0.8, 0.6, 0.2]
@@ -37,6 +40,7 @@ explained; in short::
                                       # (or shape = "uv_sphere" + its parameters)
     material = "gold"                 # a name from [materials], or an inline table
     transform = [{ translate = [0, 1, 0] }, { rotate_y = 30 }, { scale = 0.5 }]
+    cast_shadows = true               # false: receives shadows, casts none
 
 Transforms
 ----------
@@ -106,6 +110,7 @@ from .mesh import Mesh
 from .models import MODELS, load_model, model_path, texture_path
 from .obj import OBJError, load_obj
 from .sampling import pattern_named
+from .shadowmap import ShadowSettings
 # default_program, program_for and studio_lights are not used here: they lived here
 # once, and old ``scenefile.studio_lights`` callers keep working.
 from .scene import (FrameSpec, Scene, SceneObject, default_program, framed_camera, program_for,  # noqa: F401
@@ -321,12 +326,13 @@ class _Table:
 TOP_KEYS = ("ambient", "camera", "render", "lights", "materials", "meshes")
 CAMERA_KEYS = ("frame", "eye", "target", "up", "fovy", "near", "far", "azimuth", "elevation", "margin")
 RENDER_KEYS = ("width", "height", "background", "samples", "sample_shading", "program", "cull", "wireframe",
-               "wireframe_color")
+               "wireframe_color", "shadows", "ground")
 LIGHT_KEYS = ("kind", "name", "color", "ambient", "diffuse", "specular", "position", "direction",
-              "attenuation", "spot_direction", "cutoff", "exponent")
+              "attenuation", "spot_direction", "cutoff", "exponent", "shadows")
+SHADOW_KEYS = ("resolution", "pcf", "offset_factor", "offset_units")
 MATERIAL_KEYS = ("ke", "ka", "kd", "ks", "shininess", "kr", "kt", "transmission_shininess", "ior", "opacity",
                  "roughness", "diffuse_texture")
-MESH_KEYS = ("name", "obj", "shape", "fit", "normals", "transform", "material", "program", "cull")
+MESH_KEYS = ("name", "obj", "shape", "fit", "normals", "transform", "material", "program", "cull", "cast_shadows")
 TRANSFORM_KEYS = ("translate", "rotate", "rotate_x", "rotate_y", "rotate_z", "scale", "matrix")
 
 #: The generators ``shape =`` may name, from :mod:`softpipe.shapes`.
@@ -439,6 +445,8 @@ class _Reader:
         scene.wireframe = t.get("wireframe", boolean, False)
         wc = t.get("wireframe_color", color, scene.wireframe_color)
         scene.wireframe_color = (wc,) * 3 if isinstance(wc, float) else wc
+        scene.shadows = t.get("shadows", boolean, False)
+        scene.ground = t.get("ground", boolean, False)
 
     def camera(self, data: Any, scene: Scene) -> None:
         t = _Table(self, data, "[camera]", CAMERA_KEYS)
@@ -486,7 +494,22 @@ class _Reader:
         for key in ("cutoff", "exponent"):
             if key in t:
                 kw[key] = t.get(key, number)
+        if "shadows" in t:
+            kw["shadows"] = self.shadows(t)
         return t.library(None, lambda: Light(**kw))
+
+    def shadows(self, light: _Table):
+        """A light's ``shadows``: true/false, or a table of ShadowSettings fields."""
+        value = light.data["shadows"]
+        if isinstance(value, bool):
+            return value
+        if not isinstance(value, dict):
+            raise light.error(f"must be true, false or a table of {', '.join(SHADOW_KEYS)}, got {_describe(value)}",
+                              "shadows")
+        t = _Table(self, value, f"{light.label} shadows", SHADOW_KEYS)
+        kw = {key: t.get(key, integer) for key in ("resolution", "pcf") if key in t}
+        kw.update({key: t.get(key, number) for key in ("offset_factor", "offset_units") if key in t})
+        return t.library(None, lambda: ShadowSettings(**kw))
 
     def material(self, data: Any, label: str, name: str) -> Material:
         t = _Table(self, data, label, MATERIAL_KEYS)
@@ -560,13 +583,15 @@ class _Reader:
             mesh = mesh.replace(material=material, materials=(), material_ids=None)
         program = t.get("program", program_name, None)
         cull = t.get("cull", choice(*CULL_MODES), None)
+        cast_shadows = t.get("cast_shadows", boolean, True)
         objects = []
         parts = mesh.by_material()
         for material, part in parts:
             texture = self.texture(material.diffuse_texture, t, "material" if "material" in t else "obj") \
                 if material.diffuse_texture else None
             part_name = name if len(parts) == 1 else part.name
-            objects.append(SceneObject(part_name, part.replace(name=part_name), model, program, cull, texture))
+            objects.append(SceneObject(part_name, part.replace(name=part_name), model, program, cull, texture,
+                                       cast_shadows))
         return objects
 
     def count(self, t: _Table, key: str, triangles: int) -> None:

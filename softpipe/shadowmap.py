@@ -32,17 +32,17 @@ packed in flat arrays, so that any number of maps of any sizes has one numba typ
 ``light_maps`` int64 [num_lights, 2]
     Light j's first map and how many it has: 0 (no shadows), 1 (directional, spot)
     or 6 (a cube map: point lights, and spots wider than :data:`MAX_SPOT_MAP_CUTOFF`).
-``maps`` int64 [num_maps, 4]
-    Each map's offset into ``depth``, width, height and PCF radius r.
+``maps`` int64 [num_maps, 5]
+    Each map's offset into ``depth``, width, height, PCF radius r, and offset into
+    ``transparent_depth``/``transmission`` (−1: no transparent caster in this map).
 ``matrices`` float64 [num_maps, 4, 4]
     Eye space → the map's clip space (its light's projection · its view · the
     camera's inverse view): a shader works in eye space.
-``depth`` float32 [num_texels, 2]
-    Per texel, row 0 at the bottom: the nearest opaque caster's depth, and the
-    nearest transparent caster's depth (1 where there is none).
-``transmission`` float32 [num_texels, 3]
-    The nearest transparent caster's transmission color (k_t·F_t, its material's
-    ``kt``; 1 where there is none). One transparent layer only: a second pane of
+``depth`` float32 [num_texels]
+    Per texel, row 0 at the bottom: the nearest opaque caster's depth (1 where none).
+``transparent_depth`` float32 [num_transparent_texels], ``transmission`` float32 [num_transparent_texels, 3]
+    For the maps that have transparent casters: the nearest one's depth and its
+    transmission color (k_t·F_t, its material's ``kt``; 1 where there is none). One transparent layer only: a second pane of
     glass behind the first does not dim the light again (a ray tracer does that).
 
 A point outside a map's square or beyond its far plane is lit (GL's
@@ -64,18 +64,21 @@ from numba import njit
 
 __all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "light_visibility", "shadow_compare",
            "depth_texture", "texture_compare",
-           "map_coordinates", "cube_face", "cube_face_half_extent", "MAX_SPOT_MAP_CUTOFF", "MAX_PCF_RADIUS",
+           "map_coordinates", "cube_face", "cube_face_half_extent", "CUBE_FACE_NAMES", "MAX_SPOT_MAP_CUTOFF", "MAX_PCF_RADIUS",
            "MAX_SHADOW_RESOLUTION"]
 
 #: A spot light up to this cutoff β (degrees) gets one perspective map of field of view
 #: 2β; a wider one gets a cube map, as a point light (a frustum near 180° wastes its texels).
 MAX_SPOT_MAP_CUTOFF = 70.0
+#: The faces of a cube map, in the order its six maps are packed (:mod:`softpipe.shadows` draws them).
+CUBE_FACE_NAMES = ("+x", "-x", "+y", "-y", "+z", "-z")
 #: The largest PCF radius r: (2r+1)² = 81 taps.
 MAX_PCF_RADIUS = 4
 #: The largest shadow map side, in texels (a cube map has six).
 MAX_SHADOW_RESOLUTION = 8192
 
-ShadowUniform = namedtuple("ShadowUniform", ["light_maps", "maps", "matrices", "depth", "transmission"])
+ShadowUniform = namedtuple("ShadowUniform", ["light_maps", "maps", "matrices", "depth", "transparent_depth",
+                                             "transmission"])
 ShadowUniform.__doc__ = """Every shadow map of a draw, packed flat (see :mod:`softpipe.shadowmap`)."""
 
 
@@ -131,8 +134,8 @@ class ShadowSettings:
 
 def no_shadows(num_lights: int) -> ShadowUniform:
     """The uniform of a draw without shadow maps: every light has none, V_j = 1."""
-    return ShadowUniform(np.zeros((num_lights, 2), np.int64), np.zeros((0, 4), np.int64),
-                         np.zeros((0, 4, 4), np.float64), np.zeros((0, 2), np.float32),
+    return ShadowUniform(np.zeros((num_lights, 2), np.int64), np.zeros((0, 5), np.int64),
+                         np.zeros((0, 4, 4), np.float64), np.zeros(0, np.float32), np.zeros(0, np.float32),
                          np.zeros((0, 3), np.float32))
 
 
@@ -197,6 +200,7 @@ def shadow_compare(shadows, k, x, y, ref):
     transmission where that caster is nearer than ref; taps outside the map are 1.
     """
     offset, width, height, r = shadows.maps[k, 0], shadows.maps[k, 1], shadows.maps[k, 2], shadows.maps[k, 3]
+    clear = shadows.maps[k, 4]
     i0, j0 = int(np.floor(x)), int(np.floor(y))
     red, green, blue = 0.0, 0.0, 0.0
     for j in range(j0 - r, j0 + r + 1):
@@ -206,13 +210,13 @@ def shadow_compare(shadows, k, x, y, ref):
                 green += 1.0
                 blue += 1.0
                 continue
-            texel = offset + j * width + i
-            if ref > shadows.depth[texel, 0]:
+            texel = j * width + i
+            if ref > shadows.depth[offset + texel]:
                 continue                                  # an opaque caster is nearer: no light
-            if ref > shadows.depth[texel, 1]:             # light through the transparent caster
-                red += shadows.transmission[texel, 0]
-                green += shadows.transmission[texel, 1]
-                blue += shadows.transmission[texel, 2]
+            if clear >= 0 and ref > shadows.transparent_depth[clear + texel]:   # through the transparent caster
+                red += shadows.transmission[clear + texel, 0]
+                green += shadows.transmission[clear + texel, 1]
+                blue += shadows.transmission[clear + texel, 2]
             else:
                 red += 1.0
                 green += 1.0
@@ -233,10 +237,9 @@ def depth_texture(framebuffer, pcf: int = 0) -> ShadowUniform:
     if isinstance(pcf, bool) or not isinstance(pcf, (int, np.integer)) or not 0 <= pcf <= MAX_PCF_RADIUS:
         raise ValueError(f"pcf must be an integer radius in 0…{MAX_PCF_RADIUS}, got {pcf!r}")
     depth = np.ascontiguousarray(framebuffer.depth[::-1]).ravel()   # image rows → window rows
-    packed = np.stack([depth, np.ones_like(depth)], axis=1).astype(np.float32)
     return ShadowUniform(np.zeros((0, 2), np.int64),
-                         np.array([[0, framebuffer.width, framebuffer.height, pcf]], np.int64),
-                         np.eye(4)[None].copy(), packed, np.ones((len(depth), 3), np.float32))
+                         np.array([[0, framebuffer.width, framebuffer.height, pcf, -1]], np.int64),
+                         np.eye(4)[None].copy(), depth, np.zeros(0, np.float32), np.zeros((0, 3), np.float32))
 
 
 @njit(cache=True)

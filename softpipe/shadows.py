@@ -42,7 +42,7 @@ import numpy as np
 from .framebuffer import Framebuffer
 from .material import Light, Lighting, LightingUniform
 from .pipeline import DrawCall
-from .shadowmap import MAX_SPOT_MAP_CUTOFF, ShadowSettings, ShadowUniform, cube_face_half_extent
+from .shadowmap import CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, ShadowSettings, ShadowUniform, cube_face_half_extent
 from .transforms import frustum, look_at, orthographic
 
 __all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of",
@@ -52,7 +52,6 @@ __all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "lig
 # a face is looked up by projecting with its own matrices, not by a face convention).
 CUBE_FACES = (((1, 0, 0), (0, 1, 0)), ((-1, 0, 0), (0, 1, 0)), ((0, 1, 0), (0, 0, -1)),
               ((0, -1, 0), (0, 0, 1)), ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0)))
-CUBE_FACE_NAMES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
 @dataclass
@@ -185,9 +184,10 @@ class ShadowMap:
     settings : ShadowSettings
     depth : float32 [res, res]
         The nearest opaque caster's window depth per texel (row 0 at the bottom), 1 where none.
-    transparent_depth : float32 [res, res]
-        The nearest transparent caster's depth, 1 where none.
-    transmission : float32 [res, res, 3]
+    transparent_depth : float32 [res, res] or None
+        The nearest transparent caster's depth, 1 where none (None: the map has no
+        transparent caster).
+    transmission : float32 [res, res, 3] or None
         That caster's transmission, 1 where none.
     seconds : float
         Time the two depth passes took.
@@ -199,8 +199,8 @@ class ShadowMap:
     projection: np.ndarray
     settings: ShadowSettings
     depth: np.ndarray
-    transparent_depth: np.ndarray
-    transmission: np.ndarray
+    transparent_depth: Optional[np.ndarray]
+    transmission: Optional[np.ndarray]
     seconds: float = 0.0
 
     @property
@@ -220,29 +220,47 @@ class ShadowMap:
         return out
 
 
+def _outside_codes(clip: np.ndarray) -> np.ndarray:
+    """Per vertex, a bit for each clip plane it is outside of (x < −w, x > w, y …, z …)."""
+    x, y, z, w = clip.T
+    return ((x < -w) * 1 | (x > w) * 2 | (y < -w) * 4 | (y > w) * 8 | (z < -w) * 16 | (z > w) * 32)
+
+
+def _in_frustum(clip: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """The triangles not wholly outside one clip plane (the rest cannot reach the map): a cheap
+    cull before assembly, which matters for a cube map, where each face sees a sixth of the scene."""
+    codes = _outside_codes(clip)
+    return indices[(codes[indices[:, 0]] & codes[indices[:, 1]] & codes[indices[:, 2]]) == 0]
+
+
 def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: np.ndarray,
-                settings: ShadowSettings, light_index: int, face: str) -> ShadowMap:
+                settings: ShadowSettings, light_index: int, face: str, target: Framebuffer,
+                depth_out: np.ndarray) -> ShadowMap:
+    """Draw one map into ``target`` (reused: cleared here), its depth into ``depth_out`` (window rows)."""
     start = time.perf_counter()
     res = settings.resolution
     matrix = projection @ view
-    opaque = Framebuffer(res, res)
+    opaque = target.clear((0.0, 0.0, 0.0, 1.0), 1.0)
     clear = Framebuffer(res, res).clear((1.0, 1.0, 1.0, 1.0)) if any(c.transmission for c in casters) else None
     for c in casters:
         clip = np.ascontiguousarray(np.c_[c.positions, np.ones(len(c.positions))] @ matrix.T)
+        indices = _in_frustum(clip, c.indices)
+        if not len(indices):
+            continue
         if c.transmission is None:
-            target, shader, uniforms = opaque, _depth_fragment, None
+            fb, shader, uniforms = opaque, _depth_fragment, None
         else:
-            target, shader, uniforms = clear, _transmission_fragment, {"transmission": c.transmission}
-        DrawCall(target, clip, c.indices, None, None, shader, uniforms, cull="none",
+            fb, shader, uniforms = clear, _transmission_fragment, {"transmission": c.transmission}
+        DrawCall(fb, clip, indices, None, None, shader, uniforms, cull="none",
                  polygon_offset=settings.polygon_offset).run()
+    # a framebuffer's rows are an image's, top first; a map's are window rows, bottom first
+    depth_out[...] = opaque.depth[::-1]
     if clear is None:
-        transparent_depth, transmission = np.ones((res, res), np.float32), np.ones((res, res, 3), np.float32)
+        transparent_depth = transmission = None
     else:
-        # a framebuffer's rows are an image's, top first; a map's are window rows, bottom first
         transparent_depth = np.ascontiguousarray(clear.depth[::-1])
         transmission = np.ascontiguousarray(clear.color[::-1, :, :3])
-    return ShadowMap(light_index, face, view, projection, settings, np.ascontiguousarray(opaque.depth[::-1]),
-                     transparent_depth,
+    return ShadowMap(light_index, face, view, projection, settings, depth_out, transparent_depth,
                      transmission, time.perf_counter() - start)
 
 
@@ -263,6 +281,8 @@ class ShadowMaps:
     lights: Tuple[Light, ...]
     maps: List[ShadowMap] = field(default_factory=list)
     light_maps: np.ndarray = None
+    _packed: Optional[tuple] = field(default=None, repr=False, compare=False)
+    _depth: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
 
     @property
     def seconds(self) -> Dict[str, float]:
@@ -271,21 +291,39 @@ class ShadowMaps:
                 for m in self.maps}
 
     def uniform(self, view_matrix: np.ndarray) -> ShadowUniform:
-        """The maps packed for shaders working in the eye space of ``view_matrix`` (world → eye)."""
+        """The maps packed for shaders working in the eye space of ``view_matrix`` (world → eye).
+
+        The texels are packed once and shared by every uniform made (only the matrices
+        depend on the view).
+        """
+        if self._packed is None:
+            self._packed = self._pack()
+        maps, depth, transparent_depth, transmission = self._packed
         inverse_view = np.linalg.inv(np.asarray(view_matrix, np.float64))
-        sizes = [m.depth.size for m in self.maps]
-        offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64) if sizes else np.zeros(0, np.int64)
-        maps = np.array([[o, m.depth.shape[1], m.depth.shape[0], m.settings.pcf] for o, m in zip(offsets, self.maps)],
-                        np.int64).reshape(-1, 4)
         matrices = np.array([m.matrix @ inverse_view for m in self.maps], np.float64).reshape(-1, 4, 4)
-        if self.maps:
-            depth = np.concatenate([np.stack([m.depth.ravel(), m.transparent_depth.ravel()], axis=1)
-                                    for m in self.maps]).astype(np.float32)
-            transmission = np.concatenate([m.transmission.reshape(-1, 3) for m in self.maps]).astype(np.float32)
+        return ShadowUniform(self.light_maps.copy(), maps, matrices, depth, transparent_depth, transmission)
+
+    def _pack(self):
+        """(maps, depth, transparent_depth, transmission) of :class:`~softpipe.shadowmap.ShadowUniform`."""
+        rows, offset, clear_offset = [], 0, 0
+        clear = [m for m in self.maps if m.transparent_depth is not None]
+        for m in self.maps:
+            height, width = m.depth.shape
+            rows.append([offset, width, height, m.settings.pcf, -1 if m.transparent_depth is None else clear_offset])
+            offset += m.depth.size
+            if m.transparent_depth is not None:
+                clear_offset += m.depth.size
+        if self._depth is not None and self._depth.size == offset:   # the maps were drawn into it
+            depth = self._depth
         else:
-            depth, transmission = np.zeros((0, 2), np.float32), np.zeros((0, 3), np.float32)
-        return ShadowUniform(self.light_maps.copy(), maps, matrices, np.ascontiguousarray(depth),
-                             np.ascontiguousarray(transmission))
+            depth = np.concatenate([m.depth.ravel() for m in self.maps]) if self.maps else np.zeros(0, np.float32)
+        if clear:
+            transparent_depth = np.concatenate([m.transparent_depth.ravel() for m in clear])
+            transmission = np.concatenate([m.transmission.reshape(-1, 3) for m in clear])
+        else:
+            transparent_depth, transmission = np.zeros(0, np.float32), np.zeros((0, 3), np.float32)
+        return (np.array(rows, np.int64).reshape(-1, 5), np.ascontiguousarray(depth, np.float32),
+                np.ascontiguousarray(transparent_depth, np.float32), np.ascontiguousarray(transmission, np.float32))
 
     def lighting_uniform(self, lighting: Lighting, view_matrix: np.ndarray) -> LightingUniform:
         """``lighting.uniform(view_matrix)`` with these shadow maps."""
@@ -320,12 +358,25 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
         casters = casters_of(objects)
     points = np.concatenate([c.positions for c in casters]) if casters else np.zeros((0, 3))
     out = ShadowMaps(tuple(lighting.lights), [], np.zeros((len(lighting.lights), 2), np.int64))
+    planned = []                                    # (light index, view, projection, face)
     for j, light in enumerate(lighting.lights):
         if light.shadows is None:
             continue
         frusta = light_frusta(light, light.shadows, points)
-        out.light_maps[j] = (len(out.maps), len(frusta))
+        out.light_maps[j] = (len(planned), len(frusta))
         names = CUBE_FACE_NAMES if len(frusta) == 6 else ("",)
-        for (view, projection), face in zip(frusta, names):
-            out.maps.append(_render_map(casters, view, projection, light.shadows, j, face))
+        planned.extend((j, view, projection, face) for (view, projection), face in zip(frusta, names))
+    # every map's depth goes straight into the one array the shaders read (ShadowMaps.uniform)
+    sizes = [lighting.lights[j].shadows.resolution ** 2 for j, *_ in planned]
+    depth = np.empty(sum(sizes), np.float32)
+    targets: Dict[int, Framebuffer] = {}           # one framebuffer per resolution, cleared for each map
+    offset = 0
+    for (j, view, projection, face), size in zip(planned, sizes):
+        settings = lighting.lights[j].shadows
+        res = settings.resolution
+        target = targets.setdefault(res, Framebuffer(res, res))
+        out.maps.append(_render_map(casters, view, projection, settings, j, face, target,
+                                    depth[offset:offset + size].reshape(res, res)))
+        offset += size
+    out._depth = depth
     return out

@@ -35,6 +35,7 @@ from .fragment import ShadedFragments, default_fragment_shader, derivative_gradi
 from .output import VERDICTS, MergeResult
 from .raster import Fragments
 from .shader import python_function
+from .shadowmap import light_visibility
 
 __all__ = ["Trace", "PixelEvent", "PixelHistory"]
 
@@ -70,6 +71,7 @@ class PixelEvent:
     color: tuple                # the shader's output (RGBA), NaN alpha = discarded
     verdict: str                # "written", "depth-failed", "discarded"
     color_after: tuple          # the sample's color after this fragment
+    shadow: tuple = ()          # V_j of each light at the fragment (RGB), when the draw has shadow maps
 
 
 class PixelHistory(list):
@@ -95,11 +97,18 @@ class PixelHistory(list):
             return [], []
         fmt = self._fmt
         names = list(self[0].varyings._fields)
-        cols = ["#", "prim", "sample", "depth"] + names + ["shader output", "depth test", "color after"]
+        shadow = ["shadow V_j"] if self[0].shadow else []
+        cols = ["#", "prim", "sample", "depth"] + names + shadow + ["shader output", "depth test", "color after"]
         rows = [[str(e.index), str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
                 + [fmt(getattr(e.varyings, n)) for n in names]
+                + ([self._fmt_shadow(e.shadow)] if shadow else [])
                 + [fmt(e.color), str(e.verdict), fmt(e.color_after)] for e in self]
         return cols, rows
+
+    @classmethod
+    def _fmt_shadow(cls, shadow) -> str:
+        """V_j per light: one number where it is gray, else the RGB triple."""
+        return " ".join(f"{c[0]:.3g}" if c[0] == c[1] == c[2] else cls._fmt(c) for c in shadow)
 
     def __str__(self) -> str:
         head = self._heading()
@@ -293,8 +302,19 @@ class Trace:
                 sample=int(f.sample[k]), depth=float(f.depth[k]), varyings=varyings,
                 color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
                 color_after=tuple(float(c) for c in m.color_after[k])))
+            events[-1].shadow = self._shadow_terms(varyings)
         before = tuple(float(c) for c in self.before_color[0, y, x])
         return PixelHistory(x, y, events, before)
+
+    def _shadow_terms(self, varyings) -> tuple:
+        """V_j of every light at the fragment's eye-space ``position`` varying (FORMULAS §21), as the lit
+        programs compute it, when the draw's ``lighting`` uniform carries shadow maps; else ()."""
+        shadows = getattr(getattr(self.call.uniforms, "lighting", None), "shadows", None)
+        P = getattr(varyings, "position", None)
+        if shadows is None or not len(shadows.maps) or P is None or len(P) != 3:
+            return ()
+        return tuple(tuple(float(c) for c in light_visibility(shadows, j, tuple(float(v) for v in P)))
+                     for j in range(len(shadows.light_maps)))
 
     # ------------------------------------------------------------- pictures
 
