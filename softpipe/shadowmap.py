@@ -58,6 +58,7 @@ from __future__ import annotations
 
 from collections import namedtuple
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from numba import njit
@@ -96,16 +97,18 @@ class ShadowSettings:
     offset_factor, offset_units : float
         The depth pass's polygon offset (``glPolygonOffset(factor, units)``):
         factor·DZ + units·r, the slope-scaled and the constant depth bias. With
-        PCF a texel up to r + ½ texels away is compared, so the slope term needs
-        factor ≥ r + ½ on a surface seen edge-on from the light; the default
-        factor is r + 1.5 and the default units 16 (r of a float32 depth near 1 is
-        2⁻²⁴). Too little bias: "acne", a surface shadowing itself in
-        stripes; too much: "peter-panning", a shadow that comes loose from its caster.
+        PCF the farthest tap is (r + ½, r + ½) texels from the point looked up, where
+        a surface's depth differs by up to (2r + 1)·DZ; a curved mesh's neighbouring
+        facet may be less steep than the one looked up from, so the default factor
+        is 2r + 2 (2 for the single tap, 4 for r = 1), and the default units 16 (r of
+        a float32 depth near 1 is 2⁻²⁴). Too little bias: "acne", a surface
+        shadowing itself in dots and stripes; too much: "peter-panning", a shadow
+        that comes loose from its caster.
     """
 
     resolution: int = 1024
     pcf: int = 1
-    offset_factor: float = -1.0
+    offset_factor: Optional[float] = None   # None: 2r + 2
     offset_units: float = 16.0
 
     def __post_init__(self) -> None:
@@ -118,13 +121,13 @@ class ShadowSettings:
             raise ValueError(f"ShadowSettings.pcf must be an integer radius in 0…{MAX_PCF_RADIUS}, got {self.pcf!r}")
         object.__setattr__(self, "resolution", int(self.resolution))
         object.__setattr__(self, "pcf", int(self.pcf))
+        if self.offset_factor is None:  # the default: enough for the PCF kernel
+            object.__setattr__(self, "offset_factor", 2.0 * self.pcf + 2.0)
         for name in ("offset_factor", "offset_units"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value):
                 raise ValueError(f"ShadowSettings.{name} must be a finite number, got {value!r}")
             object.__setattr__(self, name, float(value))
-        if self.offset_factor == -1.0:  # the default: enough for the PCF kernel
-            object.__setattr__(self, "offset_factor", self.pcf + 1.5)
 
     @property
     def polygon_offset(self):
