@@ -5,7 +5,9 @@
 
 Warm where the surface faces the light, cool where it turns away, and no black:
 shape reads from hue rather than from darkness. L is toward the first light of
-``lighting`` (with no lights, toward the eye); kd is the material's.
+``lighting`` (with no lights, toward the eye); kd is the material's. Shadows do
+not enter: the tone t says which way the surface faces, not how much light arrives,
+and the paper draws no shadows (a shadow map, if the lighting carries one, is not read).
 
 Outlines (optional): a rim where the surface turns away from the eye, N·V <
 ``gooch_outline``, drawn in ``gooch_outline_color``. The rim's width follows the
