@@ -45,9 +45,10 @@ packed in flat arrays, so that any number of maps of any sizes has one numba typ
     transmission color (k_t·F_t, its material's ``kt``; 1 where there is none). One transparent layer only: a second pane of
     glass behind the first does not dim the light again (a ray tracer does that).
 
-A point outside a map's square or beyond its far plane is lit (GL's
-CLAMP_TO_BORDER with a border depth of 1): the maps are fitted to the casters, and
-nothing outside them can cast a shadow.
+A point outside a map's square is lit (GL's CLAMP_TO_BORDER with a border depth of
+1): the maps are fitted to the casters, and nothing outside them can cast a shadow.
+A point beyond the far plane compares with ref = 1 (a depth clamp): it is behind every
+caster the map holds, and in the shadow of any that covers its texel.
 
 Cube maps are sampled without seams: each of the six faces is drawn with a field of
 view a little over 90° (:func:`cube_face_half_extent`), so the PCF taps of a point
@@ -185,14 +186,16 @@ def cube_face(shadows, first, P):
 def map_coordinates(shadows, k, P):
     """(x, y, ref, inside): P in map k's window space — texels, y up — and its depth ref.
 
-    ``inside`` is False behind the light (w ≤ 0) and beyond the far plane (ref > 1).
+    ``inside`` is False behind the light (w ≤ 0). A point beyond the far plane gets
+    ref = 1 (GL's depth clamp): every caster the map holds is nearer, so it is in their
+    shadow, and where the map holds none (depth 1) it is lit.
     """
     x, y, z, w = _project(shadows.matrices, k, P)
     if w <= 0.0:
         return 0.0, 0.0, 0.0, False
-    ref = 0.5 * z / w + 0.5
+    ref = min(0.5 * z / w + 0.5, 1.0)
     width, height = shadows.maps[k, 1], shadows.maps[k, 2]
-    return (0.5 * x / w + 0.5) * width, (0.5 * y / w + 0.5) * height, ref, ref <= 1.0
+    return (0.5 * x / w + 0.5) * width, (0.5 * y / w + 0.5) * height, ref, True
 
 
 @njit(cache=True)
