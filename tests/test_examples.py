@@ -18,6 +18,9 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "cook_torrance_gooch": ((32, 24), 8),
     "antialiasing": ((36, 24), 10),
     "user_program": (24, 4),
+    "shadows": (24, 9),
+    "shadows_bias": (24, 8),
+    "shadows_glass": ((32, 24), 4),
 }
 
 
