@@ -252,9 +252,12 @@ def transmitted_half_vector(L: Vec3, V: Vec3, eta: float) -> Vec3:
     crosses it, (L·H′)(V·H′) < 0 — refraction bends a ray by at most 90° − θ_c;
     :func:`hall_transmission` checks that.
 
-    **note:** FORMULAS §14 writes V − η·L; that is this formula with L the
-    direction the light *travels* (−L here). With L toward the light, as in the
-    notation of FORMULAS, the sign is +. η = 1 (no refraction) gives the zero vector.
+    This is FORMULAS §14 as corrected: the notes' H′ = (V − η·L)/(η − 1) holds for L
+    the direction the light *travels*; with L toward the light, as everywhere in
+    FORMULAS, it is (V + η·L)/(η − 1), and light straight through the surface (L = −N,
+    V = N) gets the full lobe (−N·H′) = 1, where the literal form gives 0
+    (``tests/test_lighting.py::test_transmitted_half_vector_is_formulas_14_as_corrected``).
+    η = 1 (no refraction) gives the zero vector.
     """
     if eta == 1.0:
         return ZERO3
@@ -394,13 +397,18 @@ def geometry_g(n_dot_h: float, n_dot_v: float, n_dot_l: float, v_dot_h: float) -
 
 @njit(cache=True)
 def cook_torrance(N: Vec3, L: Vec3, V: Vec3, m: float, n1: float, n2: float) -> float:
-    """The Cook-Torrance specular BRDF f_s = D·G·F / (π (N·L)(N·V)) (FORMULAS §26).
+    """The Cook-Torrance specular BRDF in the normalized microfacet form f_s = D·G·F / (4 (N·L)(N·V)) (FORMULAS §26).
 
-    The chosen form, stated: the original paper's π in the denominator, with
-    FORMULAS §26's Beckmann D (which includes its own 1/π, :func:`beckmann_d`),
+    The form used, stated: FORMULAS §26's normalized one, with Beckmann's D that
+    integrates to 1 over the projected hemisphere (its own 1/π, :func:`beckmann_d`),
     G as given (:func:`geometry_g`), and F the exact Fresnel reflectance (§20) at
-    cos θ = V·H from medium n1 (the viewer's) into n2 (the surface). Later texts
-    write 4 for π with the same D; their f_s is π/4 times this one.
+    cos θ = V·H from medium n1 (the viewer's) into n2 (the surface).
+
+    **note:** the 1982 paper writes R_s = F·D′·G / (π (N·L)(N·V)) with D′ = π·D (a
+    Beckmann D without the 1/π), so R_s = F·D·G / ((N·L)(N·V)) = 4·f_s. At the point of
+    ``tests/test_lighting.py::test_cook_torrance_value`` (m = 0.35, glass): the
+    paper's R_s = 0.2027, this f_s = 0.0507; softpipe's earlier form — the paper's π
+    with the normalized D, dividing by π twice — gave 0.0645.
     0 when L or V is below the surface.
     """
     n_dot_l = dot(N, L)
@@ -413,7 +421,7 @@ def cook_torrance(N: Vec3, L: Vec3, V: Vec3, m: float, n1: float, n2: float) -> 
     D = beckmann_d(n_dot_h, m)
     G = geometry_g(n_dot_h, n_dot_v, n_dot_l, v_dot_h)
     F = fresnel(v_dot_h, n1, n2)
-    denominator = math.pi * n_dot_l * n_dot_v
+    denominator = 4.0 * n_dot_l * n_dot_v
     if denominator == 0.0:  # the product underflowed at a grazing angle
         return 0.0
     return D * G * F / denominator

@@ -177,10 +177,15 @@ def surface_of_revolution(
 
     The normal at each vertex is the formula's (z' cos θ, z' sin θ, -r'), normalized
     (in the y-up form: (z' sin θ, -r', z' cos θ)), from the profile's derivative, not
-    the triangles. It points to the right of the profile's direction of travel in the
-    (r, z) half-plane, so walk the profile with the outside on the right: upward for a
-    vase, south to north pole for a sphere, counter-clockwise around a closed profile.
-    The triangles are wound counter-clockwise seen from that side.
+    the triangles, **oriented outward** (FORMULAS §25): the formula's normal points to
+    the right of the profile's direction of travel in the (r, z) half-plane, which is
+    outward for a vase walked upward, a sphere walked south to north, a closed profile
+    walked counter-clockwise. A profile walked the other way (a vase from rim to foot)
+    would get inward normals, so when the normals point toward the axis on the whole —
+    Σ z'·r over the profile, their radial part weighted by the area each sample sweeps,
+    is negative — every normal is reversed and every triangle turned around. A profile
+    whose normals have no radial part at all (a flat disc) keeps the side it was walked
+    with. The triangles are wound counter-clockwise seen from the normals' side.
 
     Where r = 0 (a pole or an apex) the ring collapses to a point: it gets one vertex
     per segment, at the segment's middle angle (so each keeps its own normal and u),
@@ -201,6 +206,9 @@ def surface_of_revolution(
         raise ValueError(f"surface_of_revolution: the profile's derivative is zero at t={float(t[k])!r}, "
                          "so the normal is undefined")
     n_radial, n_axial = dz / length, -dr / length  # FORMULAS §25: (z', -r') in the (r, z) plane
+    inward = _walked_inward(t, r, dz)
+    if inward:
+        n_radial, n_axial = -n_radial, -n_axial
 
     # Vertex grid [ring, column]: columns 0..segments at θ_j; a pole ring drops the
     # last column and sits at the middle angles θ_j + Δθ/2.
@@ -216,9 +224,22 @@ def surface_of_revolution(
     normals = np.stack([n_radial[ring] * cos, n_radial[ring] * sin, n_axial[ring]], 1)
     uvs = np.stack([th / (2.0 * np.pi), (t[ring] - t[0]) / (t[-1] - t[0])], 1)
     indices = _revolution_triangles(vertex_id, pole)
+    if inward:
+        indices = indices[:, [0, 2, 1]]     # counter-clockwise seen from the reversed normals
     if axis == "y":  # (x, y, z) -> (y, z, x): a rotation, so winding and normals stay outward
         positions, normals = positions[:, [1, 2, 0]], normals[:, [1, 2, 0]]
     return Mesh(positions, indices, normals, uvs, material=material or Material(), name=name)
+
+
+def _walked_inward(t: np.ndarray, r: np.ndarray, dz: np.ndarray) -> bool:
+    """Do the §25 normals point toward the axis on the whole? The area-weighted radial part
+    Σ z'(t)·r(t)·Δt (trapezoids over the samples) is negative, beyond rounding."""
+    if len(t) < 2:
+        return False
+    f = dz * r
+    score = float(np.sum((f[1:] + f[:-1]) * np.diff(t)))
+    scale = float(np.sum((np.abs(f[1:]) + np.abs(f[:-1])) * np.abs(np.diff(t))))
+    return score < -1e-9 * scale
 
 
 def _revolution_triangles(vertex_id: np.ndarray, pole: np.ndarray) -> np.ndarray:

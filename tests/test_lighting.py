@@ -365,6 +365,23 @@ def test_transmitted_half_vector_refracts_the_light_into_v(eta, theta_v, theta_l
         assert transmitted == BLACK
 
 
+def test_transmitted_half_vector_is_formulas_14_as_corrected():
+    """FORMULAS §14 (corrected): with L toward the light, H′ = normalize((V + η·L)/(η − 1)).
+
+    The check §14 gives: light straight through the surface (L = −N, V = N, η = 1.5) has
+    the full lobe, (−N·H′) = 1; the notes' literal (V − η·L)/(η − 1) gives 0 there.
+    """
+    L, V, eta = np.array((0.0, 0.0, -1.0)), np.array(N_UP), 1.5
+    h = np.array(transmitted_half_vector(tuple(L), tuple(V), eta))
+    close(h, unit((V + eta * L) / (eta - 1.0)))
+    assert -(np.array(N_UP) @ h) == pytest.approx(1.0, abs=1e-15)
+    literal = unit((V - eta * L) / (eta - 1.0))
+    assert -(np.array(N_UP) @ literal) == pytest.approx(-1.0) and max(-(np.array(N_UP) @ literal), 0.0) == 0.0
+    for L in (tilt(150.0, 30.0), tilt(170.0, 200.0)):          # and off-axis: the corrected formula itself
+        h = np.array(transmitted_half_vector(L, tuple(V), eta))
+        close(h, unit((V + eta * np.array(L)) / (eta - 1.0)))
+
+
 def test_hall_straight_through_transmission_and_no_refraction():
     kt = (0.3, 0.5, 0.7)
     close(hall_transmission(kt, IS, N_UP, (0.0, 0.0, -1.0), N_UP, 1.5, 40.0), np.multiply(kt, IS))
@@ -421,6 +438,12 @@ def test_geometry_g_values():
 
 
 def test_cook_torrance_value():
+    """FORMULAS §26's normalized form f_s = D·G·F / (4 (N·L)(N·V)), D Beckmann's with its 1/π.
+
+    At this point the 1982 paper's R_s = F·D′·G / (π (N·L)(N·V)) (D′ = π·D, no 1/π) is
+    0.2027 and the normalized f_s is 0.0507 = R_s/4; the earlier code's 0.0645 paired
+    the paper's π with the normalized D.
+    """
     m, n2 = 0.35, 1.5
     L, V = np.array(tilt(35.0, 10.0)), np.array(tilt(50.0, 200.0))
     H = unit(L + V)
@@ -431,7 +454,10 @@ def test_cook_torrance_value():
     t1 = math.acos(vh)
     t2 = math.asin(math.sin(t1) / n2)
     F = ((math.sin(t1 - t2) / math.sin(t1 + t2)) ** 2 + (math.tan(t1 - t2) / math.tan(t1 + t2)) ** 2) / 2
-    expected = D * G * F / (math.pi * nl * nv)
+    expected = D * G * F / (4.0 * nl * nv)
+    paper = F * (math.pi * D) * G / (math.pi * nl * nv)
+    assert paper == pytest.approx(0.20273, abs=1e-5) and expected == pytest.approx(0.050682, abs=1e-6)
+    assert expected == pytest.approx(paper / 4.0, rel=1e-14)
     assert cook_torrance(N_UP, tuple(L), tuple(V), m, 1.0, n2) == pytest.approx(expected, rel=1e-11)
     assert cook_torrance(N_UP, tilt(100.0), tuple(V), m, 1.0, n2) == 0.0  # light below
 

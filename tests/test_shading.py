@@ -454,7 +454,7 @@ def test_cook_torrance_on_the_plane(theta, roughness):
     D = math.exp(-math.tan(alpha) ** 2 / roughness ** 2) / (math.pi * roughness ** 2 * nh ** 4)
     G = min(1.0, 2 * nh * nv / vh, 2 * nh * nl / vh)
     F = _fresnel(vh, 1.0, ior)
-    fs = D * G * F / (math.pi * nl * nv)
+    fs = D * G * F / (4.0 * nl * nv)            # FORMULAS §26, normalized
     expected = (np.array((0.01, 0, 0)) + 0.1 * 0.1 + 0.1 * 0.2
                 + nl * (np.asarray(kd) + np.asarray(ks) * fs))
     close(img[8, 8, :3], expected)

@@ -220,3 +220,35 @@ def test_generators_return_meshes_with_materials_and_names():
         mesh = make()
         assert isinstance(mesh, Mesh) and mesh.name == make.__name__
         assert mesh.material_ids is None
+
+
+@pytest.mark.parametrize("axis", ["y", "z"])
+def test_revolution_walked_either_way_gets_outward_normals(axis):
+    """FORMULAS §25: the normals point outward whichever way the profile is walked.
+
+    A vase r = 1 + 0.3 sin(3t), z = t: walked upward (the formula's side is outward) and
+    downward (the formula's normal would point in) give the same surface, normals
+    pointing away from the axis, and triangles wound counter-clockwise seen from them.
+    """
+    def vase(up):
+        s = 1.0 if up else -1.0
+        return lambda t: (1.0 + 0.3 * np.sin(3 * t), s * t, 0.9 * np.cos(3 * t), s * np.ones_like(t))
+    up = shapes.surface_of_revolution(vase(True), np.linspace(0.0, 2.0, 9), 12, axis=axis)
+    down = shapes.surface_of_revolution(vase(False), np.linspace(0.0, 2.0, 9), 12, axis=axis)      # z = −t: down
+    for mesh in (up, down):
+        p, n = mesh.positions, mesh.normals
+        along = 1 if axis == "y" else 2
+        radial = p.copy()
+        radial[:, along] = 0.0
+        assert np.all(np.einsum("ij,ij->i", n, radial) > 0)              # away from the axis
+        face = mesh.face_normals(normalized=True)
+        corner = n[mesh.indices].mean(axis=1)
+        assert np.all(np.einsum("ij,ij->i", face, corner) > 0)           # winding agrees with the normals
+
+
+def test_revolution_flat_disc_keeps_the_side_it_was_walked_with():
+    t = np.linspace(0.0, 1.0, 5)
+    outward = shapes.surface_of_revolution((t, np.zeros_like(t), np.ones_like(t), np.zeros_like(t)), t, 8, axis="z")
+    inward = shapes.surface_of_revolution((1 - t, np.zeros_like(t), -np.ones_like(t), np.zeros_like(t)), t, 8,
+                                          axis="z")
+    assert np.allclose(outward.normals, (0.0, 0.0, -1.0)) and np.allclose(inward.normals, (0.0, 0.0, 1.0))

@@ -1,14 +1,16 @@
 """Cook-Torrance microfacet shading (FORMULAS §26), per fragment.
 
     I = ke + ka·I_a,global
-      + Σ_j f_j·[ ka·I_a,j + B_j·(N·L_j)·( kd·I_d,j + ks·I_s,j·f_s,j ) ]
+      + Σ_j f_j·[ ka·I_a,j + V_j·B_j·(N·L_j)·( kd·I_d,j + ks·I_s,j·f_s,j ) ]
 
-    f_s = D·G·F / (π (N·L)(N·V))                      (the 1982 paper's π)
-    D   = exp(−tan²α/m²) / (π m² cos⁴α)               Beckmann, cos α = N·H, m = material.roughness
+    f_s = D·G·F / (4 (N·L)(N·V))                      (the normalized microfacet form)
+    D   = exp(−tan²α/m²) / (π m² cos⁴α)               Beckmann, normalized; cos α = N·H, m = material.roughness
     G   = min(1, 2(N·H)(N·V)/(V·H), 2(N·H)(N·L)/(V·H))
     F   = (R_s + R_p)/2 at cos θ = V·H, from air into material.ior (exact Fresnel, §20)
 
-:func:`softpipe.lighting.cook_torrance_lighting` evaluates it. F is 0 for
+:func:`softpipe.lighting.cook_torrance_lighting` evaluates it (V_j: light j's shadow term,
+:mod:`softpipe.shadowmap`; the 1982 paper's own π-denominator form and its value are
+in :func:`softpipe.lighting.cook_torrance`). F is 0 for
 ``ior = 1`` (the Material default), so give a Cook-Torrance material its ior —
 e.g. 1.5 for a plastic or glass; metals have a complex index, which a large
 real one (≈ 3–20) stands in for.
