@@ -458,3 +458,18 @@ def test_bad_source(tmp_path):
         Texture2D(floats)
     with pytest.raises(TypeError, match="image file path or a numpy array, got list"):
         Texture2D([[0.0]])
+
+
+def test_render_to_texture_the_framebuffers_bottom_row_is_v_0():
+    """Texture2D.from_framebuffer: what a draw made, sampled as a texture (OpenGL's render to texture):
+    texel (i, j) of window row j (y up) is the framebuffer's pixel there, v = 0 its bottom row."""
+    from softpipe import Framebuffer
+    fb = Framebuffer(4, 3)
+    rng = np.random.default_rng(7)
+    fb.color[...] = rng.random((3, 4, 4)).astype(np.float32)
+    tex = Texture2D.from_framebuffer(fb, filter="nearest", wrap="clamp")
+    assert (tex.width, tex.height) == (4, 3)
+    for j in range(3):              # window row, y up
+        for i in range(4):
+            got = tex.sample((i + 0.5) / 4, (j + 0.5) / 3)
+            np.testing.assert_array_equal(got, fb.color[2 - j, i])
