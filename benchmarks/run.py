@@ -9,7 +9,11 @@ own, then ``--frames`` warm frames (7 by default), and reports:
   (fragments shaded per frame / median), and the covered samples per frame;
 * the median time of each pipeline stage, from :attr:`DrawCall.timings`, summed
   over the scene's draws (``other`` is the rest of the frame: clearing the
-  framebuffer and building the DrawCalls);
+  framebuffer and building the DrawCalls; ``prepare`` is the scene's per-frame
+  preparation, e.g. drawing shadow maps, when it has one);
+* for a scene with a ``prepare`` (:attr:`Scene.prepare`), the median of each part
+  of the frame: the parts ``prepare`` names (each shadow map), the rest of
+  ``prepare``, and ``lit pass`` (the draws);
 * peak memory (resident set) of the process while the scene ran;
 * the numba thread count it ran with, and CPU time / wall time (how much of
   the machine the frames actually got).
@@ -70,7 +74,9 @@ __all__ = ["run_scene", "run", "main", "render_frame", "count_fragments_of", "TA
 #: DrawCall.timings keys, in pipeline order, and the names the issue gives them.
 STAGES = ("vertex", "assembly", "setup", "raster", "fragment", "output")
 STAGE_TITLES = {"vertex": "vertex", "assembly": "assembly+clip", "setup": "setup+bin", "raster": "raster",
-                "fragment": "shading", "output": "merge", "other": "other"}
+                "fragment": "shading", "output": "merge", "other": "other", "prepare": "prepare"}
+#: The part of a frame that runs the scene's draws (the parts table, for scenes with a ``prepare``).
+LIT_PASS = "lit pass"
 
 #: The issue's targets (median of warm frames, 2 threads, 2 cores), in ms.
 TARGETS_MS = {"sphere200k": 25.0, "sphere200k-color": 20.0, "bunny": 12.0, "fill": 200.0, "fill-b2f": 450.0,
@@ -85,7 +91,8 @@ ROW_FIELDS = ("scene", "description", "shading", "path", "width", "height", "sca
               "triangles", "covered", "fragments", "pixels_drawn",
               "first_ms", "median_ms", "min_ms", "max_ms", "frames_ms", "warm_frames", "frames_requested",
               "triangles_per_s", "shaded_pixels_per_s", "covered_per_s", "cpu_per_wall",
-              "stages_ms", "first_stages_ms", "peak_rss_mb", "start_rss_mb", "memory_method", "build_s",
+              "stages_ms", "first_stages_ms", "parts_ms", "first_parts_ms",
+              "peak_rss_mb", "start_rss_mb", "memory_method", "build_s",
               "target_ms", "vs_target", "notes")
 
 
@@ -134,14 +141,27 @@ def _rss_mb() -> Optional[float]:
 # One frame, and the untimed count
 # --------------------------------------------------------------------------
 
-def render_frame(scene: Scene, fb: Framebuffer, paths: Optional[list] = None) -> tuple:
-    """Clear ``fb`` and run every draw of ``scene``: (seconds, {stage: seconds} summed over draws).
+def render_frame(scene: Scene, fb: Framebuffer, paths: Optional[list] = None, parts: Optional[dict] = None,
+                 prepare: bool = True) -> tuple:
+    """Clear ``fb``, run the scene's ``prepare`` (if any, and ``prepare``) and every draw of ``scene``:
+    (seconds, {stage: seconds} summed over draws, plus ``prepare``).
 
     ``paths``, if given, gets each draw's path ("fast" or "reference") appended.
+    ``parts``, if given, gets the parts of the frame of a scene with a ``prepare``:
+    the parts it returned (each shadow map's seconds), ``prepare (rest)`` (the rest
+    of its time) and ``lit pass`` (the draws).
     """
     stages: Dict[str, float] = {}
     start = time.perf_counter()
     fb.clear(scene.clear_color)
+    if prepare and scene.prepare is not None:
+        t0 = time.perf_counter()
+        named = dict(scene.prepare() or {})
+        stages["prepare"] = time.perf_counter() - t0
+        if parts is not None:
+            parts.update(named)
+            parts["prepare (rest)"] = max(0.0, stages["prepare"] - sum(named.values()))
+    draws_start = time.perf_counter()
     for kwargs in scene.draws:
         call = DrawCall(fb, **kwargs)
         call.run()
@@ -150,7 +170,10 @@ def render_frame(scene: Scene, fb: Framebuffer, paths: Optional[list] = None) ->
         if paths is not None:
             uses_fast = getattr(call, "uses_fast_path", None)
             paths.append("reference" if uses_fast is None else "fast" if uses_fast() else "reference")
-    total = time.perf_counter() - start
+    end = time.perf_counter()
+    if parts is not None and scene.prepare is not None and prepare:
+        parts[LIT_PASS] = end - draws_start
+    total = end - start
     stages["other"] = max(0.0, total - sum(stages.values()))
     return total, stages
 
@@ -215,8 +238,10 @@ def count_fragments_of(scene: Scene, fb: Framebuffer) -> tuple:
     ``shaded`` is None if the pipeline ran none of the wrapped shading
     functions (they were renamed): then the harness cannot count, and says so.
     """
+    if scene.prepare is not None:       # its draws (shadow maps) are not the frame's, so not counted
+        scene.prepare()
     with _counting(fb) as counter:
-        render_frame(scene, fb)
+        render_frame(scene, fb, prepare=False)
     shaded = None if counter["calls"] == 0 and scene.draws else counter["shaded"]
     return counter["covered"], shaded
 
@@ -228,6 +253,15 @@ def count_fragments_of(scene: Scene, fb: Framebuffer) -> tuple:
 def _median_stages(frames: List[Dict[str, float]]) -> Dict[str, float]:
     names = [s for s in STAGES if any(s in f for f in frames)]
     names += sorted({k for f in frames for k in f} - set(names) - {"other"}) + ["other"]
+    return {n: 1e3 * statistics.median(f.get(n, 0.0) for f in frames) for n in names}
+
+
+def _median_parts(frames: List[Dict[str, float]]) -> Dict[str, float]:
+    """Per part, the median ms over frames, in the order the parts came (``lit pass`` last)."""
+    names: List[str] = []
+    for f in frames:
+        names += [n for n in f if n not in names]
+    names = [n for n in names if n != LIT_PASS] + ([LIT_PASS] if LIT_PASS in names else [])
     return {n: 1e3 * statistics.median(f.get(n, 0.0) for f in frames) for n in names}
 
 
@@ -255,14 +289,17 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
     reset = _reset_peak_rss()
 
     paths: List[str] = []
-    first_s, first_stages = render_frame(scene, fb, paths)
+    first_parts: Dict[str, float] = {}
+    first_s, first_stages = render_frame(scene, fb, paths, first_parts)
     log(f"  {scene.name}: first frame {first_s * 1e3:.0f} ms (includes compiling); warm frames ...")
-    times, stage_frames = [], []
+    times, stage_frames, part_frames = [], [], []
     warm_start, cpu_start = time.perf_counter(), time.process_time()
     while len(times) < frames:
-        seconds, stages = render_frame(scene, fb)
+        parts: Dict[str, float] = {}
+        seconds, stages = render_frame(scene, fb, parts=parts)
         times.append(seconds)
         stage_frames.append(stages)
+        part_frames.append(parts)
         spent = time.perf_counter() - warm_start
         if budget and len(times) < frames and spent + seconds > budget:
             notes.append(f"{scene.name}: only {len(times)} warm frame(s) of {frames}: a frame takes about "
@@ -307,6 +344,8 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
         "cpu_per_wall": cpu / wall if wall > 0 else None,
         "stages_ms": _median_stages(stage_frames),
         "first_stages_ms": {k: v * 1e3 for k, v in first_stages.items()},
+        "parts_ms": _median_parts(part_frames),
+        "first_parts_ms": {k: v * 1e3 for k, v in first_parts.items()},
         "peak_rss_mb": peak_rss,
         "start_rss_mb": start_rss,
         "memory_method": memory_method,
@@ -378,7 +417,17 @@ def format_tables(rows: List[dict]) -> str:
         stage_rows.append([r["scene"], *(_ms(st.get(n)) if n in st else "-" for n in names),
                            f"{STAGE_TITLES.get(biggest, biggest)} {100 * st[biggest] / total:.0f}%"])
     t2 = _table(["median ms by stage", *(STAGE_TITLES.get(n, n) for n in names), "largest"], stage_rows)
-    return t1 + "\n\n" + t2
+    with_parts = [r for r in rows if r.get("parts_ms")]
+    if not with_parts:
+        return t1 + "\n\n" + t2
+    part_names: List[str] = []
+    for r in with_parts:
+        part_names += [n for n in r["parts_ms"] if n not in part_names and n != LIT_PASS]
+    part_names.append(LIT_PASS)
+    part_rows = [[r["scene"], *(_ms(r["parts_ms"].get(n)) if n in r["parts_ms"] else "-" for n in part_names),
+                  _ms(r["median_ms"])] for r in with_parts]
+    t3 = _table(["median ms by part", *part_names, "frame"], part_rows)
+    return t1 + "\n\n" + t2 + "\n\n" + t3
 
 
 def machine_info() -> dict:

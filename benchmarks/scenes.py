@@ -19,6 +19,9 @@ bytes in every process.
                      each, random order, depth LESS, a color per vertex
 ``fill-b2f``         the same triangles drawn back to front (every fragment passes)
 ``tiny``             1,000,000 triangles of one pixel² each at 1024×1024
+``bunny-plane``      the bunny standing on a ground plane, Blinn-Phong, a sun and a spot
+``bunny-shadows``    the same, both lights casting shadows (1024² maps, PCF r = 1, made
+                     in every frame by the scene's ``prepare``; the ground casts none)
 =================== ===================================================================
 
 The lit scenes use softpipe's built-in programs when they are there
@@ -98,6 +101,12 @@ class Scene:
     scale: float = 1.0
     shading: str = ""
     pattern: object = None      # the framebuffer's SamplePattern (None: one centre sample)
+    #: Run at the start of every frame, inside its time, before the draws (None: nothing). It
+    #: may update the draws' uniforms in place (``bunny-shadows`` renders its shadow maps
+    #: and puts them into the lighting uniform: they depend on the scene, as when things
+    #: move) and returns {part name: seconds} of what it did (each map's time); the
+    #: harness reports those parts, the rest of ``prepare`` and the draws ("lit pass").
+    prepare: Optional[Callable[[], Dict[str, float]]] = None
 
 
 def _size(width: int, height: int, scale: float) -> Tuple[int, int]:
@@ -380,6 +389,77 @@ def tiny(scale: float = 1.0) -> Scene:
                  "fragment softpipe default (varying color)")
 
 
+# --------------------------------------------------------------------------
+# The bunny on a plane, with and without shadow maps (issue 15)
+# --------------------------------------------------------------------------
+
+#: The shadow maps' side at scale 1 (ShadowSettings' default); it scales with the scene.
+SHADOW_RESOLUTION = 1024
+
+
+def _bunny_on_plane(name: str, shadows: bool) -> Callable[[float], Scene]:
+    """The bunny standing on a ground plane under a sun and a spot, 1024×1024, ``phong``.
+
+    With ``shadows`` both lights cast shadows (default :class:`ShadowSettings`: 1024²
+    maps at scale 1, PCF r = 1; the ground casts none), and the scene's ``prepare``
+    renders both maps in every frame and hands them to the draws' lighting uniform.
+    """
+    def scene(scale: float = 1.0) -> Scene:
+        from softpipe.scene import SceneObject
+        from softpipe.shadowmap import ShadowSettings
+        from softpipe.shadows import render_shadow_maps
+
+        w, h = _size(1024, 1024, scale)
+        mesh = load_obj(asset_path("stanford-bunny.obj", name))
+        lo, hi = mesh.bounds()
+        extent, centre = float(np.linalg.norm(hi - lo)), (lo + hi) / 2
+        bunny_material = Material(kd=(0.75, 0.7, 0.6), ks=(0.4, 0.4, 0.4), shininess=30.0)
+        ground = plane(8.0 * extent, 1, material=Material(kd=(0.55, 0.55, 0.5), ks=(0.05, 0.05, 0.05),
+                                                          shininess=8.0))
+        floor = np.eye(4)
+        floor[:3, 3] = (centre[0], lo[1], centre[2])         # the bunny's feet touch it
+        ground = ground.transformed(floor)
+        vertex, fragment, notes = _program("phong", "phong", standard_vertex, blinn_phong_fragment, name)
+        # frame the bunny and the ground around it, where the shadows fall
+        around = np.array([extent, 0.0, extent]) * 0.6
+        camera = Camera.frame((np.minimum(lo, centre - around), np.maximum(hi, centre + around)),
+                              azimuth=25.0, elevation=30.0, fovy=35.0, margin=1.0)
+        base = standard_uniforms(camera, w / h)
+        settings = ShadowSettings(resolution=max(16, round(SHADOW_RESOLUTION * scale))) if shadows else False
+        spot_at = centre + extent * np.array([-0.9, 1.7, 1.1])
+        lighting = Lighting((
+            Light.directional((0.5, -1.0, -0.45), diffuse=(0.75, 0.75, 0.7), specular=(0.6, 0.6, 0.6),
+                              name="sun", shadows=settings),
+            Light.spot(tuple(spot_at), tuple(centre - spot_at), 28.0, 2.0, diffuse=(0.6, 0.6, 0.65),
+                       name="spot", shadows=settings),
+        ), global_ambient=(0.12, 0.12, 0.12))
+        draws = []
+        for mesh_, material in ((mesh, bunny_material), (ground, ground.material)):
+            u = dict(base, material=material, lighting=lighting.uniform(base["view"]))
+            normals = mesh_.vertex_normals() if mesh_ is mesh else mesh_.normals
+            draws.append(dict(positions=mesh_.positions, indices=mesh_.indices, attributes={"normal": normals},
+                              vertex_shader=vertex, fragment_shader=fragment, uniforms=u, cull="back"))
+        prepare, what = None, "no shadows"
+        if shadows:
+            objects = [SceneObject("bunny", mesh, np.eye(4)), SceneObject("ground", ground, np.eye(4),
+                                                                          cast_shadows=False)]
+
+            def prepare() -> Dict[str, float]:
+                maps = render_shadow_maps(objects, lighting)
+                lit = maps.lighting_uniform(lighting, base["view"])
+                for d in draws:
+                    d["uniforms"]["lighting"] = lit
+                return maps.seconds                       # {"sun": s, "spot": s}
+            prepare.objects, prepare.lighting = objects, lighting   # for benchmarks that take it apart
+            what = (f"both casting shadows ({settings.resolution}x{settings.resolution} maps, PCF r={settings.pcf}, "
+                    "made every frame; the ground casts none)")
+        return Scene(name, w, h, draws, mesh.triangle_count + ground.triangle_count,
+                     f"Stanford bunny ({mesh.triangle_count} triangles) on a ground plane (2), Blinn-Phong per "
+                     f"fragment, a sun and a spot, {what}", notes=notes, scale=scale,
+                     shading=_shader_names(vertex, fragment), prepare=prepare)
+    return scene
+
+
 #: name → scene function, in the issue's order.
 def _bunny_aa(name: str, pattern_name: str, sample_shading: str) -> Callable[[float], Scene]:
     """The bunny at 512×512 with a sample pattern: the cost of each antialiasing mode (issue 8)."""
@@ -410,6 +490,8 @@ SCENES: Dict[str, Callable[[float], Scene]] = {
     "aa-rgss4": _bunny_aa("aa-rgss4", "rgss4", "sample"),
     "aa-jitter16": _bunny_aa("aa-jitter16", "jitter16", "sample"),
     "aa-msaa4": _bunny_aa("aa-msaa4", "rgss4", "center"),
+    "bunny-plane": _bunny_on_plane("bunny-plane", shadows=False),
+    "bunny-shadows": _bunny_on_plane("bunny-shadows", shadows=True),
 }
 
 

@@ -153,3 +153,38 @@ def test_shading_cost_splits_the_lit_scenes(capsys):
     assert row["samples"] > 0 and min(row["constant"], row["varyings"], row["own"]) > 0
     with pytest.raises(SystemExit):
         shading_cost.main(["tiny"])        # not a lit scene: refused with a message
+
+
+def test_the_shadowed_scene_times_its_maps_and_its_lit_pass(report):
+    """bunny-shadows makes its shadow maps inside every frame and reports each map and the lit pass;
+    bunny-plane is the same scene without them."""
+    data, images = report
+    rows = {r["scene"]: r for r in data["scenes"]}
+    plain, shadowed = rows["bunny-plane"], rows["bunny-shadows"]
+    assert plain["parts_ms"] == {} and plain["first_parts_ms"] == {}
+    assert "prepare" not in plain["stages_ms"]
+    parts = shadowed["parts_ms"]
+    assert list(parts) == ["sun", "spot", "prepare (rest)", bench.LIT_PASS]
+    assert all(v >= 0 for v in parts.values()) and parts["sun"] > 0 and parts["spot"] > 0
+    assert set(shadowed["first_parts_ms"]) == set(parts)
+    assert shadowed["stages_ms"]["prepare"] > 0           # the maps are part of the frame
+    assert parts["sun"] + parts["spot"] <= shadowed["stages_ms"]["prepare"] * 1.0001 + 1e-6
+    assert (plain["triangles"], plain["covered"], plain["fragments"]) == \
+        (shadowed["triangles"], shadowed["covered"], shadowed["fragments"])   # the maps' draws are not counted
+    text = bench.format_tables(data["scenes"])
+    assert "median ms by part" in text and "lit pass" in text
+    a = np.asarray(Image.open(images / "bunny-plane.png"), np.int16)
+    b = np.asarray(Image.open(images / "bunny-shadows.png"), np.int16)
+    darker = (b.sum(axis=-1) < a.sum(axis=-1) - 30).mean()
+    assert darker > 0.01, f"bunny-shadows shows no shadow ({darker:.4f} of the pixels darker)"
+    assert (b.sum(axis=-1) > a.sum(axis=-1) + 3).mean() == 0      # shadows only take light away
+
+
+def test_the_shadow_maps_scale_with_the_scene():
+    full = scenes.build_scene("bunny-shadows", 1.0)
+    small = scenes.build_scene("bunny-shadows", SCALE)
+    for scene, res in ((full, scenes.SHADOW_RESOLUTION), (small, round(scenes.SHADOW_RESOLUTION * SCALE))):
+        lighting = scene.prepare.lighting
+        assert [(l.name, l.kind, l.shadows.resolution, l.shadows.pcf) for l in lighting.lights] == \
+            [("sun", "directional", res, 1), ("spot", "spot", res, 1)]
+    assert scenes.build_scene("bunny-plane", SCALE).prepare is None
