@@ -1,0 +1,759 @@
+"""Rays against triangles: a bounding volume hierarchy (BVH) and its two queries.
+
+A ray ``p(t) = origin + t·direction`` asks one of two questions of a scene's
+triangles (FORMULAS §21, §22):
+
+- **closest hit**: which triangle does the ray meet first in ``t_min < t < t_max``,
+  where, and at which barycentrics? (What a camera ray or a reflected ray needs.)
+- **any hit**: is there *any* triangle in ``t_min < t < t_max``? (What a shadow ray
+  needs: the first hit found answers it, so the search stops there; it is
+  usually several times cheaper than the closest hit.)
+
+Testing every triangle answers both, at T tests per ray (69,451 for the bunny).
+A **BVH** answers them in about log T steps: a binary tree whose every node holds
+an axis-aligned box around all the triangles below it, each leaf a few
+triangles. A ray that misses a node's box misses everything in it, so one box
+test skips a whole subtree; the closest-hit search also visits the nearer child
+first and skips any box that begins beyond the nearest hit found so far.
+
+**Building it: the surface area heuristic (SAH).** A node's triangles are split
+in two by a plane along x, y or z; a random ray that meets a box meets a child box
+inside it with probability A_child / A_parent (the ratio of surface areas), so the
+expected cost of a split is
+
+    cost = C_trav + Σ_children (A_child / A_parent) · N_child · C_isect
+
+(N_child triangles in the child, C_trav the price of a box test, C_isect of a
+triangle test). The build sorts the triangles' centroids into ``bins`` equal bins
+along each axis, evaluates the cost of the ``bins − 1`` planes between bins on all
+three axes, and splits at the cheapest ("binned SAH", Wald 2007; pbrt §4.3).
+Ranges of at most ``leaf_size`` triangles become leaves, so no leaf holds more.
+If the centroids of a range coincide (no plane separates them), or the tree has
+become deep, the range is halved at its median instead: the depth stays below
+:data:`MAX_DEPTH`, the size of the traversal's fixed stack.
+
+**Flattened, depth first** (pbrt's LinearBVHNode, Embree's layout): node 0 is the
+root; an inner node's left child is the next node, ``first[node]`` its right child;
+a leaf's triangles are ``order[first : first + count]``. The triangles' corners
+are stored in that leaf order (``v0[k]`` is a corner of triangle ``order[k]``), so
+a leaf reads contiguous memory.
+
+**Watertight triangle test.** A ray that passes exactly through the edge two
+triangles share must hit at least one of them; otherwise a closed mesh leaks:
+a shadow ray escapes a closed box, a camera ray shows the background through a
+sphere, a point inside reads as outside. The classic Möller-Trumbore test
+computes each triangle's edge tests with its own rounding, so both triangles can
+reject a ray through their edge. :func:`intersect_triangle` follows Woop, Benthin
+and Wald, "Watertight Ray/Triangle Intersection" (JCGT 2013): translate the
+vertices to the ray origin and shear them so that the ray becomes the +z axis;
+then the 2D edge functions U, V, W of the sheared vertices are computed from the
+*same* numbers for an edge both triangles share, so they are exact negatives of
+each other, and the ray lands on one side of every edge, or on it (0 counts as
+inside for both). When an edge function is exactly 0 the three are recomputed
+exactly (an error-free product and sum: the paper's fallback to higher precision,
+here above float64) so that 0 means "exactly on the edge". Both sides hit: no
+face is culled.
+
+**Robust traversal.** A box is tested by the slab method with ``1/direction``
+(±inf for a zero component, and the NaN of ``0·inf`` when the origin lies on a
+slab's plane leaves that slab unconstrained), and the far distance is enlarged by
+``1 + 2γ(3)`` (pbrt's robust slab test, §6.8), so rounding in the box test never
+drops a box that holds the hit the triangle test would find.
+
+**Scenes: flattened, not instanced.** :func:`scene_bvh` puts every object's
+triangles, moved to world space by its model matrix, into one BVH. Instancing (a
+top-level BVH over per-mesh BVHs, each ray moved into an object's space) saves
+memory when a mesh is drawn many times; softpipe's scenes draw each mesh once or
+a few times, and one flat BVH is simpler to read, takes one traversal, and has
+one t for all objects. When the scene moves: :meth:`BVH.refit` for small motion,
+:meth:`BVH.build` again for large.
+
+Speed (measured on this kind of 2-core machine, warm, shared with other jobs):
+the bunny's 69,451 triangles build in about 45 ms (the armadillo's 99,976 in
+about 65 ms); see :meth:`BVH.build`.
+
+Numba: :func:`intersect_triangle`, :func:`closest_hit` and :func:`any_hit` are
+``@njit(cache=True)`` functions: other compiled code, a shader among them, calls
+them with ``bvh.uniform`` (a :class:`BVHUniform`, or the :class:`BVH` itself when
+it is a shader uniform: ``__softpipe_uniform__``). :meth:`BVH.closest` and
+:meth:`BVH.occluded` run them on arrays of rays from Python, in parallel bands
+(:func:`softpipe._parallel.in_bands`); each ray's answer does not depend on which
+thread computes it, so the result is the same bytes for any thread count.
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numba
+import numpy as np
+
+from ._parallel import in_bands
+
+__all__ = ["BVH", "BVHUniform", "intersect_triangle", "closest_hit", "any_hit", "scene_bvh", "MAX_DEPTH"]
+
+#: The traversal's stack holds one pending node per level: the build keeps every
+#: leaf's depth below this (root at depth 0).
+MAX_DEPTH = 64
+
+#: The SAH's prices of a box test and a triangle test (only their ratio matters for
+#: the choice of plane; the build always splits ranges of more than leaf_size).
+C_TRAV = 1.0
+C_ISECT = 1.0
+
+#: γ(3) of pbrt (§3.9.1) for float64: 3u / (1 − 3u), u = 2⁻⁵³ the unit roundoff.
+_U = 2.0 ** -53
+SLAB_PAD = 1.0 + 2.0 * (3.0 * _U / (1.0 - 3.0 * _U))
+
+BVHUniform = namedtuple("BVHUniform", ["lo", "hi", "first", "count", "order", "v0", "v1", "v2"])
+BVHUniform.__doc__ = """A BVH as a shader receives it: its numpy arrays (see :class:`BVH`)."""
+
+
+# ----------------------------------------------------------- the triangle test
+
+@numba.njit(cache=True, nogil=True)
+def _two_product(a, b):
+    """a·b = p + e exactly (Dekker's product with Veltkamp's split; no overflow or underflow assumed)."""
+    p = a * b
+    c = 134217729.0 * a                      # 2^27 + 1
+    ah = c - (c - a)
+    al = a - ah
+    c = 134217729.0 * b
+    bh = c - (c - b)
+    bl = b - bh
+    e = al * bl - (((p - ah * bh) - al * bh) - ah * bl)
+    return p, e
+
+
+@numba.njit(cache=True, nogil=True)
+def _two_sum(a, b):
+    """a + b = s + e exactly (Knuth)."""
+    s = a + b
+    bb = s - a
+    e = (a - (s - bb)) + (b - bb)
+    return s, e
+
+
+@numba.njit(cache=True, nogil=True)
+def _exact_cross(a, b, c, d):
+    """a·b − c·d with the exact sign (0 only when it is exactly 0), and nearly its value.
+
+    The four doubles of two error-free products (a·b = p1 + e1, c·d = p2 + e2)
+    are summed exactly into a nonoverlapping expansion (Shewchuk 1997,
+    Grow-Expansion); its largest component has the sign of the exact sum, and the
+    components summed from the smallest up give its value to within an ulp.
+    """
+    p1, e1 = _two_product(a, b)
+    p2, e2 = _two_product(c, d)
+    terms = (e1, -e2, p1, -p2)
+    h = np.zeros(4)
+    n = 0
+    for b_ in terms:
+        q = b_
+        for i in range(n):
+            q, err = _two_sum(q, h[i])
+            h[i] = err
+        h[n] = q
+        n += 1
+    s = 0.0
+    for i in range(4):
+        s += h[i]
+    if s == 0.0:                             # the rounded sum cancelled: the largest nonzero part decides
+        for i in range(3, -1, -1):
+            if h[i] != 0.0:
+                return h[i]
+    return s
+
+
+@numba.njit(cache=True, nogil=True)
+def _ray_space(dx, dy, dz):
+    """The shear of Woop et al. for direction (dx, dy, dz): (kx, ky, kz, Sx, Sy, Sz).
+
+    kz is the axis where the direction is largest in magnitude; kx, ky the two
+    others, swapped when d[kz] < 0 so that the shear keeps the winding. A point q
+    becomes q' = (q[kx] − Sx·q[kz], q[ky] − Sy·q[kz], Sz·q[kz]) (after subtracting the
+    origin): the ray is then the +z axis, and z' is the ray's t.
+    """
+    ax, ay, az = abs(dx), abs(dy), abs(dz)
+    if ax > ay and ax > az:
+        kz = 0
+    elif ay > az:
+        kz = 1
+    else:
+        kz = 2
+    kx = kz + 1 if kz < 2 else 0
+    ky = kx + 1 if kx < 2 else 0
+    d = (dx, dy, dz)
+    dkz = d[kz]
+    if dkz < 0.0:
+        kx, ky = ky, kx
+    if dkz == 0.0:                           # a zero (or NaN) direction: no ray
+        return kx, ky, kz, 0.0, 0.0, 0.0
+    return kx, ky, kz, d[kx] / dkz, d[ky] / dkz, 1.0 / dkz
+
+
+@numba.njit(cache=True, nogil=True)
+def _hit_sheared(ax, ay, az, bx, by, bz, cx, cy, cz, kx, ky, kz, sx, sy, sz, t_min, t_max):
+    """The watertight test on corners already relative to the origin, in axis order (kx, ky, kz)."""
+    # shear the corners into ray space (x', y'); z' scaled below
+    Ax = ax - sx * az
+    Ay = ay - sy * az
+    Bx = bx - sx * bz
+    By = by - sy * bz
+    Cx = cx - sx * cz
+    Cy = cy - sy * cz
+    # edge functions: U opposite corner a (edge b→c), V opposite b, W opposite c
+    U = Cx * By - Cy * Bx
+    V = Ax * Cy - Ay * Cx
+    W = Bx * Ay - By * Ax
+    if U == 0.0 or V == 0.0 or W == 0.0:     # on an edge in float64: decide exactly
+        U = _exact_cross(Cx, By, Cy, Bx)
+        V = _exact_cross(Ax, Cy, Ay, Cx)
+        W = _exact_cross(Bx, Ay, By, Ax)
+    if (U < 0.0 or V < 0.0 or W < 0.0) and (U > 0.0 or V > 0.0 or W > 0.0):
+        return False, 0.0, 0.0, 0.0          # the ray passes outside an edge
+    det = U + V + W
+    if det == 0.0:                           # seen edge-on, or a degenerate triangle
+        return False, 0.0, 0.0, 0.0
+    T = U * (sz * az) + V * (sz * bz) + W * (sz * cz)
+    t = T / det
+    if not (t > t_min and t < t_max):
+        return False, 0.0, 0.0, 0.0
+    return True, t, V / det, W / det
+
+
+@numba.njit(cache=True, nogil=True)
+def intersect_triangle(v0, v1, v2, origin, direction, t_min, t_max):
+    """Watertight ray/triangle test (Woop, Benthin and Wald 2013): (hit, t, b1, b2).
+
+    ``v0, v1, v2, origin, direction`` are 3-vectors (arrays or tuples). A hit
+    has ``t_min < t < t_max`` and the point ``origin + t·direction`` equals
+    ``(1 − b1 − b2)·v0 + b1·v1 + b2·v2``; either side of the triangle is hit.
+    A ray through an edge or corner shared by two triangles hits at least one of
+    them (see the module docstring). A zero direction or a degenerate triangle
+    never hits.
+    """
+    dx, dy, dz = float(direction[0]), float(direction[1]), float(direction[2])
+    kx, ky, kz, sx, sy, sz = _ray_space(dx, dy, dz)
+    if sz == 0.0:
+        return False, 0.0, 0.0, 0.0
+    o = (float(origin[0]), float(origin[1]), float(origin[2]))
+    p0 = (v0[0] - o[0], v0[1] - o[1], v0[2] - o[2])
+    p1 = (v1[0] - o[0], v1[1] - o[1], v1[2] - o[2])
+    p2 = (v2[0] - o[0], v2[1] - o[1], v2[2] - o[2])
+    return _hit_sheared(p0[kx], p0[ky], p0[kz], p1[kx], p1[ky], p1[kz], p2[kx], p2[ky], p2[kz],
+                        kx, ky, kz, sx, sy, sz, float(t_min), float(t_max))
+
+
+@numba.njit(cache=True, nogil=True)
+def _hit_stored(bvh, k, ox, oy, oz, kx, ky, kz, sx, sy, sz, t_min, t_max):
+    """The watertight test on the BVH's k-th triangle (leaf order); (ox, oy, oz) is the origin in (kx, ky, kz) order."""
+    v0, v1, v2 = bvh.v0, bvh.v1, bvh.v2
+    return _hit_sheared(v0[k, kx] - ox, v0[k, ky] - oy, v0[k, kz] - oz,
+                        v1[k, kx] - ox, v1[k, ky] - oy, v1[k, kz] - oz,
+                        v2[k, kx] - ox, v2[k, ky] - oy, v2[k, kz] - oz,
+                        kx, ky, kz, sx, sy, sz, t_min, t_max)
+
+
+# ------------------------------------------------------------------ traversal
+
+@numba.njit(cache=True, nogil=True)
+def _inverse(d):
+    """1/d, with ±inf for ±0 (the sign of the zero kept)."""
+    if d == 0.0:
+        return math.copysign(math.inf, d)
+    return 1.0 / d
+
+
+@numba.njit(cache=True, nogil=True)
+def _box_entry(lo, hi, node, ox, oy, oz, ix, iy, iz, t0, t1):
+    """pbrt's robust slab test of node's box on [t0, t1]: the entry t, or +inf for a miss.
+
+    ``(o − lo)·inv`` is NaN when the origin lies on a slab plane and the
+    direction is 0 along it; ``t > t0 ? t : t0`` then keeps t0 (the slab does not
+    constrain a ray lying in its plane), as in pbrt.
+    """
+    o3 = (ox, oy, oz)
+    i3 = (ix, iy, iz)
+    for a in range(3):
+        tn = (lo[node, a] - o3[a]) * i3[a]
+        tf = (hi[node, a] - o3[a]) * i3[a]
+        if tn > tf:
+            tn, tf = tf, tn
+        tf *= SLAB_PAD
+        t0 = tn if tn > t0 else t0
+        t1 = tf if tf < t1 else t1
+        if t0 > t1:
+            return math.inf
+    return t0
+
+
+@numba.njit(cache=True, nogil=True)
+def _traverse(bvh, origin, direction, t_min, t_max, any_):
+    ox, oy, oz = float(origin[0]), float(origin[1]), float(origin[2])
+    dx, dy, dz = float(direction[0]), float(direction[1]), float(direction[2])
+    t_min, t_max = float(t_min), float(t_max)
+    lo, hi, first, count, order = bvh.lo, bvh.hi, bvh.first, bvh.count, bvh.order
+    best_id, best_t, best_b1, best_b2 = -1, t_max, 0.0, 0.0
+    if lo.shape[0] == 0:
+        return best_id, best_t, best_b1, best_b2
+    kx, ky, kz, sx, sy, sz = _ray_space(dx, dy, dz)
+    if sz == 0.0 or not (t_min < t_max):
+        return best_id, best_t, best_b1, best_b2
+    o3 = (ox, oy, oz)
+    okx, oky, okz = o3[kx], o3[ky], o3[kz]
+    ix, iy, iz = _inverse(dx), _inverse(dy), _inverse(dz)
+    stack_node = np.empty(MAX_DEPTH, np.int64)
+    stack_t = np.empty(MAX_DEPTH, np.float64)
+    top = 0
+    node = 0
+    if _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, t_max) == math.inf:
+        return best_id, best_t, best_b1, best_b2
+    while True:
+        n = count[node]
+        if n > 0:                            # a leaf: its triangles
+            f = first[node]
+            for k in range(f, f + n):
+                hit, t, b1, b2 = _hit_stored(bvh, k, okx, oky, okz, kx, ky, kz, sx, sy, sz, t_min, t_max)
+                if hit:
+                    tri = order[k]
+                    if any_:
+                        return tri, t, b1, b2
+                    if t < best_t or (t == best_t and (best_id < 0 or tri < best_id)):
+                        best_id, best_t, best_b1, best_b2 = tri, t, b1, b2
+        else:                                # an inner node: the nearer child first
+            left, right = node + 1, first[node]
+            tl = _box_entry(lo, hi, left, ox, oy, oz, ix, iy, iz, t_min, best_t)
+            tr = _box_entry(lo, hi, right, ox, oy, oz, ix, iy, iz, t_min, best_t)
+            if tl != math.inf:
+                if tr != math.inf:
+                    if tr < tl:
+                        left, right, tl, tr = right, left, tr, tl
+                    stack_node[top] = right
+                    stack_t[top] = tr
+                    top += 1
+                node = left
+                continue
+            if tr != math.inf:
+                node = right
+                continue
+        # pop the next node whose box begins no farther than the best hit
+        while True:
+            if top == 0:
+                return best_id, best_t, best_b1, best_b2
+            top -= 1
+            if stack_t[top] <= best_t:
+                node = stack_node[top]
+                break
+
+
+@numba.njit(cache=True, nogil=True)
+def closest_hit(bvh, origin, direction, t_min, t_max):
+    """The nearest triangle on the ray in the open interval (t_min, t_max): (id, t, b1, b2).
+
+    ``bvh`` is a :class:`BVHUniform`; ``origin``, ``direction`` 3-vectors (arrays
+    or tuples; the direction need not be unit length, t is in its units). ``id``
+    is −1 for a miss (then t = t_max, b1 = b2 = 0). Among hits at exactly the same
+    t the lowest triangle id wins, so the answer does not depend on the tree.
+    The hit point is (1 − b1 − b2)·v0 + b1·v1 + b2·v2 of triangle ``id``.
+    """
+    return _traverse(bvh, origin, direction, t_min, t_max, False)
+
+
+@numba.njit(cache=True, nogil=True)
+def any_hit(bvh, origin, direction, t_min, t_max):
+    """Whether any triangle lies on the ray in (t_min, t_max): stops at the first one found (shadow rays, §21)."""
+    return _traverse(bvh, origin, direction, t_min, t_max, True)[0] >= 0
+
+
+# ------------------------------------------------------------------ the build
+
+@numba.njit(cache=True, nogil=True)
+def _area(dx, dy, dz):
+    return 2.0 * (dx * dy + dy * dz + dz * dx)
+
+
+@numba.njit(cache=True, nogil=True)
+def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, order):
+    """Binned SAH build into preallocated node arrays; returns (node count, deepest leaf's depth)."""
+    T = tri_lo.shape[0]
+    for i in range(T):
+        order[i] = i
+    if T == 0:
+        return 0, 0
+    # past this depth, ranges are halved at the median, so depth < MAX_DEPTH
+    levels = 0
+    while (1 << levels) < T:
+        levels += 1
+    median_from = max(0, MAX_DEPTH - 2 - levels)
+    # the task stack: (start, end, parent, depth); a right child is pushed under its left sibling
+    ts = np.empty(2 * MAX_DEPTH + 4, np.int64)
+    te = np.empty(2 * MAX_DEPTH + 4, np.int64)
+    tp = np.empty(2 * MAX_DEPTH + 4, np.int64)
+    td = np.empty(2 * MAX_DEPTH + 4, np.int64)
+    ts[0], te[0], tp[0], td[0] = 0, T, -1, 0
+    top = 1
+    nodes = 0
+    deepest = 0
+    bin_count = np.empty((3, bins), np.int64)
+    bin_lo = np.empty((3, bins, 3))
+    bin_hi = np.empty((3, bins, 3))
+    right_area = np.empty(bins)
+    right_n = np.empty(bins, np.int64)
+    keys = np.empty(T)
+    while top > 0:
+        top -= 1
+        s, e, parent, depth = ts[top], te[top], tp[top], td[top]
+        node = nodes
+        nodes += 1
+        if parent >= 0:                      # only right children are pushed with a parent
+            first[parent] = node
+        # the node's box and its centroids' box
+        clo = np.full(3, np.inf)
+        chi = np.full(3, -np.inf)
+        for a in range(3):
+            lo[node, a] = np.inf
+            hi[node, a] = -np.inf
+        for i in range(s, e):
+            j = order[i]
+            for a in range(3):
+                lo[node, a] = min(lo[node, a], tri_lo[j, a])
+                hi[node, a] = max(hi[node, a], tri_hi[j, a])
+                clo[a] = min(clo[a], cen[j, a])
+                chi[a] = max(chi[a], cen[j, a])
+        n = e - s
+        if n <= leaf_size:
+            first[node] = s
+            count[node] = n
+            deepest = max(deepest, depth)
+            continue
+        count[node] = 0
+        best_axis, best_split, best_cost = -1, -1, np.inf
+        if depth < median_from:
+            # bin the centroids along every axis with extent
+            for a in range(3):
+                ext = chi[a] - clo[a]
+                if not ext > 0.0:
+                    continue
+                scale = bins / ext
+                for b in range(bins):
+                    bin_count[a, b] = 0
+                    for c in range(3):
+                        bin_lo[a, b, c] = np.inf
+                        bin_hi[a, b, c] = -np.inf
+                for i in range(s, e):
+                    j = order[i]
+                    b = min(bins - 1, int((cen[j, a] - clo[a]) * scale))
+                    bin_count[a, b] += 1
+                    for c in range(3):
+                        bin_lo[a, b, c] = min(bin_lo[a, b, c], tri_lo[j, c])
+                        bin_hi[a, b, c] = max(bin_hi[a, b, c], tri_hi[j, c])
+                # sweep from the right: area and count of bins b+1 … bins−1
+                rx0, ry0, rz0, rx1, ry1, rz1 = np.inf, np.inf, np.inf, -np.inf, -np.inf, -np.inf
+                rn = 0
+                for b in range(bins - 1, 0, -1):
+                    if bin_count[a, b] > 0:
+                        rx0, ry0, rz0 = min(rx0, bin_lo[a, b, 0]), min(ry0, bin_lo[a, b, 1]), min(rz0, bin_lo[a, b, 2])
+                        rx1, ry1, rz1 = max(rx1, bin_hi[a, b, 0]), max(ry1, bin_hi[a, b, 1]), max(rz1, bin_hi[a, b, 2])
+                        rn += bin_count[a, b]
+                    right_n[b - 1] = rn
+                    right_area[b - 1] = _area(rx1 - rx0, ry1 - ry0, rz1 - rz0) if rn > 0 else 0.0
+                # sweep from the left: the cost of the plane after bin b
+                lx0, ly0, lz0, lx1, ly1, lz1 = np.inf, np.inf, np.inf, -np.inf, -np.inf, -np.inf
+                ln = 0
+                for b in range(bins - 1):
+                    if bin_count[a, b] > 0:
+                        lx0, ly0, lz0 = min(lx0, bin_lo[a, b, 0]), min(ly0, bin_lo[a, b, 1]), min(lz0, bin_lo[a, b, 2])
+                        lx1, ly1, lz1 = max(lx1, bin_hi[a, b, 0]), max(ly1, bin_hi[a, b, 1]), max(lz1, bin_hi[a, b, 2])
+                        ln += bin_count[a, b]
+                    if ln == 0 or right_n[b] == 0:
+                        continue
+                    # C_trav + (A_L·N_L + A_R·N_R)/A_parent·C_isect, without the constant C_trav
+                    # and the common factor 1/A_parent (a flat parent has area 0)
+                    cost = _area(lx1 - lx0, ly1 - ly0, lz1 - lz0) * ln + right_area[b] * right_n[b]
+                    if cost < best_cost:
+                        best_axis, best_split, best_cost = a, b, cost
+        if best_axis >= 0:
+            # partition order[s:e]: bins ≤ best_split to the left (same arithmetic as the binning)
+            a = best_axis
+            scale = bins / (chi[a] - clo[a])
+            i, j = s, e - 1
+            while i <= j:
+                if min(bins - 1, int((cen[order[i], a] - clo[a]) * scale)) <= best_split:
+                    i += 1
+                else:
+                    order[i], order[j] = order[j], order[i]
+                    j -= 1
+            mid = i
+        else:
+            # no plane separates the centroids (or the tree is deep): halve at the median
+            # along the centroids' widest axis (stable, so ties keep their order)
+            a = 0
+            for c in range(1, 3):
+                if chi[c] - clo[c] > chi[a] - clo[a]:
+                    a = c
+            for i in range(s, e):
+                keys[i] = cen[order[i], a]
+            perm = np.argsort(keys[s:e], kind="mergesort")
+            chunk = order[s:e].copy()
+            for i in range(n):
+                order[s + i] = chunk[perm[i]]
+            mid = s + n // 2
+        # right child below the left on the stack: the left is built next, at node + 1
+        ts[top], te[top], tp[top], td[top] = mid, e, node, depth + 1
+        top += 1
+        ts[top], te[top], tp[top], td[top] = s, mid, -1, depth + 1
+        top += 1
+    return nodes, deepest
+
+
+@numba.njit(cache=True, nogil=True)
+def _gather_kernel(vertices, triangles, order, v0, v1, v2):
+    """The corners of every triangle, in leaf order."""
+    for k in range(order.shape[0]):
+        t = order[k]
+        for a in range(3):
+            v0[k, a] = vertices[triangles[t, 0], a]
+            v1[k, a] = vertices[triangles[t, 1], a]
+            v2[k, a] = vertices[triangles[t, 2], a]
+
+
+@numba.njit(cache=True, nogil=True)
+def _refit_kernel(lo, hi, first, count, v0, v1, v2):
+    """Node boxes bottom-up: children come after their parent in depth-first order, so walk backwards."""
+    for node in range(lo.shape[0] - 1, -1, -1):
+        n = count[node]
+        if n > 0:
+            f = first[node]
+            for a in range(3):
+                mn, mx = np.inf, -np.inf
+                for k in range(f, f + n):
+                    mn = min(mn, v0[k, a], v1[k, a], v2[k, a])
+                    mx = max(mx, v0[k, a], v1[k, a], v2[k, a])
+                lo[node, a], hi[node, a] = mn, mx
+        else:
+            l, r = node + 1, first[node]
+            for a in range(3):
+                lo[node, a] = min(lo[l, a], lo[r, a])
+                hi[node, a] = max(hi[l, a], hi[r, a])
+
+
+# ------------------------------------------------------------- batches of rays
+
+@numba.njit(cache=True, nogil=True)
+def _closest_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, ids, ts, bs):
+    for r in range(lo_, hi_):
+        i, t, b1, b2 = closest_hit(bvh, origins[r], directions[r], t_min[r], t_max[r])
+        ids[r] = i
+        if i >= 0:
+            ts[r], bs[r, 0], bs[r, 1] = t, b1, b2
+        else:
+            ts[r], bs[r, 0], bs[r, 1] = np.inf, 0.0, 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _any_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, out):
+    for r in range(lo_, hi_):
+        out[r] = any_hit(bvh, origins[r], directions[r], t_min[r], t_max[r])
+
+
+def _describe(a: np.ndarray) -> str:
+    return f"shape {tuple(a.shape)}, dtype {a.dtype}"
+
+
+def _vertices(name: str, vertices, rows=None) -> np.ndarray:
+    v = np.asarray(vertices)
+    if v.dtype == object or not (np.issubdtype(v.dtype, np.floating) or np.issubdtype(v.dtype, np.integer)):
+        raise TypeError(f"{name} must be a float array [V, 3], got {_describe(v)}")
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise ValueError(f"{name} must have shape [V, 3], got {_describe(v)}")
+    if rows is not None and v.shape[0] != rows:
+        raise ValueError(f"{name} must have the {rows} rows the BVH was built with, got {_describe(v)}")
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{name} ({_describe(v)}) has non-finite values in row(s) {np.flatnonzero(bad)[:5].tolist()}")
+    return v
+
+
+def _rays(name: str, value, rows=None) -> np.ndarray:
+    a = np.asarray(value)
+    if a.dtype == object or not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+        raise TypeError(f"{name} must be a float array [R, 3], got {_describe(a)}")
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{name} must have shape [R, 3], got {_describe(a)}")
+    if rows is not None and a.shape[0] != rows:
+        raise ValueError(f"{name} must have as many rows as origins ({rows}), got {_describe(a)}")
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} ({_describe(a)}) has non-finite values")
+    return a
+
+
+def _interval(name: str, value, rows: int) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim == 0:
+        return np.full(rows, float(a))
+    if a.shape != (rows,):
+        raise ValueError(f"{name} must be a number or an array [R] with R = {rows}, got {_describe(a)}")
+    if np.isnan(a).any():
+        raise ValueError(f"{name} ({_describe(a)}) has NaN values")
+    return np.ascontiguousarray(a)
+
+
+class BVH:
+    """A bounding volume hierarchy over triangles; make one with :meth:`BVH.build`.
+
+    Node arrays (N nodes, depth first, node 0 the root):
+
+    - ``lo``, ``hi`` float64 [N, 3]: the node's box;
+    - ``first`` int64 [N]: an inner node's right child (its left child is
+      node + 1), a leaf's first index into ``order``;
+    - ``count`` int64 [N]: 0 for an inner node, the number of triangles (1 to
+      ``leaf_size``) of a leaf.
+
+    Triangle arrays (T triangles, in leaf order):
+
+    - ``order`` int64 [T]: the triangle ids, leaf by leaf;
+    - ``v0``, ``v1``, ``v2`` float64 [T, 3]: the corners of triangle ``order[k]``.
+
+    ``triangles`` (int64 [T, 3]) and ``vertex_count`` are the input, kept for
+    :meth:`refit`; ``depth`` is the deepest leaf's depth (root 0).
+    """
+
+    def __init__(self, lo, hi, first, count, order, v0, v1, v2, triangles, vertex_count, depth, leaf_size, bins):
+        self.lo, self.hi, self.first, self.count, self.order = lo, hi, first, count, order
+        self.v0, self.v1, self.v2 = v0, v1, v2
+        self.triangles, self.vertex_count, self.depth = triangles, vertex_count, depth
+        self.leaf_size, self.bins = leaf_size, bins
+        self.uniform = BVHUniform(lo, hi, first, count, order, v0, v1, v2)
+
+    @classmethod
+    def build(cls, vertices, triangles, *, leaf_size: int = 4, bins: int = 16) -> "BVH":
+        """Build a BVH by binned SAH (see the module docstring) over ``triangles`` [T, 3] into ``vertices`` [V, 3].
+
+        Vertices are in world space (float, finite); triangles index them (any
+        integer type). No triangles is allowed: every ray misses. Degenerate
+        triangles (zero area) are kept and never hit.
+
+        Measured (warm, one thread; other jobs share the 2-core machine): the
+        bunny (69,451 triangles) builds in about 45 ms, the armadillo (99,976)
+        in about 65 ms (``leaf_size=4, bins=16``). The build is serial and
+        deterministic.
+        """
+        if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
+            raise ValueError(f"BVH.build: leaf_size must be an integer ≥ 1, got {leaf_size!r}")
+        if isinstance(bins, bool) or not isinstance(bins, (int, np.integer)) or bins < 2:
+            raise ValueError(f"BVH.build: bins must be an integer ≥ 2, got {bins!r}")
+        v = _vertices("vertices", vertices)
+        tri = np.asarray(triangles)
+        if tri.size == 0 and tri.dtype == np.float64:     # np.asarray([]) is float
+            tri = tri.astype(np.int64)
+        if not np.issubdtype(tri.dtype, np.integer):
+            raise TypeError(f"triangles must be an integer array [T, 3], got {_describe(tri)}")
+        if tri.ndim != 2 or tri.shape[1] != 3:
+            if tri.size == 0:
+                tri = tri.reshape(0, 3)
+            else:
+                raise ValueError(f"triangles must have shape [T, 3], got {_describe(tri)}")
+        tri = np.ascontiguousarray(tri, dtype=np.int64)
+        if tri.size and (tri.min() < 0 or tri.max() >= len(v)):
+            bad = np.flatnonzero(((tri < 0) | (tri >= len(v))).any(axis=1))
+            raise ValueError(f"triangles ({_describe(tri)}) index outside vertices ({_describe(v)}): "
+                             f"row(s) {bad[:5].tolist()}, e.g. {tri[bad[0]].tolist()}; indices must be in [0, {len(v)})")
+        T = len(tri)
+        corners = v[tri] if T else np.zeros((0, 3, 3))
+        tri_lo = np.ascontiguousarray(corners.min(axis=1))
+        tri_hi = np.ascontiguousarray(corners.max(axis=1))
+        cen = 0.5 * (tri_lo + tri_hi)
+        cap = max(2 * T - 1, 0)
+        lo, hi = np.empty((cap, 3)), np.empty((cap, 3))
+        first, count = np.empty(cap, np.int64), np.empty(cap, np.int64)
+        order = np.empty(T, np.int64)
+        nodes, depth = _build_kernel(tri_lo, tri_hi, cen, int(leaf_size), int(bins), lo, hi, first, count, order)
+        assert depth < MAX_DEPTH, depth
+        lo, hi = lo[:nodes].copy(), hi[:nodes].copy()
+        first, count = first[:nodes].copy(), count[:nodes].copy()
+        v0, v1, v2 = np.empty((T, 3)), np.empty((T, 3)), np.empty((T, 3))
+        _gather_kernel(v, tri, order, v0, v1, v2)
+        return cls(lo, hi, first, count, order, v0, v1, v2, tri, len(v), int(depth), int(leaf_size), int(bins))
+
+    def refit(self, vertices) -> None:
+        """Move the triangles to new ``vertices`` (same count, same triangles) and refit every box, in place.
+
+        The tree is kept: only the corners and the boxes are recomputed, leaves
+        first, each inner box the union of its children's (O(N), much cheaper
+        than a build). Results stay exact, but a big motion makes the boxes
+        overlap and grow and the traversal slower: rebuild (:meth:`build`) then.
+        ``uniform`` keeps pointing at the same, updated arrays.
+        """
+        v = _vertices("vertices", vertices, rows=self.vertex_count)
+        _gather_kernel(v, self.triangles, self.order, self.v0, self.v1, self.v2)
+        _refit_kernel(self.lo, self.hi, self.first, self.count, self.v0, self.v1, self.v2)
+
+    def __softpipe_uniform__(self) -> BVHUniform:
+        """The value a shader receives for this BVH: :attr:`uniform`."""
+        return self.uniform
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    def __repr__(self) -> str:
+        leaves = int((self.count > 0).sum())
+        return f"BVH({len(self)} triangles, {len(self.count)} nodes, {leaves} leaves, depth {self.depth})"
+
+    def closest(self, origins, directions, t_min=0.0, t_max=np.inf):
+        """Closest hits of R rays: (ids int64 [R] (−1: miss), t [R] (inf: miss), b [R, 2] (b1, b2)).
+
+        ``origins``, ``directions`` [R, 3]; ``t_min``, ``t_max`` numbers or [R]
+        arrays. Runs :func:`closest_hit` in parallel bands; the same bytes for
+        any thread count.
+        """
+        o = _rays("origins", origins)
+        d = _rays("directions", directions, rows=len(o))
+        R = len(o)
+        t0, t1 = _interval("t_min", t_min, R), _interval("t_max", t_max, R)
+        ids, ts, bs = np.empty(R, np.int64), np.empty(R), np.empty((R, 2))
+        if R:
+            in_bands(_closest_kernel, R, self.uniform, o, d, t0, t1, ids, ts, bs, grain=1024)
+        return ids, ts, bs
+
+    def occluded(self, origins, directions, t_min=0.0, t_max=np.inf):
+        """Any-hit queries of R rays: bool [R], true where some triangle lies in (t_min, t_max). See :meth:`closest`."""
+        o = _rays("origins", origins)
+        d = _rays("directions", directions, rows=len(o))
+        R = len(o)
+        t0, t1 = _interval("t_min", t_min, R), _interval("t_max", t_max, R)
+        out = np.empty(R, np.bool_)
+        if R:
+            in_bands(_any_kernel, R, self.uniform, o, d, t0, t1, out, grain=1024)
+        return out
+
+
+def scene_bvh(objects, *, leaf_size: int = 4, bins: int = 16):
+    """One world-space BVH over the triangles of SceneObjects: (bvh, triangle_object, triangle_local).
+
+    Each object's mesh positions go through its model matrix
+    (``SceneObject.world_positions``); the triangles are numbered object after
+    object. ``triangle_object`` int64 [T] is the index in ``objects`` of each BVH
+    triangle's object and ``triangle_local`` int64 [T] its index among that
+    mesh's triangles. Flattened, not instanced (see the module docstring): when
+    objects move, :meth:`BVH.refit` with the new world positions (concatenated in
+    the same order) or build again.
+    """
+    objects = list(objects)
+    positions, triangles, which, local = [], [], [], []
+    base = 0
+    for k, obj in enumerate(objects):
+        p = np.asarray(obj.world_positions(), dtype=np.float64)
+        idx = np.asarray(obj.mesh.indices, dtype=np.int64).reshape(-1, 3)
+        positions.append(p)
+        triangles.append(idx + base)
+        which.append(np.full(len(idx), k, np.int64))
+        local.append(np.arange(len(idx), dtype=np.int64))
+        base += len(p)
+    if not objects:
+        return BVH.build(np.zeros((0, 3)), np.zeros((0, 3), np.int64), leaf_size=leaf_size, bins=bins), \
+            np.zeros(0, np.int64), np.zeros(0, np.int64)
+    bvh = BVH.build(np.concatenate(positions), np.concatenate(triangles), leaf_size=leaf_size, bins=bins)
+    return bvh, np.concatenate(which), np.concatenate(local)

@@ -1,0 +1,500 @@
+"""softpipe.bvh against brute force (issue #16).
+
+The oracle is written here, independently of the module: Möller-Trumbore
+(1997) over *every* triangle for every ray, vectorized over blocks of rays in a
+small compiled loop (the loop is numba only for speed: 10⁵ rays × 69,451
+triangles is 7·10⁹ tests, ~1.4 ns each). It is the textbook test, not the
+watertight one, so on a ray within rounding of an edge the two can disagree:
+
+- **exact comparison** (``eps = 0``): the oracle's nearest triangle and t;
+- **the documented tolerance**: where the BVH and the oracle name different
+  triangles (or one hits and the other does not), the difference is allowed only
+  if it is an edge case the oracle cannot settle: the oracle, with its
+  barycentric test loosened by ``EDGE_EPS = 1e-9``, hits the BVH's triangle at
+  the same t (within ``T_RTOL``), and that hit lies within ``EDGE_EPS`` of an
+  edge of both triangles, which share that edge or corner, or the two triangles
+  are an exact tie (same t). Such rays are counted, and must stay rare.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numba
+import numpy as np
+import pytest
+
+from softpipe import shapes, transforms
+from softpipe.bvh import MAX_DEPTH, BVH, BVHUniform, any_hit, closest_hit, intersect_triangle, scene_bvh
+from softpipe.models import load_model
+from softpipe.scene import SceneObject
+from softpipe._parallel import in_bands
+
+T_RTOL = 1e-6       # t of the BVH vs the oracle, relative
+EDGE_EPS = 1e-9     # the oracle's loosened barycentric test, for edge cases only
+MAX_EDGE_CASES = 20  # of 10⁵ random rays: a handful at most
+
+
+# ------------------------------------------------------------------ the oracle
+
+@numba.njit(nogil=True, error_model="numpy")
+def _mt_block(p0, e1, e2, ox, oy, oz, dx, dy, dz, tmin, tmax, eps, best_t, best_id):
+    """Möller-Trumbore of every triangle against a block of rays (columns), keeping the nearest
+    (strictly nearer replaces, so among equal t the lowest id stays)."""
+    R = ox.shape[0]
+    for k in range(p0.shape[0]):
+        ax, ay, az = p0[k, 0], p0[k, 1], p0[k, 2]
+        e1x, e1y, e1z = e1[k, 0], e1[k, 1], e1[k, 2]
+        e2x, e2y, e2z = e2[k, 0], e2[k, 1], e2[k, 2]
+        for r in range(R):
+            px = dy[r] * e2z - dz[r] * e2y
+            py = dz[r] * e2x - dx[r] * e2z
+            pz = dx[r] * e2y - dy[r] * e2x
+            inv = 1.0 / (e1x * px + e1y * py + e1z * pz)
+            tx, ty, tz = ox[r] - ax, oy[r] - ay, oz[r] - az
+            u = (tx * px + ty * py + tz * pz) * inv
+            qx = ty * e1z - tz * e1y
+            qy = tz * e1x - tx * e1z
+            qz = tx * e1y - ty * e1x
+            v = (dx[r] * qx + dy[r] * qy + dz[r] * qz) * inv
+            t = (e2x * qx + e2y * qy + e2z * qz) * inv
+            ok = (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps) & (t > tmin[r]) & (t < tmax[r]) & (t < best_t[r])
+            best_t[r] = t if ok else best_t[r]
+            best_id[r] = k if ok else best_id[r]
+
+
+@numba.njit(nogil=True)
+def _mt_kernel(lo, hi, p0, e1, e2, ox, oy, oz, dx, dy, dz, tmin, tmax, eps, best_t, best_id):
+    block = 2048
+    for s in range(lo, hi, block):
+        e = min(s + block, hi)
+        _mt_block(p0, e1, e2, ox[s:e], oy[s:e], oz[s:e], dx[s:e], dy[s:e], dz[s:e], tmin[s:e], tmax[s:e], eps,
+                  best_t[s:e], best_id[s:e])
+
+
+def brute_force(vertices, triangles, origins, directions, t_min, t_max, eps=0.0):
+    """The nearest triangle of every ray by Möller-Trumbore over all triangles: (ids, t); −1, inf for a miss."""
+    p = vertices[triangles]
+    p0 = np.ascontiguousarray(p[:, 0])
+    e1, e2 = np.ascontiguousarray(p[:, 1] - p[:, 0]), np.ascontiguousarray(p[:, 2] - p[:, 0])
+    R = len(origins)
+    cols = [np.ascontiguousarray(a[:, c]) for a in (origins, directions) for c in range(3)]
+    tmin, tmax = np.broadcast_to(t_min, R).astype(float).copy(), np.broadcast_to(t_max, R).astype(float).copy()
+    best_t, best_id = np.full(R, np.inf), np.full(R, -1, np.int64)
+    in_bands(_mt_kernel, R, p0, e1, e2, *cols, tmin, tmax, eps, best_t, best_id, grain=2048)
+    return best_id, best_t
+
+
+def mt_single(vertices, triangles, ids, origins, directions):
+    """Möller-Trumbore of one triangle per ray, no limits: (t, b0, b1, b2) (numpy)."""
+    p = vertices[triangles[ids]]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    pv = np.cross(directions, e2)
+    inv = 1.0 / np.einsum("ij,ij->i", e1, pv)
+    tv = origins - p[:, 0]
+    u = np.einsum("ij,ij->i", tv, pv) * inv
+    q = np.cross(tv, e1)
+    v = np.einsum("ij,ij->i", directions, q) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    return t, 1.0 - u - v, u, v
+
+
+def compare_with_oracle(vertices, triangles, bvh, o, d, t_min, t_max):
+    """The checks of the module docstring; returns the number of edge cases allowed."""
+    ids, t, b = bvh.closest(o, d, t_min, t_max)
+    occ = bvh.occluded(o, d, t_min, t_max)
+    ref_ids, ref_t = brute_force(vertices, triangles, o, d, t_min, t_max)
+    tmin, tmax = np.broadcast_to(t_min, len(o)), np.broadcast_to(t_max, len(o))
+    hit = ids >= 0
+    # the interval is open and respected; a miss is (−1, inf, 0, 0)
+    assert np.all((t[hit] > tmin[hit]) & (t[hit] < tmax[hit]))
+    assert np.all(np.isinf(t[~hit])) and np.all(b[~hit] == 0)
+    # any hit ⇔ the closest hit exists
+    assert np.array_equal(occ, hit)
+    # the barycentrics give the hit point
+    p = vertices[triangles[ids[hit]]]
+    point = (1 - b[hit, 0] - b[hit, 1])[:, None] * p[:, 0] + b[hit, 0, None] * p[:, 1] + b[hit, 1, None] * p[:, 2]
+    ray = o[hit] + t[hit, None] * d[hit]
+    scale = np.abs(p).max(axis=(1, 2)) + np.abs(o[hit]).max(axis=1)
+    assert np.all(np.abs(point - ray).max(axis=1) <= 1e-9 * scale)
+
+    same = ids == ref_ids
+    both = same & hit
+    assert np.all(np.abs(t[both] - ref_t[both]) <= T_RTOL * np.abs(ref_t[both]))
+    differ = np.flatnonzero(~same)
+    assert len(differ) <= MAX_EDGE_CASES, f"{len(differ)} rays disagree with brute force, e.g. {differ[:5]}"
+    for r in differ:
+        _assert_edge_case(vertices, triangles, o[r], d[r], ids[r], t[r], ref_ids[r], ref_t[r], tmin[r], tmax[r])
+    return len(differ)
+
+
+def _near_edge(bary) -> bool:
+    return min(bary) <= EDGE_EPS
+
+
+def _assert_edge_case(vertices, triangles, o, d, got, got_t, ref, ref_t, tmin, tmax):
+    """A disagreement is allowed only on an edge both triangles share, or at an exact tie."""
+    what = f"ray {o.tolist()} → {d.tolist()}: BVH says {got} at {got_t}, brute force {ref} at {ref_t}"
+    # the loosened oracle must settle it: its nearest hit is within T_RTOL of both answers' t
+    loose_id, loose_t = brute_force(vertices, triangles, o[None], d[None], tmin, tmax, eps=EDGE_EPS)
+    assert loose_id[0] >= 0, what
+    for k, tk in ((got, got_t), (ref, ref_t)):
+        if k < 0:
+            continue
+        t1, *bary = (x[0] for x in mt_single(vertices, triangles, np.array([k]), o[None], d[None]))
+        assert abs(t1 - loose_t[0]) <= T_RTOL * abs(loose_t[0]), what
+        assert min(bary) >= -EDGE_EPS and tmin < t1 < tmax, what
+        exact_tie = got >= 0 and ref >= 0 and got_t == ref_t
+        assert exact_tie or _near_edge(bary), what
+    if got >= 0 and ref >= 0:
+        shared = set(triangles[got].tolist()) & set(triangles[ref].tolist())
+        assert shared or got_t == ref_t, what
+
+
+# ------------------------------------------------------------------ fixtures
+
+@pytest.fixture(scope="module")
+def bunny():
+    m = load_model("bunny")
+    return np.ascontiguousarray(m.positions, dtype=float), np.ascontiguousarray(m.indices, dtype=np.int64)
+
+
+def random_rays(rng, vertices, n):
+    """Rays from around a mesh toward points near it (most hit), some in any direction, some along the
+    axes (zero direction components), with t intervals of every kind."""
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    centre, size = (lo + hi) / 2, (hi - lo).max()
+    o = centre + rng.normal(size=(n, 3)) * size
+    target = lo + rng.random((n, 3)) * (hi - lo)
+    d = target - o
+    wild = rng.random(n) < 0.15
+    d[wild] = rng.normal(size=(wild.sum(), 3))
+    axis = rng.random(n) < 0.1                      # along ±x, ±y or ±z through the box
+    k = rng.integers(0, 3, axis.sum())
+    o[axis] = target[axis]
+    o[axis, k] = centre[k] - 2 * size * np.sign(rng.random(axis.sum()) - 0.5)
+    d[axis] = 0.0
+    d[axis, k] = np.sign(centre[k] - o[axis, k]) * rng.uniform(0.5, 2, axis.sum())
+    inside = rng.random(n) < 0.1                    # from inside the box
+    o[inside] = lo + rng.random((inside.sum(), 3)) * (hi - lo)
+    d *= rng.uniform(0.1, 10, n)[:, None]           # t in units of the direction's length
+    t_min = np.where(rng.random(n) < 0.5, 0.0, rng.uniform(0, 1, n))
+    t_max = np.where(rng.random(n) < 0.5, np.inf, t_min + rng.uniform(0, 1.5, n))
+    return o, d, t_min, t_max
+
+
+def several_meshes():
+    """A scene of several meshes, each moved by its own model matrix (one of them a mirror image)."""
+    T = transforms
+    return [
+        SceneObject("sphere", shapes.icosphere(0.7, 3), T.compose(T.translate(-1.5, 0.2, 0.1), T.rotate_y(17))),
+        SceneObject("torus", shapes.torus(1.0, 0.3, 32, 16), T.compose(T.translate(1.2, 0.0, -0.4), T.rotate_x(70),
+                                                                     T.scale(0.8, 0.8, 1.3))),
+        SceneObject("box", shapes.cube(1.0, 2), T.compose(T.translate(0, 1.3, 0.5), T.rotate(33, [1, 1, 0]))),
+        SceneObject("floor", shapes.plane(6.0, 4), T.translate(0, -1.0, 0)),
+        SceneObject("uv", shapes.uv_sphere(0.5, 24, 12), T.compose(T.translate(0.3, -0.4, 1.2), T.scale(-1, 1, 1))),
+        SceneObject("suzanne", load_model("suzanne"), T.compose(T.translate(0.0, 0.3, -1.5), T.scale(0.6))),
+    ]
+
+
+# ------------------------------------------------------------------ the triangle test
+
+def test_intersect_triangle_hits_where_the_barycentrics_say():
+    v0, v1, v2 = np.array([0.0, 0, 0]), np.array([2.0, 0, 0]), np.array([0.0, 2, 0])
+    hit, t, b1, b2 = intersect_triangle(v0, v1, v2, np.array([0.5, 0.25, 3.0]), np.array([0.0, 0, -2.0]), 0.0, math.inf)
+    assert hit and t == 1.5 and (b1, b2) == (0.25, 0.125)
+    # both sides hit (no culling), tuples work as well as arrays
+    hit, t, b1, b2 = intersect_triangle(v0, v1, v2, (0.5, 0.25, -3.0), (0.0, 0.0, 1.0), 0.0, math.inf)
+    assert hit and t == 3.0 and (b1, b2) == (0.25, 0.125)
+    # the interval is open at both ends
+    assert not intersect_triangle(v0, v1, v2, (0.5, 0.25, -3.0), (0.0, 0.0, 1.0), 3.0, 5.0)[0]
+    assert not intersect_triangle(v0, v1, v2, (0.5, 0.25, -3.0), (0.0, 0.0, 1.0), 0.0, 3.0)[0]
+    assert intersect_triangle(v0, v1, v2, (0.5, 0.25, -3.0), (0.0, 0.0, 1.0), 2.999, 3.001)[0]
+    # outside, parallel, degenerate, zero direction: misses
+    assert not intersect_triangle(v0, v1, v2, (1.5, 1.5, -3.0), (0.0, 0.0, 1.0), 0.0, math.inf)[0]
+    assert not intersect_triangle(v0, v1, v2, (-1.0, 0.5, 0.0), (1.0, 0.0, 0.0), 0.0, math.inf)[0]
+    assert not intersect_triangle(v0, v1, v1 * 2, (0.5, 0.0, -1.0), (0.0, 0.0, 1.0), 0.0, math.inf)[0]
+    assert not intersect_triangle(v0, v1, v2, (0.5, 0.25, -3.0), (0.0, 0.0, 0.0), 0.0, math.inf)[0]
+
+
+def test_a_ray_through_a_shared_edge_or_corner_hits_one_of_the_triangles():
+    """A square split along its diagonal: a ray aimed at the diagonal or a shared corner hits at least one
+    half (rounding in the shear puts it on one side, the same side for both); a ray whose edge functions
+    are exactly 0 (axis-aligned, onto the diagonal) hits both (0 counts as inside)."""
+    a, b, c, d = (np.array(p, float) for p in ([0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]))
+    rng = np.random.default_rng(2)
+    targets = [[0.5, 0.5, 0.0], [0.25, 0.25, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 0.0]]
+    targets += [[s, s, 0.0] for s in rng.random(200)]
+    for target in targets:
+        for origin in ([0.3, 0.1, 2.0], [0.5, 0.5, -1.0], [-3.0, 7.0, 1e-3], list(rng.normal(size=3))):
+            o = np.array(origin)
+            dirn = np.array(target) - o
+            h1 = intersect_triangle(a, b, c, o, dirn, 0.0, math.inf)
+            h2 = intersect_triangle(a, c, d, o, dirn, 0.0, math.inf)
+            assert h1[0] or h2[0], (target, origin)
+            for h in (h1, h2):
+                assert not h[0] or abs(h[1] - 1.0) < 1e-12
+        if target[0] not in (0.0, 1.0):      # on the diagonal, not a corner: straight down is exact
+            h1 = intersect_triangle(a, b, c, np.array([target[0], target[1], 1.0]), np.array([0.0, 0.0, -1.0]), 0.0, 2.0)
+            h2 = intersect_triangle(a, c, d, np.array([target[0], target[1], 1.0]), np.array([0.0, 0.0, -1.0]), 0.0, 2.0)
+            assert h1[0] and h2[0] and h1[1] == h2[1] == 1.0
+
+
+def test_the_njit_queries_are_callable_from_compiled_code():
+    """As a shader calls them: the BVH's uniform, tuples for vectors."""
+    m = shapes.icosphere(1.0, 2)
+    bvh = BVH.build(m.positions, m.indices)
+
+    @numba.njit
+    def shade(u, x):
+        tri, t, b1, b2 = closest_hit(u, (x, 0.0, 0.0), (-1.0, 0.0, 0.0), 0.0, math.inf)
+        return tri, t, any_hit(u, (x, 0.0, 0.0), (-1.0, 0.0, 0.0), 0.0, x - 1.5)
+
+    assert isinstance(bvh.__softpipe_uniform__(), BVHUniform) and bvh.__softpipe_uniform__() is bvh.uniform
+    tri, t, blocked = shade(bvh.uniform, 3.0)
+    assert tri >= 0 and 1.9 < t < 2.01 and not blocked
+    assert shade(bvh.uniform, 3.0) == (tri, t, False)
+    assert shade(bvh.uniform, 2.5)[2] is False and shade(bvh.uniform, 3.0)[0] == tri
+
+
+# ------------------------------------------------------------------ the tree
+
+def _check_structure(bvh, vertices, triangles):
+    N = len(bvh.count)
+    assert bvh.lo.shape == bvh.hi.shape == (N, 3) and bvh.first.shape == (N,) and bvh.order.dtype == np.int64
+    assert np.array_equal(np.sort(bvh.order), np.arange(len(triangles)))
+    leaves = bvh.count > 0
+    assert np.all(bvh.count[leaves] <= bvh.leaf_size)
+    # leaves cover order[] once each, in order
+    by_first = np.argsort(bvh.first[leaves])
+    starts, counts = bvh.first[leaves][by_first], bvh.count[leaves][by_first]
+    assert np.array_equal(starts, np.r_[0, np.cumsum(counts)[:-1]]) and counts.sum() == len(triangles)
+    p = vertices[triangles[bvh.order]]
+    assert np.array_equal(bvh.v0, p[:, 0]) and np.array_equal(bvh.v1, p[:, 1]) and np.array_equal(bvh.v2, p[:, 2])
+    depth = np.zeros(N, np.int64)
+    for node in range(N):
+        if leaves[node]:
+            f, n = bvh.first[node], bvh.count[node]
+            q = p[f:f + n].reshape(-1, 3)
+            assert np.array_equal(q.min(axis=0), bvh.lo[node]) and np.array_equal(q.max(axis=0), bvh.hi[node])
+        else:
+            left, right = node + 1, bvh.first[node]
+            assert node < right < N
+            depth[left] = depth[right] = depth[node] + 1
+            assert np.array_equal(np.minimum(bvh.lo[left], bvh.lo[right]), bvh.lo[node])
+            assert np.array_equal(np.maximum(bvh.hi[left], bvh.hi[right]), bvh.hi[node])
+    assert depth.max() == bvh.depth < MAX_DEPTH
+
+
+def test_the_tree_is_flat_depth_first_and_every_box_is_tight(bunny):
+    v, tri = bunny
+    bvh = BVH.build(v, tri)
+    _check_structure(bvh, v, tri)
+    assert len(bvh.count) == 2 * int((bvh.count > 0).sum()) - 1
+    for leaf_size, bins in ((1, 2), (8, 32)):
+        m = shapes.torus(1.0, 0.3, 24, 12)
+        _check_structure(BVH.build(m.positions, m.indices, leaf_size=leaf_size, bins=bins), m.positions, m.indices)
+
+
+def test_degenerate_inputs_build_shallow_trees():
+    """Every centroid the same (no plane separates them) and a long line of triangles: median splits, depth bounded."""
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    tri = np.zeros((5000, 3), np.int64) + [0, 1, 2]
+    bvh = BVH.build(v, tri)
+    _check_structure(bvh, v, tri)
+    ids, t, _ = bvh.closest([[0.2, 0.2, 1.0]], [[0.0, 0.0, -1.0]])
+    assert ids[0] == 0 and t[0] == 1.0                        # 5000 exact ties: the lowest id
+    x = np.cumsum(np.r_[0, 2.0 ** -np.arange(60)])            # ever smaller steps: SAH would go deep
+    v = np.concatenate([np.c_[x, np.zeros_like(x), np.zeros_like(x)], np.c_[x, np.ones_like(x), np.zeros_like(x)]])
+    n = len(x)
+    tri = np.array([[i, i + 1, n + i] for i in range(n - 1)])
+    _check_structure(BVH.build(v, tri, leaf_size=1), v, tri)
+
+
+# ------------------------------------------------------------------ against brute force
+
+def test_closest_and_any_hit_equal_brute_force_on_the_bunny(bunny):
+    v, tri = bunny
+    bvh = BVH.build(v, tri)
+    rng = np.random.default_rng(16)
+    o, d, t_min, t_max = random_rays(rng, v, 100_000)
+    edge_cases = compare_with_oracle(v, tri, bvh, o, d, t_min, t_max)
+    assert edge_cases <= MAX_EDGE_CASES
+    # and with the default interval (0, inf)
+    ids, t, _ = bvh.closest(o[:2000], d[:2000])
+    ref_ids, ref_t = brute_force(v, tri, o[:2000], d[:2000], 0.0, np.inf)
+    assert np.mean(ids == ref_ids) > 0.999 and np.array_equal(ids >= 0, ref_ids >= 0)
+
+
+def test_closest_and_any_hit_equal_brute_force_on_a_scene_of_several_meshes():
+    objects = several_meshes()
+    bvh, which, local = scene_bvh(objects)
+    # which object and which of its triangles each BVH triangle is
+    counts = [len(ob.mesh.indices) for ob in objects]
+    assert len(bvh) == sum(counts) and np.array_equal(np.bincount(which), counts)
+    world = np.concatenate([ob.world_positions() for ob in objects])
+    base = np.cumsum([0] + [len(ob.mesh.positions) for ob in objects])
+    tri = np.concatenate([ob.mesh.indices + base[k] for k, ob in enumerate(objects)]).astype(np.int64)
+    for g in np.random.default_rng(1).integers(0, len(bvh), 200):
+        ob = objects[which[g]]
+        assert np.array_equal(world[tri[g]], ob.world_positions()[ob.mesh.indices[local[g]]])
+    rng = np.random.default_rng(17)
+    o, d, t_min, t_max = random_rays(rng, world, 100_000)
+    compare_with_oracle(world, tri, bvh, o, d, t_min, t_max)
+
+
+def test_an_empty_bvh_always_misses():
+    for bvh in (BVH.build(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), BVH.build(np.ones((4, 3)), []),
+                scene_bvh([])[0]):
+        assert len(bvh) == 0 and len(bvh.count) == 0
+        ids, t, b = bvh.closest([[0.0, 0, 0], [1, 2, 3]], [[1.0, 0, 0], [0, 0, -1]])
+        assert ids.tolist() == [-1, -1] and np.isinf(t).all() and not b.any()
+        assert not bvh.occluded([[0.0, 0, 0]], [[1.0, 0, 0]]).any()
+        assert closest_hit(bvh.uniform, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 0.0, math.inf)[0] == -1
+        assert not any_hit(bvh.uniform, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 0.0, math.inf)
+    assert BVH.build(np.ones((4, 3)), []).closest(np.zeros((0, 3)), np.zeros((0, 3)))[0].shape == (0,)
+
+
+# ------------------------------------------------------------------ watertightness
+
+def _sphere_targets(rng, m, n):
+    """n points exactly at vertices or on shared edges (a·(1−s) + b·s, s random or ½) of a mesh."""
+    v, tri = m.positions, m.indices
+    edges = np.unique(np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)
+    kind = rng.random(n)
+    e = edges[rng.integers(0, len(edges), n)]
+    s = np.where(kind < 0.2, 0.5, rng.random(n))[:, None]
+    target = v[e[:, 0]] * (1 - s) + v[e[:, 1]] * s
+    at_vertex = kind > 0.8
+    target[at_vertex] = v[rng.integers(0, len(v), at_vertex.sum())]
+    return target, at_vertex
+
+
+def test_no_ray_escapes_a_closed_sphere_through_its_edges_or_corners():
+    """10⁶ rays from inside a closed icosphere (shared vertices) aimed exactly at its edges and corners: 0 misses.
+
+    Each ray is origin → target with the target at t = 1, so the hit must be at t ≈ 1 (the sphere is convex),
+    on a triangle that has the target's edge or corner. Origins: random inside points, the centre (the 12
+    first corners then lie along directions with a zero component), and points near the surface (grazing).
+    """
+    m = shapes.icosphere(1.0, 4)              # 5120 triangles, 2562 vertices
+    bvh = BVH.build(m.positions, m.indices)
+    rng = np.random.default_rng(1016)
+    n = 1_000_000
+    target, at_vertex = _sphere_targets(rng, m, n)
+    u = rng.normal(size=(n, 3))
+    radius = np.where(rng.random(n) < 0.5, rng.random(n) * 0.9, 0.9 + rng.random(n) * 0.09)[:, None]
+    origin = u / np.linalg.norm(u, axis=1, keepdims=True) * radius
+    origin[:1000] = 0.0
+    target[:12] = m.positions[:12]
+    d = target - origin
+    ids, t, b = bvh.closest(origin, d)
+    escaped = np.flatnonzero(ids < 0)
+    assert len(escaped) == 0, f"{len(escaped)} of {n} rays escaped, e.g. {origin[escaped[:3]]} → {target[escaped[:3]]}"
+    assert np.all(np.abs(t - 1.0) < 1e-9)
+    assert bvh.occluded(origin, d).all()
+    # and the triangle hit has the target's corner (rays aimed at corners)
+    corner = np.flatnonzero(at_vertex)[:20000]
+    hit_corners = m.positions[m.indices[ids[corner]]]
+    assert np.all(np.abs(hit_corners - target[corner, None]).max(axis=2).min(axis=1) == 0)
+
+
+def test_the_same_rays_leak_through_the_textbook_test():
+    """Why watertightness is tested: Möller-Trumbore, exact as written, lets some of these rays through."""
+    m = shapes.icosphere(1.0, 2)
+    rng = np.random.default_rng(7)
+    n = 100_000
+    target, _ = _sphere_targets(rng, m, n)
+    u = rng.normal(size=(n, 3))
+    origin = u / np.linalg.norm(u, axis=1, keepdims=True) * rng.random((n, 1)) * 0.9
+    ids_mt, _ = brute_force(m.positions, m.indices, origin, target - origin, 0.0, np.inf)
+    ids, _, _ = BVH.build(m.positions, m.indices).closest(origin, target - origin)
+    assert (ids >= 0).all() and (ids_mt < 0).sum() > 0
+
+
+# ------------------------------------------------------------------ refit
+
+def test_refit_gives_the_results_of_a_fresh_build(bunny):
+    v, tri = bunny
+    bvh = BVH.build(v, tri)
+    uniform = bvh.uniform
+    M = transforms.compose(transforms.translate(0.1, -0.2, 0.05), transforms.rotate(40, [1, 2, 3]),
+                           transforms.scale(1.3, 0.7, 1.0))
+    rng = np.random.default_rng(3)
+    moved = v @ M[:3, :3].T + M[:3, 3] + rng.normal(scale=1e-3, size=v.shape)
+    bvh.refit(moved)
+    assert bvh.uniform is uniform
+    _check_structure_boxes_contain(bvh, moved, tri)
+    fresh = BVH.build(moved, tri)
+    o, d, t_min, t_max = random_rays(rng, moved, 50_000)
+    a, b = bvh.closest(o, d, t_min, t_max), fresh.closest(o, d, t_min, t_max)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+    assert np.array_equal(bvh.occluded(o, d, t_min, t_max), fresh.occluded(o, d, t_min, t_max))
+    with pytest.raises(ValueError, match=rf"vertices must have the {len(v)} rows.*shape \(10, 3\)"):
+        bvh.refit(np.zeros((10, 3)))
+
+
+def _check_structure_boxes_contain(bvh, vertices, triangles):
+    p = vertices[triangles[bvh.order]]
+    for node in np.flatnonzero(bvh.count > 0):
+        f, n = bvh.first[node], bvh.count[node]
+        q = p[f:f + n].reshape(-1, 3)
+        assert np.array_equal(q.min(axis=0), bvh.lo[node]) and np.array_equal(q.max(axis=0), bvh.hi[node])
+    inner = np.flatnonzero(bvh.count == 0)
+    right = bvh.first[inner]
+    assert np.array_equal(np.minimum(bvh.lo[inner + 1], bvh.lo[right]), bvh.lo[inner])
+    assert np.array_equal(np.maximum(bvh.hi[inner + 1], bvh.hi[right]), bvh.hi[inner])
+
+
+# ------------------------------------------------------------------ errors, threads
+
+def test_bad_inputs_raise_clear_errors():
+    v = np.zeros((3, 3))
+    tri = np.array([[0, 1, 2]])
+    with pytest.raises(ValueError, match=r"vertices must have shape \[V, 3\], got shape \(3, 2\)"):
+        BVH.build(np.zeros((3, 2)), tri)
+    bad = v.copy()
+    bad[1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"vertices \(shape \(3, 3\).*non-finite.*row\(s\) \[1\]"):
+        BVH.build(bad, tri)
+    with pytest.raises(ValueError, match=r"triangles must have shape \[T, 3\], got shape \(2, 2\)"):
+        BVH.build(v, [[0, 1], [1, 2]])
+    with pytest.raises(ValueError, match=r"triangles \(shape \(2, 3\).*index outside vertices.*row\(s\) \[1\].*\[0, 3\)"):
+        BVH.build(v, [[0, 1, 2], [0, 1, 3]])
+    with pytest.raises(ValueError, match=r"index outside"):
+        BVH.build(v, [[0, -1, 2]])
+    with pytest.raises(TypeError, match=r"triangles must be an integer array"):
+        BVH.build(v, [[0.0, 1.0, 2.0]])
+    with pytest.raises(ValueError, match="leaf_size"):
+        BVH.build(v, tri, leaf_size=0)
+    with pytest.raises(ValueError, match="bins"):
+        BVH.build(v, tri, bins=1)
+    bvh = BVH.build(v, tri)
+    with pytest.raises(ValueError, match=r"directions must have as many rows as origins \(2\), got shape \(1, 3\)"):
+        bvh.closest(np.zeros((2, 3)), np.ones((1, 3)))
+    with pytest.raises(ValueError, match=r"origins must have shape \[R, 3\]"):
+        bvh.occluded(np.zeros(3), np.ones(3))
+    with pytest.raises(ValueError, match=r"t_max must be a number or an array \[R\] with R = 2"):
+        bvh.closest(np.zeros((2, 3)), np.ones((2, 3)), 0.0, [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match=r"directions .*non-finite"):
+        bvh.closest(np.zeros((1, 3)), [[np.inf, 0, 0]])
+
+
+def test_the_same_bytes_for_one_and_two_threads(bunny):
+    v, tri = bunny
+    bvh = BVH.build(v, tri)
+    o, d, t_min, t_max = random_rays(np.random.default_rng(5), v, 50_000)
+    before = numba.get_num_threads()
+    out = {}
+    try:
+        for n in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(n)
+            rebuilt = BVH.build(v, tri)
+            out[n] = (*bvh.closest(o, d, t_min, t_max), bvh.occluded(o, d, t_min, t_max),
+                      rebuilt.lo, rebuilt.first, rebuilt.order)
+    finally:
+        numba.set_num_threads(before)
+    a, b = out.values()
+    for x, y in zip(a, b):
+        assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
