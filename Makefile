@@ -1,5 +1,5 @@
 # The README's two commands: `make demo` and `make test`. Each creates .venv and
-# installs softpipe into it (editable, with the test extras) when needed.
+# installs softpipe into it (editable, with the test and cluster extras) when needed.
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test]'
+	$(PY) -m pip install -q -e '.[test,cluster]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -678,6 +678,15 @@ def _render_task(frame: Frame, mesh: Mesh, material, lights: LightSet, backgroun
     return png, hashlib.sha256(png).hexdigest(), time.perf_counter() - start
 
 
+def _cluster_task(*args: Any) -> Tuple[Optional[bytes], str, float]:
+    """:func:`_render_task` on a worker; a frame's error comes back as its line (``None, line, 0``),
+    so that the worker logs nothing and Dask does not take it for a lost worker."""
+    try:
+        return _render_task(*args)
+    except Exception as e:  # noqa: BLE001 - the client reports it with the frame's name
+        return None, _error_line(e), 0.0
+
+
 def _maybe_crash(frame: Frame) -> None:
     """The test hook of :data:`CRASH_ONCE_ENV`: this worker process dies, once."""
     spec = os.environ.get(CRASH_ONCE_ENV)
@@ -916,8 +925,8 @@ class _Run:
         self.result.done.append(FrameRecord(frame.name, path, sha, seconds))
         self.report(frame.name)
 
-    def failed(self, frame: Frame, error: BaseException) -> None:
-        self.result.failed.append((frame.name, _error_line(error)))
+    def failed(self, frame: Frame, error: str) -> None:
+        self.result.failed.append((frame.name, error))
         self.report(frame.name, self.result.failed[-1][1])
 
 
@@ -932,7 +941,7 @@ def _run_serial(todo: List[Frame], meshes: Dict[str, Mesh], job: Job, state: _Ru
             png, sha, seconds = _render_task(frame, meshes[frame.model], _frame_material(job, frame),
                                              job.lights[frame.lights], job.background, job.fovy, None)
         except Exception as e:  # noqa: BLE001 - a frame's error is reported, the others go on
-            state.failed(frame, e)
+            state.failed(frame, _error_line(e))
             continue
         state.wrote(frame, png, sha, seconds, manifest)
 
@@ -968,7 +977,7 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
         run = uuid.uuid4().hex[:8]
         futures = {}
         for frame in todo:
-            future = client.submit(_render_task, frame, scattered[frame.model], _frame_material(job, frame),
+            future = client.submit(_cluster_task, frame, scattered[frame.model], _frame_material(job, frame),
                                    job.lights[frame.lights], job.background, job.fovy, numba_threads,
                                    key=f"softpipe-frame-{frame.name}-{run}", pure=False)
             futures[future.key] = (future, frame)
@@ -977,10 +986,13 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
                 frame = futures[future.key][1]
                 try:
                     png, sha, seconds = future.result()
-                except Exception as e:  # noqa: BLE001 - a frame's error is reported, the others go on
-                    state.failed(frame, e)
+                except Exception as e:  # noqa: BLE001 - a lost frame (KilledWorker, ...) is reported too
+                    state.failed(frame, _error_line(e))
                 else:
-                    state.wrote(frame, png, sha, seconds, manifest)
+                    if png is None:
+                        state.failed(frame, sha)
+                    else:
+                        state.wrote(frame, png, sha, seconds, manifest)
                 future.release()
         finally:
             for future, _ in futures.values():

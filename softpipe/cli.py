@@ -4,6 +4,7 @@
     softpipe render MODEL.obj -o out.png            any OBJ file, the same way
     softpipe render SCENE.toml -o out.png           a scene file (softpipe.scenefile)
     softpipe turntable MODEL -o spin.gif            an animated GIF, the camera circling the model
+    softpipe batch JOBS.toml -o DIR                 every frame of a job, on a Dask cluster (softpipe.batch)
     softpipe demo                                   the default scene
     softpipe programs                               the shading programs and sample patterns
 
@@ -267,6 +268,27 @@ def build_parser() -> argparse.ArgumentParser:
                               description="List the registered shading programs (for --program and a scene's "
                                           "program keys) and the sample pattern names (for --samples).")
     programs.set_defaults(run=_list_programs)
+
+    jobs = sub.add_parser(
+        "batch", help="render every frame of a job file (a sweep, a turntable) on a Dask cluster",
+        description="Render every frame of JOBS.toml (models × cameras × programs × materials × lights × sizes "
+                    "× sample patterns; see examples/sweep.toml and docs/batch.md) into DIR as NAME.png, with "
+                    "DIR/manifest.jsonl and DIR/contact-sheet.png. Frames already in the manifest with their file "
+                    "unchanged are skipped. Without --scheduler: a Dask LocalCluster of one worker process per "
+                    "core (pip install 'softpipe[cluster]'). The exit status is the number of failed frames "
+                    "(at most 125).\n\nIn Python: softpipe.batch.batch(JOBS, DIR, ...).",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    jobs.add_argument("job", metavar="JOBS.toml", help="the job file")
+    jobs.add_argument("-o", "--output", metavar="DIR", required=True, help="the folder for the frames")
+    jobs.add_argument("--scheduler", metavar="ADDRESS",
+                      help="a running Dask scheduler (tcp://host:8786), or 'serial' for this process alone")
+    jobs.add_argument("--workers", type=_size, metavar="N",
+                      help="worker processes of the LocalCluster (default: one per core)")
+    jobs.add_argument("--dashboard", metavar="ADDRESS", nargs="?", const=":8787",
+                      help="start the LocalCluster's dashboard (default :8787; needs bokeh) and print its link")
+    jobs.add_argument("--force", action="store_true", help="render every frame, even those already written")
+    jobs.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    jobs.set_defaults(run=_batch)
     return parser
 
 
@@ -281,6 +303,45 @@ def _demo(args) -> int:
     where = _save_image(fb, output)
     _wrote(args, output, f"wrote {where} ({args.width}×{args.height}, {time.perf_counter() - start:.2f} s)")
     return 0
+
+
+def _batch(args) -> int:
+    from .batch import batch, load_job
+    if args.workers is not None and args.scheduler is not None:
+        raise CLIError("--workers sizes the LocalCluster; a --scheduler's cluster has its own workers")
+    if args.dashboard is not None and args.scheduler is not None:
+        raise CLIError("--dashboard applies to the LocalCluster; a --scheduler's cluster has its own")
+    if os.path.exists(args.output) and not os.path.isdir(args.output):
+        raise CLIError(f"-o: {args.output} is a file, not a folder")
+    job = load_job(args.job)
+    if args.scheduler != "serial":
+        import importlib.util
+        if importlib.util.find_spec("distributed") is None:
+            raise CLIError("a cluster needs Dask: pip install 'softpipe[cluster]' (or --scheduler serial)")
+    live = sys.stderr.isatty()
+    shown = [0.0]
+
+    def progress(p) -> None:
+        if p.error is not None:
+            print(("\r\033[K" if live else "") + f"softpipe batch: failed: {p.frame}: {p.error}", file=sys.stderr)
+        if args.quiet:
+            return
+        now = time.perf_counter()
+        last = p.finished == p.total
+        if live:
+            print(f"\r\033[K{p.line()}", end="\n" if last else "", file=sys.stderr, flush=True)
+        elif last or now - shown[0] >= 2.0:
+            print(p.line(), file=sys.stderr, flush=True)
+            shown[0] = now
+
+    result = batch(job, args.output, args.scheduler, force=args.force, progress=progress, workers=args.workers,
+                   dashboard=args.dashboard, log=None if args.quiet else lambda m: _note(args, m))
+    rate = f", {len(result.done) / result.seconds:.2f} frames/s" if result.done and result.seconds else ""
+    print(f"softpipe batch: wrote {len(result.done)} frames, skipped {len(result.skipped)}, "
+          f"{len(result.failed)} failed, into {Path(args.output).resolve()} ({result.seconds:.1f} s{rate}); "
+          f"manifest {result.manifest.name}" + (f", contact sheet {result.contact_sheet.name}"
+                                                 if result.contact_sheet else ""))
+    return min(len(result.failed), 125)
 
 
 def _list_programs(args) -> int:
@@ -508,7 +569,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except SystemExit as e:  # --help, --version
         return int(e.code or 0) if not isinstance(e.code, str) else 2
     if not getattr(args, "command", None):
-        print("softpipe: error: a command is required: render, turntable, demo or programs "
+        print("softpipe: error: a command is required: render, turntable, batch, demo or programs "
               "(see 'softpipe --help')", file=sys.stderr)
         return 2
     try:
