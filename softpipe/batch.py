@@ -590,9 +590,11 @@ def parse_job(text: str, name: str = "<string>", base_dir: Optional[str] = None)
         doc = _toml.loads(text)
     except ValueError as e:
         from .scenefile import _LINE
-        found = _LINE.search(str(e))
-        raise reader.error(f"TOML syntax error: {_LINE.sub('', str(e)).strip()}",
-                           line=int(found.group(1)) if found else None) from None
+        message, found = str(e), _LINE.search(str(e))
+        line = int(found.group(1)) if found else \
+            text.count("\n") + (not text.endswith("\n")) if "end of document" in message else None
+        message = _LINE.sub("", message).replace(" (at end of document)", " (at the end of the file)").strip()
+        raise reader.error(f"TOML syntax error: {message}", line=max(line, 1) if line is not None else None) from None
     return reader.job(doc)
 
 
