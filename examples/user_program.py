@@ -34,7 +34,7 @@ def wrapped_fragment(varyings, uniforms, frag):
         wrapped = max((dot(N, L) + w) / (1.0 + w), 0.0)              # the changed term
         diffuse = scale(mul(m.kd, light_vec3(lights, j, LIGHT_DIFFUSE)), wrapped)
         specular = blinn_phong_specular(m.ks, light_vec3(lights, j, LIGHT_SPECULAR), N, L, V, m.shininess)
-        shadowed = mul(add(diffuse, specular), light_visibility(uniforms.lighting.shadows, j, P))  # V_j
+        shadowed = mul(add(diffuse, specular), light_visibility(uniforms.lighting, j, P))  # V_j
         term = add(ambient(m.ka, light_vec3(lights, j, LIGHT_AMBIENT)), shadowed)
         color = add(color, scale(term, f))
     return (color[0], color[1], color[2], m.opacity)

@@ -16,8 +16,8 @@ in the ``lighting`` uniform (a :class:`~softpipe.material.LightingUniform`: the
 global ambient, the packed lights and their shadow maps). The sums over lights
 (:func:`opengl_lighting`, :func:`hall_local`, :func:`cook_torrance_lighting`)
 multiply light j's diffuse and specular terms by its visibility V_j
-(:func:`softpipe.shadowmap.light_visibility`; FORMULAS §11 and §21): 1 without
-shadow maps, 0 in a shadow, a color behind glass. Ambient terms are not shadowed (§10).
+(:func:`light_visibility`; FORMULAS §11 and §21): 1 without shadows, 0 in a
+shadow, a color behind glass. Ambient terms are not shadowed (§10).
 
 Conventions
 -----------
@@ -37,7 +37,8 @@ import math
 from typing import Tuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from softpipe.glsl import add, dot, length, mul, normalize, pow_, scale, sub
 from softpipe.material import (
@@ -45,7 +46,8 @@ from softpipe.material import (
     LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION,
     LIGHT_SPOT_EXPONENT, LightingUniform, MaterialUniform,
 )
-from softpipe.shadowmap import light_visibility
+from softpipe.rays import ray_visibility
+from softpipe.shadowmap import SHADOW_RAY, shadow_map_visibility
 
 Vec3 = Tuple[float, float, float]
 Color = Tuple[float, float, float]
@@ -54,7 +56,8 @@ __all__ = [
     "BLINN_PHONG", "PHONG",
     "positive_power", "b_factor", "half_vector",
     "emission", "ambient", "lambert", "phong_specular", "blinn_phong_specular",
-    "attenuation", "spot_factor", "light_at", "light_vec3", "light_colors", "opengl_lighting",
+    "attenuation", "spot_factor", "light_at", "light_vec3", "light_colors", "light_visibility", "casts_shadows",
+    "opengl_lighting",
     "transmitted_half_vector", "hall_transmission", "hall_local",
     "fresnel_rs_rp", "fresnel", "fresnel_schlick",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting",
@@ -193,6 +196,73 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     return L, f_att * f_spot
 
 
+def casts_shadows(lighting: LightingUniform, j: int) -> bool:
+    """Does light j cast shadows (a shadow map or shadow rays)?
+
+    The sums ask it before :func:`light_visibility`. A lighting uniform without
+    shadows has ``shadows = None``; compiled, that is known from its type, the
+    question is answered False when numba compiles the shader and the shadow code is
+    left out of it: a draw without shadows runs the code it ran before shadows existed
+    (a ``ShadowUniform`` holds many arrays, and a shader that carried them through
+    every sample paid for each of them).
+    """
+    shadows = lighting.shadows
+    if shadows is None:
+        return False
+    return shadows.light_maps[j, 1] > 0 or shadows.light_maps[j, 2] == SHADOW_RAY
+
+
+def _shadows_type(lighting):
+    """numba's type of ``lighting.shadows`` (a LightingUniform's last field)."""
+    return lighting.types[list(lighting.fields).index("shadows")] if hasattr(lighting, "fields") else None
+
+
+@overload(casts_shadows, inline="always")
+def _casts_shadows_numba(lighting, j):
+    if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
+        return lambda lighting, j: False
+
+    def impl(lighting, j):
+        rows = lighting.shadows.light_maps
+        return rows[j, 1] > 0 or rows[j, 2] == SHADOW_RAY
+    return impl
+
+
+def light_visibility(lighting: LightingUniform, j: int, P: Vec3) -> Color:
+    """V_j: the RGB share of light j that reaches the eye-space point P past everything else (§11, §21).
+
+    From ``lighting.shadows``: light j's shadow map(s)
+    (:func:`~softpipe.shadowmap.shadow_map_visibility`), or a shadow ray toward the
+    light — to its position for a point or spot light, to infinity for a directional
+    one — through any transparent objects (:func:`~softpipe.rays.ray_visibility`).
+    (1, 1, 1) for a light that casts no shadows, and when ``lighting.shadows`` is None.
+    Ambient light is never shadowed (§10).
+    """
+    if lighting.shadows is None:
+        return (1.0, 1.0, 1.0)
+    return _shadowed_visibility(lighting, j, P)
+
+
+@overload(light_visibility)
+def _light_visibility_numba(lighting, j, P):
+    if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
+        return lambda lighting, j, P: (1.0, 1.0, 1.0)
+    return lambda lighting, j, P: _shadowed_visibility(lighting, j, P)
+
+
+@njit(cache=True)
+def _shadowed_visibility(lighting, j, P):
+    shadows = lighting.shadows
+    if shadows.light_maps[j, 2] == SHADOW_RAY:
+        lights = lighting.lights
+        position = light_vec3(lights, j, LIGHT_POSITION)
+        if lights[j, LIGHT_KIND] == LIGHT_DIRECTIONAL:
+            return ray_visibility(shadows.rays, P, position, np.inf)
+        to_light = sub(position, P)
+        return ray_visibility(shadows.rays, P, normalize(to_light), length(to_light))
+    return shadow_map_visibility(shadows, j, P)
+
+
 @njit(cache=True, inline="always")
 def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
                     specular_model: int) -> Color:
@@ -203,7 +273,7 @@ def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighti
 
     with spec_j = (N·H_j)₊ⁿ for ``specular_model`` = BLINN_PHONG (0, OpenGL's) or
     (R_j·V)₊ⁿ for PHONG (1), and V_j light j's visibility at P
-    (:func:`~softpipe.shadowmap.light_visibility`, FORMULAS §11/§21; 1 without shadows).
+    (:func:`light_visibility`, FORMULAS §11/§21; 1 without shadows).
 
     Parameters
     ----------
@@ -230,7 +300,9 @@ def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighti
             else:
                 specular = blinn_phong_specular(m.ks, Is, N, L, V, m.shininess)
             lit = add(lambert(m.kd, Id, N, L), specular)
-            term = add(term, mul(lit, light_visibility(lighting.shadows, j, P)))
+            if casts_shadows(lighting, j):
+                lit = mul(lit, light_visibility(lighting, j, P))
+            term = add(term, lit)
         color = add(color, scale(term, f))
     return color
 
@@ -296,7 +368,7 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
     for a light behind the surface (N·L_j < 0). η is as in
     :func:`transmitted_half_vector` (``material.ior`` for a viewer in air); n′ is
     ``material.transmission_shininess``; V_j is light j's visibility
-    (:func:`~softpipe.shadowmap.light_visibility`). The reflected and transmitted rays
+    (:func:`light_visibility`). The reflected and transmitted rays
     (k_r, k_t terms with T^d) belong to a ray tracer and are not included.
     """
     m = material
@@ -310,7 +382,9 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
             reflected = add(blinn_phong_specular(m.ks, Is, N, L, V, m.shininess), lambert(m.kd, Id, N, L))
             transmitted = hall_transmission(m.kt, Is, N, L, V, eta, m.transmission_shininess)
             lit = add(reflected, transmitted)
-            term = add(term, mul(lit, light_visibility(lighting.shadows, j, P)))
+            if casts_shadows(lighting, j):
+                lit = mul(lit, light_visibility(lighting, j, P))
+            term = add(term, lit)
         color = add(color, scale(term, f))
     return color
 
@@ -450,7 +524,10 @@ def cook_torrance_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform,
         if f > 0.0 and n_dot_l > 0.0:  # B_j = 1
             f_s = cook_torrance(N, L, V, mt.roughness, 1.0, mt.ior)
             lit = add(mul(mt.kd, Id), scale(mul(mt.ks, Is), f_s))
-            term = add(term, mul(scale(lit, n_dot_l), light_visibility(lighting.shadows, j, P)))
+            lit = scale(lit, n_dot_l)
+            if casts_shadows(lighting, j):
+                lit = mul(lit, light_visibility(lighting, j, P))
+            term = add(term, lit)
         color = add(color, scale(term, f))
     return color
 

@@ -68,7 +68,7 @@ from typing import Iterable, Optional, Sequence, Tuple
 import numpy as np
 
 from .colors import parse_color
-from .shadowmap import ShadowSettings, no_shadows
+from .shadowmap import ShadowSettings
 
 RGB = Tuple[float, float, float]
 Vec3 = Tuple[float, float, float]
@@ -440,8 +440,8 @@ def _cos_degrees(beta: float) -> float:
 LightingUniform = namedtuple("LightingUniform", ["global_ambient", "lights", "shadows"])
 LightingUniform.__doc__ = """Lighting as a shader sees it: ``global_ambient`` (RGB tuple),
 ``lights``, the packed eye-space array of :func:`pack_lights`, and ``shadows``, their
-shadow maps (a :class:`~softpipe.shadowmap.ShadowUniform`; :func:`~softpipe.shadowmap.no_shadows`
-when there are none)."""
+shadow maps and shadow-ray scene (a :class:`~softpipe.shadowmap.ShadowUniform`), or None when
+no light casts shadows (then a compiled shader leaves the shadow code out)."""
 
 
 @dataclass(frozen=True)
@@ -470,5 +470,4 @@ class Lighting:
         :func:`softpipe.shadows.render_shadow_maps` makes the maps of the lights that cast
         shadows; its ``uniform(view_matrix)`` is this one with them.
         """
-        return LightingUniform(self.global_ambient, pack_lights(self.lights, view_matrix),
-                               no_shadows(len(self.lights)))
+        return LightingUniform(self.global_ambient, pack_lights(self.lights, view_matrix), None)

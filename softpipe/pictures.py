@@ -162,7 +162,7 @@ def shadow_map_pictures(uniforms, height: int, width: int) -> Dict[str, np.ndarr
         return {}
     from .shadowmap import CUBE_FACE_NAMES
     owner = {}
-    for j, (first, count) in enumerate(shadows.light_maps):
+    for j, (first, count, _) in enumerate(shadows.light_maps):
         for k in range(first, first + count):
             owner[k] = f"light {j}" + (f", face {CUBE_FACE_NAMES[k - first]}" if count == 6 else "")
     pics = {}

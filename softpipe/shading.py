@@ -116,8 +116,10 @@ The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
     light_vec3               three columns of light j: ``light_vec3(lights, j, LIGHT_DIFFUSE)`` is I_d
     light_colors             (I_a, I_d, I_s) of light j
     light_visibility         V_j: the RGB share of light j that reaches P past the
-                             shadow casters (:mod:`softpipe.shadowmap`, §11, §21);
-                             ``light_visibility(uniforms.lighting.shadows, j, P)``
+                             shadow casters (shadow maps or shadow rays, §11, §21):
+                             ``light_visibility(uniforms.lighting, j, P)``
+    casts_shadows            does light j cast shadows? (False, known when the shader
+                             compiles, for lighting without shadows: ask it first)
     LIGHT_KIND, LIGHT_AMBIENT, LIGHT_DIFFUSE, LIGHT_SPECULAR, LIGHT_POSITION,
     LIGHT_ATTENUATION, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_COS_CUTOFF,
     LIGHT_SPOT_EXPONENT, LIGHT_COLUMNS     the columns of a packed light
@@ -130,16 +132,16 @@ from .glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, len
                    mat4_mul_vec4, max_component, min_component, mix, mul, neg, normalize, pow_, reflect,
                    refract, saturate, scale, smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin)
 from .lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
-                       cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_rs_rp, fresnel_schlick,
-                       geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert, light_at,
-                       light_colors, light_vec3, opengl_lighting, phong_specular, positive_power, spot_factor,
-                       transmitted_half_vector)
+                       casts_shadows, cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_rs_rp,
+                       fresnel_schlick, geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert,
+                       light_at, light_colors, light_vec3, light_visibility, opengl_lighting, phong_specular,
+                       positive_power, spot_factor, transmitted_half_vector)
 from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
                        LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
                        LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
                        LightingUniform, Material, MaterialUniform)
 from .shader import DISCARD, Derivatives, FragInfo, ShaderError
-from .shadowmap import ShadowSettings, light_visibility
+from .shadowmap import ShadowSettings
 from .shaders import Program
 from .shaders.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
                              standard_vertex, toward_eye, uniform_or)
@@ -167,7 +169,7 @@ __all__ = [
     "fresnel_rs_rp", "fresnel", "fresnel_schlick",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting", "gooch",
     # the packed lights
-    "light_at", "light_vec3", "light_colors", "light_visibility",
+    "light_at", "light_vec3", "light_colors", "light_visibility", "casts_shadows",
     "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR", "LIGHT_POSITION",
     "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF", "LIGHT_SPOT_EXPONENT",
     "LIGHT_COLUMNS", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",

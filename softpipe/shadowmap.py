@@ -14,8 +14,8 @@ V_j
     Light j's visibility at p (FORMULAS §11's V_i(p)): 1 lit, 0 in shadow, in between
     at a filtered edge; an RGB color behind a transparent occluder (§21: "scale the
     light by its transmission"). The lit programs multiply light j's diffuse and
-    specular terms by it (:func:`light_visibility`); the ambient term is untouched,
-    as §10 keeps it.
+    specular terms by it (:func:`softpipe.lighting.light_visibility`); the ambient term
+    is untouched, as §10 keeps it.
 ref
     p's depth in the light's window space, in [0, 1].
 PCF
@@ -29,9 +29,11 @@ What a shader receives
 packed in flat arrays, so that any number of maps of any sizes has one numba type
 (a scene with shadows and one without use the same compiled kernel).
 
-``light_maps`` int64 [num_lights, 2]
-    Light j's first map and how many it has: 0 (no shadows), 1 (directional, spot)
-    or 6 (a cube map: point lights, and spots wider than :data:`MAX_SPOT_MAP_CUTOFF`).
+``light_maps`` int64 [num_lights, 3]
+    Light j's first map, how many it has — 0 (no shadow map), 1 (directional, spot)
+    or 6 (a cube map: point lights, and spots wider than :data:`MAX_SPOT_MAP_CUTOFF`) —
+    and how its V_j is found: :data:`SHADOW_MAP` or :data:`SHADOW_RAY` (a shadow ray
+    through ``rays``, :func:`softpipe.rays.ray_visibility`).
 ``maps`` int64 [num_maps, 5]
     Each map's offset into ``depth``, width, height, PCF radius r, and offset into
     ``transparent_depth``/``transmission`` (−1: no transparent caster in this map).
@@ -64,7 +66,10 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
-__all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "light_visibility", "shadow_compare",
+from .rays import no_rays
+
+__all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "shadow_map_visibility", "shadow_compare",
+           "SHADOW_MAP", "SHADOW_RAY", "SHADOW_METHODS",
            "depth_texture", "texture_compare",
            "map_coordinates", "cube_face", "cube_face_half_extent", "CUBE_FACE_NAMES", "MAX_SPOT_MAP_CUTOFF", "MAX_PCF_RADIUS",
            "MAX_SHADOW_RESOLUTION"]
@@ -80,7 +85,12 @@ MAX_PCF_RADIUS = 4
 MAX_SHADOW_RESOLUTION = 8192
 
 ShadowUniform = namedtuple("ShadowUniform", ["light_maps", "maps", "matrices", "depth", "transparent_depth",
-                                             "transmission"])
+                                             "transmission", "rays"])
+
+#: How a light's V_j is found (``light_maps[j, 2]``): from its shadow map(s), or by a shadow ray.
+SHADOW_MAP, SHADOW_RAY = 0, 1
+#: ``ShadowSettings.method``'s values, in the order of those codes.
+SHADOW_METHODS = ("map", "ray")
 ShadowUniform.__doc__ = """Every shadow map of a draw, packed flat (see :mod:`softpipe.shadowmap`)."""
 
 
@@ -105,14 +115,22 @@ class ShadowSettings:
         a float32 depth near 1 is 2⁻²⁴). Too little bias: "acne", a surface
         shadowing itself in dots and stripes; too much: "peter-panning", a shadow
         that comes loose from its caster.
+    method : "map" or "ray"
+        "map" (the default): V_j from shadow maps, as above. "ray": from a shadow ray
+        per shaded point (FORMULAS §21 itself; :func:`softpipe.rays.ray_visibility`):
+        exact, hard-edged, through any number of transparent objects; the other
+        fields do not apply.
     """
 
     resolution: int = 1024
     pcf: int = 1
     offset_factor: Optional[float] = None   # None: 2r + 2
     offset_units: float = 16.0
+    method: str = "map"
 
     def __post_init__(self) -> None:
+        if self.method not in SHADOW_METHODS:
+            raise ValueError(f"ShadowSettings.method must be one of {SHADOW_METHODS}, got {self.method!r}")
         if isinstance(self.resolution, bool) or not isinstance(self.resolution, (int, np.integer)) \
                 or not 1 <= self.resolution <= MAX_SHADOW_RESOLUTION:
             raise ValueError(f"ShadowSettings.resolution must be an integer in 1…{MAX_SHADOW_RESOLUTION}, "
@@ -136,11 +154,14 @@ class ShadowSettings:
         return (self.offset_factor, self.offset_units)
 
 
+_NO_RAYS = no_rays()
+
+
 def no_shadows(num_lights: int) -> ShadowUniform:
     """The uniform of a draw without shadow maps: every light has none, V_j = 1."""
-    return ShadowUniform(np.zeros((num_lights, 2), np.int64), np.zeros((0, 5), np.int64),
+    return ShadowUniform(np.zeros((num_lights, 3), np.int64), np.zeros((0, 5), np.int64),
                          np.zeros((0, 4, 4), np.float64), np.zeros(0, np.float32), np.zeros(0, np.float32),
-                         np.zeros((0, 3), np.float32))
+                         np.zeros((0, 3), np.float32), _NO_RAYS)
 
 
 def cube_face_half_extent(resolution: int, pcf: int) -> float:
@@ -243,9 +264,10 @@ def depth_texture(framebuffer, pcf: int = 0) -> ShadowUniform:
     if isinstance(pcf, bool) or not isinstance(pcf, (int, np.integer)) or not 0 <= pcf <= MAX_PCF_RADIUS:
         raise ValueError(f"pcf must be an integer radius in 0…{MAX_PCF_RADIUS}, got {pcf!r}")
     depth = np.ascontiguousarray(framebuffer.depth[::-1]).ravel()   # image rows → window rows
-    return ShadowUniform(np.zeros((0, 2), np.int64),
+    return ShadowUniform(np.zeros((0, 3), np.int64),
                          np.array([[0, framebuffer.width, framebuffer.height, pcf, -1]], np.int64),
-                         np.eye(4)[None].copy(), depth, np.zeros(0, np.float32), np.zeros((0, 3), np.float32))
+                         np.eye(4)[None].copy(), depth, np.zeros(0, np.float32), np.zeros((0, 3), np.float32),
+                         _NO_RAYS)
 
 
 @njit(cache=True)
@@ -256,10 +278,12 @@ def texture_compare(texture, u, v, ref):
 
 
 @njit(cache=True)
-def light_visibility(shadows, j, P):
-    """V_j at the eye-space point P: the RGB share of light j that reaches it (FORMULAS §11, §21).
+def shadow_map_visibility(shadows, j, P):
+    """V_j from light j's shadow map(s) at the eye-space point P: the RGB share of the light that passes.
 
     (1, 1, 1) when light j has no shadow map, and for a point outside its map.
+    :func:`softpipe.lighting.light_visibility` is what a shader calls: it also takes
+    the lights whose V_j comes from shadow rays.
     """
     first, count = shadows.light_maps[j, 0], shadows.light_maps[j, 1]
     if count == 0:

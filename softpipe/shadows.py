@@ -42,7 +42,9 @@ import numpy as np
 from .framebuffer import Framebuffer
 from .material import Light, Lighting, LightingUniform
 from .pipeline import DrawCall
-from .shadowmap import CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, ShadowSettings, ShadowUniform, cube_face_half_extent
+from .rays import RayScene, transmission_of
+from .shadowmap import (_NO_RAYS, CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, SHADOW_MAP, SHADOW_RAY, ShadowSettings,
+                        ShadowUniform, cube_face_half_extent)
 from .transforms import frustum, look_at, orthographic
 
 __all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of",
@@ -65,15 +67,6 @@ class ShadowCaster:
     positions: np.ndarray   # float64 [N, 3], world space
     indices: np.ndarray     # int [M, 3]
     transmission: Optional[Tuple[float, float, float]] = None
-
-
-def transmission_of(material) -> Optional[Tuple[float, float, float]]:
-    """What a caster of this material lets through: kt when nonzero, 1 − opacity when < 1, else None."""
-    if any(c > 0.0 for c in material.kt):
-        return tuple(float(c) for c in material.kt)
-    if material.opacity < 1.0:
-        return (1.0 - material.opacity,) * 3
-    return None
 
 
 def casters_of(objects) -> List[ShadowCaster]:
@@ -274,13 +267,16 @@ class ShadowMaps:
         The lights, in the order of the ``lighting`` uniform.
     maps : list of ShadowMap
         Every map; light j's are ``maps[first:first + count]`` with
-        (first, count) = ``light_maps[j]``.
-    light_maps : int64 [num_lights, 2]
+        (first, count, method) = ``light_maps[j]``.
+    light_maps : int64 [num_lights, 3]
+    rays : RayScene or None
+        The casters as a ray scene, for the lights with ``method="ray"``.
     """
 
     lights: Tuple[Light, ...]
     maps: List[ShadowMap] = field(default_factory=list)
     light_maps: np.ndarray = None
+    rays: Optional[RayScene] = None
     _packed: Optional[tuple] = field(default=None, repr=False, compare=False)
     _depth: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
 
@@ -301,7 +297,8 @@ class ShadowMaps:
         maps, depth, transparent_depth, transmission = self._packed
         inverse_view = np.linalg.inv(np.asarray(view_matrix, np.float64))
         matrices = np.array([m.matrix @ inverse_view for m in self.maps], np.float64).reshape(-1, 4, 4)
-        return ShadowUniform(self.light_maps.copy(), maps, matrices, depth, transparent_depth, transmission)
+        rays = self.rays.uniform(view_matrix) if self.rays is not None else _NO_RAYS
+        return ShadowUniform(self.light_maps.copy(), maps, matrices, depth, transparent_depth, transmission, rays)
 
     def _pack(self):
         """(maps, depth, transparent_depth, transmission) of :class:`~softpipe.shadowmap.ShadowUniform`."""
@@ -333,10 +330,10 @@ class ShadowMaps:
 
     def visibility(self, light_index: int, point: Sequence[float]) -> Tuple[float, float, float]:
         """V_j of light ``light_index`` at a world-space point, as the shaders compute it (RGB)."""
-        from .shadowmap import light_visibility
-        shadows = self.uniform(np.eye(4))   # eye space = world space
+        from .lighting import light_visibility
+        lighting = self.lighting_uniform(Lighting(self.lights), np.eye(4))   # eye space = world space
         p = tuple(float(v) for v in point)
-        return tuple(light_visibility(shadows, light_index, p))
+        return tuple(light_visibility(lighting, light_index, p))
 
 
 def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
@@ -353,17 +350,25 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
     -------
     ShadowMaps
     """
-    casters = [o if isinstance(o, ShadowCaster) else None for o in objects]
-    if any(c is None for c in casters):
-        casters = casters_of(objects)
+    objects = list(objects)
+    given_casters = all(isinstance(o, ShadowCaster) for o in objects)
+    casters = objects if given_casters else casters_of(objects)
     points = np.concatenate([c.positions for c in casters]) if casters else np.zeros((0, 3))
-    out = ShadowMaps(tuple(lighting.lights), [], np.zeros((len(lighting.lights), 2), np.int64))
+    out = ShadowMaps(tuple(lighting.lights), [], np.zeros((len(lighting.lights), 3), np.int64))
     planned = []                                    # (light index, view, projection, face)
     for j, light in enumerate(lighting.lights):
         if light.shadows is None:
             continue
+        if light.shadows.method == "ray":
+            if given_casters:
+                raise ValueError(f"light {j} ({light.name}) takes its shadows from rays, which need the scene's "
+                                 "objects (SceneObjects with meshes), not ShadowCasters")
+            if out.rays is None:
+                out.rays = RayScene([o for o in objects if getattr(o, "cast_shadows", True)])
+            out.light_maps[j] = (0, 0, SHADOW_RAY)
+            continue
         frusta = light_frusta(light, light.shadows, points)
-        out.light_maps[j] = (len(planned), len(frusta))
+        out.light_maps[j] = (len(planned), len(frusta), SHADOW_MAP)
         names = CUBE_FACE_NAMES if len(frusta) == 6 else ("",)
         planned.extend((j, view, projection, face) for (view, projection), face in zip(frusta, names))
     # every map's depth goes straight into the one array the shaders read (ShadowMaps.uniform)

@@ -35,7 +35,7 @@ from .fragment import ShadedFragments, default_fragment_shader, derivative_gradi
 from .output import VERDICTS, MergeResult
 from .raster import Fragments
 from .shader import python_function
-from .shadowmap import light_visibility
+from .lighting import light_visibility
 
 __all__ = ["Trace", "PixelEvent", "PixelHistory"]
 
@@ -309,11 +309,12 @@ class Trace:
     def _shadow_terms(self, varyings) -> tuple:
         """V_j of every light at the fragment's eye-space ``position`` varying (FORMULAS §21), as the lit
         programs compute it, when the draw's ``lighting`` uniform carries shadow maps; else ()."""
-        shadows = getattr(getattr(self.call.uniforms, "lighting", None), "shadows", None)
+        lighting = getattr(self.call.uniforms, "lighting", None)
+        shadows = getattr(lighting, "shadows", None)
         P = getattr(varyings, "position", None)
-        if shadows is None or not len(shadows.maps) or P is None or len(P) != 3:
+        if shadows is None or not shadows.light_maps[:, 1:].any() or P is None or len(P) != 3:
             return ()
-        return tuple(tuple(float(c) for c in light_visibility(shadows, j, tuple(float(v) for v in P)))
+        return tuple(tuple(float(c) for c in light_visibility(lighting, j, tuple(float(v) for v in P)))
                      for j in range(len(shadows.light_maps)))
 
     # ------------------------------------------------------------- pictures
@@ -331,6 +332,16 @@ class Trace:
         buf = io.BytesIO()
         contact_sheet(stage_pictures(self)).save(buf, format="PNG")
         return buf.getvalue()
+
+    def to_html(self, path, **options):
+        """Write the pipeline explorer of this draw: one self-contained HTML page (:mod:`softpipe.explore`).
+
+        Point at a pixel to see its history, the winning triangle outlined in every stage
+        picture and its vertices in object, clip and window coordinates. ``options`` are
+        :func:`softpipe.explore.write_explorer`'s; returns its summary (path, size, what it holds).
+        """
+        from .explore import write_explorer
+        return write_explorer(self, path, **options)
 
     def save_pictures(self, directory) -> dict:
         """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""

@@ -181,3 +181,71 @@ def test_lights_compare_by_their_shadow_settings():
     a = Light.directional(SUN, shadows=True)
     assert a == dataclasses.replace(Light.directional(SUN), shadows=ShadowSettings())
     assert a != Light.directional(SUN)
+
+
+def test_shadow_rays_and_shadow_maps_agree_away_from_the_edges():
+    """ShadowSettings(method="ray") (FORMULAS §21 itself) against the map: the same shadow, except a band of a
+    pixel or two at its edge, where the map's PCF softens and its bias moves it."""
+    maps = sp.render_scene(box_over_floor(True, pcf=0)).color
+    rays = sp.render_scene(box_over_floor(True, method="ray")).color
+    lit = sp.render_scene(box_over_floor(False)).color
+    dark_maps = (lit - maps)[..., :3].max(axis=2) > 0.1
+    dark_rays = (lit - rays)[..., :3].max(axis=2) > 0.1
+    assert dark_rays.sum() > 20
+    differ = dark_maps != dark_rays
+    edge = np.zeros_like(dark_rays)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            edge |= np.roll(np.roll(dark_rays, dy, 0), dx, 1) != dark_rays
+    assert not (differ & ~edge).any()
+
+
+def test_a_shadow_ray_is_dimmed_by_every_transparent_object_it_crosses():
+    floor = shapes.plane(4.0, material=Material(ka=0.2, kd=0.8, ks=0.0))
+    panes = [shapes.cube(1.0, material=Material(kd=0.1, kt=kt)) for kt in ((0.9, 0.3, 0.2), (0.2, 0.4, 0.9))]
+    wall = shapes.cube(1.0, material=Material(kd=0.5))
+    sun = Light.directional((0.0, -1.0, 0.0), shadows=ShadowSettings(method="ray"), name="sun")
+    flat = np.diag([1.0, 0.1, 1.0, 1.0])
+    scene = Scene([SceneObject("floor", floor, np.eye(4), cast_shadows=False),
+                   SceneObject("red", panes[0], translate(0.0, 1.0, 0.0) @ flat),
+                   SceneObject("blue", panes[1], translate(0.25, 1.5, 0.0) @ flat),
+                   SceneObject("wall", wall, translate(-1.5, 1.0, 0.0) @ flat)],
+                  camera=sp.Camera(eye=(0.0, 6.0, 0.01)), lights=(sun,), width=8, height=8)
+    maps = []
+    sp.render_scene(scene, shadow_maps=maps)
+    V = maps[0].visibility
+    assert V(0, (-0.4, 0.0, 0.0)) == pytest.approx((0.9, 0.3, 0.2))
+    assert V(0, (0.0, 0.0, 0.0)) == pytest.approx((0.9 * 0.2, 0.3 * 0.4, 0.2 * 0.9))
+    assert V(0, (0.6, 0.0, 0.0)) == pytest.approx((0.2, 0.4, 0.9))
+    assert V(0, (-1.5, 0.0, 0.0)) == (0.0, 0.0, 0.0)            # the opaque wall
+    assert V(0, (1.5, 0.0, 0.0)) == (1.0, 1.0, 1.0)
+
+
+def test_ray_shadows_give_the_same_bytes_on_both_paths():
+    scene = box_over_floor(True, method="ray")
+    camera, lights = scene.camera, scene.lighting_for(scene.camera)
+    maps = sp.render_shadow_maps(scene.objects, lights)
+    lighting = maps.lighting_uniform(lights, camera.view)
+    out = {}
+    for path in ("fast", "reference"):
+        fb = sp.Framebuffer(64, 64)
+        for obj in scene.objects:
+            sp.draw_mesh(fb, obj.mesh, camera, "phong", model=obj.model, lighting=lighting, path=path)
+        out[path] = (fb.color.tobytes(), fb.depth.tobytes())
+    assert out["fast"] == out["reference"]
+
+
+def test_lighting_without_shadows_compiles_them_out_and_draws_the_same_bytes():
+    """shadows=None (the default uniform) and an empty ShadowUniform (every light without a map) are two types, two
+    compiled variants; both draw the same picture."""
+    from softpipe.shadowmap import no_shadows
+    scene = box_over_floor(False)
+    lighting = scene.lighting_for(scene.camera).uniform(scene.camera.view)
+    assert lighting.shadows is None
+    pictures = []
+    for shadows in (None, no_shadows(1)):
+        fb = sp.Framebuffer(64, 64)
+        for obj in scene.objects:
+            sp.draw_mesh(fb, obj.mesh, scene.camera, "phong", model=obj.model, lighting=lighting._replace(shadows=shadows))
+        pictures.append(fb.color.tobytes())
+    assert pictures[0] == pictures[1]

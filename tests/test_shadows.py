@@ -25,7 +25,7 @@ import pytest
 from softpipe import Camera, DrawCall, Framebuffer, draw_mesh, render_shadow_maps, shapes
 from softpipe.material import Light, Lighting, Material
 from softpipe.scene import SceneObject
-from softpipe.shadowmap import ShadowSettings, depth_texture, light_visibility, texture_compare
+from softpipe.shadowmap import ShadowSettings, depth_texture, shadow_map_visibility as light_visibility, texture_compare
 from softpipe.shadows import casters_of
 from softpipe.transforms import orthographic, rotate, scale, translate
 
