@@ -87,6 +87,9 @@ from collections import namedtuple
 
 import numba
 import numpy as np
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from ._parallel import in_bands
 
@@ -111,7 +114,7 @@ BVHUniform.__doc__ = """A BVH as a shader receives it: its numpy arrays (see :cl
 
 # ----------------------------------------------------------- the triangle test
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _two_product(a, b):
     """a·b = p + e exactly (Dekker's product with Veltkamp's split; no overflow or underflow assumed)."""
     p = a * b
@@ -125,7 +128,7 @@ def _two_product(a, b):
     return p, e
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _two_sum(a, b):
     """a + b = s + e exactly (Knuth)."""
     s = a + b
@@ -134,7 +137,7 @@ def _two_sum(a, b):
     return s, e
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _exact_cross(a, b, c, d):
     """a·b − c·d with the exact sign (0 only when it is exactly 0), and nearly its value.
 
@@ -145,27 +148,30 @@ def _exact_cross(a, b, c, d):
     """
     p1, e1 = _two_product(a, b)
     p2, e2 = _two_product(c, d)
-    terms = (e1, -e2, p1, -p2)
-    h = np.zeros(4)
-    n = 0
-    for b_ in terms:
-        q = b_
-        for i in range(n):
-            q, err = _two_sum(q, h[i])
-            h[i] = err
-        h[n] = q
-        n += 1
-    s = 0.0
-    for i in range(4):
-        s += h[i]
+    # grow the expansion by e1, −e2, p1, −p2 (each step: TwoSum through the components, smallest first)
+    h0 = e1
+    q, h0 = _two_sum(-e2, h0)
+    h1 = q
+    q, h0 = _two_sum(p1, h0)
+    q, h1 = _two_sum(q, h1)
+    h2 = q
+    q, h0 = _two_sum(-p2, h0)
+    q, h1 = _two_sum(q, h1)
+    q, h2 = _two_sum(q, h2)
+    h3 = q
+    s = ((h0 + h1) + h2) + h3
     if s == 0.0:                             # the rounded sum cancelled: the largest nonzero part decides
-        for i in range(3, -1, -1):
-            if h[i] != 0.0:
-                return h[i]
+        if h3 != 0.0:
+            return h3
+        if h2 != 0.0:
+            return h2
+        if h1 != 0.0:
+            return h1
+        return h0
     return s
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _ray_space(dx, dy, dz):
     """The shear of Woop et al. for direction (dx, dy, dz): (kx, ky, kz, Sx, Sy, Sz).
 
@@ -192,7 +198,7 @@ def _ray_space(dx, dy, dz):
     return kx, ky, kz, d[kx] / dkz, d[ky] / dkz, 1.0 / dkz
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _hit_sheared(ax, ay, az, bx, by, bz, cx, cy, cz, kx, ky, kz, sx, sy, sz, t_min, t_max):
     """The watertight test on corners already relative to the origin, in axis order (kx, ky, kz)."""
     # shear the corners into ray space (x', y'); z' scaled below
@@ -222,7 +228,7 @@ def _hit_sheared(ax, ay, az, bx, by, bz, cx, cy, cz, kx, ky, kz, sx, sy, sz, t_m
     return True, t, V / det, W / det
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def intersect_triangle(v0, v1, v2, origin, direction, t_min, t_max):
     """Watertight ray/triangle test (Woop, Benthin and Wald 2013): (hit, t, b1, b2).
 
@@ -245,19 +251,58 @@ def intersect_triangle(v0, v1, v2, origin, direction, t_min, t_max):
                         kx, ky, kz, sx, sy, sz, float(t_min), float(t_max))
 
 
-@numba.njit(cache=True, nogil=True)
-def _hit_stored(bvh, k, ox, oy, oz, kx, ky, kz, sx, sy, sz, t_min, t_max):
-    """The watertight test on the BVH's k-th triangle (leaf order); (ox, oy, oz) is the origin in (kx, ky, kz) order."""
-    v0, v1, v2 = bvh.v0, bvh.v1, bvh.v2
-    return _hit_sheared(v0[k, kx] - ox, v0[k, ky] - oy, v0[k, kz] - oz,
-                        v1[k, kx] - ox, v1[k, ky] - oy, v1[k, kz] - oz,
-                        v2[k, kx] - ox, v2[k, ky] - oy, v2[k, kz] - oz,
-                        kx, ky, kz, sx, sy, sz, t_min, t_max)
-
-
 # ------------------------------------------------------------------ traversal
 
-@numba.njit(cache=True, nogil=True)
+# Why two intrinsics. numba counts references to every array a compiled function
+# receives: an atomic add on entry and an atomic subtract on exit, per array, per
+# call. For a ray that is 16 atomic operations on the BVH's 8 arrays (measured: 70
+# of the 120 ns a ray that misses the root box cost; two threads contend for the
+# same counters), and np.empty for the traversal stack costs a heap allocation per
+# ray. So the traversal works on *borrowed* arrays (the same data with no owner
+# attached, so there is nothing to count; only used while the caller holds the
+# BVH) and on a stack in the function's own frame (an alloca, as C would).
+
+@intrinsic
+def _borrowed(typingctx, arr):
+    """The array ``arr`` without its owner (meminfo NULL): numba counts no references to it.
+
+    Only for use inside the call that received ``arr``: the data stay alive
+    because the caller holds the original.
+    """
+    if not isinstance(arr, types.Array):
+        return None
+
+    def codegen(context, builder, signature, args):
+        a = context.make_array(arr)(context, builder, value=args[0])
+        a.meminfo = cgutils.get_null_value(a.meminfo.type)
+        return a._getvalue()
+    return arr(arr), codegen
+
+
+def _frame_stack(dtype):
+    """An intrinsic making a [MAX_DEPTH] array of ``dtype`` in the calling function's stack frame."""
+    array_type = types.Array(dtype, 1, "C")
+
+    @intrinsic
+    def stack(typingctx):
+        def codegen(context, builder, signature, args):
+            item = context.get_data_type(dtype)
+            size = context.get_abi_sizeof(item)
+            data = cgutils.alloca_once(builder, item, size=MAX_DEPTH)
+            out = context.make_array(array_type)(context, builder)
+            intp = lambda v: context.get_constant(types.intp, v)  # noqa: E731
+            context.populate_array(out, data=data, shape=cgutils.pack_array(builder, [intp(MAX_DEPTH)]),
+                                   strides=cgutils.pack_array(builder, [intp(size)]), itemsize=intp(size),
+                                   meminfo=None)
+            return out._getvalue()
+        return array_type(), codegen
+    return stack
+
+
+_node_stack = _frame_stack(types.int64)
+_t_stack = _frame_stack(types.float64)
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _inverse(d):
     """1/d, with ±inf for ±0 (the sign of the zero kept)."""
     if d == 0.0:
@@ -265,35 +310,39 @@ def _inverse(d):
     return 1.0 / d
 
 
-@numba.njit(cache=True, nogil=True)
-def _box_entry(lo, hi, node, ox, oy, oz, ix, iy, iz, t0, t1):
-    """pbrt's robust slab test of node's box on [t0, t1]: the entry t, or +inf for a miss.
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _slab(lo, hi, o, inv, t0, t1):
+    """One slab of pbrt's robust test: the ray's [t0, t1] narrowed to lo ≤ o + t·d ≤ hi.
 
-    ``(o − lo)·inv`` is NaN when the origin lies on a slab plane and the
-    direction is 0 along it; ``t > t0 ? t : t0`` then keeps t0 (the slab does not
-    constrain a ray lying in its plane), as in pbrt.
+    ``(lo − o)·inv`` is NaN when the origin lies on the slab's plane and the
+    direction is 0 along it: ``t > t0 ? t : t0`` then keeps t0 (a ray lying in the
+    plane is not constrained by it), as in pbrt.
     """
-    o3 = (ox, oy, oz)
-    i3 = (ix, iy, iz)
-    for a in range(3):
-        tn = (lo[node, a] - o3[a]) * i3[a]
-        tf = (hi[node, a] - o3[a]) * i3[a]
-        if tn > tf:
-            tn, tf = tf, tn
-        tf *= SLAB_PAD
-        t0 = tn if tn > t0 else t0
-        t1 = tf if tf < t1 else t1
-        if t0 > t1:
-            return math.inf
-    return t0
+    tn = (lo - o) * inv
+    tf = (hi - o) * inv
+    if tn > tf:
+        tn, tf = tf, tn
+    tf *= SLAB_PAD
+    t0 = tn if tn > t0 else t0
+    t1 = tf if tf < t1 else t1
+    return t0, t1
 
 
-@numba.njit(cache=True, nogil=True)
-def _traverse(bvh, origin, direction, t_min, t_max, any_):
-    ox, oy, oz = float(origin[0]), float(origin[1]), float(origin[2])
-    dx, dy, dz = float(direction[0]), float(direction[1]), float(direction[2])
-    t_min, t_max = float(t_min), float(t_max)
-    lo, hi, first, count, order = bvh.lo, bvh.hi, bvh.first, bvh.count, bvh.order
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _box_entry(lo, hi, node, ox, oy, oz, ix, iy, iz, t0, t1):
+    """pbrt's robust slab test of node's box on [t0, t1]: the entry t, or +inf for a miss."""
+    t0, t1 = _slab(lo[node, 0], hi[node, 0], ox, ix, t0, t1)
+    t0, t1 = _slab(lo[node, 1], hi[node, 1], oy, iy, t0, t1)
+    t0, t1 = _slab(lo[node, 2], hi[node, 2], oz, iz, t0, t1)
+    return t0 if t0 <= t1 else math.inf
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _traverse(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
+              stack_node, stack_t):
+    """The stack traversal behind both queries, compiled into each caller (``inline="always"``) on
+    borrowed arrays. ``stack_node``, ``stack_t`` [MAX_DEPTH]: the far children put aside, and the t
+    where each one's box begins (a node whose box begins beyond the nearest hit is skipped)."""
     best_id, best_t, best_b1, best_b2 = -1, t_max, 0.0, 0.0
     if lo.shape[0] == 0:
         return best_id, best_t, best_b1, best_b2
@@ -303,8 +352,6 @@ def _traverse(bvh, origin, direction, t_min, t_max, any_):
     o3 = (ox, oy, oz)
     okx, oky, okz = o3[kx], o3[ky], o3[kz]
     ix, iy, iz = _inverse(dx), _inverse(dy), _inverse(dz)
-    stack_node = np.empty(MAX_DEPTH, np.int64)
-    stack_t = np.empty(MAX_DEPTH, np.float64)
     top = 0
     node = 0
     if _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, t_max) == math.inf:
@@ -314,12 +361,16 @@ def _traverse(bvh, origin, direction, t_min, t_max, any_):
         if n > 0:                            # a leaf: its triangles
             f = first[node]
             for k in range(f, f + n):
-                hit, t, b1, b2 = _hit_stored(bvh, k, okx, oky, okz, kx, ky, kz, sx, sy, sz, t_min, t_max)
+                hit, t, b1, b2 = _hit_sheared(
+                    v0[k, kx] - okx, v0[k, ky] - oky, v0[k, kz] - okz,
+                    v1[k, kx] - okx, v1[k, ky] - oky, v1[k, kz] - okz,
+                    v2[k, kx] - okx, v2[k, ky] - oky, v2[k, kz] - okz,
+                    kx, ky, kz, sx, sy, sz, t_min, t_max)
                 if hit:
                     tri = order[k]
                     if any_:
                         return tri, t, b1, b2
-                    if t < best_t or (t == best_t and (best_id < 0 or tri < best_id)):
+                    if t < best_t or (t == best_t and tri < best_id):
                         best_id, best_t, best_b1, best_b2 = tri, t, b1, b2
         else:                                # an inner node: the nearer child first
             left, right = node + 1, first[node]
@@ -347,7 +398,14 @@ def _traverse(bvh, origin, direction, t_min, t_max, any_):
                 break
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _query(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t_min, t_max, any_):
+    """One ray on borrowed arrays, with its stack in this frame."""
+    return _traverse(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
+                     _node_stack(), _t_stack())
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def closest_hit(bvh, origin, direction, t_min, t_max):
     """The nearest triangle on the ray in the open interval (t_min, t_max): (id, t, b1, b2).
 
@@ -357,23 +415,30 @@ def closest_hit(bvh, origin, direction, t_min, t_max):
     t the lowest triangle id wins, so the answer does not depend on the tree.
     The hit point is (1 − b1 − b2)·v0 + b1·v1 + b2·v2 of triangle ``id``.
     """
-    return _traverse(bvh, origin, direction, t_min, t_max, False)
+    return _query(_borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), _borrowed(bvh.count),
+                  _borrowed(bvh.order), _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2),
+                  float(origin[0]), float(origin[1]), float(origin[2]),
+                  float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max), False)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def any_hit(bvh, origin, direction, t_min, t_max):
     """Whether any triangle lies on the ray in (t_min, t_max): stops at the first one found (shadow rays, §21)."""
-    return _traverse(bvh, origin, direction, t_min, t_max, True)[0] >= 0
+    return _query(_borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), _borrowed(bvh.count),
+                  _borrowed(bvh.order), _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2),
+                  float(origin[0]), float(origin[1]), float(origin[2]),
+                  float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max),
+                  True)[0] >= 0
 
 
 # ------------------------------------------------------------------ the build
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _area(dx, dy, dz):
     return 2.0 * (dx * dy + dy * dz + dz * dx)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, order):
     """Binned SAH build into preallocated node arrays; returns (node count, deepest leaf's depth)."""
     T = tri_lo.shape[0]
@@ -507,7 +572,7 @@ def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, or
     return nodes, deepest
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _gather_kernel(vertices, triangles, order, v0, v1, v2):
     """The corners of every triangle, in leaf order."""
     for k in range(order.shape[0]):
@@ -518,7 +583,7 @@ def _gather_kernel(vertices, triangles, order, v0, v1, v2):
             v2[k, a] = vertices[triangles[t, 2], a]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _refit_kernel(lo, hi, first, count, v0, v1, v2):
     """Node boxes bottom-up: children come after their parent in depth-first order, so walk backwards."""
     for node in range(lo.shape[0] - 1, -1, -1):
@@ -540,10 +605,17 @@ def _refit_kernel(lo, hi, first, count, v0, v1, v2):
 
 # ------------------------------------------------------------- batches of rays
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _closest_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, ids, ts, bs):
+    stack_node, stack_t = _node_stack(), _t_stack()
+    lo, hi, first, count, order = _borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), \
+        _borrowed(bvh.count), _borrowed(bvh.order)
+    v0, v1, v2 = _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2)
     for r in range(lo_, hi_):
-        i, t, b1, b2 = closest_hit(bvh, origins[r], directions[r], t_min[r], t_max[r])
+        i, t, b1, b2 = _traverse(lo, hi, first, count, order, v0, v1, v2,
+                                 origins[r, 0], origins[r, 1], origins[r, 2],
+                                 directions[r, 0], directions[r, 1], directions[r, 2],
+                                 t_min[r], t_max[r], False, stack_node, stack_t)
         ids[r] = i
         if i >= 0:
             ts[r], bs[r, 0], bs[r, 1] = t, b1, b2
@@ -551,10 +623,17 @@ def _closest_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, ids, ts, b
             ts[r], bs[r, 0], bs[r, 1] = np.inf, 0.0, 0.0
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _any_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, out):
+    stack_node, stack_t = _node_stack(), _t_stack()
+    lo, hi, first, count, order = _borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), \
+        _borrowed(bvh.count), _borrowed(bvh.order)
+    v0, v1, v2 = _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2)
     for r in range(lo_, hi_):
-        out[r] = any_hit(bvh, origins[r], directions[r], t_min[r], t_max[r])
+        out[r] = _traverse(lo, hi, first, count, order, v0, v1, v2,
+                           origins[r, 0], origins[r, 1], origins[r, 2],
+                           directions[r, 0], directions[r, 1], directions[r, 2],
+                           t_min[r], t_max[r], True, stack_node, stack_t)[0] >= 0
 
 
 def _describe(a: np.ndarray) -> str:
