@@ -4,6 +4,7 @@
     softpipe render MODEL.obj -o out.png            any OBJ file, the same way
     softpipe render SCENE.toml -o out.png           a scene file (softpipe.scenefile)
     softpipe turntable MODEL -o spin.gif            an animated GIF, the camera circling the model
+    softpipe explore MODEL -o report.html           the pipeline explorer: every stage, every pixel's history (softpipe.explore)
     softpipe batch JOBS.toml -o DIR                 every frame of a job, on a Dask cluster (softpipe.batch)
     softpipe demo                                   the default scene
     softpipe programs                               the shading programs and sample patterns
@@ -263,6 +264,24 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--no-shadows", action="store_true",
                       help="the same scene without shadows (every light reaches every point)")
     demo.set_defaults(run=_demo)
+
+    explore = sub.add_parser(
+        "explore", help="write the pipeline explorer: every stage of a render as one HTML page to point at",
+        description="Render INPUT with every draw traced and write one self-contained HTML page (no server, no "
+                    "network): every stage's picture; click a pixel to see its history (every fragment of every "
+                    "draw, its varyings, shader output, depth test and the color after), the winning triangle "
+                    "outlined in every picture with its vertices in object, clip and window coordinates, and a "
+                    "zoom with the pixel centres and sample positions; arrow keys move the pixel. See "
+                    "docs/explorer.md.\n\nIn Python: trace.to_html(PAGE), or "
+                    "softpipe.explore.write_explorer(results, PAGE).",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    explore.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
+    explore.add_argument("-o", "--output", metavar="PAGE", help="the .html page to write; default out/NAME.html")
+    explore.add_argument("--max-fragments", type=_size, metavar="N",
+                         help="hold every pixel's history while the draws made at most N fragments (default "
+                              "400000); beyond, the history of a regular grid of pixels (the page says which)")
+    _add_view_options(explore, "640x480")
+    explore.set_defaults(run=_explore)
 
     programs = sub.add_parser("programs", help="list the shading programs and sample patterns",
                               description="List the registered shading programs (for --program and a scene's "
@@ -529,6 +548,36 @@ def _render(args) -> int:
     return 0
 
 
+def _html_format(path: str) -> str:
+    if Path(path).suffix.lower() not in (".html", ".htm"):
+        raise CLIError(f"{path}: the explorer is an HTML page: give an .html output")
+    return "HTML"
+
+
+def _explore(args) -> int:
+    from .drawing import RENDER_SIZE, render
+    from .explore import MAX_FRAGMENTS, write_explorer
+    start = time.perf_counter()
+    output = _default_output(args, ".html")
+    if output == STDOUT:
+        raise CLIError("-o -: the explorer is written to a file (give an .html path)")
+    output = _checked_output(args, output, _html_format)
+    scene = _prepare(args, RENDER_SIZE)
+
+    def progress(k, total, obj):
+        if total > 1:
+            _progress(args, f"draw {k + 1}/{total}: {obj.name} ({obj.mesh.triangle_count} triangles)")
+
+    results: list = []
+    render(scene, trace=True, results=results, progress=progress)
+    _progress(args, "gathering every pixel's history")
+    summary = write_explorer(results, output, max_fragments=args.max_fragments or MAX_FRAGMENTS,
+                             progress=lambda done, total: _progress(args, f"fragment {done}/{total}"))
+    _wrote(args, output, f"wrote {summary.path.resolve()} ({summary.bytes / 1e6:.1f} MB, {scene.width}×{scene.height}, "
+                         f"{len(results)} draw(s); {summary.held['statement']}; {time.perf_counter() - start:.2f} s)")
+    return 0
+
+
 def _turntable(args) -> int:
     from .drawing import TURNTABLE_SIZE, frame_duration, turntable
     start = time.perf_counter()
@@ -569,7 +618,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except SystemExit as e:  # --help, --version
         return int(e.code or 0) if not isinstance(e.code, str) else 2
     if not getattr(args, "command", None):
-        print("softpipe: error: a command is required: render, turntable, batch, demo or programs "
+        print("softpipe: error: a command is required: render, turntable, batch, explore, demo or programs "
               "(see 'softpipe --help')", file=sys.stderr)
         return 2
     try:
