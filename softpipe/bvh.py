@@ -439,6 +439,31 @@ def _area(dx, dy, dz):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def _select(order, s, e, k, cen, a):
+    """Reorder ``order[s:e]`` so that the k-th has the median centroid along axis a: none before it
+    larger, none after it smaller (Hoare's quickselect; deterministic)."""
+    lo_, hi_ = s, e - 1
+    while lo_ < hi_:
+        pivot = cen[order[(lo_ + hi_) // 2], a]
+        i, j = lo_, hi_
+        while i <= j:
+            while cen[order[i], a] < pivot:
+                i += 1
+            while cen[order[j], a] > pivot:
+                j -= 1
+            if i <= j:
+                order[i], order[j] = order[j], order[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi_ = j
+        elif k >= i:
+            lo_ = i
+        else:
+            return
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, order):
     """Binned SAH build into preallocated node arrays; returns (node count, deepest leaf's depth)."""
     T = tri_lo.shape[0]
@@ -465,7 +490,7 @@ def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, or
     bin_hi = np.empty((3, bins, 3))
     right_area = np.empty(bins)
     right_n = np.empty(bins, np.int64)
-    keys = np.empty(T)
+    clo, chi = np.empty(3), np.empty(3)
     while top > 0:
         top -= 1
         s, e, parent, depth = ts[top], te[top], tp[top], td[top]
@@ -474,9 +499,8 @@ def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, or
         if parent >= 0:                      # only right children are pushed with a parent
             first[parent] = node
         # the node's box and its centroids' box
-        clo = np.full(3, np.inf)
-        chi = np.full(3, -np.inf)
         for a in range(3):
+            clo[a], chi[a] = np.inf, -np.inf
             lo[node, a] = np.inf
             hi[node, a] = -np.inf
         for i in range(s, e):
@@ -552,18 +576,13 @@ def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, or
             mid = i
         else:
             # no plane separates the centroids (or the tree is deep): halve at the median
-            # along the centroids' widest axis (stable, so ties keep their order)
+            # along the centroids' widest axis
             a = 0
             for c in range(1, 3):
                 if chi[c] - clo[c] > chi[a] - clo[a]:
                     a = c
-            for i in range(s, e):
-                keys[i] = cen[order[i], a]
-            perm = np.argsort(keys[s:e], kind="mergesort")
-            chunk = order[s:e].copy()
-            for i in range(n):
-                order[s + i] = chunk[perm[i]]
             mid = s + n // 2
+            _select(order, s, e, mid, cen, a)
         # right child below the left on the stack: the left is built next, at node + 1
         ts[top], te[top], tp[top], td[top] = mid, e, node, depth + 1
         top += 1

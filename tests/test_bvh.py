@@ -257,6 +257,35 @@ def test_the_njit_queries_are_callable_from_compiled_code():
     assert shade(bvh.uniform, 2.5)[2] is False and shade(bvh.uniform, 3.0)[0] == tri
 
 
+def _sphere_shadow_shader(varyings, uniforms, frag):
+    """A ray straight down -z from above each pixel's point of the square [-1, 1]²: white where it hits."""
+    x, y = varyings.xy[0], varyings.xy[1]
+    tri, t, b1, b2 = closest_hit(uniforms.scene, (x, y, 3.0), (0.0, 0.0, -1.0), 0.0, math.inf)
+    blocked = any_hit(uniforms.scene, (x, y, 3.0), (0.0, 0.0, -1.0), 0.0, math.inf)
+    return (1.0 if tri >= 0 else 0.0, t / 4.0 if tri >= 0 else 0.0, 1.0 if blocked else 0.0, 1.0)
+
+
+def test_a_fragment_shader_takes_the_bvh_as_a_uniform():
+    """The BVH passed like any uniform (``__softpipe_uniform__``): a shader's rays equal the batch queries."""
+    import softpipe as sp
+    m = shapes.icosphere(0.6, 3)
+    bvh = BVH.build(m.positions, m.indices)
+    corners = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1.0]])
+    fb = sp.Framebuffer(48, 48)
+    sp.draw(fb, corners, [0, 1, 2, 0, 2, 3], varyings={"xy": corners[:, :2].copy()},
+            fragment_shader=_sphere_shadow_shader, uniforms={"scene": bvh})
+    image = fb.color[::-1]                      # image rows top down → window rows y up
+    # the same rays through the batch API, at pixel (i, j)'s centre
+    j, i = np.mgrid[0:48, 0:48]
+    x, y = (i + 0.5) / 48 * 2 - 1, (j + 0.5) / 48 * 2 - 1
+    o = np.stack([x.ravel(), y.ravel(), np.full(x.size, 3.0)], axis=1)
+    ids, t, _ = bvh.closest(o, np.tile([0.0, 0.0, -1.0], (x.size, 1)))
+    hit = (ids >= 0).reshape(48, 48)
+    assert 500 < hit.sum() < 48 * 48 - 500
+    assert np.array_equal(image[..., 0] == 1.0, hit) and np.array_equal(image[..., 2] == 1.0, hit)
+    assert np.allclose(image[..., 1][hit], (t.reshape(48, 48)[hit] / 4).astype(np.float32), rtol=1e-6, atol=1e-6)
+
+
 # ------------------------------------------------------------------ the tree
 
 def _check_structure(bvh, vertices, triangles):
