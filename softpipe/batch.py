@@ -669,24 +669,24 @@ def _render_png(frame: Frame, mesh: Mesh, material: Optional[Dict[str, Any]], li
 
 
 def _render_task(frame: Frame, mesh: Mesh, material, lights: LightSet, background, fovy,
-                 numba_threads: Optional[int]) -> Tuple[bytes, str, float]:
-    """What a worker runs: the frame's PNG, its SHA-256 and the seconds it took."""
+                 numba_threads: Optional[int]) -> Tuple[bytes, str, float, float]:
+    """What a worker runs: the frame's PNG, its SHA-256, and the seconds it took (wall clock, CPU)."""
     _maybe_crash(frame)
     if numba_threads:
         import numba
         numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     png = _render_png(frame, mesh, material, lights, background, fovy)
-    return png, hashlib.sha256(png).hexdigest(), time.perf_counter() - start
+    return png, hashlib.sha256(png).hexdigest(), time.perf_counter() - start, time.process_time() - cpu
 
 
-def _cluster_task(*args: Any) -> Tuple[Optional[bytes], str, float]:
-    """:func:`_render_task` on a worker; a frame's error comes back as its line (``None, line, 0``),
+def _cluster_task(*args: Any) -> Tuple[Optional[bytes], str, float, float]:
+    """:func:`_render_task` on a worker; a frame's error comes back as its line (``None, line, 0, 0``),
     so that the worker logs nothing and Dask does not take it for a lost worker."""
     try:
         return _render_task(*args)
     except Exception as e:  # noqa: BLE001 - the client reports it with the frame's name
-        return None, _error_line(e), 0.0
+        return None, _error_line(e), 0.0, 0.0
 
 
 def _maybe_crash(frame: Frame) -> None:
@@ -709,12 +709,14 @@ def _maybe_crash(frame: Frame) -> None:
 
 @dataclass
 class FrameRecord:
-    """A frame written: its name, file, SHA-256 of the file and the seconds its render took."""
+    """A frame written: its name, file, SHA-256 of the file, and the seconds its render (and PNG
+    encoding) took on its worker, on the wall clock and of CPU time (all its threads)."""
 
     name: str
     output: Path
     sha256: str
     seconds: float
+    cpu_seconds: float = 0.0
 
 
 @dataclass
@@ -917,14 +919,14 @@ class _Run:
         self.progress(BatchProgress(len(r.done), len(r.skipped), len(r.failed), self.total, elapsed, eta,
                                     frame, error))
 
-    def wrote(self, frame: Frame, png: bytes, sha: str, seconds: float, manifest: _Manifest) -> None:
+    def wrote(self, frame: Frame, png: bytes, sha: str, seconds: float, cpu: float, manifest: _Manifest) -> None:
         """Write a frame's file (whole or not at all), then its manifest line."""
         from .files import atomic_write
         path = self.out / f"{frame.name}.png"
         atomic_write(path, lambda f: f.write(png))
         manifest.append({"name": frame.name, "params": frame.params(), "output": path.name, "sha256": sha,
                          "seconds": round(seconds, 4)})
-        self.result.done.append(FrameRecord(frame.name, path, sha, seconds))
+        self.result.done.append(FrameRecord(frame.name, path, sha, seconds, cpu))
         self.report(frame.name)
 
     def failed(self, frame: Frame, error: str) -> None:
@@ -940,12 +942,12 @@ def _error_line(e: BaseException) -> str:
 def _run_serial(todo: List[Frame], meshes: Dict[str, Mesh], job: Job, state: _Run, manifest: _Manifest) -> None:
     for frame in todo:
         try:
-            png, sha, seconds = _render_task(frame, meshes[frame.model], _frame_material(job, frame),
+            png, sha, seconds, cpu = _render_task(frame, meshes[frame.model], _frame_material(job, frame),
                                              job.lights[frame.lights], job.background, job.fovy, None)
         except Exception as e:  # noqa: BLE001 - a frame's error is reported, the others go on
             state.failed(frame, _error_line(e))
             continue
-        state.wrote(frame, png, sha, seconds, manifest)
+        state.wrote(frame, png, sha, seconds, cpu, manifest)
 
 
 def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_threads, dashboard, log) -> None:
@@ -960,7 +962,8 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
         if scheduler is None:
             n = workers or os.cpu_count() or 1
             cluster = stack.enter_context(LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
+                n_workers=n, threads_per_worker=1, processes=True,
+                dashboard_address=":0" if dashboard is None else dashboard,   # None would still take :8787
                 silence_logs=logging.ERROR))   # a frame's error is reported once, by the client
             client = stack.enter_context(Client(cluster))
             if log is not None:
@@ -987,14 +990,14 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
             for future in as_completed([f for f, _ in futures.values()]):
                 frame = futures[future.key][1]
                 try:
-                    png, sha, seconds = future.result()
+                    png, sha, seconds, cpu = future.result()
                 except Exception as e:  # noqa: BLE001 - a lost frame (KilledWorker, ...) is reported too
                     state.failed(frame, _error_line(e))
                 else:
                     if png is None:
                         state.failed(frame, sha)
                     else:
-                        state.wrote(frame, png, sha, seconds, manifest)
+                        state.wrote(frame, png, sha, seconds, cpu, manifest)
                 future.release()
         finally:
             for future, _ in futures.values():
@@ -1046,3 +1049,87 @@ class _CallableModule(types.ModuleType):
 
 
 sys.modules[__name__].__class__ = _CallableModule
+
+
+# ---------------------------------------------------------------------------- python -m softpipe.batch: scaling
+
+
+def _warm(job_text: str) -> None:
+    """On a worker: render the job's first frame small, so its kernels are loaded before the timing."""
+    job = parse_job(job_text)
+    frame = dataclasses.replace(job.frames[0], width=64, height=48)
+    render_frame(frame, job.load_models()[frame.model], job)
+
+
+def bench(model: str = "bunny", frames: int = 36, size: str = "640x480", workers: Sequence[int] = (1, 2),
+          repeats: int = 5, out: Optional[Callable[[str], None]] = print) -> Dict[int, float]:
+    """Frames per second of a ``frames``-frame turntable of ``model`` on LocalClusters of ``workers``.
+
+    Every cluster is started and warmed first (each worker renders one small frame: its
+    kernels loaded from the on-disk cache), then the clusters take turns rendering the
+    whole turntable (``force``, no contact sheet), ``repeats`` times each, so that a
+    change in the machine's load falls on all of them alike; the median time counts.
+    Also reported: a frame's median render time on a worker (wall clock, CPU), and the client's CPU time
+    (writing the files and the manifest, and the LocalCluster's scheduler, which runs
+    in the client process) per frame. Returns workers → frames/s.
+    """
+    import contextlib
+    import statistics
+    import tempfile
+
+    from distributed import Client, LocalCluster
+    text = f'[sweep]\nmodels = ["{model}"]\norbit = {{ frames = {frames} }}\nsizes = ["{size}"]\n'
+    job = parse_job(text, "<bench>")
+    times: Dict[int, List[float]] = {n: [] for n in workers}
+    per_frame: Dict[int, List[float]] = {n: [] for n in workers}
+    cpu_frame: Dict[int, List[float]] = {n: [] for n in workers}
+    client_cpu: Dict[int, List[float]] = {n: [] for n in workers}
+    with contextlib.ExitStack() as stack:
+        clients = {}
+        for n in workers:
+            cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                       dashboard_address=":0", silence_logs=logging.ERROR))
+            clients[n] = stack.enter_context(Client(cluster))
+            clients[n].run(_warm, text)
+        tmp = stack.enter_context(tempfile.TemporaryDirectory())
+        for _ in range(repeats):
+            for n in workers:
+                cpu = time.process_time()
+                result = batch(job, tmp, clients[n], force=True, contact_sheet=False)
+                client_cpu[n].append((time.process_time() - cpu) / frames)
+                assert not result.failed, result.failed
+                times[n].append(result.seconds)
+                per_frame[n].extend(r.seconds for r in result.done)
+                cpu_frame[n].extend(r.cpu_seconds for r in result.done)
+    rates = {n: frames / statistics.median(times[n]) for n in workers}
+    if out is not None:
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+        out(f"{frames}-frame {model} turntable at {size}, {os.cpu_count()} cores, load average {load:.2f}:")
+        for n in workers:
+            out(f"  {n} worker{'s' if n > 1 else ' '}: {rates[n]:5.2f} frames/s (median of "
+                f"{', '.join(f'{t:.2f}' for t in times[n])} s); a frame renders in "
+                f"{statistics.median(per_frame[n]) * 1000:.0f} ms on a worker "
+                f"({statistics.median(cpu_frame[n]) * 1000:.0f} ms of CPU); client CPU "
+                f"{statistics.median(client_cpu[n]) * 1000:.0f} ms per frame")
+        if 1 in rates:
+            for n in workers:
+                if n > 1:
+                    out(f"  efficiency at {n} workers: {rates[n] / (n * rates[1]):.2f} "
+                        f"(speed-up {rates[n] / rates[1]:.2f}×)")
+    return rates
+
+
+if __name__ == "__main__":
+    import argparse
+    parser = argparse.ArgumentParser(prog="python -m softpipe.batch",
+                                     description="Measure softpipe batch's frames/s on LocalClusters of 1, 2, … "
+                                                 "workers: a turntable of a bundled model.")
+    parser.add_argument("--model", default="bunny")
+    parser.add_argument("--frames", type=int, default=36)
+    parser.add_argument("--size", default="640x480")
+    parser.add_argument("--workers", default="1,2", help="comma-separated worker counts (default 1,2)")
+    parser.add_argument("--repeats", type=int, default=5)
+    options = parser.parse_args()
+    from softpipe.batch import bench as _bench     # the module's own copy: what the workers unpickle
+    _bench(options.model, options.frames, options.size, [int(w) for w in options.workers.split(",")],
+           options.repeats)
