@@ -227,6 +227,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="image to write; the format follows the extension (.png, .jpg, .bmp, .tif, ...); "
                              "default out/NAME.png; '-' writes a PNG to stdout")
     _add_view_options(render, "640x480")
+    render.add_argument("--raytrace", action="store_true",
+                        help="ray trace the scene instead (Whitted: shadow rays, mirrors and glass, FORMULAS §11, "
+                             "§16-§22) with the same camera, materials and lights")
     render.add_argument("--stages", metavar="DIR",
                         help="also trace every draw and write each stage's picture (vertices, primitives, coverage, "
                              "depth, overdraw, final) and a contact sheet into DIR (one folder per draw when there "
@@ -537,6 +540,18 @@ def _render(args) -> int:
             _progress(args, f"draw {k + 1}/{total}: {obj.name} ({obj.mesh.triangle_count} triangles)")
 
     results: list = []
+    if args.raytrace:
+        if args.stages:
+            raise CLIError("--stages shows the rasterizer's stages; it does not apply with --raytrace")
+        from .raytrace import raytrace_scene
+        notes: list = []
+        fb = raytrace_scene(scene, notes=notes)
+        for note in notes:
+            _note(args, note)
+        where = _save_image(fb, output)
+        _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
+                             f"ray traced, {time.perf_counter() - start:.2f} s)")
+        return 0
     fb = render(scene, stages=args.stages, results=results, progress=progress)
     for r in results:
         for path in r.pictures.values():

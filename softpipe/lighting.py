@@ -224,7 +224,7 @@ def _casts_shadows_numba(lighting, j):
 
     def impl(lighting, j):
         rows = lighting.shadows.light_maps
-        return rows[j, 1] > 0 or rows[j, 2] == SHADOW_RAY
+        return (rows[j, 1] > 0) | (rows[j, 2] == SHADOW_RAY)   # no short-circuit: no branch for the inliner
     return impl
 
 

@@ -124,6 +124,13 @@ The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
     LIGHT_ATTENUATION, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_COS_CUTOFF,
     LIGHT_SPOT_EXPONENT, LIGHT_COLUMNS     the columns of a packed light
     LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT             the values of LIGHT_KIND
+Ray queries (:mod:`softpipe.rays`; GLSL's ``rayQueryEXT`` in spirit)
+    RayScene                 the scene as a uniform: ``uniforms={"scene": RayScene(objects)}``
+                             (the draw's ``view`` turns it to eye space: ``scene.uniform(view)``)
+    trace_closest            (triangle or −1, t, b1, b2) of the nearest hit on an eye-space ray
+    trace_any                whether anything lies on it (a shadow ray)
+    hit_position, hit_normal the hit's point and interpolated normal, eye space
+    ray_visibility           §21's shadow ray through transparent objects: V of a light
 What the uniforms are made from (:mod:`softpipe.material`, :mod:`softpipe.shaders.common`)
     Material, MaterialUniform, Light, Lighting, LightingUniform, ShadowSettings,
     lighting_uniform         the ``lighting`` uniform for a camera's view matrix
@@ -140,6 +147,7 @@ from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DI
                        LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
                        LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
                        LightingUniform, Material, MaterialUniform)
+from .rays import RayScene, hit_normal, hit_position, ray_visibility, trace_any, trace_closest
 from .shader import DISCARD, Derivatives, FragInfo, ShaderError
 from .shadowmap import ShadowSettings
 from .shaders import Program
@@ -173,6 +181,8 @@ __all__ = [
     "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR", "LIGHT_POSITION",
     "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF", "LIGHT_SPOT_EXPONENT",
     "LIGHT_COLUMNS", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
+    # ray queries
+    "RayScene", "trace_closest", "trace_any", "hit_position", "hit_normal", "ray_visibility",
     # what the uniforms are made from
     "Material", "MaterialUniform", "Light", "Lighting", "LightingUniform", "ShadowSettings", "lighting_uniform",
 ]

@@ -1,0 +1,397 @@
+"""A Whitted ray tracer of the same scene the rasterizer draws (FORMULAS §11, §16–§19, §21–§23).
+
+The rasterizer asks, per triangle, which pixels it covers; a ray tracer asks, per
+pixel, which triangle its ray meets first. Given the same :class:`~softpipe.scene.Scene`
+— objects, camera, materials, lights — :func:`raytrace_scene` makes the picture the
+second way, so that the two can be put side by side and any pixel asked why.
+
+Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − (y + ½)/h):
+
+1. **Primary ray** from the camera's near plane through the pixel, to its far plane —
+   the rasterizer clips at both, so both see the same surfaces.
+2. **Local color** at the nearest hit P: the object's program's lighting equation,
+   the *same* functions of :mod:`softpipe.lighting` the rasterizer's shaders call
+   (§10 for ``phong`` and its kin, §13's local terms for ``hall``, §26 for
+   ``cook_torrance``), with every light's V_j from a **shadow ray** (§21,
+   :func:`softpipe.rays.ray_visibility`: ε off the surface, through transparent
+   objects). N is the interpolated vertex normal, reversed on a back face (by the
+   triangle's winding, as the rasterizer's ``gl_FrontFacing``); V = −d. A primary ray
+   passes through the faces its object culls, as the rasterizer never drew them.
+3. **The ray tree** (§22): a material with reflection ``kr`` spawns the mirror ray
+   R = reflect(d, N) (§16) with weight w·kr; one with transmission ``kt`` the refracted
+   ray T (§17, §18; η = 1/ior entering an object, ior leaving it, the outside being
+   air, n = 1) with weight w·kt, or — beyond the critical angle, §19 — a reflected
+   ray carrying that weight too (total internal reflection sends everything to R).
+   The pixel is Σ weight × local color over the tree: §11's
+   c = local + k_r·trace(p, R) + k_t·trace(p, T), unrolled. A branch stops at
+   ``max_depth`` or when its weight falls below ``min_weight`` in every channel;
+   secondary rays start ε along their direction.
+4. A ray that meets nothing brings the background.
+
+:func:`ray_tree` records one pixel's tree as data — every ray with its kind, origin,
+direction, hit, local color and weight — and prints it, the ray tracer's pixel history.
+
+Not here yet: textures (a ``textured`` object is lit with its material's kd), Fresnel
+weighting and the Hall model's global terms with T^d (issue #17), area lights.
+"""
+from __future__ import annotations
+
+import time
+from collections import namedtuple
+from dataclasses import dataclass
+from typing import List, Optional
+
+import numpy as np
+from numba import njit
+
+from ._parallel import in_bands
+from .camera import Camera
+from .framebuffer import Framebuffer
+from .glsl import dot, reflect, refract, scale
+from .lighting import BLINN_PHONG, PHONG, cook_torrance_lighting, hall_local, opengl_lighting
+from .material import LightingUniform, MaterialUniform, pack_lights
+from .rays import RayScene, hit_normal
+from .bvh import closest_hit
+from .shadowmap import SHADOW_RAY, ShadowUniform
+
+__all__ = ["raytrace_scene", "ray_tree", "RayTree", "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
+
+#: How each program's local color is computed in the ray tracer (the others: as "phong", with a note).
+PROGRAM_CODES = {"phong": 0, "gouraud": 0, "flat": 0, "textured": 0, "phong_phong_specular": 1,
+                 "gouraud_phong_specular": 1, "flat_phong_specular": 1, "hall": 2, "cook_torrance": 3}
+#: The kinds of ray in a tree.
+RAY_KINDS = ("primary", "reflected", "refracted", "total internal reflection")
+#: The deepest tree allowed (2^(depth+1) rays at most per pixel).
+MAX_DEPTH_LIMIT = 12
+_MATERIAL_COLUMNS = 23
+_RECORD_COLUMNS = 21
+
+
+def _pack_material(m) -> np.ndarray:
+    return np.array([*m.ke, *m.ka, *m.kd, *m.ks, m.shininess, *m.kr, *m.kt, m.transmission_shininess,
+                     m.ior, m.opacity, m.roughness], np.float64)
+
+
+@njit(cache=True, inline="always")
+def _material(rows, k):
+    r = rows[k]
+    return MaterialUniform((r[0], r[1], r[2]), (r[3], r[4], r[5]), (r[6], r[7], r[8]), (r[9], r[10], r[11]), r[12],
+                           (r[13], r[14], r[15]), (r[16], r[17], r[18]), r[19], r[20], r[21], r[22])
+
+
+@njit(cache=True)
+def _local_color(code, P, N, V, material, lighting):
+    """The object's program's lighting at P (§10, §13, §26), every light's V_j from a shadow ray."""
+    if code == 1:
+        return opengl_lighting(P, N, V, material, lighting, PHONG)
+    if code == 2:
+        return hall_local(P, N, V, material, lighting, material.ior)
+    if code == 3:
+        return cook_torrance_lighting(P, N, V, material, lighting)
+    return opengl_lighting(P, N, V, material, lighting, BLINN_PHONG)
+
+
+@njit(cache=True)
+def _unit(v):
+    n = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return v[0] / n, v[1] / n, v[2] / n
+
+
+@njit(cache=True)
+def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, facing, background, max_depth,
+                 min_weight, record):
+    """The color of one primary ray, its tree walked with an explicit stack; the tree into ``record`` if it has rows."""
+    cap = 1 << (max_depth + 1)
+    so = np.empty((cap, 3))
+    sd = np.empty((cap, 3))
+    sw = np.empty((cap, 3))
+    s_depth = np.empty(cap, np.int64)
+    s_kind = np.empty(cap, np.int64)
+    s_parent = np.empty(cap, np.int64)
+    top = 0
+    so[0, 0], so[0, 1], so[0, 2] = origin[0], origin[1], origin[2]
+    sd[0, 0], sd[0, 1], sd[0, 2] = direction[0], direction[1], direction[2]
+    sw[0, 0], sw[0, 1], sw[0, 2] = 1.0, 1.0, 1.0
+    s_depth[0], s_kind[0], s_parent[0] = 0, 0, -1
+    top = 1
+    red, green, blue = 0.0, 0.0, 0.0
+    eps = scene.epsilon
+    n_recorded = 0
+    while top > 0:
+        top -= 1
+        o = (so[top, 0], so[top, 1], so[top, 2])
+        d = (sd[top, 0], sd[top, 1], sd[top, 2])
+        w = (sw[top, 0], sw[top, 1], sw[top, 2])
+        depth, kind, parent = s_depth[top], s_kind[top], s_parent[top]
+        if depth == 0:
+            tri, t, b1, b2 = _primary_hit(scene, o, d, far, facing)
+        else:
+            tri, t, b1, b2 = closest_hit(scene.bvh, o, d, eps, np.inf)
+        if tri < 0:
+            local = (background[0], background[1], background[2])
+        else:
+            obj = scene.triangle_object[tri]
+            P = (o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2])
+            N = hit_normal(scene, tri, b1, b2)
+            # front or back by the triangle's winding, as the rasterizer's gl_FrontFacing: a back face is
+            # lit with its normal reversed (facing_normal), and a ray meeting a front face enters the object
+            entering = dot((facing.normals[tri, 0], facing.normals[tri, 1], facing.normals[tri, 2]), d) < 0.0
+            if not entering:
+                N = scale(N, -1.0)
+            V = (-d[0], -d[1], -d[2])
+            m = _material(materials, obj)
+            local = _local_color(programs[obj], P, N, V, m, lighting)
+        red += w[0] * local[0]
+        green += w[1] * local[1]
+        blue += w[2] * local[2]
+        me = n_recorded
+        if n_recorded < record.shape[0]:
+            row = record[n_recorded]
+            row[0], row[1], row[2] = parent, kind, depth
+            row[3], row[4], row[5], row[6], row[7], row[8] = o[0], o[1], o[2], d[0], d[1], d[2]
+            row[9] = t if tri >= 0 else np.inf
+            row[10] = tri
+            row[11] = scene.triangle_object[tri] if tri >= 0 else -1
+            row[12], row[13], row[14] = local[0], local[1], local[2]
+            row[15], row[16], row[17] = w[0], w[1], w[2]
+            n_recorded += 1
+        if tri < 0 or depth >= max_depth:
+            continue
+        for branch in range(2):
+            k = m.kr if branch == 0 else m.kt
+            nw = (w[0] * k[0], w[1] * k[1], w[2] * k[2])
+            if max(nw[0], nw[1], nw[2]) < min_weight or top >= cap:
+                continue
+            if branch == 0:
+                nd, nk = reflect(d, N), 1                                # §16
+            else:
+                eta = 1.0 / m.ior if entering else m.ior                 # η = η_i/η_t, air outside
+                nd = refract(d, N, eta)                                  # §17, §18
+                nk = 2
+                if nd[0] == 0.0 and nd[1] == 0.0 and nd[2] == 0.0:       # §19: all of it reflected
+                    nd, nk = reflect(d, N), 3
+            nd = _unit(nd)
+            so[top, 0], so[top, 1], so[top, 2] = P[0], P[1], P[2]
+            sd[top, 0], sd[top, 1], sd[top, 2] = nd[0], nd[1], nd[2]
+            sw[top, 0], sw[top, 1], sw[top, 2] = nw[0], nw[1], nw[2]
+            s_depth[top], s_kind[top], s_parent[top] = depth + 1, nk, me
+            top += 1
+    return red, green, blue, n_recorded
+
+
+@njit(cache=True)
+def _primary_hit(scene, o, d, far, facing):
+    """The primary ray's nearest hit within the view volume that the rasterizer would have drawn: a face its
+    object culls (``facing.cull``: 1 back faces, 2 front faces) is passed through, as culling removed it."""
+    normals, cull = facing.normals, facing.cull
+    t_min = 0.0
+    for _ in range(64):
+        tri, t, b1, b2 = closest_hit(scene.bvh, o, d, t_min, far)
+        if tri < 0:
+            return tri, t, b1, b2
+        mode = cull[scene.triangle_object[tri]]
+        front = dot((normals[tri, 0], normals[tri, 1], normals[tri, 2]), d) < 0.0
+        if mode == 0 or (mode == 1 and front) or (mode == 2 and not front):
+            return tri, t, b1, b2
+        t_min = t                     # the open interval skips this face, and nothing else at t
+    return -1, far, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True)
+def _trace_rows(lo, hi, width, height, unproject, scene, lighting, materials, programs, facing, background,
+                max_depth, min_weight, out):
+    no_record = np.empty((0, _RECORD_COLUMNS))
+    for j in range(lo, hi):                 # image rows, top first
+        for i in range(width):
+            origin, direction, far = _primary_ray(unproject, i, j, width, height)
+            r, g, b, _ = _trace_pixel(origin, direction, far, scene, lighting, materials, programs, facing,
+                                      background, max_depth, min_weight, no_record)
+            out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = r, g, b, 1.0
+
+
+@njit(cache=True)
+def _primary_ray(unproject, i, j, width, height):
+    """The ray through the centre of pixel (i, image row j): (origin on the near plane, unit direction, the
+    distance to the far plane) — the rasterizer's view volume, so both see the same surfaces (§23)."""
+    x = 2.0 * (i + 0.5) / width - 1.0
+    y = 1.0 - 2.0 * (j + 0.5) / height
+    near = _unproject(unproject, x, y, -1.0)
+    far = _unproject(unproject, x, y, 1.0)
+    d = (far[0] - near[0], far[1] - near[1], far[2] - near[2])
+    return near, _unit(d), np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+
+
+@njit(cache=True)
+def _unproject(M, x, y, z):
+    v = np.empty(4)
+    for r in range(4):
+        v[r] = M[r, 0] * x + M[r, 1] * y + M[r, 2] * z + M[r, 3]
+    return v[0] / v[3], v[1] / v[3], v[2] / v[3]
+
+
+@dataclass
+class _Prepared:
+    scene: RayScene
+    uniform: object
+    lighting: LightingUniform
+    materials: np.ndarray
+    programs: np.ndarray
+    facing: "Facing"
+    background: np.ndarray
+    unproject: np.ndarray
+    notes: List[str]
+
+
+def _prepare(scene, camera: Optional[Camera]) -> _Prepared:
+    from .scene import program_for
+    camera = camera or scene.view_camera()
+    objects = scene.drawn_objects(camera)
+    rays = RayScene(objects)
+    notes = []
+    programs = []
+    for obj in objects:
+        name = program_for(obj, scene.program)
+        if name not in PROGRAM_CODES:
+            notes.append(f"{obj.name}: program {name!r} has no lighting equation for rays; lit as 'phong'")
+        elif name == "textured":
+            notes.append(f"{obj.name}: textures are not sampled by the ray tracer yet; lit with the material's kd")
+        programs.append(PROGRAM_CODES.get(name, 0))
+    lights = scene.lighting_for(camera)
+    packed = pack_lights(lights.lights, np.eye(4))          # world space: the ray tracer's "eye" space
+    n = len(lights.lights)
+    light_maps = np.zeros((n, 3), np.int64)
+    light_maps[:, 2] = SHADOW_RAY                           # every light: shadow rays (§21)
+    uniform = rays.uniform()
+    empty = np.zeros(0, np.float32)
+    shadows = ShadowUniform(light_maps, np.zeros((0, 5), np.int64), np.zeros((0, 4, 4)), empty, empty,
+                            np.zeros((0, 3), np.float32), uniform)
+    lighting = LightingUniform(lights.global_ambient, packed, shadows)
+    materials = np.array([_pack_material(o.mesh.material) for o in objects], np.float64).reshape(-1, _MATERIAL_COLUMNS)
+    aspect = scene.width / scene.height
+    unproject = np.linalg.inv(camera.projection(aspect) @ camera.view)
+    return _Prepared(rays, uniform, lighting, materials, np.array(programs, np.int64), _facing(scene, objects),
+                     np.asarray(scene.background[:3], np.float64), unproject, notes)
+
+
+Facing = namedtuple("Facing", ["normals", "cull"])
+Facing.__doc__ = """Per triangle its world normal from the winding (toward its front: a mirroring model's is turned
+around, as the rasterizer turns its front face), per object its culling: 0 none, 1 back, 2 front."""
+
+
+def _facing(scene, objects) -> Facing:
+    normals = []
+    for obj in objects:
+        p = obj.world_positions()
+        tri = np.asarray(obj.mesh.indices).reshape(-1, 3)
+        n = np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]])
+        normals.append(-n if np.linalg.det(np.asarray(obj.model)[:3, :3]) < 0 else n)
+    cull = [{"none": 0, "back": 1, "front": 2}[obj.cull or scene.cull] for obj in objects]
+    return Facing(np.ascontiguousarray(np.concatenate(normals)) if normals else np.zeros((0, 3)),
+                  np.array(cull, np.int64))
+
+
+def _check_limits(max_depth, min_weight) -> None:
+    if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or \
+            not 0 <= max_depth <= MAX_DEPTH_LIMIT:
+        raise ValueError(f"max_depth must be an integer in 0…{MAX_DEPTH_LIMIT}, got {max_depth!r}")
+    if not (isinstance(min_weight, (int, float)) and 0.0 <= min_weight < 1.0):
+        raise ValueError(f"min_weight must be a number in [0, 1), got {min_weight!r}")
+
+
+def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5, min_weight: float = 1e-3,
+                   notes: Optional[list] = None, timings: Optional[dict] = None) -> Framebuffer:
+    """Ray trace ``scene`` (Whitted; see the module docstring) into a new one-sample framebuffer.
+
+    Parameters
+    ----------
+    scene : Scene
+        As :func:`softpipe.render_scene` takes it; its ground, lights, programs and
+        background are used the same way. Every light casts shadows (shadow rays).
+    camera : Camera, optional
+        Instead of the scene's (or its framing).
+    max_depth : int
+        The deepest reflected/refracted ray (0: primary rays only).
+    min_weight : float
+        A branch whose weight is below this in every channel is not traced (§22).
+    notes : list, optional
+        Receives a line for each thing the ray tracer does differently from the rasterizer.
+    timings : dict, optional
+        Receives "build" (the BVH) and "trace" seconds.
+    """
+    _check_limits(max_depth, min_weight)
+    start = time.perf_counter()
+    p = _prepare(scene, camera)
+    built = time.perf_counter()
+    out = np.zeros((scene.height, scene.width, 4), np.float32)
+    in_bands(_trace_rows, scene.height, scene.width, scene.height, p.unproject, p.uniform, p.lighting, p.materials,
+             p.programs, p.facing, p.background, int(max_depth), float(min_weight), out, grain=8)
+    fb = Framebuffer(scene.width, scene.height)
+    fb.color[...] = out
+    if notes is not None:
+        notes.extend(p.notes)
+    if timings is not None:
+        timings.update(build=built - start, trace=time.perf_counter() - built)
+    return fb
+
+
+@dataclass
+class RayNode:
+    """One ray of a pixel's tree."""
+
+    index: int
+    parent: int                 # −1 for the primary ray
+    kind: str                   # one of RAY_KINDS
+    depth: int
+    origin: tuple
+    direction: tuple
+    t: float                    # inf: it met nothing
+    triangle: int               # −1: nothing
+    object: str                 # the object's name, or "" for a miss
+    local: tuple                # the local color at the hit (the background for a miss)
+    weight: tuple               # what the ray's color counts for in the pixel
+
+
+class RayTree(list):
+    """A pixel's rays (:class:`RayNode`), in the order traced; prints as an indented tree."""
+
+    def __init__(self, x: int, y: int, nodes: List[RayNode], color: tuple):
+        super().__init__(nodes)
+        self.x, self.y, self.color = x, y, color
+
+    def __str__(self) -> str:
+        f = lambda v: "(" + ", ".join(f"{c:.4g}" for c in v) + ")"  # noqa: E731
+        lines = [f"pixel ({self.x}, {self.y}): color {f(self.color)} = Σ weight × local over {len(self)} ray(s)"]
+        for node in self:
+            hit = (f"hits {node.object} (triangle {node.triangle}) at t = {node.t:.4g}" if node.triangle >= 0
+                   else "meets nothing: background")
+            lines.append(f"{'    ' * node.depth}#{node.index} {node.kind}: {hit}; local {f(node.local)}, "
+                         f"weight {f(node.weight)}")
+        return "\n".join(lines)
+
+    def _repr_pretty_(self, p, cycle):
+        p.text(str(self))
+
+
+def ray_tree(scene, x: int, y: int, *, camera: Optional[Camera] = None, max_depth: int = 5,
+             min_weight: float = 1e-3) -> RayTree:
+    """The ray tree of pixel (x, image row y) as :func:`raytrace_scene` traces it: every ray, as data.
+
+    The sum of weight × local over the nodes is the pixel's color (the same float
+    operations in the same order, so it equals the framebuffer's value).
+    """
+    _check_limits(max_depth, min_weight)
+    if not (0 <= x < scene.width and 0 <= y < scene.height):
+        raise ValueError(f"pixel ({x}, {y}) is outside the {scene.width}×{scene.height} image")
+    p = _prepare(scene, camera)
+    origin, direction, far = _primary_ray(p.unproject, x, y, scene.width, scene.height)
+    record = np.zeros((1 << (max_depth + 1), _RECORD_COLUMNS))
+    r, g, b, n = _trace_pixel(origin, direction, far, p.uniform, p.lighting, p.materials, p.programs, p.facing,
+                              p.background, int(max_depth), float(min_weight), record)
+    names = [o.name for o in p.scene.objects]
+    nodes = []
+    for k, row in enumerate(record[:n]):
+        obj = int(row[11])
+        nodes.append(RayNode(k, int(row[0]), RAY_KINDS[int(row[1])], int(row[2]), tuple(row[3:6]), tuple(row[6:9]),
+                             float(row[9]), int(row[10]), names[obj] if obj >= 0 else "", tuple(row[12:15]),
+                             tuple(row[15:18])))
+    return RayTree(x, y, nodes, (float(np.float32(r)), float(np.float32(g)), float(np.float32(b))))
