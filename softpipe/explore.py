@@ -327,9 +327,9 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         statement = (f"the history of every covered pixel: {held} pixels, {F} fragments "
                      f"(the limit is {max_fragments} fragments)")
     else:
-        statement = (f"the draw made {total_fragments} fragments, more than the limit of {max_fragments}: the page "
-                     f"holds the history of every {step}th column and row ({held} of {covered} covered pixels, "
-                     f"{F} fragments); every pixel still has its winning triangle")
+        statement = (f"the draws made {total_fragments} fragments, more than the limit of {max_fragments}: the "
+                     f"page holds the history of the pixels whose column and row are multiples of {step} ({held} of "
+                     f"{covered} covered pixels, {F} fragments); every pixel still has its winning triangle")
     pattern = traces[0].pattern
     meta = {
         "format": "softpipe-explorer 1",
