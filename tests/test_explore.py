@@ -228,6 +228,8 @@ def _playwright():
     except ImportError:
         done = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "playwright"], capture_output=True,
                               text=True, timeout=600)
+        import importlib
+        importlib.invalidate_caches()
         try:
             from playwright.sync_api import sync_playwright
         except ImportError:
