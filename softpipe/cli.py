@@ -280,7 +280,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     explore.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
     explore.add_argument("-o", "--output", metavar="PAGE", help="the .html page to write; default out/NAME.html")
-    explore.add_argument("--max-fragments", type=_size, metavar="N",
+    explore.add_argument("--max-fragments", type=_fragment_count, metavar="N",
                          help="hold every pixel's history while the draws made at most N fragments (default "
                               "400000); beyond, the history of a regular grid of pixels (the page says which)")
     _add_view_options(explore, "640x480")
@@ -561,6 +561,16 @@ def _render(args) -> int:
     _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
                          f"program {programs}, {time.perf_counter() - start:.2f} s)")
     return 0
+
+
+def _fragment_count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number of fragments, got {text!r}")
+    return v
 
 
 def _html_format(path: str) -> str:
