@@ -41,7 +41,7 @@ import re
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional
 
 import numpy as np
 
@@ -176,7 +176,6 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
 def _history_pixels(traces, max_fragments: int):
     """The pixels whose history the page holds, and the grid step s (1: every covered pixel)."""
     w = traces[0].width
-    counts: Dict[int, int] = {}
     pix = np.concatenate([t.fragments.y.astype(np.int64) * w + t.fragments.x for t in traces]) \
         if traces else np.zeros(0, np.int64)
     uniq, n = np.unique(pix, return_counts=True)
