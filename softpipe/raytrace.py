@@ -54,7 +54,7 @@ from .rays import RayScene, hit_normal
 from .bvh import closest_hit
 from .shadowmap import SHADOW_RAY, ShadowUniform
 
-__all__ = ["raytrace_scene", "ray_tree", "RayTree", "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
+__all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "RayTree", "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
 
 #: How each program's local color is computed in the ray tracer (the others: as "phong", with a note).
 PROGRAM_CODES = {"phong": 0, "gouraud": 0, "flat": 0, "textured": 0, "phong_phong_specular": 1,
@@ -160,7 +160,8 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
         for branch in range(2):
             k = m.kr if branch == 0 else m.kt
             nw = (w[0] * k[0], w[1] * k[1], w[2] * k[2])
-            if max(nw[0], nw[1], nw[2]) < min_weight or top >= cap:
+            strongest = max(nw[0], nw[1], nw[2])
+            if strongest <= 0.0 or strongest < min_weight or top >= cap:     # a ray that counts for nothing
                 continue
             if branch == 0:
                 nd, nk = reflect(d, N), 1                                # §16
@@ -332,6 +333,34 @@ def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5
     if timings is not None:
         timings.update(build=built - start, trace=time.perf_counter() - built)
     return fb
+
+
+@njit(cache=True, nogil=True)
+def _primary_rows(lo, hi, width, height, unproject, scene, facing, triangle, b):
+    for j in range(lo, hi):
+        for i in range(width):
+            origin, direction, far = _primary_ray(unproject, i, j, width, height)
+            tri, _, b1, b2 = _primary_hit(scene, origin, direction, far, facing)
+            triangle[j, i] = tri
+            b[j, i, 0], b[j, i, 1] = b1, b2
+
+
+def primary_visibility(scene, *, camera: Optional[Camera] = None):
+    """What each pixel's primary ray meets: (object int64 [H, W], triangle int64 [H, W], barycentrics [H, W, 2]).
+
+    ``object`` indexes ``scene.drawn_objects(camera)`` (−1: nothing), ``triangle`` is
+    the triangle's index in that object's mesh — the rasterizer's ``primitive_id`` of
+    the fragment a pixel shows — and (b1, b2) the hit's barycentrics in it.
+    """
+    p = _prepare(scene, camera)
+    h, w = scene.height, scene.width
+    triangle = np.empty((h, w), np.int64)
+    b = np.empty((h, w, 2))
+    in_bands(_primary_rows, h, w, h, p.unproject, p.uniform, p.facing, triangle, b, grain=8)
+    hit = triangle >= 0
+    obj = np.where(hit, p.scene.triangle_object[np.where(hit, triangle, 0)], -1)
+    local = np.where(hit, p.scene.triangle_local[np.where(hit, triangle, 0)], -1)
+    return obj, local, b
 
 
 @dataclass

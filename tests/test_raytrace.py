@@ -227,3 +227,126 @@ def test_lights_and_lighting_of_the_tracer_are_the_scenes():
     floor_pixel = fb.color[55, 50, :3]                 # the floor, near the bottom: no light, no ambient
     np.testing.assert_array_equal(floor_pixel, (0.0, 0.0, 0.0))
     assert isinstance(scene.lighting_for(scene.camera), Lighting)
+
+
+def _edge_distance(scene, camera, obj_index, triangle, i, j) -> float:
+    """Window-space distance, in pixels, from pixel (i, j)'s centre to the nearest edge of a triangle."""
+    obj = scene.drawn_objects(camera)[obj_index]
+    corners = obj.world_positions()[np.asarray(obj.mesh.indices)[triangle]]
+    clip = np.c_[corners, np.ones(3)] @ (camera.projection(scene.width / scene.height) @ camera.view).T
+    ndc = clip[:, :2] / clip[:, 3:]
+    w = np.c_[(ndc[:, 0] + 1) / 2 * scene.width, (1 - ndc[:, 1]) / 2 * scene.height]
+    c = np.array((i + 0.5, j + 0.5))
+    distances = []
+    for k in range(3):
+        a, b = w[k], w[(k + 1) % 3]
+        e = b - a
+        distances.append(abs(e[0] * (c - a)[1] - e[1] * (c - a)[0]) / np.linalg.norm(e))
+    return min(distances)
+
+
+def test_primary_visibility_is_the_rasterizers_at_every_pixel_centre_but_on_edges():
+    """The triangle a primary ray meets is the one whose fragment the rasterizer's pixel shows, except where the
+    centre lies on an edge within the rasterizer's snapping: vertices are snapped to 1/256 pixel, so a centre
+    closer than that to an edge may fall either way (every mismatch is checked to be within 1/256 px)."""
+    from softpipe.raytrace import primary_visibility
+    scene = model_on_ground("teapot")
+    obj, tri, _ = primary_visibility(scene)
+    results = []
+    sp.render_scene(scene, trace=True, results=results)
+    shown_obj = np.full(obj.shape, -1)
+    shown_tri = np.full(obj.shape, -1)
+    for k, r in enumerate(results):
+        f, written = r.trace.fragments, r.trace.written()
+        shown_obj[f.y[written], f.x[written]] = k
+        shown_tri[f.y[written], f.x[written]] = f.primitive_id[written]
+    mismatch = np.argwhere((shown_obj != obj) | (shown_tri != tri))
+    assert len(mismatch) <= 0.005 * obj.size
+    for j, i in mismatch:
+        near = [_edge_distance(scene, scene.camera, o, t, i, j)
+                for o, t in ((obj[j, i], tri[j, i]), (shown_obj[j, i], shown_tri[j, i])) if o >= 0]
+        assert min(near) < 1 / 256, (i, j, near)
+
+
+def test_the_tracers_local_shading_is_the_phong_programs():
+    """At a primary hit, the tracer's local color equals the phong program's fragment shader given the same
+    surface point: P and N interpolated at the hit's barycentrics in eye space, front_facing by winding, the same
+    lighting uniform (shadow rays for V_j) — within 1e-5."""
+    from softpipe.raytrace import primary_visibility
+    from softpipe.shaders.common import StandardVaryings
+    from softpipe.shaders.phong import phong_fragment
+    from softpipe.shader import FragInfo
+    scene = model_on_ground("suzanne")
+    camera = scene.camera
+    objects = scene.drawn_objects(camera)
+    obj, tri, b = primary_visibility(scene)
+    lights = scene.lighting_for(camera)
+    lighting = sp.render_shadow_maps(objects, lights).lighting_uniform(lights, camera.view)
+    view = camera.view
+    rng = np.random.default_rng(3)
+    covered = np.argwhere(obj >= 0)
+    for j, i in covered[rng.choice(len(covered), 25, replace=False)]:
+        o = objects[obj[j, i]]
+        corners = np.asarray(o.mesh.indices)[tri[j, i]]
+        b1, b2 = b[j, i]
+        weights = np.array((1 - b1 - b2, b1, b2))
+        world = weights @ o.world_positions()[corners]
+        normals = o.mesh.normals if o.mesh.normals is not None else o.mesh.vertex_normals()
+        n = normals[corners] @ np.linalg.inv(o.model[:3, :3])
+        n = weights @ (n / np.linalg.norm(n, axis=1, keepdims=True))
+        P = tuple(view[:3, :3] @ world + view[:3, 3])
+        N = tuple(np.linalg.inv(view[:3, :3]).T @ n)
+        p = o.world_positions()[corners]
+        front = np.cross(p[1] - p[0], p[2] - p[0]) @ (world - np.asarray(camera.eye)) < 0
+        uniforms = sp.shader.make_uniforms({"projection": camera.projection(scene.width / scene.height),
+                                            "material": o.mesh.material, "lighting": lighting})
+        expected = phong_fragment(StandardVaryings(P, N), uniforms, FragInfo(i + 0.5, j + 0.5, 0.5, bool(front), 0))
+        local = ray_tree(scene, int(i), int(j), max_depth=0)[0].local
+        np.testing.assert_allclose(local, expected[:3], atol=1e-5)
+
+
+def test_two_mirrors_facing_stop_at_the_depth_limit_with_weights_multiplied():
+    """A ray between two parallel mirrors (kr = 0.8): the tree is one chain, max_depth + 1 rays long, the k-th
+    with weight 0.8^k (§22); a weight cutoff stops it earlier, where 0.8^k falls below it."""
+    mirror = Material(ka=0.0, kd=0.0, ks=0.0, kr=(0.8, 0.8, 0.8))
+    left = shapes.plane(200.0, material=mirror)
+    scene = Scene([SceneObject("left", left, translate(-1.0, 0.0, 0.0) @ sp.rotate_z(-90.0)),
+                   SceneObject("right", left, translate(1.0, 0.0, 0.0) @ sp.rotate_z(90.0))],
+                  camera=sp.Camera(eye=(0.0, 0.0, 5.0), target=(3.0, 0.0, 0.0), fovy=10.0, near=0.5, far=100.0),
+                  lights=(), ambient=(0.0, 0.0, 0.0), width=9, height=9, cull="none")
+    tree = ray_tree(scene, 4, 4, max_depth=6, min_weight=0.0)
+    assert len(tree) == 7 and [n.depth for n in tree] == list(range(7))
+    assert all(n.kind == "reflected" for n in tree[1:]) and all(n.parent == n.index - 1 for n in tree[1:])
+    for n in tree:
+        np.testing.assert_allclose(n.weight, (0.8 ** n.depth,) * 3)
+    assert all(n.object in ("left", "right") for n in tree)
+    cut = ray_tree(scene, 4, 4, max_depth=12, min_weight=0.3)       # 0.8^5 = 0.33 ≥ 0.3 > 0.8^6
+    assert max(n.depth for n in cut) == 5
+
+
+def test_inside_a_glass_sphere_grazing_rays_are_totally_reflected():
+    """A camera inside a glass ball (η = 1.5 inside, air out) looking along its wall: rays meet the wall from
+    inside beyond the critical angle asin(1/1.5) = 41.8°: every such hit reflects all (§19), none refracts out;
+    rays meeting it more steeply than that do refract out."""
+    ball = shapes.icosphere(1.0, subdivisions=4, material=Material(ka=0.0, kd=0.0, ks=0.0, kt=(1.0, 1.0, 1.0),
+                                                                    ior=1.5))
+    scene = Scene([SceneObject("ball", ball, np.eye(4))],
+                  camera=sp.Camera(eye=(0.85, 0.0, 0.0), target=(0.85, 0.0, -1.0), fovy=150.0, near=0.01, far=10.0),
+                  lights=(), ambient=(0.0, 0.0, 0.0), width=15, height=15, cull="none")
+    total = refracted = 0
+    for j in range(0, 15, 2):
+        for i in range(0, 15, 2):
+            tree = ray_tree(scene, i, j, max_depth=1)
+            first = tree[0]
+            assert first.object == "ball"
+            hit = np.array(first.origin) + first.t * np.array(first.direction)
+            normal = hit / np.linalg.norm(hit)
+            cos = abs(np.dot(normal, first.direction))
+            kinds = {n.kind for n in tree[1:]}
+            if cos < math.cos(math.asin(1 / 1.5)) - 0.02:
+                assert kinds == {"total internal reflection"}
+                total += 1
+            elif cos > math.cos(math.asin(1 / 1.5)) + 0.02:
+                assert kinds == {"refracted"}
+                refracted += 1
+    assert total > 5 and refracted > 5
