@@ -2,23 +2,33 @@
 
 The oracle is written here, independently of the module: Möller-Trumbore
 (1997) over *every* triangle for every ray, vectorized over blocks of rays in a
-small compiled loop (the loop is numba only for speed: 10⁵ rays × 69,451
-triangles is 7·10⁹ tests, ~1.4 ns each). It is the textbook test, not the
-watertight one, so on a ray within rounding of an edge the two can disagree:
+small compiled loop (numba only for speed: 10⁵ rays × 69,451 triangles is
+7·10⁹ tests, ~1.4 ns each). It is the textbook test, not the watertight one, so
+on a ray within rounding of an edge the two may rightly disagree:
 
-- **exact comparison** (``eps = 0``): the oracle's nearest triangle and t;
-- **the documented tolerance**: where the BVH and the oracle name different
-  triangles (or one hits and the other does not), the difference is allowed only
-  if it is an edge case the oracle cannot settle: the oracle, with its
-  barycentric test loosened by ``EDGE_EPS = 1e-9``, hits the BVH's triangle at
-  the same t (within ``T_RTOL``), and that hit lies within ``EDGE_EPS`` of an
-  edge of both triangles, which share that edge or corner, or the two triangles
-  are an exact tie (same t). Such rays are counted, and must stay rare.
+- **exact comparison**: the oracle's nearest triangle, and t within
+  ``T_RTOL = 1e-6`` relative; any hit ⇔ the oracle's nearest exists in
+  (t_min, t_max); the barycentrics give the hit point;
+- **the documented tolerance**, only where the BVH and the oracle name different
+  triangles (or one hits and the other does not): the oracle with its
+  barycentric test loosened by ``EDGE_EPS = 1e-9`` gives the nearest t, and the
+  difference must be (1) two triangles sharing an edge or corner, both hit at
+  that t within EDGE_EPS of an edge, (2) a ray one test lets through an edge the
+  other hits, at that t — and if the BVH is the one that lets it through, the
+  surface must not close around that edge or corner as seen along the ray (a
+  border or a silhouette: a watertight test may not leak anywhere else), or (3)
+  an exact tie in t. Random rays give no such case (at most MAX_EDGE_CASES are
+  accepted); rays aimed exactly at the bunny's edges give hundreds, each checked.
+
+Watertightness on its own: 10⁶ rays from inside a closed icosphere, aimed
+exactly at its edges and corners, all hit (and the textbook test leaks on
+such rays). Also: the tree's invariants, refit against a fresh build, a shader
+taking the BVH as a uniform, bad inputs, the empty BVH, one thread vs two.
 """
 from __future__ import annotations
 
 import math
-import time
+from types import SimpleNamespace
 
 import numba
 import numpy as np
@@ -99,7 +109,7 @@ def mt_single(vertices, triangles, ids, origins, directions):
     return t, 1.0 - u - v, u, v
 
 
-def compare_with_oracle(vertices, triangles, bvh, o, d, t_min, t_max):
+def compare_with_oracle(vertices, triangles, bvh, o, d, t_min, t_max, max_edge_cases=MAX_EDGE_CASES):
     """The checks of the module docstring; returns the number of edge cases allowed."""
     ids, t, b = bvh.closest(o, d, t_min, t_max)
     occ = bvh.occluded(o, d, t_min, t_max)
@@ -122,33 +132,78 @@ def compare_with_oracle(vertices, triangles, bvh, o, d, t_min, t_max):
     both = same & hit
     assert np.all(np.abs(t[both] - ref_t[both]) <= T_RTOL * np.abs(ref_t[both]))
     differ = np.flatnonzero(~same)
-    assert len(differ) <= MAX_EDGE_CASES, f"{len(differ)} rays disagree with brute force, e.g. {differ[:5]}"
-    for r in differ:
-        _assert_edge_case(vertices, triangles, o[r], d[r], ids[r], t[r], ref_ids[r], ref_t[r], tmin[r], tmax[r])
+    assert len(differ) <= max_edge_cases, f"{len(differ)} rays disagree with brute force, e.g. {differ[:5]}"
+    loose_ids, loose_t = brute_force(vertices, triangles, o[differ], d[differ], tmin[differ], tmax[differ],
+                                     eps=EDGE_EPS)
+    for k, r in enumerate(differ):
+        _assert_edge_case(vertices, triangles, o[r], d[r], ids[r], t[r], ref_ids[r], ref_t[r], tmin[r], tmax[r],
+                          loose_ids[k], loose_t[k])
     return len(differ)
 
 
-def _near_edge(bary) -> bool:
-    return min(bary) <= EDGE_EPS
+def _assert_edge_case(vertices, triangles, o, d, got, got_t, ref, ref_t, tmin, tmax, loose_id, nearest):
+    """A disagreement between the BVH (``got``) and the exact oracle (``ref``) is allowed only as an edge case.
 
-
-def _assert_edge_case(vertices, triangles, o, d, got, got_t, ref, ref_t, tmin, tmax):
-    """A disagreement is allowed only on an edge both triangles share, or at an exact tie."""
+    The oracle loosened by EDGE_EPS found the nearest t (``nearest``). Allowed: (1) both answers hit at that t, each
+    within EDGE_EPS of an edge, and the two triangles share an edge or corner (equally right); (2) one
+    answer hits at that t within EDGE_EPS of an edge and the other does not (the other test let the ray
+    through that edge) — when the BVH is the one that let it through, the edge must be a border edge,
+    which no other triangle shares (a watertight test cannot leak through a shared one); (3) both hit
+    at exactly the same t (an exact tie).
+    """
     what = f"ray {o.tolist()} → {d.tolist()}: BVH says {got} at {got_t}, brute force {ref} at {ref_t}"
-    # the loosened oracle must settle it: its nearest hit is within T_RTOL of both answers' t
-    loose_id, loose_t = brute_force(vertices, triangles, o[None], d[None], tmin, tmax, eps=EDGE_EPS)
-    assert loose_id[0] >= 0, what
-    for k, tk in ((got, got_t), (ref, ref_t)):
+    if got >= 0 and ref >= 0 and got_t == ref_t:
+        return                                                   # (3)
+    assert loose_id >= 0, what                                   # the loosened oracle's nearest hit
+
+    def hit(k):
+        """(at the nearest t, on an edge, the vertices the ray is near) of triangle k."""
         if k < 0:
-            continue
+            return False, False, ()
         t1, *bary = (x[0] for x in mt_single(vertices, triangles, np.array([k]), o[None], d[None]))
-        assert abs(t1 - loose_t[0]) <= T_RTOL * abs(loose_t[0]), what
-        assert min(bary) >= -EDGE_EPS and tmin < t1 < tmax, what
-        exact_tie = got >= 0 and ref >= 0 and got_t == ref_t
-        assert exact_tie or _near_edge(bary), what
-    if got >= 0 and ref >= 0:
-        shared = set(triangles[got].tolist()) & set(triangles[ref].tolist())
-        assert shared or got_t == ref_t, what
+        at = abs(t1 - nearest) <= T_RTOL * abs(nearest) and min(bary) >= -EDGE_EPS and tmin < t1 < tmax
+        near = tuple(int(triangles[k][i]) for i in range(3) if bary[i] > EDGE_EPS)
+        return at, min(bary) <= EDGE_EPS, near
+
+    (g_at, g_edge, _), (r_at, r_edge, r_near) = hit(got), hit(ref)
+    if g_at and r_at:                                            # (1)
+        assert g_edge and r_edge, what
+        assert set(triangles[got].tolist()) & set(triangles[ref].tolist()), what
+    elif g_at:                                                   # (2), the oracle let it through
+        assert g_edge, what
+    else:                                                        # (2), the BVH let it through: only where
+        assert r_at and r_edge, what                             # the surface does not close around the ray
+        assert not _closed_around(vertices, triangles, r_near, d), \
+            f"{what}: the BVH let the ray through the edge or corner {r_near}, which the triangles close around"
+
+
+def _closed_around(vertices, triangles, near, d) -> bool:
+    """Whether the triangles at an edge (``near`` = its 2 vertices) or corner (1 vertex), seen along d, close
+    all around it, so that a ray through it must hit one of them (a watertight test cannot miss them all).
+
+    Not closed: a border edge or corner (no triangle on the other side), or a silhouette as seen along the
+    ray (the surface folds back there: both triangles of the edge on the same side, or a corner's fan whose
+    projected angles cancel instead of adding to a full turn), where a ray may graze past.
+    """
+    d = d / np.linalg.norm(d)
+    fan = np.flatnonzero(np.isin(triangles, near).sum(axis=1) >= len(near))
+    if len(near) == 2:
+        if len(fan) != 2:
+            return False
+        a, b = vertices[near[0]], vertices[near[1]]
+        n = np.cross(b - a, d)
+        third = [vertices[[i for i in triangles[k] if i not in near][0]] for k in fan]
+        return float(np.dot(n, third[0] - a)) * float(np.dot(n, third[1] - a)) < 0
+    u = np.cross(d, [1.0, 0, 0] if abs(d[0]) < 0.9 else [0, 1.0, 0])
+    u /= np.linalg.norm(u)
+    w = np.cross(d, u)
+    centre, total = vertices[near[0]], 0.0
+    for k in fan:
+        i = list(triangles[k]).index(near[0])
+        p, q = vertices[triangles[k][(i + 1) % 3]] - centre, vertices[triangles[k][(i + 2) % 3]] - centre
+        p2, q2 = (p @ u, p @ w), (q @ u, q @ w)
+        total += math.atan2(p2[0] * q2[1] - p2[1] * q2[0], p2[0] * q2[0] + p2[1] * q2[1])
+    return abs(abs(total) - 2 * math.pi) < 1e-6
 
 
 # ------------------------------------------------------------------ fixtures
@@ -177,9 +232,10 @@ def random_rays(rng, vertices, n):
     d[axis, k] = np.sign(centre[k] - o[axis, k]) * rng.uniform(0.5, 2, axis.sum())
     inside = rng.random(n) < 0.1                    # from inside the box
     o[inside] = lo + rng.random((inside.sum(), 3)) * (hi - lo)
-    d *= rng.uniform(0.1, 10, n)[:, None]           # t in units of the direction's length
-    t_min = np.where(rng.random(n) < 0.5, 0.0, rng.uniform(0, 1, n))
-    t_max = np.where(rng.random(n) < 0.5, np.inf, t_min + rng.uniform(0, 1.5, n))
+    scale = rng.uniform(0.1, 10, n)
+    d *= scale[:, None]                             # t in units of the direction's length: the target at 1/scale
+    t_min = np.where(rng.random(n) < 0.6, 0.0, rng.uniform(0, 1, n) / scale)
+    t_max = np.where(rng.random(n) < 0.5, np.inf, rng.uniform(0.5, 2, n) / scale)
     return o, d, t_min, t_max
 
 
@@ -370,6 +426,21 @@ def test_closest_and_any_hit_equal_brute_force_on_a_scene_of_several_meshes():
     rng = np.random.default_rng(17)
     o, d, t_min, t_max = random_rays(rng, world, 100_000)
     compare_with_oracle(world, tri, bvh, o, d, t_min, t_max)
+
+
+def test_rays_at_shared_edges_differ_from_brute_force_only_as_allowed(bunny):
+    """Rays aimed exactly at the bunny's shared edges and corners: where the textbook oracle and the
+    watertight test part ways, each difference must be one the tolerance allows (an edge both triangles
+    share, or a ray the oracle lets through a crack); elsewhere they agree."""
+    v, tri = bunny
+    bvh = BVH.build(v, tri)
+    rng = np.random.default_rng(116)
+    n = 4000
+    target, _ = _sphere_targets(rng, SimpleNamespace(positions=v, indices=tri), n)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    o = (lo + hi) / 2 + rng.normal(size=(n, 3)) * (hi - lo).max()
+    allowed = compare_with_oracle(v, tri, bvh, o, target - o, 0.0, np.inf, max_edge_cases=n)
+    assert allowed < n // 4
 
 
 def test_an_empty_bvh_always_misses():
