@@ -80,11 +80,11 @@ from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 from .framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
-from .material import Light, Material
+from .material import Light
 from .mesh import Mesh
 from .sampling import pattern_named
 from .scenefile import (MATERIAL_KEYS, SHAPES, SceneError, _bundled_model, _describe, _is_bare_word,
-                        _MISSING, _Bad, _Reader, _shape_params, _Table, _toml, boolean, choice, color, integer,
+                        _Bad, _Reader, _shape_params, _Table, _toml, boolean, choice, color, integer,
                         number, numbers, pattern_name, positive, program_name, string)
 
 __all__ = ["Frame", "Job", "JobError", "LightSet", "BatchProgress", "BatchResult", "FrameRecord", "load_job",
