@@ -90,7 +90,7 @@ import numba
 import numpy as np
 from numba import types
 from numba.core import cgutils
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 from ._parallel import in_bands
 
@@ -264,13 +264,28 @@ def intersect_triangle(v0, v1, v2, origin, direction, t_min, t_max):
 # attached, so there is nothing to count; only used while the caller holds the
 # BVH) and on a stack in the function's own frame (an alloca, as C would).
 
-@intrinsic
-def _borrowed(typingctx, arr):
-    """The array ``arr`` without its owner (meminfo NULL): numba counts no references to it.
+def _borrowed(arr):
+    """The array ``arr`` without its owner (meminfo NULL), so numba counts no references to it.
 
     Only for use inside the call that received ``arr``: the data stay alive
-    because the caller holds the original.
+    because the caller holds the original. In plain Python (NUMBA_DISABLE_JIT=1)
+    the array itself.
     """
+    return arr
+
+
+def _node_stack():
+    """The traversal's [MAX_DEPTH] int64 stack, in the calling function's frame (plain Python: a new array)."""
+    return np.empty(MAX_DEPTH, np.int64)
+
+
+def _t_stack():
+    """The traversal's [MAX_DEPTH] float64 stack, in the calling function's frame (plain Python: a new array)."""
+    return np.empty(MAX_DEPTH, np.float64)
+
+
+@intrinsic
+def _borrowed_intrinsic(typingctx, arr):
     if not isinstance(arr, types.Array):
         return None
 
@@ -281,8 +296,8 @@ def _borrowed(typingctx, arr):
     return arr(arr), codegen
 
 
-def _frame_stack(dtype):
-    """An intrinsic making a [MAX_DEPTH] array of ``dtype`` in the calling function's stack frame."""
+def _frame_stack_intrinsic(dtype):
+    """An intrinsic making a [MAX_DEPTH] array of ``dtype`` in the calling function's stack frame (an alloca)."""
     array_type = types.Array(dtype, 1, "C")
 
     @intrinsic
@@ -301,8 +316,24 @@ def _frame_stack(dtype):
     return stack
 
 
-_node_stack = _frame_stack(types.int64)
-_t_stack = _frame_stack(types.float64)
+_node_stack_intrinsic = _frame_stack_intrinsic(types.int64)
+_t_stack_intrinsic = _frame_stack_intrinsic(types.float64)
+
+
+@overload(_borrowed, inline="always")
+def _borrowed_compiled(arr):
+    if isinstance(arr, types.Array):
+        return lambda arr: _borrowed_intrinsic(arr)
+
+
+@overload(_node_stack, inline="always")
+def _node_stack_compiled():
+    return lambda: _node_stack_intrinsic()
+
+
+@overload(_t_stack, inline="always")
+def _t_stack_compiled():
+    return lambda: _t_stack_intrinsic()
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _inverse(d):
@@ -320,6 +351,7 @@ def _slab(lo, hi, o, inv, t0, t1):
     direction is 0 along it: ``t > t0 ? t : t0`` then keeps t0 (a ray lying in the
     plane is not constrained by it), as in pbrt.
     """
+    lo, hi, o, inv = float(lo), float(hi), float(o), float(inv)   # plain floats in Python: NaN without a warning
     tn = (lo - o) * inv
     tf = (hi - o) * inv
     if tn > tf:
