@@ -28,6 +28,9 @@ taking the BVH as a uniform, bad inputs, the empty BVH, one thread vs two.
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 from types import SimpleNamespace
 
 import numba
@@ -598,3 +601,33 @@ def test_the_same_bytes_for_one_and_two_threads(bunny):
     a, b = out.values()
     for x, y in zip(a, b):
         assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+_PLAIN_PYTHON_RUN = """
+import math, sys, numpy as np
+from softpipe import shapes
+from softpipe.bvh import BVH, closest_hit, any_hit
+m = shapes.icosphere(1.0, 2)
+bvh = BVH.build(m.positions, m.indices)
+rng = np.random.default_rng(0)
+o = rng.normal(size=(200, 3)) * 2
+d = -o + rng.normal(size=(200, 3)) * 0.5
+d[:20, 1:] = 0.0                                  # zero direction components
+ids, t, b = bvh.closest(o, d, 0.0, np.where(np.arange(200) % 3 == 0, 1.0, np.inf))
+occ = bvh.occluded(o, d, 0.5, 2.0)
+one = closest_hit(bvh.uniform, (3.0, 0.0, 0.0), (-1.0, 0.0, 0.0), 0.0, math.inf)
+sys.stdout.write(np.concatenate([ids, t, b.ravel(), occ, bvh.lo.ravel(), bvh.order, np.array(one[1:])]).tobytes().hex())
+"""
+
+
+def test_plain_python_gives_the_same_bits():
+    """NUMBA_DISABLE_JIT=1 (every kernel plain Python, for stepping through in a debugger) gives the same bytes."""
+    runs = {}
+    for flag in ("0", "1"):
+        env = dict(os.environ, NUMBA_DISABLE_JIT=flag)
+        out = subprocess.run([sys.executable, "-c", _PLAIN_PYTHON_RUN], env=env, capture_output=True, text=True,
+                             timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        assert "Warning" not in out.stderr, out.stderr[-2000:]
+        runs[flag] = out.stdout
+    assert runs["0"] == runs["1"] and len(runs["0"]) > 1000
