@@ -36,3 +36,12 @@ from .shaders.common import standard_vertex
 from .vertex import VertexOut, run_vertex_stage
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    """``softpipe.batch`` on first use: it renders a job (``softpipe.batch(job, out_dir)``, the module is
+    callable) and is not imported with softpipe, which does not need it to draw."""
+    if name == "batch":
+        import importlib
+        return importlib.import_module(".batch", __name__)
+    raise AttributeError(f"module 'softpipe' has no attribute {name!r}")
