@@ -389,7 +389,7 @@ def _traverse(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t
     ix, iy, iz = _inverse(dx), _inverse(dy), _inverse(dz)
     top = 0
     node = 0
-    if _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, t_max) == math.inf:
+    if _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, reach) == math.inf:
         return best_id, best_t, best_b1, best_b2
     while True:
         n = count[node]
@@ -753,7 +753,20 @@ class BVH:
     - ``v0``, ``v1``, ``v2`` float64 [T, 3]: the corners of triangle ``order[k]``.
 
     ``triangles`` (int64 [T, 3]) and ``vertex_count`` are the input, kept for
-    :meth:`refit`; ``depth`` is the deepest leaf's depth (root 0).
+    :meth:`refit`; ``depth`` is the deepest leaf's depth (root 0). ``uniform``
+    is a :class:`BVHUniform` of the arrays above, what compiled code (a shader)
+    passes to :func:`closest_hit` and :func:`any_hit`.
+
+    Example::
+
+        mesh = load_model("bunny")
+        bvh = BVH.build(mesh.positions, mesh.indices)
+        ids, t, b = bvh.closest(origins, directions)          # [R], [R], [R, 2]
+        lit = ~bvh.occluded(points, to_light, 1e-6, 1.0)      # shadow rays (FORMULAS §21)
+
+        @numba.njit
+        def shade(bvh, p, d):                                 # bvh: the BVH passed as a uniform
+            tri, t, b1, b2 = closest_hit(bvh, p, d, 0.0, math.inf)
     """
 
     def __init__(self, lo, hi, first, count, order, v0, v1, v2, triangles, vertex_count, depth, leaf_size, bins):
