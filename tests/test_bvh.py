@@ -135,6 +135,7 @@ def compare_with_oracle(vertices, triangles, bvh, o, d, t_min, t_max, max_edge_c
     both = same & hit
     assert np.all(np.abs(t[both] - ref_t[both]) <= T_RTOL * np.abs(ref_t[both]))
     differ = np.flatnonzero(~same)
+    assert np.array_equal(occ[same], ref_ids[same] >= 0)         # any hit ⇔ brute force finds one in the interval
     assert len(differ) <= max_edge_cases, f"{len(differ)} rays disagree with brute force, e.g. {differ[:5]}"
     loose_ids, loose_t = brute_force(vertices, triangles, o[differ], d[differ], tmin[differ], tmax[differ],
                                      eps=EDGE_EPS)
