@@ -787,7 +787,9 @@ class BVH:
         Measured (warm; other jobs shared the 2-core machine): the bunny
         (69,451 triangles) builds in about 60 ms, the armadillo (99,976) in
         about 95 ms (``leaf_size=4, bins=16``). The build is serial and
-        deterministic: the same input gives the same arrays.
+        deterministic: the same input gives the same arrays. Of leaf sizes 1, 2,
+        4 and 8 (and 8 with the SAH choosing smaller leaves), 4 traced the
+        bunny fastest: 10-20 % ahead of the others.
         """
         if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
             raise ValueError(f"BVH.build: leaf_size must be an integer ≥ 1, got {leaf_size!r}")
