@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench fuzz clean
+.PHONY: demo test bench bench-peers fuzz clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,12 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m benchmarks.run
+
+# softpipe vs Mesa's llvmpipe, alternated frame by frame (benchmarks/README.md, "Peers").
+# Installs Debian's Mesa/EGL packages (apt-get, as root) and moderngl (pip) when missing;
+# where it cannot, it says what is missing and skips the comparison (exit status 0).
+bench-peers: $(STAMP)
+	$(PY) -m benchmarks.peers --install
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

@@ -1,0 +1,138 @@
+"""benchmarks.peers: the harness logic without Mesa, and one small clip-coordinate scene on llvmpipe if it is here."""
+from __future__ import annotations
+
+import json
+import re
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from benchmarks import peers
+
+
+# --------------------------------------------------------------------------
+# Without Mesa
+# --------------------------------------------------------------------------
+
+def test_glsl_sources_are_complete():
+    lit = peers._lit_fragment_source()
+    for src in (peers.CLIP_VERTEX, peers.MVP_VERTEX, peers.COLOR_FRAGMENT, peers.LIT_VERTEX, lit):
+        assert src.startswith("#version 430\n")
+        assert src.count("{") == src.count("}")
+    assert "%(" not in lit and "%" not in lit.replace("%%", "")
+    from softpipe import material as m
+    assert f"const int COLS = {m.LIGHT_COLUMNS};" in lit
+    assert f"lights[b + {m.LIGHT_KIND}] == {m.LIGHT_DIRECTIONAL}.0" in lit
+    assert f"col3(j, {m.LIGHT_POSITION})" in lit and f"col3(j, {m.LIGHT_SPECULAR})" in lit
+    for name in ("ke", "ka", "kd", "ks", "shininess", "opacity", "global_ambient", "num_lights", "specular_model",
+                 "orthographic"):
+        assert re.search(rf"^uniform \w+ {name};$", lit, re.M), name
+    for name in ("model_view", "projection", "normal_matrix"):
+        assert re.search(rf"^uniform mat[34] {name};$", peers.LIT_VERTEX, re.M), name
+
+
+def test_alternation_is_abba_and_counts_both_sides():
+    order = []
+    clock = iter(range(1000))
+
+    def side(name, seconds):
+        def frame():
+            order.append(name)
+            next(clock)
+            return seconds
+        return frame
+
+    sp, gl, cpu = peers.alternate(side("s", 0.03), side("g", 0.01), 4)
+    assert order == ["s", "g", "g", "s", "s", "g", "g", "s"]
+    assert sp == [0.03] * 4 and gl == [0.01] * 4
+    assert set(cpu) == {"softpipe_cpu", "softpipe_wall", "peer_cpu", "peer_wall"}
+
+
+def test_summary_arithmetic():
+    s = peers.summarize([0.010, 0.030, 0.020], [0.010, 0.010, 0.040])
+    assert s["softpipe_ms"] == pytest.approx(20.0) and s["llvmpipe_ms"] == pytest.approx(10.0)
+    assert s["ratio"] == pytest.approx(2.0)
+    assert s["paired_ratio_median"] == pytest.approx(1.0)          # 1, 3, 0.5
+    assert s["paired_ratio_min"] == pytest.approx(0.5) and s["paired_ratio_max"] == pytest.approx(3.0)
+    with pytest.raises(ValueError):
+        peers.summarize([0.1], [0.1, 0.2])
+
+
+def test_compare_images():
+    a = np.zeros((2, 2, 4), np.uint8)
+    b = a.copy()
+    b[0, 0, 0] = 1          # within 1/255
+    b[1, 1, 2] = 9          # beyond
+    b[1, 0, 3] = 200        # alpha is not compared
+    d = peers.compare_images(a, b)
+    assert d["max_abs"] == 9 and d["pixels_differing"] == 2
+    assert d["share_differing"] == 0.5 and d["share_over_1"] == 0.25
+    assert d["mean_abs"] == pytest.approx(10 / 12)
+
+
+def test_triangle_ids_survive_8_bits():
+    rgb = peers._id_colors(70000)[::3]
+    image = np.rint(rgb * 255).astype(np.uint8)
+    assert np.array_equal(peers._ids(image), np.arange(1, 70001))
+
+
+def test_no_moderngl_is_a_skip_with_the_reason(monkeypatch):
+    monkeypatch.setitem(sys.modules, "moderngl", None)           # import moderngl raises ImportError
+    ctx, why = peers.peer_context()
+    assert ctx is None and "moderngl is not installed" in why and "pip install" in why
+
+
+def test_no_context_is_a_skip_with_the_reason(monkeypatch):
+    def refuse(**kwargs):
+        raise Exception("libEGL.so: cannot open shared object file")
+    monkeypatch.setitem(sys.modules, "moderngl", types.SimpleNamespace(create_standalone_context=refuse))
+    ctx, why = peers.peer_context()
+    assert ctx is None and "libEGL.so" in why and "libgl1-mesa-dri" in why
+
+
+def test_main_skips_with_exit_status_0(monkeypatch, capsys, tmp_path):
+    monkeypatch.setattr(peers, "peer_context", lambda: (None, "no Mesa here (test)"))
+    out = tmp_path / "peers.json"
+    assert peers.main(["fill", "--scale", "0.05", "--frames", "1", "--json", str(out)]) == 0
+    assert "SKIPPED the llvmpipe comparison: no Mesa here (test)" in capsys.readouterr().out
+    assert not out.exists()
+
+
+def test_unknown_scene_is_refused():
+    with pytest.raises(ValueError, match="no peer for scene"):
+        peers.run(["bunny-shadows"])
+
+
+# --------------------------------------------------------------------------
+# With llvmpipe
+# --------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def llvmpipe():
+    ctx, why = peers.peer_context()
+    if ctx is None:
+        pytest.skip(f"no llvmpipe peer: {why}")
+    yield ctx
+    ctx.release()
+
+
+def test_clip_coordinate_scene_matches_llvmpipe_pixel_for_pixel(llvmpipe):
+    """fill at 96x54 (50 triangles, depth LESS): every pixel shows the same triangle on both."""
+    scene = peers.PEER_SCENES["fill"](0.05)
+    coverage = peers.coverage_check(llvmpipe, scene)
+    for label in ("positions_float64", "positions_float32"):
+        assert coverage[label]["pixels_covered"] == scene.width * scene.height
+        assert coverage[label]["pixels_other_triangle"] == 0, coverage
+
+
+def test_a_round_on_both(llvmpipe, tmp_path):
+    report = peers.run(["fill"], frames=2, scale=0.05, ctx=llvmpipe, log=lambda s: None)
+    assert not report["failed"] and "llvmpipe" in report["peer"]["renderer"]
+    row = report["scenes"][0]
+    assert row["rounds"] == 2 and len(row["softpipe_frames_ms"]) == len(row["llvmpipe_frames_ms"]) == 2
+    assert row["ratio"] == pytest.approx(row["softpipe_ms"] / row["llvmpipe_ms"])
+    assert row["image_difference"]["max_abs"] <= 1       # interpolated colors: float32 vs float64, ±1 level
+    json.dumps(report)
+    assert "sp/llvm" in peers.format_table(report["scenes"])
