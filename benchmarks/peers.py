@@ -622,6 +622,12 @@ def _ms(x: float) -> str:
     return f"{x:.0f}" if x >= 100 else f"{x:.1f}" if x >= 10 else f"{x:.2f}"
 
 
+def _coverage_cell(coverage: Optional[dict]) -> str:
+    if not coverage:
+        return "-"
+    return "/".join(str(coverage[f"positions_{k}"]["pixels_other_triangle"]) for k in ("float64", "float32"))
+
+
 def format_table(rows: List[dict]) -> str:
     from .run import _table
     body = []
@@ -632,9 +638,10 @@ def format_table(rows: List[dict]) -> str:
                      f"{r['paired_ratio_q1']:.2f}-{r['paired_ratio_q3']:.2f}", str(r["rounds"]),
                      f"{r['softpipe_cpu_per_wall']:.2f}/{r['llvmpipe_cpu_per_wall']:.2f}",
                      str(d["max_abs"]), f"{d['mean_abs']:.4f}", f"{100 * d['share_differing']:.3f}",
-                     f"{100 * d['share_over_1']:.3f}"])
+                     f"{100 * d['share_over_1']:.3f}", _coverage_cell(r.get("coverage"))])
     return _table(["scene", "size", "triangles", "softpipe ms", "llvmpipe ms", "sp/llvm", "paired IQR", "n",
-                   "cpu/wall sp/llvm", "max diff", "mean diff", "% px differ", "% px > 1/255"], body)
+                   "cpu/wall sp/llvm", "max diff", "mean diff", "% px differ", "% px > 1/255",
+                   "px other tri f64/f32"], body)
 
 
 def run(names: Sequence[str] = (), frames: int = DEFAULT_FRAMES, scale: float = 1.0, ctx=None,
@@ -718,7 +725,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if report["scenes"]:
         print(format_table(report["scenes"]))
         print("\nsp/llvm = softpipe median / llvmpipe median; paired IQR = quartiles of the per-round ratios; "
-              "diffs in 8-bit RGB levels")
+              "diffs in 8-bit RGB levels; px other tri = pixels showing another triangle than on llvmpipe "
+              "(clip-coordinate scenes, an untimed frame of triangle ids; softpipe given the float64 positions / "
+              "the float32 ones GL gets)")
     if args.save_images is not None:
         from PIL import Image
         args.save_images.mkdir(parents=True, exist_ok=True)
