@@ -254,13 +254,27 @@ def _light_visibility_numba(lighting, j, P):
 def _shadowed_visibility(lighting, j, P):
     shadows = lighting.shadows
     if shadows.light_maps[j, 2] == SHADOW_RAY:
-        lights = lighting.lights
-        position = light_vec3(lights, j, LIGHT_POSITION)
-        if lights[j, LIGHT_KIND] == LIGHT_DIRECTIONAL:
-            return ray_visibility(shadows.rays, P, position, np.inf)
-        to_light = sub(position, P)
-        return ray_visibility(shadows.rays, P, normalize(to_light), length(to_light))
+        return _shadow_ray(shadows.rays, lighting.lights, j, P)
     return shadow_map_visibility(shadows, j, P)
+
+
+def _shadow_ray(rays, lights, j, P):
+    """V_j by a shadow ray toward light j (to its position, or to infinity for a directional light)."""
+    if rays is None:
+        return (1.0, 1.0, 1.0)
+    position = light_vec3(lights, j, LIGHT_POSITION)
+    if lights[j, LIGHT_KIND] == LIGHT_DIRECTIONAL:
+        return ray_visibility(rays, P, position, np.inf)
+    to_light = sub(position, P)
+    return ray_visibility(rays, P, normalize(to_light), length(to_light))
+
+
+@overload(_shadow_ray)
+def _shadow_ray_numba(rays, lights, j, P):
+    # shadows made with maps only carry rays=None: no ray scene's arrays in the shader, no ray code compiled
+    if isinstance(rays, (types.NoneType, types.Omitted)):
+        return lambda rays, lights, j, P: (1.0, 1.0, 1.0)
+    return _shadow_ray
 
 
 @njit(cache=True, inline="always")

@@ -14,7 +14,7 @@ Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − 
    (§10 for ``phong`` and its kin, §13's local terms for ``hall``, §26 for
    ``cook_torrance``), with every light's V_j from a **shadow ray** (§21,
    :func:`softpipe.rays.ray_visibility`: ε off the surface, through transparent
-   objects). N is the interpolated vertex normal, reversed on a back face (by the
+   objects, meeting only the objects whose ``cast_shadows`` is true, as the shadow maps). N is the interpolated vertex normal, reversed on a back face (by the
    triangle's winding, as the rasterizer's ``gl_FrontFacing``); V = −d. A primary ray
    passes through the faces its object culls, as the rasterizer never drew them.
 3. **The ray tree** (§22): a material with reflection ``kr`` spawns the mirror ray
@@ -263,9 +263,12 @@ def _prepare(scene, camera: Optional[Camera]) -> _Prepared:
     light_maps = np.zeros((n, 3), np.int64)
     light_maps[:, 2] = SHADOW_RAY                           # every light: shadow rays (§21)
     uniform = rays.uniform()
+    # shadow rays meet the shadow casters only (an object with cast_shadows false casts none, as with maps)
+    casters = [o for o in objects if getattr(o, "cast_shadows", True)]
+    shadow_rays = uniform if len(casters) == len(objects) else RayScene(casters).uniform()
     empty = np.zeros(0, np.float32)
     shadows = ShadowUniform(light_maps, np.zeros((0, 5), np.int64), np.zeros((0, 4, 4)), empty, empty,
-                            np.zeros((0, 3), np.float32), uniform)
+                            np.zeros((0, 3), np.float32), shadow_rays)
     lighting = LightingUniform(lights.global_ambient, packed, shadows)
     materials = np.array([_pack_material(o.mesh.material) for o in objects], np.float64).reshape(-1, _MATERIAL_COLUMNS)
     aspect = scene.width / scene.height

@@ -66,8 +66,6 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
-from .rays import no_rays
-
 __all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "shadow_map_visibility", "shadow_compare",
            "SHADOW_MAP", "SHADOW_RAY", "SHADOW_METHODS",
            "depth_texture", "texture_compare",
@@ -154,14 +152,11 @@ class ShadowSettings:
         return (self.offset_factor, self.offset_units)
 
 
-_NO_RAYS = no_rays()
-
-
 def no_shadows(num_lights: int) -> ShadowUniform:
     """The uniform of a draw without shadow maps: every light has none, V_j = 1."""
     return ShadowUniform(np.zeros((num_lights, 3), np.int64), np.zeros((0, 5), np.int64),
                          np.zeros((0, 4, 4), np.float64), np.zeros(0, np.float32), np.zeros(0, np.float32),
-                         np.zeros((0, 3), np.float32), _NO_RAYS)
+                         np.zeros((0, 3), np.float32), None)
 
 
 def cube_face_half_extent(resolution: int, pcf: int) -> float:
@@ -267,7 +262,7 @@ def depth_texture(framebuffer, pcf: int = 0) -> ShadowUniform:
     return ShadowUniform(np.zeros((0, 3), np.int64),
                          np.array([[0, framebuffer.width, framebuffer.height, pcf, -1]], np.int64),
                          np.eye(4)[None].copy(), depth, np.zeros(0, np.float32), np.zeros((0, 3), np.float32),
-                         _NO_RAYS)
+                         None)
 
 
 @njit(cache=True)

@@ -43,7 +43,7 @@ from .framebuffer import Framebuffer
 from .material import Light, Lighting, LightingUniform
 from .pipeline import DrawCall
 from .rays import RayScene, transmission_of
-from .shadowmap import (_NO_RAYS, CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, SHADOW_MAP, SHADOW_RAY, ShadowSettings,
+from .shadowmap import (CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, SHADOW_MAP, SHADOW_RAY, ShadowSettings,
                         ShadowUniform, cube_face_half_extent)
 from .transforms import frustum, look_at, orthographic
 
@@ -297,7 +297,8 @@ class ShadowMaps:
         maps, depth, transparent_depth, transmission = self._packed
         inverse_view = np.linalg.inv(np.asarray(view_matrix, np.float64))
         matrices = np.array([m.matrix @ inverse_view for m in self.maps], np.float64).reshape(-1, 4, 4)
-        rays = self.rays.uniform(view_matrix) if self.rays is not None else _NO_RAYS
+        # None without ray lights: a shader then carries no ray scene (numba counts every array it holds)
+        rays = self.rays.uniform(view_matrix) if self.rays is not None else None
         return ShadowUniform(self.light_maps.copy(), maps, matrices, depth, transparent_depth, transmission, rays)
 
     def _pack(self):

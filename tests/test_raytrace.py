@@ -350,3 +350,20 @@ def test_inside_a_glass_sphere_grazing_rays_are_totally_reflected():
                 assert kinds == {"refracted"}
                 refracted += 1
     assert total > 5 and refracted > 5
+
+
+def test_an_object_that_casts_no_shadow_casts_none_in_the_tracer_either():
+    """cast_shadows=False: the shadow rays of the tracer pass it, as the rasterizer's shadows (maps or rays) do;
+    with depth 0 the two pictures then agree everywhere."""
+    floor = shapes.plane(6.0, material=Material(ka=0.2, kd=0.8, ks=0.0))
+    box = shapes.cube(1.0, material=Material(kd=(0.8, 0.3, 0.2)))
+    sun = Light.directional((0.0, -1.0, 0.0), shadows=RAYS, name="sun")
+    for casts in (True, False):
+        scene = Scene([SceneObject("floor", floor, np.eye(4)),
+                       SceneObject("box", box, translate(0.0, 1.5, 0.0), cast_shadows=casts)],
+                      camera=sp.Camera(eye=(0.0, 5.0, 5.0)), lights=(sun,), width=48, height=48)
+        raster = sp.render_scene(scene).color[..., :3]
+        traced = raytrace_scene(scene, max_depth=0).color[..., :3]
+        assert np.abs(raster - traced).max() < 1 / 255
+        under = traced[np.abs(traced[..., 0] - 0.2 * 0.2 * 1.0) < 1e-6]     # floor pixels in the box's shadow
+        assert (len(under) > 0) == casts
