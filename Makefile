@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench bench-peers fuzz clean
+.PHONY: demo test bench bench-peers bench-batch fuzz clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,11 @@ bench: $(STAMP)
 # where it cannot, it says what is missing and skips the comparison (exit status 0).
 bench-peers: $(STAMP)
 	$(PY) -m benchmarks.peers --install
+
+# softpipe batch's frames/s on LocalClusters of 1 and 2 workers: a 36-frame bunny turntable
+# at 640x480, the clusters alternated, medians (docs/batch.md, "Scaling").
+bench-batch: $(STAMP)
+	$(PY) -m softpipe.batch --model bunny --frames 36 --size 640x480 --workers 1,2
 
 clean:
 	rm -rf $(VENV) out build *.egg-info
