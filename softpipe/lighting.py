@@ -58,7 +58,8 @@ __all__ = [
     "emission", "ambient", "lambert", "phong_specular", "blinn_phong_specular",
     "attenuation", "spot_factor", "light_at", "light_vec3", "light_colors", "light_visibility", "casts_shadows",
     "opengl_lighting",
-    "transmitted_half_vector", "hall_transmission", "hall_local",
+    "transmitted_half_vector", "hall_transmission", "hall_local", "medium_falloff",
+    "two_sided_lighting",
     "fresnel_rs_rp", "fresnel", "fresnel_schlick",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting",
     "gooch",
@@ -383,7 +384,10 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
     :func:`transmitted_half_vector` (``material.ior`` for a viewer in air); n′ is
     ``material.transmission_shininess``; V_j is light j's visibility
     (:func:`light_visibility`). The reflected and transmitted rays
-    (k_r, k_t terms with T^d) belong to a ray tracer and are not included.
+    (k_r, k_t terms with T^d) belong to a ray tracer and are not included here:
+    :func:`softpipe.raytrace.raytrace_scene` adds them, k_r·I_r·T_r^{d_r} and
+    k_t·I_t·T_t^{d_t} with I_r, I_t from the reflected and refracted rays and the
+    falloff of :func:`medium_falloff`.
     """
     m = material
     lights = lighting.lights
@@ -400,6 +404,69 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
                 lit = mul(lit, light_visibility(lighting, j, P))
             term = add(term, lit)
         color = add(color, scale(term, f))
+    return color
+
+
+@njit(cache=True)
+def medium_falloff(transmittance: Color, glassner: bool, a: float, d: float) -> Color:
+    """The share of light (RGB) left after distance d in a medium (FORMULAS §15).
+
+    T^d per channel (Hall's T_r^{d_r} and T_t^{d_t}, §13), T = ``transmittance`` per
+    unit distance; or, with ``glassner`` True, Glassner's 1/(1 + a·d), the same in
+    every channel. T ≈ 1 for air in small scenes (§15): 1^d = 1, and a = 0 gives 1.
+    """
+    if glassner:
+        g = 1.0 / (1.0 + a * d)
+        return (g, g, g)
+    return (transmittance[0] ** d, transmittance[1] ** d, transmittance[2] ** d)
+
+
+# --------------------------------------------------------------------------
+# The ray-tracing course's two-sided form (§11)
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def two_sided_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform) -> Color:
+    """The direct light of FORMULAS §11, the ray-tracing course's two-sided form, summed over all lights.
+
+    c = ρ_d·L_a + Σ_i (ρ_d + ρ_s(N·H_i)) · L_i · V_i(p) · |N·L_i|,   ρ_s(N·H) = k_s·(N·H)₊ⁿ
+
+    with ρ_d = ``kd``, k_s = ``ks``, n = ``shininess``, L_a the global ambient light,
+    H_i = normalize(L_i + V) and V_i light i's visibility (:func:`light_visibility`:
+    shadow maps or shadow rays). L_i is light i's response at P: its diffuse color
+    k_l (``I_d``) divided by r² for a point light, r the distance to it (§11's
+    L_i = k_l/r², not §7's coefficients), times f_spot for a spot (§8); k_l for a
+    directional light. The §11 terms k_r·trace(p, R) + k_t·trace(p, T) are the ray
+    tracer's (:func:`softpipe.raytrace.raytrace_scene`), not this function's.
+
+    **note** (FORMULAS §11): |N·L_i|, so a light *behind* the surface lights it as
+    much as one in front (two-sided: no B factor), and the cosine multiplies the
+    specular lobe too; §10 (:func:`opengl_lighting`) does neither. There is no
+    emission k_e and no k_a in §11: the ambient term is ρ_d·L_a.
+    """
+    m = material
+    lights = lighting.lights
+    color = mul(m.kd, lighting.global_ambient)
+    for i in range(lights.shape[0]):
+        position = light_vec3(lights, i, LIGHT_POSITION)
+        if lights[i, LIGHT_KIND] == LIGHT_DIRECTIONAL:
+            L, response = position, 1.0
+        else:
+            to_light = sub(position, P)
+            r2 = dot(to_light, to_light)
+            L = normalize(to_light)
+            response = 1.0 / r2 if r2 > MIN_ATTENUATION_DENOMINATOR else 1.0 / MIN_ATTENUATION_DENOMINATOR
+            response *= spot_factor(L, light_vec3(lights, i, LIGHT_SPOT_DIRECTION),
+                                    lights[i, LIGHT_SPOT_COS_CUTOFF], lights[i, LIGHT_SPOT_EXPONENT])
+        cos_l = abs(dot(N, L))
+        if response <= 0.0 or cos_l == 0.0:
+            continue
+        H = half_vector(L, V)
+        rho = add(m.kd, scale(m.ks, positive_power(dot(N, H), m.shininess)))   # ρ_d + ρ_s(N·H)
+        lit = scale(mul(rho, light_vec3(lights, i, LIGHT_DIFFUSE)), response * cos_l)
+        if casts_shadows(lighting, i):
+            lit = mul(lit, light_visibility(lighting, i, P))
+        color = add(color, lit)
     return color
 
 

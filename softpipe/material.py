@@ -11,10 +11,22 @@ kr          reflection coefficient of the Hall model (§13)
 kt          transmission coefficient of the Hall model (§13)
 transmission_shininess   the transmission exponent n' (§13, §14)
 ior         index of refraction of the material (§17); Fresnel (§20) and
-            Cook-Torrance (§26) use it, so ior = 1 means "no specular reflection" there
+            Cook-Torrance (§26) use it, so ior = 1 means "no specular reflection" there.
+            A name from :data:`MEDIA` (``ior="glass"``) gives the notes' index.
 opacity     alpha of the surface (1 = opaque)
 diffuse_texture  path of a texture that multiplies kd (MTL ``map_Kd``), or None
 roughness   Beckmann's m, the rms slope of the microfacets, for Cook-Torrance (§26)
+transmittance  T, the share of light (RGB) left after one unit of distance *inside* the
+            object (§13's T_r, T_t; §15): a ray that crosses d units of it keeps T^d.
+            1 (the default) is clear; air outside objects is taken as T = 1 (§15)
+falloff     how that share falls with distance d inside: ``"power"`` (the default),
+            T^d (§15, Hall's form); ``"glassner"``, Glassner's 1/(1 + a·d) with
+            a = ``falloff_a`` (then ``transmittance`` is not used)
+falloff_a   Glassner's a ≥ 0 (per unit distance); 0 means no falloff
+
+``transmittance``, ``falloff`` and ``falloff_a`` are read by the ray tracer
+(:mod:`softpipe.raytrace`), the only place a distance inside an object is known;
+they are not in :class:`MaterialUniform` (a shader has no such distance).
 
 Colors are linear RGB triples of floats; each must be finite and non-negative.
 A single number means gray.
@@ -74,7 +86,7 @@ RGB = Tuple[float, float, float]
 Vec3 = Tuple[float, float, float]
 
 __all__ = [
-    "Material", "MaterialUniform", "Light", "Lighting", "LightingUniform", "pack_lights",
+    "Material", "MaterialUniform", "MEDIA", "FALLOFFS", "falloff_factor", "Light", "Lighting", "LightingUniform", "pack_lights",
     "LIGHT_COLUMNS", "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR",
     "LIGHT_POSITION", "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF",
     "LIGHT_SPOT_EXPONENT", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
@@ -143,6 +155,40 @@ def _vec3(name: str, value, owner: str, nonzero: bool = False) -> Vec3:
 
 _COLOR_FIELDS = ("ke", "ka", "kd", "ks", "kr", "kt")
 
+#: Indices of refraction of the notes' named media (FORMULAS §17): ``Material(ior="glass")``.
+MEDIA = {"vacuum": 1.0, "air": 1.00029, "water": 1.33, "glass": 1.52, "salt": 1.54, "sapphire": 1.77,
+         "diamond": 2.417}
+
+#: The two forms of falloff in a medium over distance d (FORMULAS §15): T^d, and Glassner's 1/(1 + a·d).
+FALLOFFS = ("power", "glassner")
+
+
+def _ior(value) -> float:
+    """An index of refraction: a number > 0 or a name from MEDIA (§17)."""
+    if isinstance(value, str):
+        key = value.strip().lower()
+        if key not in MEDIA:
+            known = ", ".join(f"{name} {n}" for name, n in MEDIA.items())
+            raise ValueError(f"Material.ior: unknown medium {value!r}; the named media (FORMULAS §17) are {known}")
+        return MEDIA[key]
+    ior = _scalar("ior", value)
+    if ior <= 0.0:
+        raise ValueError(f"Material.ior must be > 0, got {value!r}")
+    return ior
+
+
+def falloff_factor(material: "Material", d: float) -> RGB:
+    """The share of light (RGB) left after distance d inside ``material`` (FORMULAS §15).
+
+    T^d per channel for ``falloff="power"`` (Hall's T_r^{d_r}, T_t^{d_t} of §13), or
+    Glassner's 1/(1 + a·d) for ``falloff="glassner"``. The ray tracer computes the same
+    (``softpipe.raytrace``); this is the reference in plain Python.
+    """
+    if material.falloff == "glassner":
+        g = 1.0 / (1.0 + material.falloff_a * d)
+        return (g, g, g)
+    return tuple(t ** d for t in material.transmittance)
+
 MaterialUniform = namedtuple(
     "MaterialUniform",
     ["ke", "ka", "kd", "ks", "shininess", "kr", "kt", "transmission_shininess",
@@ -174,6 +220,9 @@ class Material:
     name: str = field(default="default", compare=False)
     # Keyword-only, so that the positional order of the fields above is unchanged.
     roughness: float = field(default=0.3, kw_only=True)
+    transmittance: RGB = field(default=(1.0, 1.0, 1.0), kw_only=True)
+    falloff: str = field(default="power", kw_only=True)
+    falloff_a: float = field(default=0.0, kw_only=True)
 
     def __post_init__(self) -> None:
         for f in _COLOR_FIELDS:
@@ -182,10 +231,7 @@ class Material:
         object.__setattr__(
             self, "transmission_shininess", _scalar("transmission_shininess", self.transmission_shininess)
         )
-        ior = _scalar("ior", self.ior)
-        if ior <= 0.0:
-            raise ValueError(f"Material.ior must be > 0, got {self.ior!r}")
-        object.__setattr__(self, "ior", ior)
+        object.__setattr__(self, "ior", _ior(self.ior))
         opacity = _scalar("opacity", self.opacity)
         if opacity > 1.0:
             raise ValueError(f"Material.opacity must be in [0, 1], got {self.opacity!r}")
@@ -194,6 +240,15 @@ class Material:
         if roughness <= 0.0:
             raise ValueError(f"Material.roughness must be > 0 (Beckmann m), got {self.roughness!r}")
         object.__setattr__(self, "roughness", roughness)
+        transmittance = _rgb("transmittance", self.transmittance)
+        if max(transmittance) > 1.0:
+            raise ValueError(f"Material.transmittance is a share per unit distance, in [0, 1] per channel, "
+                             f"got {self.transmittance!r}")
+        object.__setattr__(self, "transmittance", transmittance)
+        if self.falloff not in FALLOFFS:
+            raise ValueError(f"Material.falloff must be 'power' (T^d) or 'glassner' (1/(1 + a·d)), "
+                             f"got {self.falloff!r}")
+        object.__setattr__(self, "falloff_a", _scalar("falloff_a", self.falloff_a))
 
     def replace(self, **changes) -> "Material":
         """A copy with some fields changed (validated like the constructor)."""

@@ -12,7 +12,8 @@ Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − 
 2. **Local color** at the nearest hit P: the object's program's lighting equation,
    the *same* functions of :mod:`softpipe.lighting` the rasterizer's shaders call
    (§10 for ``phong`` and its kin, §13's local terms for ``hall``, §26 for
-   ``cook_torrance``), with every light's V_j from a **shadow ray** (§21,
+   ``cook_torrance``, §11's two-sided form for ``two_sided``), with every light's
+   V_j from a **shadow ray** (§21,
    :func:`softpipe.rays.ray_visibility`: ε off the surface, through transparent
    objects, meeting only the objects whose ``cast_shadows`` is true, as the shadow maps). N is the interpolated vertex normal, reversed on a back face (by the
    triangle's winding, as the rasterizer's ``gl_FrontFacing``); V = −d. A primary ray
@@ -26,13 +27,23 @@ Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − 
    c = local + k_r·trace(p, R) + k_t·trace(p, T), unrolled. A branch stops at
    ``max_depth`` or when its weight falls below ``min_weight`` in every channel;
    secondary rays start ε along their direction.
-4. A ray that meets nothing brings the background.
+4. **Falloff in a medium** (§13's T_r^{d_r}, T_t^{d_t}; §15): a secondary ray that
+   travels d to its hit has its weight multiplied by the falloff of the medium it
+   crossed — the object's (``Material.transmittance`` T, as T^d, or Glassner's
+   1/(1 + a·d) with ``Material.falloff="glassner"``) when it ends on a back face of
+   that object (it travelled inside it: refracted in, or reflected inside), air's
+   otherwise (``air_transmittance``, T = 1 by default: "T ≈ 1 for air in small
+   scenes", §15). So a Hall object's global terms are k_r·I_r·T_r^{d_r} and
+   k_t·I_t·T_t^{d_t}, with ``kr`` = k_r·F_s and ``kt`` = k_t·F_t (RGB). Objects are
+   taken as closed and not nested. The primary ray has no falloff (the pixel is
+   the first surface's I, as in Hall's recursion), nor has a ray that meets nothing.
+5. A ray that meets nothing brings the background.
 
 :func:`ray_tree` records one pixel's tree as data — every ray with its kind, origin,
 direction, hit, local color and weight — and prints it, the ray tracer's pixel history.
 
 Not here yet: textures (a ``textured`` object is lit with its material's kd), Fresnel
-weighting and the Hall model's global terms with T^d (issue #17), area lights.
+weighting of kr against kt (§20), T^d on shadow rays through glass, area lights.
 """
 from __future__ import annotations
 
@@ -48,7 +59,8 @@ from ._parallel import in_bands
 from .camera import Camera
 from .framebuffer import Framebuffer
 from .glsl import dot, reflect, refract, scale
-from .lighting import BLINN_PHONG, PHONG, cook_torrance_lighting, hall_local, opengl_lighting
+from .lighting import (BLINN_PHONG, PHONG, cook_torrance_lighting, hall_local, medium_falloff, opengl_lighting,
+                       two_sided_lighting)
 from .material import LightingUniform, MaterialUniform, pack_lights
 from .rays import RayScene, hit_normal
 from .bvh import closest_hit
@@ -58,18 +70,27 @@ __all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "RayTree", "RayNo
 
 #: How each program's local color is computed in the ray tracer (the others: as "phong", with a note).
 PROGRAM_CODES = {"phong": 0, "gouraud": 0, "flat": 0, "textured": 0, "phong_phong_specular": 1,
-                 "gouraud_phong_specular": 1, "flat_phong_specular": 1, "hall": 2, "cook_torrance": 3}
+                 "gouraud_phong_specular": 1, "flat_phong_specular": 1, "hall": 2, "cook_torrance": 3,
+                 "two_sided": 4}
 #: The kinds of ray in a tree.
 RAY_KINDS = ("primary", "reflected", "refracted", "total internal reflection")
 #: The deepest tree allowed (2^(depth+1) rays at most per pixel).
 MAX_DEPTH_LIMIT = 12
-_MATERIAL_COLUMNS = 23
+_MATERIAL_COLUMNS = 28          # MaterialUniform's 23 numbers, then T (RGB), Glassner's form (0/1) and its a
 _RECORD_COLUMNS = 21
 
 
 def _pack_material(m) -> np.ndarray:
     return np.array([*m.ke, *m.ka, *m.kd, *m.ks, m.shininess, *m.kr, *m.kt, m.transmission_shininess,
-                     m.ior, m.opacity, m.roughness], np.float64)
+                     m.ior, m.opacity, m.roughness, *m.transmittance, float(m.falloff == "glassner"),
+                     m.falloff_a], np.float64)
+
+
+@njit(cache=True, inline="always")
+def _falloff(rows, k, d):
+    """The falloff over distance d inside object k's material (§15): T^d, or Glassner's 1/(1 + a·d)."""
+    r = rows[k]
+    return medium_falloff((r[23], r[24], r[25]), r[26] != 0.0, r[27], d)
 
 
 @njit(cache=True, inline="always")
@@ -88,6 +109,8 @@ def _local_color(code, P, N, V, material, lighting):
         return hall_local(P, N, V, material, lighting, material.ior)
     if code == 3:
         return cook_torrance_lighting(P, N, V, material, lighting)
+    if code == 4:
+        return two_sided_lighting(P, N, V, material, lighting)
     return opengl_lighting(P, N, V, material, lighting, BLINN_PHONG)
 
 
@@ -98,7 +121,7 @@ def _unit(v):
 
 
 @njit(cache=True)
-def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, facing, background, max_depth,
+def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, facing, background, air, max_depth,
                  min_weight, record):
     """The color of one primary ray, its tree walked with an explicit stack; the tree into ``record`` if it has rows."""
     cap = 1 << (max_depth + 1)
@@ -127,6 +150,7 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
             tri, t, b1, b2 = _primary_hit(scene, o, d, far, facing)
         else:
             tri, t, b1, b2 = closest_hit(scene.bvh, o, d, eps, np.inf)
+        falloff = (1.0, 1.0, 1.0)
         if tri < 0:
             local = (background[0], background[1], background[2])
         else:
@@ -138,6 +162,12 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
             entering = dot((facing.normals[tri, 0], facing.normals[tri, 1], facing.normals[tri, 2]), d) < 0.0
             if not entering:
                 N = scale(N, -1.0)
+            if depth > 0:          # §13's T^d, §15: inside the object it leaves here, else through air
+                if entering:
+                    falloff = medium_falloff((air[0], air[1], air[2]), False, 0.0, t)
+                else:
+                    falloff = _falloff(materials, obj, t)
+                w = (w[0] * falloff[0], w[1] * falloff[1], w[2] * falloff[2])
             V = (-d[0], -d[1], -d[2])
             m = _material(materials, obj)
             local = _local_color(programs[obj], P, N, V, m, lighting)
@@ -154,6 +184,7 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
             row[11] = scene.triangle_object[tri] if tri >= 0 else -1
             row[12], row[13], row[14] = local[0], local[1], local[2]
             row[15], row[16], row[17] = w[0], w[1], w[2]
+            row[18], row[19], row[20] = falloff[0], falloff[1], falloff[2]
             n_recorded += 1
         if tri < 0 or depth >= max_depth:
             continue
@@ -200,13 +231,13 @@ def _primary_hit(scene, o, d, far, facing):
 
 @njit(cache=True, nogil=True)
 def _trace_rows(lo, hi, width, height, unproject, scene, lighting, materials, programs, facing, background,
-                max_depth, min_weight, out):
+                air, max_depth, min_weight, out):
     no_record = np.empty((0, _RECORD_COLUMNS))
     for j in range(lo, hi):                 # image rows, top first
         for i in range(width):
             origin, direction, far = _primary_ray(unproject, i, j, width, height)
             r, g, b, _ = _trace_pixel(origin, direction, far, scene, lighting, materials, programs, facing,
-                                      background, max_depth, min_weight, no_record)
+                                      background, air, max_depth, min_weight, no_record)
             out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = r, g, b, 1.0
 
 
@@ -302,8 +333,18 @@ def _check_limits(max_depth, min_weight) -> None:
         raise ValueError(f"min_weight must be a number in [0, 1), got {min_weight!r}")
 
 
+def _air(air_transmittance) -> np.ndarray:
+    """Air's T per unit distance (§15) as RGB in [0, 1]; a number means gray."""
+    from .material import _rgb
+    rgb = _rgb("air_transmittance", air_transmittance, owner="raytrace_scene")
+    if max(rgb) > 1.0:
+        raise ValueError(f"air_transmittance is a share per unit distance, in [0, 1], got {air_transmittance!r}")
+    return np.array(rgb, np.float64)
+
+
 def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5, min_weight: float = 1e-3,
-                   notes: Optional[list] = None, timings: Optional[dict] = None) -> Framebuffer:
+                   notes: Optional[list] = None, timings: Optional[dict] = None,
+                   air_transmittance=1.0) -> Framebuffer:
     """Ray trace ``scene`` (Whitted; see the module docstring) into a new one-sample framebuffer.
 
     Parameters
@@ -317,18 +358,22 @@ def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5
         The deepest reflected/refracted ray (0: primary rays only).
     min_weight : float
         A branch whose weight is below this in every channel is not traced (§22).
+    air_transmittance : float or RGB
+        T per unit distance outside the objects (§15), in [0, 1]: a secondary ray
+        that travels d through air keeps T^d. 1 (the default): air is clear.
     notes : list, optional
         Receives a line for each thing the ray tracer does differently from the rasterizer.
     timings : dict, optional
         Receives "build" (the BVH) and "trace" seconds.
     """
     _check_limits(max_depth, min_weight)
+    air = _air(air_transmittance)
     start = time.perf_counter()
     p = _prepare(scene, camera)
     built = time.perf_counter()
     out = np.zeros((scene.height, scene.width, 4), np.float32)
     in_bands(_trace_rows, scene.height, scene.width, scene.height, p.unproject, p.uniform, p.lighting, p.materials,
-             p.programs, p.facing, p.background, int(max_depth), float(min_weight), out, grain=8)
+             p.programs, p.facing, p.background, air, int(max_depth), float(min_weight), out, grain=8)
     fb = Framebuffer(scene.width, scene.height)
     fb.color[...] = out
     if notes is not None:
@@ -380,7 +425,8 @@ class RayNode:
     triangle: int               # −1: nothing
     object: str                 # the object's name, or "" for a miss
     local: tuple                # the local color at the hit (the background for a miss)
-    weight: tuple               # what the ray's color counts for in the pixel
+    weight: tuple               # what the ray's color counts for in the pixel (its falloff included)
+    falloff: tuple = (1.0, 1.0, 1.0)   # T^d (or 1/(1 + a·d)) over this ray's path to its hit (§13, §15)
 
 
 class RayTree(list):
@@ -405,25 +451,27 @@ class RayTree(list):
 
 
 def ray_tree(scene, x: int, y: int, *, camera: Optional[Camera] = None, max_depth: int = 5,
-             min_weight: float = 1e-3) -> RayTree:
+             min_weight: float = 1e-3, air_transmittance=1.0) -> RayTree:
     """The ray tree of pixel (x, image row y) as :func:`raytrace_scene` traces it: every ray, as data.
 
     The sum of weight × local over the nodes is the pixel's color (the same float
-    operations in the same order, so it equals the framebuffer's value).
+    operations in the same order, so it equals the framebuffer's value). A node's weight
+    is its parent's times k_r or k_t times its own ``falloff`` (§13's T^d, §15).
     """
     _check_limits(max_depth, min_weight)
+    air = _air(air_transmittance)
     if not (0 <= x < scene.width and 0 <= y < scene.height):
         raise ValueError(f"pixel ({x}, {y}) is outside the {scene.width}×{scene.height} image")
     p = _prepare(scene, camera)
     origin, direction, far = _primary_ray(p.unproject, x, y, scene.width, scene.height)
     record = np.zeros((1 << (max_depth + 1), _RECORD_COLUMNS))
     r, g, b, n = _trace_pixel(origin, direction, far, p.uniform, p.lighting, p.materials, p.programs, p.facing,
-                              p.background, int(max_depth), float(min_weight), record)
+                              p.background, air, int(max_depth), float(min_weight), record)
     names = [o.name for o in p.scene.objects]
     nodes = []
     for k, row in enumerate(record[:n]):
         obj = int(row[11])
         nodes.append(RayNode(k, int(row[0]), RAY_KINDS[int(row[1])], int(row[2]), tuple(row[3:6]), tuple(row[6:9]),
                              float(row[9]), int(row[10]), names[obj] if obj >= 0 else "", tuple(row[12:15]),
-                             tuple(row[15:18])))
+                             tuple(row[15:18]), tuple(row[18:21])))
     return RayTree(x, y, nodes, (float(np.float32(r)), float(np.float32(g)), float(np.float32(b))))

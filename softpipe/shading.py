@@ -109,6 +109,7 @@ The lighting equations (:mod:`softpipe.lighting`; § as in FORMULAS.md)
     positive_power (§5, §6), attenuation (§7), spot_factor (§8),
     opengl_lighting (§10) with BLINN_PHONG or PHONG,
     hall_local (§13), hall_transmission (§13, §14), transmitted_half_vector (§14),
+    medium_falloff (§15: T^d or Glassner's 1/(1 + a·d)), two_sided_lighting (§11),
     fresnel_rs_rp, fresnel, fresnel_schlick (§20),
     beckmann_d, geometry_g, cook_torrance, cook_torrance_lighting, gooch (§26)
 The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
@@ -141,8 +142,8 @@ from .glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, len
 from .lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
                        casts_shadows, cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_rs_rp,
                        fresnel_schlick, geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert,
-                       light_at, light_colors, light_vec3, light_visibility, opengl_lighting, phong_specular,
-                       positive_power, spot_factor, transmitted_half_vector)
+                       light_at, light_colors, light_vec3, light_visibility, medium_falloff, opengl_lighting,
+                       phong_specular, positive_power, spot_factor, transmitted_half_vector, two_sided_lighting)
 from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
                        LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
                        LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
@@ -173,7 +174,7 @@ __all__ = [
     # the lighting equations
     "emission", "ambient", "lambert", "b_factor", "phong_specular", "blinn_phong_specular", "half_vector",
     "positive_power", "attenuation", "spot_factor", "opengl_lighting", "BLINN_PHONG", "PHONG",
-    "hall_local", "hall_transmission", "transmitted_half_vector",
+    "hall_local", "hall_transmission", "transmitted_half_vector", "medium_falloff", "two_sided_lighting",
     "fresnel_rs_rp", "fresnel", "fresnel_schlick",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting", "gooch",
     # the packed lights
