@@ -1,0 +1,149 @@
+"""Environment maps from the scene: a dynamic cube map (six draws from a point) and a sky behind a picture.
+
+:func:`render_cube_map` is the rasterizer's answer to "what does a mirror at p
+see?": draw the scene six times from p, one 90° square view along each of ±x, ±y,
+±z, through the ordinary pipeline (:func:`softpipe.draw_mesh`, one
+:class:`softpipe.DrawCall` per object and face), and keep the six pictures as the
+faces of a :class:`~softpipe.cubemap.CubeMap`. It is the shadow pass's cube map
+(:mod:`softpipe.shadows`) with colors instead of depths: the same six cameras,
+and the face images arranged by GL's table (:mod:`softpipe.cubemap`).
+
+A camera with +y up looking along +x sees +z on its right; GL's +x face has +z
+on its *left* (s grows toward −z). So every face is drawn with a look-at camera
+(the up vectors of :data:`softpipe.shadows.CUBE_FACES`: +y for the four side faces,
+−z looking up, +z looking down) and stored mirrored left to right. A 90° square
+view's pixel centres are then exactly the face's texel centres.
+
+This module is apart from :mod:`softpipe.cubemap` because it draws: the programs
+that sample cube maps (:mod:`softpipe.shaders.environment`) import the cube map
+module, and drawing imports the programs.
+
+:func:`fill_background` paints a cube map behind a finished picture: every sample
+nothing was drawn on gets the environment in the direction of its view ray (a
+sky box without a box).
+"""
+from __future__ import annotations
+
+import math
+from typing import Iterable, Optional, Sequence, Union
+
+import numpy as np
+
+from .camera import Camera
+from .cubemap import CubeMap, texel_directions
+from .drawing import draw_mesh
+from .framebuffer import Framebuffer
+from .material import Lighting
+from .scene import Scene, program_for
+from .shadows import CUBE_FACES, render_shadow_maps
+
+__all__ = ["render_cube_map", "face_cameras", "fill_background", "ENVIRONMENT_PROGRAMS"]
+
+#: Programs that read the uniform ``environment``; without one given they are drawn with ``phong``.
+ENVIRONMENT_PROGRAMS = ("mirror", "glass")
+
+
+def face_cameras(position: Sequence[float], near: float = 0.01, far: float = 100.0):
+    """The six 90° cameras at ``position``, in GL's face order (+x, −x, +y, −y, +z, −z)."""
+    p = np.asarray(position, np.float64)
+    return [Camera(eye=tuple(p), target=tuple(p + np.asarray(forward, np.float64)), up=up, fovy=90.0,
+                   near=near, far=far) for forward, up in CUBE_FACES]
+
+
+def render_cube_map(objects: Union[Scene, Iterable], position: Sequence[float], size: int = 64, *,
+                    lighting: Optional[Lighting] = None, background=(0.0, 0.0, 0.0, 1.0),
+                    environment: Optional[CubeMap] = None, exclude: Sequence[str] = (),
+                    program: Optional[str] = None, near: float = 0.01, far: float = 100.0,
+                    filter: str = "trilinear", cull: str = "back") -> CubeMap:
+    """Draw the scene into a cube map from ``position``: six draws of ``size`` × ``size``, fovy 90°.
+
+    Parameters
+    ----------
+    objects : Scene or list of SceneObject
+        What is drawn. A Scene gives its objects (and its ground, placed for its view
+        camera), lights, program and cull mode.
+    position : (x, y, z)
+        The cube map's centre, world space (the centre of the mirror that will use it).
+    size : int
+        Face width in texels.
+    lighting : Lighting, optional
+        For a list of objects: the lights (default: one key light,
+        :data:`softpipe.shaders.common.DEFAULT_LIGHTING`). A Scene's own lights are
+        used otherwise, the studio set placed for its view camera. Lights with
+        ``shadows`` get their shadow maps once, for all six faces.
+    background : RGBA or CubeMap
+        What the faces show where nothing was drawn: a color, or a cube map (a sky)
+        looked up in each texel's direction.
+    environment : CubeMap, optional
+        The uniform ``environment`` for objects drawn with ``mirror`` or ``glass``;
+        without it they are drawn with ``phong``.
+    exclude : names
+        Objects left out (the mirror the map is for: it would see its own inside).
+    program : str, optional
+        The program of objects that name none (default: the scene's, else ``phong``).
+    near, far : float
+        The six cameras' clip distances.
+    filter : str
+        The cube map's filter (:class:`~softpipe.cubemap.CubeMap`).
+    cull : str
+        For a list of objects, the cull mode of those that name none.
+    """
+    size = int(size)
+    if isinstance(objects, Scene):
+        scene = objects
+        view_camera = scene.view_camera()
+        drawn = scene.drawn_objects(view_camera)
+        lights = scene.lighting_for(view_camera)
+        program = program or scene.program
+        cull = scene.cull
+    else:
+        from .shaders.common import DEFAULT_LIGHTING
+        drawn = list(objects)
+        lights = lighting if lighting is not None else DEFAULT_LIGHTING
+    drawn = [o for o in drawn if o.name not in set(exclude)]
+    maps = render_shadow_maps(drawn, lights) if any(li.shadows is not None for li in lights.lights) else None
+    sky = background if isinstance(background, CubeMap) else None
+    clear = (0.0, 0.0, 0.0, 1.0) if sky is not None else background
+    extra = {"environment": environment} if environment is not None else None
+    faces = []
+    for camera in face_cameras(position, near, far):
+        fb = Framebuffer(size, size).clear(clear)
+        lighting_uniform = maps.lighting_uniform(lights, camera.view) if maps else lights.uniform(camera.view)
+        for obj in drawn:
+            name = program_for(obj, program)
+            if name in ENVIRONMENT_PROGRAMS and environment is None:
+                name = "phong"
+            draw_mesh(fb, obj.mesh, camera, name, model=obj.model, lighting=lighting_uniform, texture=obj.texture,
+                      cull=obj.cull or cull, uniforms=extra if name in ENVIRONMENT_PROGRAMS else None)
+        # GL's faces are mirrored left to right against a camera's picture (module docstring)
+        faces.append((np.array(fb.color[:, ::-1], np.float32), fb.depth[:, ::-1] >= 1.0))
+    if sky is not None:
+        directions = texel_directions(size)
+        for f, (color, empty) in enumerate(faces):
+            if empty.any():
+                color[empty] = sky.sample_many(directions[f][empty]).astype(np.float32)
+    return CubeMap([color for color, _ in faces], filter=filter)
+
+
+def fill_background(framebuffer: Framebuffer, camera: Camera, environment: CubeMap, lod: float = 0.0) -> Framebuffer:
+    """Paint ``environment`` into every sample of ``framebuffer`` that nothing was drawn on (depth 1).
+
+    A sample's color is the cube map in the world direction of the camera's ray through
+    it (the camera's perspective, the framebuffer's aspect). Returns the framebuffer.
+    """
+    h, w = framebuffer.height, framebuffer.width
+    depth = framebuffer.samples_depth
+    color = framebuffer.samples_color
+    half = math.tan(math.radians(camera.fovy) / 2.0)
+    aspect = w / h
+    rotation = camera.view[:3, :3].T                 # eye → world
+    rows, cols = np.mgrid[0:h, 0:w]
+    for s, (px, py) in enumerate(framebuffer.pattern.positions):
+        empty = depth[s] >= 1.0
+        if not empty.any():
+            continue
+        x = 2.0 * (cols[empty] + px) / w - 1.0
+        y = 2.0 * ((h - 1 - rows[empty]) + py) / h - 1.0
+        d_eye = np.stack([x * half * aspect, y * half, -np.ones_like(x)], axis=-1)
+        color[s][empty] = environment.sample_many(d_eye @ rotation.T, lod).astype(np.float32)
+    return framebuffer

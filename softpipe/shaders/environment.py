@@ -1,0 +1,153 @@
+"""Mirrors and glass in a rasterizer: the reflected and refracted directions look up an environment.
+
+    vertex shader:   eye-space P and N (:func:`~softpipe.shaders.common.standard_vertex`)
+    fragment shader: N renormalized, V toward the eye,
+                     R = 2(N·V)N − V                          (§16)
+                     T = (η·c₁ − c₂)·N − η·V, c₁ = N·V        (§18), η = η_outside/η_material
+                     looked up in a cube map (uniform ``environment``)
+
+``mirror``
+    I = kr·env(R) + I_local, with I_local the OpenGL lighting equation (§10,
+    Blinn-Phong) of the material: a mirror is usually kd ≈ 0 and a sharp ks, so
+    the lights still leave their highlights.
+``glass``
+    I = F_R·env(R) + (1 − F_R)·kt·env(T) + I_local, with F_R the exact Fresnel
+    reflectance (§20, :func:`softpipe.lighting.fresnel`) at cos θ₁ = N·V from
+    η_outside into ``material.ior``. On total internal reflection (§19:
+    η²(1 − c₁²) > 1, possible only when the outside is the denser medium) F_R = 1
+    and everything goes to reflection. Reflection is not scaled by kr here:
+    Fresnel decides how much is reflected.
+
+The uniform ``outside_ior`` (default 1.0: vacuum or, near enough, air) is the index
+of the medium the viewer is in; :data:`softpipe.cubemap.MEDIA` names the notes'
+indices (FORMULAS §17).
+
+Which space: the shader works in eye space, as every built-in program; the
+environment is a world-space cube map. R and T are turned into world space by the
+uniform ``view`` (world → eye; :func:`softpipe.draw_mesh` passes it):
+d_world = view₃ᵀ · d_eye, valid because a camera's view matrix is a rotation and a
+translation (:func:`softpipe.transforms.look_at`).
+
+What a rasterizer cannot do: it sees only the first surface. The refracted ray
+does not go through the object and out of its far side; it looks the environment
+up at once, as if the object were a thin shell, or as if everything behind it were
+far away. Nor does a reflection see the object itself or its neighbours, unless
+the environment was rendered from the scene (:func:`softpipe.envmap.render_cube_map`),
+and then only as seen from the map's centre. The ray tracer
+(:mod:`softpipe.raytrace`) follows both rays through the scene, recursively.
+
+Without an ``environment`` uniform (a draw from the command line, say) both reflect
+:func:`softpipe.cubemap.sky`, a plain gradient from the ground to the zenith.
+
+Optional uniform ``environment_lod`` (default 0): the level of detail of the
+lookups, to blur the environment for a rough-looking mirror (a ``"trilinear"`` map).
+
+Programs ``mirror`` and ``glass``. Uniforms: ``model_view``, ``projection``,
+``normal_matrix``, ``view``, ``material``, ``lighting`` (see
+:mod:`softpipe.shaders.common`) and ``environment``, a :class:`softpipe.cubemap.CubeMap`
+(optional: :func:`softpipe.cubemap.sky` without it).
+"""
+from numba.core.errors import TypingError
+from numba.extending import overload, register_jitable
+
+from ..cubemap import sky, texture_cube_lod
+from ..glsl import add, dot, mul, refract, reflect, scale
+from ..lighting import BLINN_PHONG, fresnel, opengl_lighting
+from . import Program, register
+from .common import facing_normal, rgba, standard_vertex, toward_eye, uniform_or
+
+
+def view_matrix(uniforms):
+    """The uniform ``view`` (world → eye). Compiled, it is read by its index: numba takes
+    ``x.view`` for numpy's ``ndarray.view`` and refuses it on a namedtuple."""
+    return getattr(uniforms, "view")
+
+
+@overload(view_matrix)
+def _view_matrix_numba(uniforms):
+    fields = tuple(getattr(uniforms, "fields", ()))
+    if "view" not in fields:
+        raise TypingError("the programs mirror and glass need the uniform 'view' (world → eye), which "
+                          "softpipe.draw_mesh passes; give it in the uniforms of a draw of your own")
+    index = fields.index("view")
+    return lambda uniforms: uniforms[index]
+
+
+@register_jitable
+def to_world(view, d):
+    """A direction from eye space to world space: view₃ᵀ · d (view is world → eye, a rotation there)."""
+    return (float(view[0, 0] * d[0] + view[1, 0] * d[1] + view[2, 0] * d[2]),
+            float(view[0, 1] * d[0] + view[1, 1] * d[1] + view[2, 1] * d[2]),
+            float(view[0, 2] * d[0] + view[1, 2] * d[1] + view[2, 2] * d[2]))
+
+
+def lookup(uniforms, d_world):
+    """The environment's RGB in a world direction: the cube map ``environment``, or :func:`softpipe.cubemap.sky`."""
+    if not hasattr(uniforms, "environment"):
+        return sky(d_world)
+    c = texture_cube_lod(uniforms.environment, d_world, uniform_or(uniforms, "environment_lod", 0.0))
+    return (c[0], c[1], c[2])
+
+
+@overload(lookup)
+def _lookup_numba(uniforms, d_world):
+    if "environment" not in tuple(getattr(uniforms, "fields", ())):   # decided once, when the shader is typed
+        return lambda uniforms, d_world: sky(d_world)
+
+    def from_cube_map(uniforms, d_world):
+        c = texture_cube_lod(uniforms.environment, d_world, uniform_or(uniforms, "environment_lod", 0.0))
+        return (c[0], c[1], c[2])
+    return from_cube_map
+
+
+@register_jitable
+def environment(uniforms, d_eye):
+    """The environment's RGB in the eye-space direction ``d_eye`` (turned to world space by ``view``)."""
+    return lookup(uniforms, to_world(view_matrix(uniforms), d_eye))
+
+
+@register_jitable
+def glass_weights(N, V, outside_ior, ior):
+    """(R, T, F_R) for unit N (on V's side) and V: §16, §18 with η = outside/ior, §20; T = 0 and F_R = 1 on TIR."""
+    R = reflect(scale(V, -1.0), N)
+    eta = outside_ior / ior
+    T = refract(scale(V, -1.0), N, eta)
+    c1 = dot(N, V)
+    if eta * eta * (1.0 - c1 * c1) > 1.0:          # §19: total internal reflection
+        return R, T, 1.0
+    return R, T, fresnel(c1, outside_ior, ior)
+
+
+def mirror_fragment(varyings, uniforms, frag):
+    """kr·env(R) plus the local lighting (§10)."""
+    P = varyings.position
+    N = facing_normal(varyings.normal, frag.front_facing)
+    V = toward_eye(P, uniforms.projection)
+    m = uniforms.material
+    R = reflect(scale(V, -1.0), N)                 # = 2(N·V)N − V (§16)
+    local = opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG)
+    color = add(mul(m.kr, environment(uniforms, R)), local)
+    return rgba(color, m.opacity)
+
+
+def glass_fragment(varyings, uniforms, frag):
+    """F_R·env(R) + (1 − F_R)·kt·env(T) plus the local lighting (§10, §16–§20)."""
+    P = varyings.position
+    N = facing_normal(varyings.normal, frag.front_facing)
+    V = toward_eye(P, uniforms.projection)
+    m = uniforms.material
+    R, T, F = glass_weights(N, V, uniform_or(uniforms, "outside_ior", 1.0), m.ior)
+    color = add(scale(environment(uniforms, R), F), opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG))
+    if F < 1.0:
+        color = add(color, scale(mul(m.kt, environment(uniforms, T)), 1.0 - F))
+    return rgba(color, m.opacity)
+
+
+mirror = register(Program(
+    "mirror", standard_vertex, mirror_fragment,
+    "a mirror: kr × the environment (uniform 'environment', a CubeMap) in R (§16), plus §10's local lighting"))
+glass = register(Program(
+    "glass", standard_vertex, glass_fragment,
+    "glass: Fresnel (§20) mixes env(R) and kt·env(T) (§16, §18; TIR §19 → all R), plus §10; first surface only"))
+
+__all__ = ["mirror", "glass", "to_world", "environment", "lookup", "glass_weights", "view_matrix"]
