@@ -46,3 +46,4 @@ def get_program(name: str) -> Program:
 
 # Importing the modules registers their programs.
 from . import basic, cook_torrance, flat, gooch, gouraud, hall, phong, textured, two_sided  # noqa: E402,F401
+from . import environment  # noqa: E402,F401  (mirror, glass: cube-map reflection and refraction)
