@@ -699,6 +699,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--frames", type=int, default=DEFAULT_FRAMES,
                         help=f"alternated rounds (one warm frame of each) per scene (default {DEFAULT_FRAMES})")
     parser.add_argument("--scale", type=float, default=1.0, help="scene size, 0 < S <= 1 (default 1)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="threads on both sides: numba.set_num_threads(N) and LP_NUM_THREADS=N for llvmpipe "
+                             "(unless LP_NUM_THREADS is set); default: numba's default and llvmpipe's, one per core")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON,
                         help=f"where the results go (default {DEFAULT_JSON.relative_to(REPO_ROOT)})")
     parser.add_argument("--install", action="store_true",
@@ -714,6 +717,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     bad = [n for n in args.scenes if n not in PEER_SCENES]
     if bad:
         parser.error(f"no peer for scene(s) {', '.join(bad)}; the peer scenes are: {', '.join(PEER_SCENES)}")
+    if args.threads is not None:
+        if not 1 <= args.threads <= numba.config.NUMBA_NUM_THREADS:
+            parser.error(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS)")
+        numba.set_num_threads(args.threads)
+        os.environ.setdefault("LP_NUM_THREADS", str(args.threads))   # read when llvmpipe starts its threads
     problems = install_peer() if args.install else []
     report = run(args.scenes, frames=args.frames, scale=args.scale, keep_images=args.save_images is not None)
     if report["skipped"]:
