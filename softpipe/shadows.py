@@ -380,7 +380,9 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
     for (j, view, projection, face), size in zip(planned, sizes):
         settings = lighting.lights[j].shadows
         res = settings.resolution
-        target = targets.setdefault(res, Framebuffer(res, res))
+        if res not in targets:                      # (setdefault would make a new one every time)
+            targets[res] = Framebuffer(res, res)
+        target = targets[res]
         out.maps.append(_render_map(casters, view, projection, settings, j, face, target,
                                     depth[offset:offset + size].reshape(res, res)))
         offset += size
