@@ -76,18 +76,20 @@ clamped in v) at every face texel's centre direction.
 
 Named media
 -----------
-:data:`MEDIA`: the notes' indices of refraction (FORMULAS §17), for ``Material(ior=...)``.
+:data:`MEDIA` (:data:`softpipe.material.MEDIA`, here too): the notes' indices of refraction
+(FORMULAS §17); ``Material(ior="glass")`` takes the names.
 """
 from __future__ import annotations
 
 import math
 import os
 from collections import namedtuple
-from typing import Callable, Dict, Optional, Sequence, Tuple, Union
+from typing import Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numba import njit
 
+from .material import MEDIA
 from .texture import FILTER_BILINEAR, FILTER_NEAREST, FILTER_NEAREST_MIPMAP, FILTERS, _build_mipmaps, \
     _check_array, _check_size, _choose, _load_image
 
@@ -97,16 +99,6 @@ __all__ = ["CubeMap", "CubeUniform", "texture_cube", "texture_cube_lod", "face_c
 #: The faces in GL's order (the index a :class:`CubeUniform` and :func:`face_coordinates` use).
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
-#: Indices of refraction from the notes (FORMULAS §17): name → η.
-MEDIA: Dict[str, float] = {
-    "vacuum": 1.0,
-    "air": 1.00029,
-    "water": 1.33,
-    "glass": 1.52,
-    "salt": 1.54,
-    "sapphire": 1.77,
-    "diamond": 2.417,
-}
 
 #: The colors of :func:`sky`: straight up, at the horizon, and the ground below it.
 SKY_ZENITH = (0.18, 0.36, 0.75)
@@ -341,7 +333,6 @@ def face_coordinates(directions) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
     on_x = (ax >= ay) & (ax >= az)
     on_y = ~on_x & (ay >= az)
-    on_z = ~on_x & ~on_y
     face = np.where(on_x, np.where(x > 0, 0, 1), np.where(on_y, np.where(y > 0, 2, 3), np.where(z > 0, 4, 5)))
     sc = np.choose(face, [-z, z, x, x, x, -x])
     tc = np.choose(face, [-y, -y, z, -z, -y, -y])

@@ -25,7 +25,7 @@ sky box without a box).
 from __future__ import annotations
 
 import math
-from typing import Iterable, Optional, Sequence, Union
+from typing import Dict, Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
@@ -34,10 +34,12 @@ from .cubemap import CubeMap, texel_directions
 from .drawing import draw_mesh
 from .framebuffer import Framebuffer
 from .material import Lighting
+from .sampling import pattern_named
 from .scene import Scene, program_for
 from .shadows import CUBE_FACES, render_shadow_maps
 
-__all__ = ["render_cube_map", "face_cameras", "fill_background", "ENVIRONMENT_PROGRAMS"]
+__all__ = ["render_cube_map", "face_cameras", "fill_background", "dynamic_environments", "render_with_environments",
+           "ENVIRONMENT_PROGRAMS"]
 
 #: Programs that read the uniform ``environment``; without one given they are drawn with ``phong``.
 ENVIRONMENT_PROGRAMS = ("mirror", "glass")
@@ -147,3 +149,60 @@ def fill_background(framebuffer: Framebuffer, camera: Camera, environment: CubeM
         d_eye = np.stack([x * half * aspect, y * half, -np.ones_like(x)], axis=-1)
         color[s][empty] = environment.sample_many(d_eye @ rotation.T, lod).astype(np.float32)
     return framebuffer
+
+
+def _reflective(scene: Scene, camera: Camera):
+    return [o for o in scene.drawn_objects(camera) if program_for(o, scene.program) in ENVIRONMENT_PROGRAMS]
+
+
+def dynamic_environments(scene: Scene, size: int = 64, *, sky: Optional[CubeMap] = None,
+                         filter: str = "trilinear") -> Dict[str, CubeMap]:
+    """A dynamic cube map for every object of ``scene`` drawn with ``mirror`` or ``glass``: name → CubeMap.
+
+    Each is :func:`render_cube_map` from the centre of the object's bounding box (world
+    space), without the object itself, with ``sky`` (a CubeMap, or the scene's
+    background color when None) where nothing was drawn. The other mirrors and glasses
+    in it reflect ``sky`` (one bounce: a map drawn from a map would need an order, or
+    iterations, to converge).
+    """
+    out = {}
+    for obj in _reflective(scene, scene.view_camera()):
+        p = obj.world_positions()
+        centre = (p.min(axis=0) + p.max(axis=0)) / 2.0
+        out[obj.name] = render_cube_map(scene, centre, size, background=sky if sky is not None else scene.background,
+                                        environment=sky, exclude=(obj.name,), filter=filter)
+    return out
+
+
+def render_with_environments(scene: Scene, environments: Union[CubeMap, Mapping[str, CubeMap], None], *,
+                             camera: Optional[Camera] = None, sky: Optional[CubeMap] = None,
+                             uniforms: Optional[Mapping] = None) -> Framebuffer:
+    """:func:`softpipe.render_scene` with the uniform ``environment`` for the mirrors and glasses.
+
+    ``environments`` is one CubeMap for every such object, or a dict name → CubeMap
+    (:func:`dynamic_environments`); an object it does not name reflects ``sky`` (or
+    :func:`softpipe.cubemap.sky` without one). With ``sky``, the background is the
+    sky as well (:func:`fill_background`). ``uniforms`` go to every draw (e.g.
+    ``outside_ior``, ``environment_lod``). Shadows are made as render_scene makes them.
+    """
+    camera = camera or scene.view_camera()
+    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples)).clear(scene.background)
+    objects = scene.drawn_objects(camera)
+    lights = scene.lighting_for(camera)
+    if any(light.shadows is not None for light in lights.lights):
+        lighting = render_shadow_maps(objects, lights).lighting_uniform(lights, camera.view)
+    else:
+        lighting = lights.uniform(camera.view)
+    for obj in objects:
+        name = program_for(obj, scene.program)
+        extra = dict(uniforms or {})
+        if name in ENVIRONMENT_PROGRAMS:
+            env = environments.get(obj.name) if isinstance(environments, Mapping) else environments
+            env = env if env is not None else sky
+            if env is not None:
+                extra["environment"] = env
+        draw_mesh(fb, obj.mesh, camera, name, model=obj.model, lighting=lighting, texture=obj.texture,
+                  cull=obj.cull or scene.cull, sample_shading=scene.sample_shading, uniforms=extra or None)
+    if sky is not None:
+        fill_background(fb, camera, sky)
+    return fb

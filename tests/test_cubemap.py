@@ -35,7 +35,7 @@ from softpipe.lighting import fresnel
 from softpipe.material import Lighting, Material
 from softpipe.scene import SceneObject
 from softpipe.shaders.environment import glass_weights
-from softpipe.transforms import look_at, orthographic, rotate, translate
+from softpipe.transforms import orthographic, rotate, translate
 
 RNG = np.random.default_rng(17)
 DARK = Lighting([], global_ambient=(0.0, 0.0, 0.0))
@@ -469,3 +469,20 @@ def test_render_cube_map_fills_the_empty_texels_from_a_sky_and_fill_background_p
     up = math.tan(math.radians(30.0)) * (1 - 1 / 8)
     np.testing.assert_allclose(fb.color[0, 6, :3], np.array(sky.sample((0.5 / 6 * math.tan(math.radians(30)) * 1.5,
                                                                          up, -1.0)))[:3], atol=1e-6)
+
+
+def test_dynamic_environments_make_a_map_per_mirror_and_render_with_environments_uses_it():
+    from softpipe.envmap import dynamic_environments, render_with_environments
+    from softpipe.scene import Scene
+    box = SceneObject("box", shapes.cube(1.0, material=emitter((1.0, 0.5, 0.0))), translate(3.0, 0.0, 0.0))
+    ball = SceneObject("ball", shapes.uv_sphere(0.5, 32, 16, material=Material(ka=0.0, kd=0.0, ks=0.0, kr=1.0)),
+                       np.eye(4), program="mirror")
+    scene = Scene([box, ball], camera=Camera(eye=(0.0, 0.0, 4.0)), lights=(), ambient=(0.0, 0.0, 0.0),
+                  width=24, height=24, background=(0.1, 0.2, 0.3, 1.0))
+    maps = dynamic_environments(scene, 8, filter="bilinear")
+    assert set(maps) == {"ball"}
+    assert maps["ball"].sample((1.0, 0.0, 0.0))[:3] == pytest.approx((1.0, 0.5, 0.0), abs=1e-6)   # the box
+    assert maps["ball"].sample((-1.0, 0.0, 0.0))[:3] == pytest.approx((0.1, 0.2, 0.3), abs=1e-6)  # background
+    fb = render_with_environments(scene, maps)
+    # the ball's middle faces the camera: it reflects straight back, +z, where the map holds the background
+    np.testing.assert_allclose(fb.color[12, 12, :3], (0.1, 0.2, 0.3), atol=1e-3)

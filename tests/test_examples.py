@@ -22,6 +22,7 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "shadows_bias": (24, 8),
     "shadows_glass": ((32, 24), 4),
     "raytrace": (24, 9),
+    "environment": (24, 9),
 }
 
 
