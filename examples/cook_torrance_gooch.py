@@ -20,7 +20,7 @@ COLUMNS = (
     ("Blinn-Phong n=40", "phong", Material(**BASE, shininess=40.0), {}),
     ("Cook-Torrance m=0.15 ior 1.5", "cook_torrance", Material(**BASE, ior=1.5, roughness=0.15), {}),
     ("Cook-Torrance m=0.35 ior 10", "cook_torrance", Material(**BASE, ior=10.0, roughness=0.35), {}),
-    ("Gooch, outline", "gooch", Material(kd=(0.75, 0.75, 0.75)), {"gooch_outline": 0.3}),
+    ("Gooch, outline", "gooch", Material(kd=(0.5, 0.5, 0.5)), {"gooch_outline": 0.3}),   # a neutral gray
 )
 MODELS = (("bunny", 20.0, 10.0), ("teapot", 25.0, 20.0))   # softpipe.models names
 

@@ -22,6 +22,9 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "shadows_bias": (24, 8),
     "shadows_glass": ((32, 24), 4),
     "raytrace": (24, 9),
+    "hall": (24, 9),
+    "emission_b_term": (24, 12),
+    "fresnel_tir": (24, 8),
     "environment": (24, 9),
 }
 
