@@ -486,3 +486,18 @@ def test_dynamic_environments_make_a_map_per_mirror_and_render_with_environments
     fb = render_with_environments(scene, maps)
     # the ball's middle faces the camera: it reflects straight back, +z, where the map holds the background
     np.testing.assert_allclose(fb.color[12, 12, :3], (0.1, 0.2, 0.3), atol=1e-3)
+
+
+def test_faces_from_image_files_8_bit_in_gl_order(tmp_path):
+    from PIL import Image
+    paths = []
+    for k, face in enumerate(FACES):
+        pixels = np.zeros((4, 4, 3), np.uint8)
+        pixels[...] = np.round(np.array(FACE_COLORS[k]) * 255).astype(np.uint8)
+        pixels[0, 0] = (255, 255, 255)                   # the file's top-left pixel: (s, t) near (0, 0)
+        Image.fromarray(pixels).save(tmp_path / f"{face}.png")
+        paths.append(tmp_path / f"{face}.png")
+    cube = CubeMap(paths, filter="nearest")
+    for k, face in enumerate(FACES):
+        assert cube.sample(AXES[face])[:3] == pytest.approx(np.round(np.array(FACE_COLORS[k]) * 255) / 255)
+        assert cube.sample(gl_direction(face, 0.1, 0.1))[:3] == (1.0, 1.0, 1.0)
