@@ -442,8 +442,9 @@ class RayTree(list):
         for node in self:
             hit = (f"hits {node.object} (triangle {node.triangle}) at t = {node.t:.4g}" if node.triangle >= 0
                    else "meets nothing: background")
+            fall = f" (falloff T^d {f(node.falloff)})" if node.falloff != (1.0, 1.0, 1.0) else ""
             lines.append(f"{'    ' * node.depth}#{node.index} {node.kind}: {hit}; local {f(node.local)}, "
-                         f"weight {f(node.weight)}")
+                         f"weight {f(node.weight)}{fall}")
         return "\n".join(lines)
 
     def _repr_pretty_(self, p, cycle):

@@ -8,6 +8,7 @@ camera, with a light in front and one behind.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -121,6 +122,7 @@ def test_transmission_of_other_surfaces_at_normal_incidence(falloff):
     inside = [n for n in tree if n.kind == "refracted" and n.object == "slab"]
     assert len(inside) == 1 and inside[0].t == pytest.approx(d, rel=1e-9)
     np.testing.assert_allclose(inside[0].falloff, fall * np.ones(3), rtol=1e-9)
+    assert "falloff T^d" in str(tree)
 
 
 def test_transmission_of_other_surfaces_at_every_angle_follows_snell_for_d():
@@ -195,6 +197,21 @@ def test_the_two_sided_program_is_formulas_11_at_a_pixel(lights):
     np.testing.assert_allclose(raster, expected, rtol=1e-4)
     np.testing.assert_allclose(traced, expected, rtol=1e-5)
     assert np.all(expected > np.array(MATTE_SHINY.kd) * scene.ambient + 1e-3)   # every light adds something
+
+
+def test_the_two_sided_program_takes_v_i_from_shadow_rays():
+    """V_i(p) of §11 from :func:`softpipe.lighting.light_visibility`: a small box between the middle point and the
+    light (off the camera's line of sight) leaves ρ_d·L_a only, rasterized with shadow rays and ray traced."""
+    from softpipe.shadowmap import ShadowSettings
+    light = dataclasses.replace(IN_FRONT, shadows=ShadowSettings(method="ray"))
+    scene = facing_plane_scene((light,))
+    blocker = SceneObject("blocker", shapes.cube(0.1), translate(0.3, 0.2, 1.0))
+    scene = scene.replace(objects=[*scene.objects, blocker])
+    ambient_only = np.array(MATTE_SHINY.kd) * scene.ambient
+    np.testing.assert_allclose(sp.render_scene(scene).color[4, 4, :3], ambient_only, rtol=1e-5)
+    np.testing.assert_allclose(raytrace_scene(scene).color[4, 4, :3], ambient_only, rtol=1e-5)
+    unblocked = raytrace_scene(facing_plane_scene((light,))).color[4, 4, :3]
+    assert np.all(unblocked > ambient_only + 0.01)
 
 
 def test_two_sided_is_not_formula_10_behind_and_on_the_lobe():
