@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench bench-peers bench-batch fuzz clean
+.PHONY: demo test bench bench-peers bench-batch bench-rays fuzz clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +32,13 @@ bench-peers: $(STAMP)
 # at 640x480, the clusters alternated, medians (docs/batch.md, "Scaling").
 bench-batch: $(STAMP)
 	$(PY) -m softpipe.batch --model bunny --frames 36 --size 640x480 --workers 1,2
+
+# BVH build times and million rays/s (primary, shadow, secondary at 1024², 1 and 2 threads) for
+# the bunny and the armadillo, alternated with Intel Embree (embreex, pip-installed here when
+# missing; skipped with the reason if it cannot be) (benchmarks/README.md, "Rays").
+bench-rays: $(STAMP)
+	$(PY) -m pip install -q embreex || echo "embreex did not install: the Embree column is skipped"
+	$(PY) -m benchmarks.rays
 
 clean:
 	rm -rf $(VENV) out build *.egg-info
