@@ -99,6 +99,14 @@ def save_sheet(name: str, pictures: Dict[str, np.ndarray], columns: int, title: 
     return path
 
 
+def save_docs_sheet(path: Path, pictures: Dict[str, np.ndarray], columns: int) -> Path:
+    """Write a docs picture: ``pictures`` as a labelled contact sheet at ``path`` (its folder made); print its path."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    contact_sheet(pictures, columns=columns).save(path, optimize=True)
+    print(path)
+    return path
+
+
 def zoom(picture: np.ndarray, factor: int) -> np.ndarray:
     """Each pixel as a factor × factor block (to see pixels)."""
     return np.repeat(np.repeat(picture, factor, axis=0), factor, axis=1)

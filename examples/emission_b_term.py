@@ -23,7 +23,7 @@ All rasterized (``softpipe.render_scene``), program ``phong`` (§10) but for row
 import sys
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
@@ -103,11 +103,8 @@ def sheet(size=200):
 
 def write_docs_pictures(size=200):
     """docs/images/hall/emission.png (row 1) and b_term.png (rows 2–4)."""
-    from softpipe.pictures import contact_sheet
-    DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
     for name, pictures in (("emission.png", emission(size)), ("b_term.png", {**b_term(size), **two_sided(size)})):
-        contact_sheet(pictures, columns=3).save(DOCS_IMAGES / name, optimize=True)
-        print(DOCS_IMAGES / name)
+        save_docs_sheet(DOCS_IMAGES / name, pictures, 3)
 
 
 def main(size=200, out_dir=None):

@@ -22,7 +22,7 @@ through it shrinks and turns over) and the more Fresnel reflects at the rim.
 import sys
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 
 from softpipe import shapes
 from softpipe.camera import Camera
@@ -145,15 +145,11 @@ def sheet(size=240, found=None):
 
 def write_docs_pictures(size=240):
     """docs/images/environment/maps.png (a, b, e), figure.png (c, d, f), media.png (the three media)."""
-    from softpipe.pictures import contact_sheet
-    DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
     pictures = sheet(size)
     names = list(pictures)
     for file, keys in (("maps.png", [names[0], names[1], names[4]]), ("figure.png", [names[2], names[3], names[5]]),
                        ("media.png", names[6:])):
-        path = DOCS_IMAGES / file
-        contact_sheet({k: pictures[k] for k in keys}, columns=3).save(path, optimize=True)
-        print(path)
+        save_docs_sheet(DOCS_IMAGES / file, {k: pictures[k] for k in keys}, 3)
 
 
 def main(size=240, out_dir=None):

@@ -23,7 +23,7 @@ import math
 import sys
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 from hall import checkerboard
 
 from softpipe import shapes
@@ -154,11 +154,8 @@ def sheet(size=200):
 
 def write_docs_pictures(size=200):
     """docs/images/hall/fresnel.png (the four plots) and tir.png (the four ray-traced pictures)."""
-    from softpipe.pictures import contact_sheet
-    DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
     for name, pictures in (("fresnel.png", plots(size)), ("tir.png", tir(size))):
-        contact_sheet(pictures, columns=4).save(DOCS_IMAGES / name, optimize=True)
-        print(DOCS_IMAGES / name)
+        save_docs_sheet(DOCS_IMAGES / name, pictures, 4)
 
 
 def main(size=200, out_dir=None):

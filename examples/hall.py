@@ -26,7 +26,7 @@ the depth-0 one on the ball's pixels (the back light's lobe taken out). The colo
 import sys
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 
 from softpipe import shapes
 from softpipe.camera import Camera
@@ -111,11 +111,7 @@ def sheet(size=200):
 
 def write_docs_pictures(size=200):
     """docs/images/hall/terms.png: the nine pictures, three to a row."""
-    from softpipe.pictures import contact_sheet
-    DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
-    path = DOCS_IMAGES / "terms.png"
-    contact_sheet(sheet(size), columns=3).save(path, optimize=True)
-    print(path)
+    save_docs_sheet(DOCS_IMAGES / "terms.png", sheet(size), 3)
 
 
 def main(size=200, out_dir=None):

@@ -32,7 +32,7 @@ import sys
 import time
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
@@ -175,17 +175,10 @@ def transmission_numbers():
 
 def write_docs_pictures(size=200):
     """docs/images/raytracing/figure.png (the 2×3 comparison) and panes.png (the three panes pictures)."""
-    from softpipe.pictures import contact_sheet
-    DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
     everything = sheet(size)
     names = list(everything)
-    figure = {k: everything[k] for k in names[:6]}
-    path = DOCS_IMAGES / "figure.png"
-    contact_sheet(figure, columns=3).save(path, optimize=True)
-    print(path)
-    path = DOCS_IMAGES / "panes.png"
-    contact_sheet({k: everything[k] for k in names[6:]}, columns=3).save(path, optimize=True)
-    print(path)
+    save_docs_sheet(DOCS_IMAGES / "figure.png", {k: everything[k] for k in names[:6]}, 3)
+    save_docs_sheet(DOCS_IMAGES / "panes.png", {k: everything[k] for k in names[6:]}, 3)
 
 
 def main(size=240, out_dir=None):

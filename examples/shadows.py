@@ -16,7 +16,7 @@ view 2β, and the point light's cube map, its six faces ±x, ±y, ±z laid out a
 import sys
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
@@ -116,8 +116,7 @@ def write_docs_pictures(size=200):
     found = {}
     pictures = sheet(size, maps_out=found)
     figure = {k: v for k, v in pictures.items() if "map" not in k}
-    contact_sheet(figure, columns=3).save(DOCS_IMAGES / "figure.png", optimize=True)
-    print(DOCS_IMAGES / "figure.png")
+    save_docs_sheet(DOCS_IMAGES / "figure.png", figure, 3)
     side = 128
     faces = {"directional": gray(found["directional"][0].picture(), side),
              "spot": gray(found["spot"][0].picture(), side),

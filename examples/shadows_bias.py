@@ -25,7 +25,7 @@ hard one-tap edge, its texels visible as steps. At r = 4 the default factor
 import sys
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
@@ -84,7 +84,6 @@ def sheet(size=200):
 def write_docs_pictures(size=240):
     """docs/images/shadows/: bias.png and pcf.png (the two rows), acne.png, peter-panning.png."""
     from PIL import Image
-    from softpipe.pictures import contact_sheet
     DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
     bias = bias_pictures(size)
     for (label, name), _ in BIAS:
@@ -93,9 +92,7 @@ def write_docs_pictures(size=240):
             Image.fromarray(bias[label]).save(path, optimize=True)
             print(path)
     for name, pictures in (("bias", bias_pictures(size * 3 // 4)), ("pcf", pcf_pictures(size * 3 // 4))):
-        path = DOCS_IMAGES / f"{name}.png"
-        contact_sheet(pictures, columns=4).save(path, optimize=True)
-        print(path)
+        save_docs_sheet(DOCS_IMAGES / f"{name}.png", pictures, 4)
 
 
 def main(size=200, out_dir=None):

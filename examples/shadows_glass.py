@@ -19,7 +19,7 @@ the light again.
 import sys
 
 import numpy as np
-from common import REPO, save_sheet
+from common import REPO, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
@@ -73,11 +73,7 @@ def sheet(size=240):
 
 def write_docs_pictures(size=200):
     """docs/images/shadows/glass.png: the four pictures in a row."""
-    from softpipe.pictures import contact_sheet
-    DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
-    path = DOCS_IMAGES / "glass.png"
-    contact_sheet(sheet(size), columns=4).save(path, optimize=True)
-    print(path)
+    save_docs_sheet(DOCS_IMAGES / "glass.png", sheet(size), 4)
 
 
 def main(size=240, out_dir=None):
