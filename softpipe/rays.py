@@ -33,9 +33,9 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 from numba import njit
 
-from .bvh import BVHUniform, closest_hit, scene_bvh
+from .bvh import closest_hit, scene_bvh
 
-__all__ = ["RayScene", "RaySceneUniform", "no_rays", "transmission_of", "trace_closest", "trace_any",
+__all__ = ["RayScene", "RaySceneUniform", "transmission_of", "trace_closest", "trace_any",
            "hit_position", "hit_normal", "ray_visibility", "MAX_TRANSPARENT_LAYERS", "EPSILON_SCALE"]
 
 #: A shadow ray passes at most this many transparent surfaces before it counts as blocked.
@@ -127,14 +127,6 @@ class RayScene:
     def __softpipe_uniform__(self) -> RaySceneUniform:
         """In world space: for a shader whose P is world space (the ray tracer's)."""
         return self.uniform()
-
-
-def no_rays() -> RaySceneUniform:
-    """An empty scene (every ray misses), of the same type as any other: for draws without ray queries."""
-    v = np.zeros((0, 3))
-    empty = BVHUniform(v, v, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), v, v, v)
-    return RaySceneUniform(empty, np.zeros(0, np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.eye(4),
-                           np.eye(3), 1e-9)
 
 
 # ------------------------------------------------------------------ in shaders

@@ -47,8 +47,7 @@ from .shadowmap import (CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, SHADOW_MAP, SHADOW
                         ShadowUniform, cube_face_half_extent)
 from .transforms import frustum, look_at, orthographic
 
-__all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of",
-           "transmission_of"]
+__all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of"]
 
 # Directions of a cube map's faces, with an up vector for each (any that is not parallel will do:
 # a face is looked up by projecting with its own matrices, not by a face convention).
