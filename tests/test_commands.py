@@ -45,6 +45,8 @@ def test_the_command_runs_as_written(argv, tmp_path, monkeypatch, capsys):
         argv = argv[:argv.index("--frames") + 1] + ["4"] + argv[argv.index("--frames") + 2:]
     if argv[0] == "batch":                           # the same frames, in this process (no cluster to start)
         argv = argv + ["--scheduler", "serial"]
+    if argv[0] in ("render", "explore") and not {"--size", "--width", "--height"} & set(argv):
+        argv = argv + ["--size", "96x72"]            # a smaller picture, the same command otherwise
     assert main(argv + (["-q"] if argv[0] in ("render", "turntable", "batch") else [])) == 0
     out = capsys.readouterr().out
     if "-o" in argv:
@@ -52,6 +54,6 @@ def test_the_command_runs_as_written(argv, tmp_path, monkeypatch, capsys):
         if argv[0] == "batch":                       # a folder of frames, its manifest and contact sheet
             assert (written / "manifest.jsonl").is_file() and (written / "contact-sheet.png").is_file(), written
             return
-        assert written.is_file() and written.stat().st_size > 1000, written
+        assert written.is_file() and written.stat().st_size > 500, written
     else:
         assert out.strip(), "the command printed nothing"
