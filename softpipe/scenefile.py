@@ -331,7 +331,7 @@ LIGHT_KEYS = ("kind", "name", "color", "ambient", "diffuse", "specular", "positi
               "attenuation", "spot_direction", "cutoff", "exponent", "shadows")
 SHADOW_KEYS = ("resolution", "pcf", "offset_factor", "offset_units")
 MATERIAL_KEYS = ("ke", "ka", "kd", "ks", "shininess", "kr", "kt", "transmission_shininess", "ior", "opacity",
-                 "roughness", "diffuse_texture")
+                 "roughness", "diffuse_texture", "transmittance", "falloff", "falloff_a")
 MESH_KEYS = ("name", "obj", "shape", "fit", "normals", "transform", "material", "program", "cull", "cast_shadows")
 TRANSFORM_KEYS = ("translate", "rotate", "rotate_x", "rotate_y", "rotate_z", "scale", "matrix")
 
@@ -517,9 +517,15 @@ class _Reader:
         for key in ("ke", "ka", "kd", "ks", "kr", "kt"):
             if key in t:
                 kw[key] = t.get(key, color)
-        for key in ("shininess", "transmission_shininess", "ior", "opacity", "roughness"):
+        for key in ("shininess", "transmission_shininess", "opacity", "roughness", "falloff_a"):
             if key in t:
                 kw[key] = t.get(key, number)
+        if "ior" in t:          # a number, or a medium's name (softpipe.material.MEDIA: "water", "glass", …)
+            kw["ior"] = t.get("ior", lambda v: v if isinstance(v, str) else number(v))
+        if "transmittance" in t:
+            kw["transmittance"] = t.get("transmittance", color)
+        if "falloff" in t:
+            kw["falloff"] = t.get("falloff", string)
         if "diffuse_texture" in t:
             bundled = _bundled_texture(t.data["diffuse_texture"])
             kw["diffuse_texture"] = bundled if bundled is not None else self.path(t, "diffuse_texture")

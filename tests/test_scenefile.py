@@ -434,3 +434,35 @@ def test_colors_may_be_named_in_a_scene_file():
     assert tuple(m.kd) == (1.0, 0.0, 0.0) and tuple(m.ks) == (128 / 255,) * 3
     with pytest.raises(SceneError, match=r"kd.*unknown color 'redd' \(did you mean 'red'\?\)"):
         parse_scene('[materials.m]\nkd = "redd"\n[[meshes]]\nshape = "cube"\nmaterial = "m"\n')
+
+
+MEDIUM_SCENE = """
+[materials.g]
+kd = 0.1
+kt = [0.9, 0.9, 0.9]
+{extra}
+[[meshes]]
+shape = "cube"
+material = "g"
+"""
+
+
+def test_a_material_names_its_medium_and_its_falloff():
+    """ior by a medium's name (FORMULAS §17), the falloff inside (§15): T per unit distance, or Glassner's a."""
+    m = parse_scene(MEDIUM_SCENE.format(extra='ior = "glass"\ntransmittance = [0.9, 0.5, 0.2]'), "s.toml").materials["g"]
+    assert (m.ior, m.transmittance, m.falloff) == (1.52, (0.9, 0.5, 0.2), "power")
+    m = parse_scene(MEDIUM_SCENE.format(extra='ior = 1.33\nfalloff = "glassner"\nfalloff_a = 1.5'), "s.toml").materials["g"]
+    assert (m.ior, m.falloff, m.falloff_a) == (1.33, "glassner", 1.5)
+
+
+@pytest.mark.parametrize("extra, message", [
+    ('ior = "glas"', "unknown medium 'glas'; the named media (FORMULAS §17) are vacuum 1.0"),
+    ('falloff = "linear"', "Material.falloff must be 'power' (T^d) or 'glassner'"),
+    ("transmittance = 2", "Material.transmittance is a share per unit distance, in [0, 1]"),
+    ("falloff_a = -1", "Material.falloff_a must be finite and >= 0.0"),
+    ("transmitance = 0.5", "unknown key 'transmitance' in [materials.g] (did you mean 'transmittance'?)"),
+])
+def test_medium_mistakes_name_the_table_and_the_value(extra, message):
+    with pytest.raises(SceneError) as e:
+        parse_scene(MEDIUM_SCENE.format(extra=extra), "s.toml")
+    assert str(e.value).startswith("s.toml") and "[materials.g]" in str(e.value) and message in str(e.value)
