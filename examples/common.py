@@ -99,6 +99,20 @@ def save_sheet(name: str, pictures: Dict[str, np.ndarray], columns: int, title: 
     return path
 
 
+def picture_size(size):
+    """(width, height) of a picture size given as one side or as a pair."""
+    return (size, size) if isinstance(size, int) else tuple(size)
+
+
+def checkerboard(size, cells, a, b):
+    """A square floor of ``cells`` × ``cells`` tiles as two meshes, the tiles of material a and of b."""
+    plane = sp.shapes.plane(size, subdivisions=cells)
+    triangles = np.asarray(plane.indices).reshape(-1, 3)
+    i, k = divmod(np.arange(len(triangles)) // 2, cells)      # two triangles per cell, cells in rows of `cells`
+    return [Mesh(plane.positions, triangles[(i + k) % 2 == parity], plane.normals, plane.uvs,
+                 material=material).compacted() for parity, material in ((0, a), (1, b))]
+
+
 def save_docs_sheet(path: Path, pictures: Dict[str, np.ndarray], columns: int) -> Path:
     """Write a docs picture: ``pictures`` as a labelled contact sheet at ``path`` (its folder made); print its path."""
     path.parent.mkdir(parents=True, exist_ok=True)

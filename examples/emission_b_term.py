@@ -23,7 +23,7 @@ All rasterized (``softpipe.render_scene``), program ``phong`` (§10) but for row
 import sys
 
 import numpy as np
-from common import REPO, save_docs_sheet, save_sheet
+from common import REPO, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
@@ -42,10 +42,6 @@ TWO_SIDED_ELEVATIONS = (15.0, 0.0, -20.0)
 BACKGROUND = (0.06, 0.07, 0.09, 1.0)
 
 
-def _size(size):
-    return (size, size) if isinstance(size, int) else tuple(size)
-
-
 def sun(elevation):
     """A directional light at ``elevation`` degrees above the horizon (negative: below), travelling toward −x."""
     e = np.radians(elevation)
@@ -56,7 +52,7 @@ def sun(elevation):
 
 
 def scene(objects, lights, size, ambient=(0.2, 0.2, 0.2), program="phong"):
-    width, height = _size(size)
+    width, height = picture_size(size)
     return Scene(objects, camera=CAMERA, lights=tuple(lights), ambient=ambient, width=width, height=height,
                  background=BACKGROUND, program=program, cull="none")
 

@@ -22,14 +22,13 @@ through it shrinks and turns over) and the more Fresnel reflects at the rim.
 import sys
 
 import numpy as np
-from common import REPO, save_docs_sheet, save_sheet
+from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
 from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.cubemap import MEDIA, CubeMap, sky_gradient
 from softpipe.envmap import dynamic_environments, render_with_environments
 from softpipe.material import Light, Material
-from softpipe.mesh import Mesh
 from softpipe.raytrace import raytrace_scene
 from softpipe.scene import Scene, SceneObject
 from softpipe.transforms import rotate_y, translate
@@ -54,22 +53,9 @@ def glass(medium):
                     ior=MEDIA[medium])
 
 
-def _size(size):
-    return (size, size) if isinstance(size, int) else tuple(size)
-
-
-def checkerboard(size, cells, a, b):
-    """A square floor of ``cells`` × ``cells`` tiles as two meshes, the tiles of material a and of b."""
-    plane = shapes.plane(size, subdivisions=cells)
-    triangles = np.asarray(plane.indices).reshape(-1, 3)
-    i, k = divmod(np.arange(len(triangles)) // 2, cells)
-    return [Mesh(plane.positions, triangles[(i + k) % 2 == parity], plane.normals, plane.uvs,
-                 material=material).compacted() for parity, material in ((0, a), (1, b))]
-
-
 def scene(size, medium="glass", programs=True, background=FLAT_SKY, camera=CAMERA):
     """The floor, a box, the mirror and the glass sphere; ``programs`` False leaves the spheres to the ray tracer."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     light, dark = checkerboard(10.0, 10, LIGHT_TILE, DARK_TILE)
     objects = [SceneObject("floor, light tiles", light, np.eye(4), cast_shadows=False),
                SceneObject("floor, dark tiles", dark, np.eye(4), cast_shadows=False),
@@ -99,7 +85,7 @@ def sky_panorama(width=256):
 def fit(picture, size, background=24):
     """An RGB float or uint8 picture scaled to fit ``size`` (keeping its shape), centred on a dark square."""
     from PIL import Image
-    width, height = _size(size)
+    width, height = picture_size(size)
     if picture.dtype != np.uint8:
         picture = np.round(np.clip(picture[..., :3], 0.0, 1.0) * 255).astype(np.uint8)
     h, w = picture.shape[:2]
@@ -119,7 +105,7 @@ def cube_size(width):
 
 def sheet(size=240, found=None):
     """The nine pictures (rows: static sky, dynamic maps and the ray tracer, three media); maps into ``found``."""
-    width, _ = _size(size)
+    width, _ = picture_size(size)
     n = cube_size(width)
     pano = sky_panorama(max(64, 4 * n))
     sky = CubeMap.from_equirectangular(pano, size=n)

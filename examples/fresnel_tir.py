@@ -23,7 +23,7 @@ import math
 import sys
 
 import numpy as np
-from common import REPO, save_docs_sheet, save_sheet
+from common import REPO, picture_size, save_docs_sheet, save_sheet
 from hall import checkerboard
 
 from softpipe import shapes
@@ -44,10 +44,6 @@ YELLOW = Material(ka=0.25, kd=(0.9, 0.75, 0.15), ks=0.2, shininess=20.0)
 SKY = (0.35, 0.5, 0.75, 1.0)
 
 
-def _size(size):
-    return (size, size) if isinstance(size, int) else tuple(size)
-
-
 def brewster(n1, n2):
     """θ_B in degrees: tan θ_B = n₂/n₁ (§20)."""
     return math.degrees(math.atan2(n2, n1))
@@ -61,7 +57,7 @@ def critical(n1, n2):
 def plot(n1, n2, size):
     """R_s, R_p and F_R over θ₁ = 0…90° for light from n1 into n2, Brewster's (and the critical) angle marked."""
     from PIL import Image, ImageDraw
-    width, height = _size(size)
+    width, height = picture_size(size)
     image = Image.new("RGB", (width, height), (20, 22, 28))
     draw = ImageDraw.Draw(image)
     left, right, top, bottom = 0.1 * width, 0.96 * width, 0.06 * height, 0.9 * height
@@ -105,7 +101,7 @@ def plots(size):
 
 def block_scene(ior, size):
     """A clear block of index ``ior`` on the checkered floor, a red and a yellow box behind it."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     light_tiles, dark_tiles = checkerboard(10.0, 10, LIGHT_TILE, DARK_TILE)
     block = Material(ka=0.0, kd=0.0, ks=0.7, shininess=120.0, kr=0.04, kt=0.96, ior=ior)
     objects = [SceneObject("floor, light tiles", light_tiles, np.eye(4), cast_shadows=False),
@@ -121,7 +117,7 @@ def block_scene(ior, size):
 
 def window_scene(ior, size):
     """A camera inside a tank of index ``ior`` (top at y = 2) looking up; a checkered floor inside, balls above."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     light_tiles, dark_tiles = checkerboard(80.0, 80, LIGHT_TILE, DARK_TILE)
     tank = Material(ka=0.0, kd=0.0, ks=0.0, kt=1.0, ior=ior)
     objects = [SceneObject("tank", shapes.cube(1.0, material=tank), scale(80.0, 4.0, 80.0)),

@@ -26,12 +26,11 @@ the depth-0 one on the ball's pixels (the back light's lobe taken out). The colo
 import sys
 
 import numpy as np
-from common import REPO, save_docs_sheet, save_sheet
+from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
 from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.material import Light, Material
-from softpipe.mesh import Mesh
 from softpipe.raytrace import primary_visibility, raytrace_scene
 from softpipe.scene import Scene, SceneObject
 from softpipe.transforms import rotate_y, translate
@@ -65,22 +64,9 @@ TERMS = (
 GLOBAL_TRANSMISSION = "transmission of surfaces kt·It·T^d"
 
 
-def _size(size):
-    return (size, size) if isinstance(size, int) else tuple(size)
-
-
-def checkerboard(size, cells, a, b):
-    """A square floor of ``cells`` × ``cells`` tiles as two meshes, the tiles of material a and of b."""
-    plane = shapes.plane(size, subdivisions=cells)
-    triangles = np.asarray(plane.indices).reshape(-1, 3)
-    i, k = divmod(np.arange(len(triangles)) // 2, cells)
-    return [Mesh(plane.positions, triangles[(i + k) % 2 == parity], plane.normals, plane.uvs,
-                 material=material).compacted() for parity, material in ((0, a), (1, b))]
-
-
 def scene(ball: Material, size) -> Scene:
     """The ball (``hall``) of material ``ball`` on the checkered floor between a red and a blue box."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     light_tiles, dark_tiles = checkerboard(10.0, 10, LIGHT_TILE, DARK_TILE)
     objects = [SceneObject("floor, light tiles", light_tiles, np.eye(4), cast_shadows=False),
                SceneObject("floor, dark tiles", dark_tiles, np.eye(4), cast_shadows=False),

@@ -32,13 +32,12 @@ import sys
 import time
 
 import numpy as np
-from common import REPO, save_docs_sheet, save_sheet
+from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
 from softpipe.camera import Camera
 from softpipe.material import Light, Material
-from softpipe.mesh import Mesh
 from softpipe.raytrace import ray_tree, raytrace_scene
 from softpipe.scene import Scene, SceneObject
 from softpipe.shadowmap import ShadowSettings
@@ -65,22 +64,9 @@ PANES_CAMERA = Camera(eye=(0.4, 3.4, 3.0), target=(-0.2, 0.5, -0.7), fovy=45.0)
 PANE_POINTS = {"red only": (-0.9, 0.0, 0.25), "both": (-0.05, 0.0, -0.15), "blue only": (0.9425, 0.0, -0.8875)}
 
 
-def _size(size):
-    return (size, size) if isinstance(size, int) else tuple(size)
-
-
-def checkerboard(size, cells, a, b):
-    """A square floor of ``cells`` × ``cells`` tiles as two meshes, the tiles of material a and of b."""
-    plane = shapes.plane(size, subdivisions=cells)
-    triangles = np.asarray(plane.indices).reshape(-1, 3)
-    i, k = divmod(np.arange(len(triangles)) // 2, cells)      # two triangles per cell, cells in rows of `cells`
-    return [Mesh(plane.positions, triangles[(i + k) % 2 == parity], plane.normals, plane.uvs,
-                 material=material).compacted() for parity, material in ((0, a), (1, b))]
-
-
 def scene(size, shadows=True):
     """The mirror, the glass and the box on the checkered floor, the sun casting shadows by ``shadows``."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     light_tiles, dark_tiles = checkerboard(8.0, 8, LIGHT_TILE, DARK_TILE)
     objects = [SceneObject("floor, light tiles", light_tiles, np.eye(4), cast_shadows=False),
                SceneObject("floor, dark tiles", dark_tiles, np.eye(4), cast_shadows=False),
@@ -94,7 +80,7 @@ def scene(size, shadows=True):
 
 def panes(size, shadows=True):
     """A red glass pane under a blue one, over a white floor, under a low sun."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     objects = [SceneObject("floor", shapes.plane(8.0, material=FLOOR), np.eye(4), cast_shadows=False),
                SceneObject("red pane", shapes.cube(1.0, material=RED_PANE),
                            translate(-0.9, 1.0, -0.9) @ scale(1.4, 0.06, 1.4)),
@@ -113,7 +99,7 @@ def shadow_map(width):
 
 def glass_pixel(size):
     """The pixel (x, image row y) a little left of and above the glass sphere's centre."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     centre = np.array([*GLASS_CENTRE, 1.0]) + (-0.25, 0.2, 0.0, 0.0)
     clip = CAMERA.projection(width / height) @ CAMERA.view @ centre
     x, y = clip[:2] / clip[3]
@@ -126,7 +112,7 @@ def _amplified(a, b, factor=4.0):
 
 def renders(size, timings=None):
     """Every framebuffer of the sheet, by name; seconds per render into ``timings``."""
-    width, _ = _size(size)
+    width, _ = picture_size(size)
     timings = {} if timings is None else timings
     jobs = {"map": lambda: sp.render_scene(scene(size, shadow_map(width))),
             "rays": lambda: sp.render_scene(scene(size, ShadowSettings(method="ray"))),

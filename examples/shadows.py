@@ -16,7 +16,7 @@ view 2β, and the point light's cube map, its six faces ±x, ±y, ±z laid out a
 import sys
 
 import numpy as np
-from common import REPO, save_docs_sheet, save_sheet
+from common import REPO, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
 from softpipe import shapes
@@ -51,13 +51,9 @@ def objects():
     return out
 
 
-def _size(size):
-    return (size, size) if isinstance(size, int) else tuple(size)
-
-
 def render(light, size, shadow_maps=None):
     """The scene under one light, an 8-bit RGB picture (and its ShadowMaps into ``shadow_maps``)."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     scene = Scene(objects(), camera=CAMERA, lights=(light,), ambient=(0.12, 0.12, 0.12), width=width,
                   height=height, background=(0.06, 0.07, 0.09, 1.0))
     return sp.render_scene(scene, shadow_maps=shadow_maps).to_uint8(alpha=False)
@@ -66,7 +62,7 @@ def render(light, size, shadow_maps=None):
 def gray(picture, size):
     """A map's 8-bit depth picture as an RGB picture of ``size`` (nearest texel)."""
     from PIL import Image
-    width, height = _size(size)
+    width, height = picture_size(size)
     return np.asarray(Image.fromarray(picture).convert("RGB").resize((width, height), Image.NEAREST))
 
 
@@ -85,7 +81,7 @@ def cube_mosaic(maps):
 
 def sheet(size=200, maps_out=None):
     """Row 1 without shadows, row 2 with, row 3 each light's shadow map."""
-    width, height = _size(size)
+    width, height = picture_size(size)
     plain, shadowed, depth = {}, {}, {}
     for kind, light in lights(False).items():
         plain[f"{kind}, no shadows"] = render(light, size)
