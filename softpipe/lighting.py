@@ -266,7 +266,8 @@ def light_visibility(lighting: LightingUniform, j: int, P: Vec3) -> Color:
     return _shadowed_visibility(lighting.lights, lighting.shadows, j, P)
 
 
-@overload(light_visibility)
+# inlined, as _shadowed_visibility and the map lookups (softpipe.shadowmap): per light and lit sample
+@overload(light_visibility, inline="always")
 def _light_visibility_numba(lighting, j, P):
     if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
         return lambda lighting, j, P: (1.0, 1.0, 1.0)
@@ -291,7 +292,7 @@ def _borrow_shadows_numba(shadows):
     return impl
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _shadowed_visibility(lights, shadows, j, P):
     if shadows.light_maps[j, 2] == SHADOW_RAY:
         return _shadow_ray(shadows.rays, lights, j, P)

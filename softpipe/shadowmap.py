@@ -198,7 +198,10 @@ def cube_face(shadows, first, P):
     return best_k
 
 
-@njit(cache=True)
+# map_coordinates, shadow_compare and shadow_map_visibility run per light at every lit sample:
+# they are inlined into the shader (inline="always"). Called as functions, each call passed the
+# ShadowUniform's six arrays on by value, and bunny-shadows' lighting took 279 ns a sample, not 97.
+@njit(cache=True, inline="always")
 def map_coordinates(shadows, k, P):
     """(x, y, ref, inside): P in map k's window space — texels, y up — and its depth ref.
 
@@ -214,7 +217,7 @@ def map_coordinates(shadows, k, P):
     return (0.5 * x / w + 0.5) * width, (0.5 * y / w + 0.5) * height, ref, True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def shadow_compare(shadows, k, x, y, ref):
     """PCF of map k at window position (x, y) for depth ref: the light that passes, RGB.
 
@@ -272,7 +275,7 @@ def texture_compare(texture, u, v, ref):
     return shadow_compare(texture, 0, u * texture.maps[0, 1], v * texture.maps[0, 2], ref)[0]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def shadow_map_visibility(shadows, j, P):
     """V_j from light j's shadow map(s) at the eye-space point P: the RGB share of the light that passes.
 
