@@ -90,6 +90,7 @@ import numba
 import numpy as np
 from numba import types
 from numba.core import cgutils
+from llvmlite import ir
 from numba.extending import intrinsic, overload
 
 from ._parallel import in_bands
@@ -99,6 +100,14 @@ __all__ = ["BVH", "BVHUniform", "intersect_triangle", "closest_hit", "any_hit", 
 #: The traversal's stack holds one pending node per level: the build keeps every
 #: leaf's depth below this (root at depth 0).
 MAX_DEPTH = 64
+
+#: Children of a traversal node (a "wide" node, see :class:`BVH`): the binary tree is collapsed
+#: into nodes of up to this many children, whose boxes are tested together.
+WIDTH = 4
+
+#: The traversal's stack: a wide node's level is at most its binary depth, and a visit puts
+#: aside at most WIDTH − 1 children.
+STACK_SIZE = (WIDTH - 1) * MAX_DEPTH + 1     # + 1: a child the ray misses is written, then overwritten
 
 #: 1 + 2γ(3), pbrt's padding of a box's far distance (3rd ed., §3.9): γ(n) = nu / (1 − nu),
 #: u = 2⁻⁵³ the unit roundoff of float64.
@@ -110,7 +119,8 @@ SLAB_PAD = 1.0 + 2.0 * (3.0 * _U / (1.0 - 3.0 * _U))
 #: hit at exactly that t with a lower id, which wins the tie (2⁻⁴⁴ ≈ 6·10⁻¹⁴).
 REACH_PAD = 2.0 ** -44
 
-BVHUniform = namedtuple("BVHUniform", ["lo", "hi", "first", "count", "order", "v0", "v1", "v2"])
+BVHUniform = namedtuple("BVHUniform", ["lo", "hi", "first", "count", "order", "v0", "v1", "v2",
+                                       "boxes", "links", "corners"])
 BVHUniform.__doc__ = """A BVH as a shader receives it: its numpy arrays (see :class:`BVH`)."""
 
 
@@ -173,7 +183,7 @@ def _exact_cross(a, b, c, d):
     return s
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _ray_space(dx, dy, dz):
     """The shear of Woop et al. for direction (dx, dy, dz): (kx, ky, kz, Sx, Sy, Sz).
 
@@ -200,7 +210,7 @@ def _ray_space(dx, dy, dz):
     return kx, ky, kz, d[kx] / dkz, d[ky] / dkz, 1.0 / dkz
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _hit_sheared(ax, ay, az, bx, by, bz, cx, cy, cz, kx, ky, kz, sx, sy, sz, t_min, t_max):
     """The watertight test on corners already relative to the origin, in axis order (kx, ky, kz)."""
     # shear the corners into ray space (x', y'); z' scaled below
@@ -275,13 +285,13 @@ def _borrowed(arr):
 
 
 def _node_stack():
-    """The traversal's [MAX_DEPTH] int64 stack, in the calling function's frame (plain Python: a new array)."""
-    return np.empty(MAX_DEPTH, np.int64)
+    """The traversal's [STACK_SIZE] int64 stack, in the calling function's frame (plain Python: a new array)."""
+    return np.empty(STACK_SIZE, np.int64)
 
 
 def _t_stack():
-    """The traversal's [MAX_DEPTH] float64 stack, in the calling function's frame (plain Python: a new array)."""
-    return np.empty(MAX_DEPTH, np.float64)
+    """The traversal's [STACK_SIZE] float64 stack, in the calling function's frame (plain Python: a new array)."""
+    return np.empty(STACK_SIZE, np.float64)
 
 
 @intrinsic
@@ -297,7 +307,7 @@ def _borrowed_intrinsic(typingctx, arr):
 
 
 def _frame_stack_intrinsic(dtype):
-    """An intrinsic making a [MAX_DEPTH] array of ``dtype`` in the calling function's stack frame (an alloca)."""
+    """An intrinsic making a [STACK_SIZE] array of ``dtype`` in the calling function's stack frame (an alloca)."""
     array_type = types.Array(dtype, 1, "C")
 
     @intrinsic
@@ -305,10 +315,10 @@ def _frame_stack_intrinsic(dtype):
         def codegen(context, builder, signature, args):
             item = context.get_data_type(dtype)
             size = context.get_abi_sizeof(item)
-            data = cgutils.alloca_once(builder, item, size=MAX_DEPTH)
+            data = cgutils.alloca_once(builder, item, size=STACK_SIZE)
             out = context.make_array(array_type)(context, builder)
             intp = lambda v: context.get_constant(types.intp, v)  # noqa: E731
-            context.populate_array(out, data=data, shape=cgutils.pack_array(builder, [intp(MAX_DEPTH)]),
+            context.populate_array(out, data=data, shape=cgutils.pack_array(builder, [intp(STACK_SIZE)]),
                                    strides=cgutils.pack_array(builder, [intp(size)]), itemsize=intp(size),
                                    meminfo=None)
             return out._getvalue()
@@ -335,7 +345,7 @@ def _node_stack_compiled():
 def _t_stack_compiled():
     return lambda: _t_stack_intrinsic()
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _inverse(d):
     """1/d, with ±inf for ±0 (the sign of the zero kept)."""
     if d == 0.0:
@@ -372,14 +382,132 @@ def _box_entry(lo, hi, node, ox, oy, oz, ix, iy, iz, t0, t1):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _traverse(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
+def _lane_entry(boxes, i, lane, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1):
+    """The robust slab test of child ``lane`` of wide node ``i``: its entry t, or +inf for a miss.
+
+    The same test as :func:`_box_entry`, with the plane the ray enters each slab by
+    chosen once per ray from the sign of ``1/d`` (``nx`` is 0, the row of lo.x, when
+    the ray goes +x, else 3, the row of hi.x; the far plane is the other one), so no
+    compare-and-swap per slab, and the four children's tests are the same
+    arithmetic on neighbouring numbers (a row of ``boxes`` holds one coordinate of
+    all four). A float32 corner is read as the float64 it holds exactly. An empty
+    lane (lo = +inf, hi = −inf) always misses.
+    """
+    tn = (float(boxes[i, nx, lane]) - ox) * ix          # float(): plain floats in Python, NaN without a warning
+    tf = (float(boxes[i, 3 - nx, lane]) - ox) * ix * SLAB_PAD
+    t0 = tn if tn > t0 else t0
+    t1 = tf if tf < t1 else t1
+    tn = (float(boxes[i, ny, lane]) - oy) * iy
+    tf = (float(boxes[i, 5 - ny, lane]) - oy) * iy * SLAB_PAD
+    t0 = tn if tn > t0 else t0
+    t1 = tf if tf < t1 else t1
+    tn = (float(boxes[i, nz, lane]) - oz) * iz
+    tf = (float(boxes[i, 7 - nz, lane]) - oz) * iz * SLAB_PAD
+    t0 = tn if tn > t0 else t0
+    t1 = tf if tf < t1 else t1
+    return t0 if t0 <= t1 else math.inf
+
+
+def _lane_entries(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1):
+    """The entry t (or +inf) of each of wide node ``i``'s WIDTH children: :func:`_lane_entry` for every lane.
+
+    Compiled, the lanes are computed together, in one vector of WIDTH float64
+    (:func:`_lane_entries_intrinsic`): the same IEEE operations, in the same order,
+    as :func:`_lane_entry`, so the same bits; in plain Python, lane after lane.
+    """
+    return tuple(_lane_entry(boxes, i, j, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1) for j in range(WIDTH))
+
+
+@intrinsic
+def _lane_entries_intrinsic(typingctx, boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1):
+    # numba's loop vectorizer leaves the four lanes' arithmetic scalar (four chains of 30
+    # instructions; its SLP vectorizer is off), so the LLVM vector code is written out here:
+    # per axis a <WIDTH x float> load of the near and of the far row, widened to double
+    # (exact), then fsub, fmul, fmul by SLAB_PAD, and the ordered compares and selects of
+    # _lane_entry (NaN > t0 is false, so a NaN leaves t0, as there). No fast-math flags.
+    if not (isinstance(boxes, types.Array) and boxes.dtype == types.float32 and boxes.ndim == 3
+            and boxes.layout == "C"):
+        return None
+    sig = types.UniTuple(types.float64, WIDTH)(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1)
+
+    def codegen(context, builder, signature, args):
+        boxes_v, i_v, nx_v, ny_v, nz_v, ox_v, oy_v, oz_v, ix_v, iy_v, iz_v, t0_v, t1_v = args
+        ary = context.make_array(signature.args[0])(context, builder, boxes_v)
+        i64, i32, f64 = ir.IntType(64), ir.IntType(32), ir.DoubleType()
+        f32v, f64v = ir.VectorType(ir.FloatType(), WIDTH), ir.VectorType(f64, WIDTH)
+
+        def as_i64(v, ty):
+            return context.cast(builder, v, ty, types.int64)
+
+        def as_f64(v, ty):
+            return context.cast(builder, v, ty, types.float64)
+
+        def splat(x):
+            v = ir.Constant(f64v, ir.Undefined)
+            for k in range(WIDTH):
+                v = builder.insert_element(v, x, ir.Constant(i32, k))
+            return v
+
+        base = builder.mul(as_i64(i_v, signature.args[1]), ir.Constant(i64, 6 * WIDTH))
+
+        def row(r):                                  # boxes[i, r, :] as <WIDTH x double>
+            p = builder.gep(ary.data, [builder.add(base, builder.mul(r, ir.Constant(i64, WIDTH)))])
+            return builder.fpext(builder.load(builder.bitcast(p, f32v.as_pointer()), align=4), f64v)
+
+        pad = splat(ir.Constant(f64, SLAB_PAD))
+        enter, leave = splat(as_f64(t0_v, signature.args[11])), splat(as_f64(t1_v, signature.args[12]))
+        for k, far_sum in ((0, 3), (1, 5), (2, 7)):
+            n = as_i64(args[2 + k], signature.args[2 + k])
+            o = splat(as_f64(args[5 + k], signature.args[5 + k]))
+            inv = splat(as_f64(args[8 + k], signature.args[8 + k]))
+            tn = builder.fmul(builder.fsub(row(n), o), inv)
+            tf = builder.fmul(builder.fmul(builder.fsub(row(builder.sub(ir.Constant(i64, far_sum), n)), o), inv), pad)
+            enter = builder.select(builder.fcmp_ordered(">", tn, enter), tn, enter)
+            leave = builder.select(builder.fcmp_ordered("<", tf, leave), tf, leave)
+        out = builder.select(builder.fcmp_ordered("<=", enter, leave), enter, splat(ir.Constant(f64, math.inf)))
+        lanes = [builder.extract_element(out, ir.Constant(i32, k)) for k in range(WIDTH)]
+        return context.make_tuple(builder, signature.return_type, lanes)
+    return sig, codegen
+
+
+@overload(_lane_entries, inline="always")
+def _lane_entries_compiled(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1):
+    return lambda boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1: \
+        _lane_entries_intrinsic(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1)
+
+
+#: A child on the traversal's stack is one int64: ``ref << 32 | n`` (see :func:`_traverse`).
+_REF_SHIFT = 32
+_COUNT_MASK = (1 << 32) - 1
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _order2(ta, ca, tb, cb):
+    """(ta, ca), (tb, cb) with the smaller t first: a compare-exchange of the sorting network, written
+    as min, max and selects so that it compiles without a branch (the order of a ray's children is
+    what a branch predictor cannot guess)."""
+    swap = tb < ta
+    return min(ta, tb), cb if swap else ca, max(ta, tb), ca if swap else cb
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _traverse(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
               stack_node, stack_t):
     """The stack traversal behind both queries, compiled into each caller (``inline="always"``) on
-    borrowed arrays. ``stack_node``, ``stack_t`` [MAX_DEPTH]: the far children put aside, and the t
-    where each one's box begins (a node whose box begins beyond the nearest hit is skipped)."""
+    borrowed arrays.
+
+    It walks the wide nodes (``boxes``, ``links``; see :class:`BVH`): a visit tests the
+    boxes of all four children (stored side by side in the node), goes on into the
+    nearest child the ray meets and puts the others aside, farthest deepest. The walk
+    is over (ref, n) pairs: n = 0 names wide node ref, n > 0 the leaf of triangles
+    ``ref … ref + n − 1``. ``stack_node``, ``stack_t`` [STACK_SIZE]: the children put
+    aside (``ref << 32 | n``) and the t where each one's box begins (one that begins
+    beyond the nearest hit is skipped). Once per ray: Woop's axis permutation and shear
+    (:func:`_ray_space`), ``1/d``, and which box planes the ray enters by.
+    """
     best_id, best_t, best_b1, best_b2 = -1, t_max, 0.0, 0.0
     reach = t_max + abs(t_max) * REACH_PAD   # boxes are searched a hair beyond the best t (ties)
-    if lo.shape[0] == 0:
+    if count.shape[0] == 0:
         return best_id, best_t, best_b1, best_b2
     kx, ky, kz, sx, sy, sz = _ray_space(dx, dy, dz)
     if sz == 0.0 or not (t_min < t_max):
@@ -387,19 +515,25 @@ def _traverse(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t
     o3 = (ox, oy, oz)
     okx, oky, okz = o3[kx], o3[ky], o3[kz]
     ix, iy, iz = _inverse(dx), _inverse(dy), _inverse(dz)
-    top = 0
-    node = 0
+    # rows of a wide node's boxes: lo.x, lo.y, lo.z, hi.x, hi.y, hi.z. The ray enters the x slab
+    # through lo.x when it goes +x (1/dx = +inf for dx = +0 counts as +), through hi.x when −x
+    nx = 3 if ix < 0.0 else 0
+    ny = 4 if iy < 0.0 else 1
+    nz = 5 if iz < 0.0 else 2
     if _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, reach) == math.inf:
         return best_id, best_t, best_b1, best_b2
+    if count[0] > 0:                          # the root is a leaf: no wide nodes
+        ref, n = first[0], count[0]
+    else:
+        ref, n = 0, 0
+    top = 0
     while True:
-        n = count[node]
         if n > 0:                            # a leaf: its triangles
-            f = first[node]
-            for k in range(f, f + n):
+            for k in range(ref, ref + n):
                 hit, t, b1, b2 = _hit_sheared(
-                    v0[k, kx] - okx, v0[k, ky] - oky, v0[k, kz] - okz,
-                    v1[k, kx] - okx, v1[k, ky] - oky, v1[k, kz] - okz,
-                    v2[k, kx] - okx, v2[k, ky] - oky, v2[k, kz] - okz,
+                    corners[k, kx] - okx, corners[k, ky] - oky, corners[k, kz] - okz,
+                    corners[k, 3 + kx] - okx, corners[k, 3 + ky] - oky, corners[k, 3 + kz] - okz,
+                    corners[k, 6 + kx] - okx, corners[k, 6 + ky] - oky, corners[k, 6 + kz] - okz,
                     kx, ky, kz, sx, sy, sz, t_min, t_max)
                 if hit:
                     tri = order[k]
@@ -408,37 +542,42 @@ def _traverse(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t
                     if t < best_t or (t == best_t and tri < best_id):
                         best_id, best_t, best_b1, best_b2 = tri, t, b1, b2
                         reach = t + abs(t) * REACH_PAD
-        else:                                # an inner node: the nearer child first
-            left, right = node + 1, first[node]
-            tl = _box_entry(lo, hi, left, ox, oy, oz, ix, iy, iz, t_min, reach)
-            tr = _box_entry(lo, hi, right, ox, oy, oz, ix, iy, iz, t_min, reach)
-            if tl != math.inf:
-                if tr != math.inf:
-                    if tr < tl:
-                        left, right, tl, tr = right, left, tr, tl
-                    stack_node[top] = right
-                    stack_t[top] = tr
-                    top += 1
-                node = left
+        else:                                # a wide node: its four boxes, then the nearest child first
+            t0, t1, t2, t3 = _lane_entries(boxes, ref, nx, ny, nz, ox, oy, oz, ix, iy, iz, t_min, reach)
+            c0, c1, c2, c3 = links[ref, 0], links[ref, 1], links[ref, 2], links[ref, 3]
+            # sort the four (t, child) by t (a 5-exchange network); misses (+inf) go last
+            t0, c0, t1, c1 = _order2(t0, c0, t1, c1)
+            t2, c2, t3, c3 = _order2(t2, c2, t3, c3)
+            t0, c0, t2, c2 = _order2(t0, c0, t2, c2)
+            t1, c1, t3, c3 = _order2(t1, c1, t3, c3)
+            t1, c1, t2, c2 = _order2(t1, c1, t2, c2)
+            # put aside children 3, 2, 1, farthest first, without a branch: each is written at the
+            # top and kept (top moves up) only if the ray meets it; a miss is overwritten
+            stack_node[top], stack_t[top] = c3, t3
+            top += t3 != math.inf
+            stack_node[top], stack_t[top] = c2, t2
+            top += t2 != math.inf
+            stack_node[top], stack_t[top] = c1, t1
+            top += t1 != math.inf
+            if t0 != math.inf:
+                ref, n = c0 >> _REF_SHIFT, c0 & _COUNT_MASK
                 continue
-            if tr != math.inf:
-                node = right
-                continue
-        # pop the next node whose box begins no farther than the best hit
+        # pop the next child whose box begins no farther than the best hit
         while True:
             if top == 0:
                 return best_id, best_t, best_b1, best_b2
             top -= 1
             if stack_t[top] <= reach:
-                node = stack_node[top]
+                code = stack_node[top]
+                ref, n = code >> _REF_SHIFT, code & _COUNT_MASK
                 break
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _query(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t_min, t_max, any_):
+def _query(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max, any_):
     """One ray on borrowed arrays, with its stack in this frame."""
-    return _traverse(lo, hi, first, count, order, v0, v1, v2, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
-                     _node_stack(), _t_stack())
+    return _traverse(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max,
+                     any_, _node_stack(), _t_stack())
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -451,8 +590,8 @@ def closest_hit(bvh, origin, direction, t_min, t_max):
     t the lowest triangle id wins, so the answer does not depend on the tree.
     The hit point is (1 − b1 − b2)·v0 + b1·v1 + b2·v2 of triangle ``id``.
     """
-    return _query(_borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), _borrowed(bvh.count),
-                  _borrowed(bvh.order), _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2),
+    return _query(_borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi),
+                  _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), _borrowed(bvh.corners),
                   float(origin[0]), float(origin[1]), float(origin[2]),
                   float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max), False)
 
@@ -460,8 +599,8 @@ def closest_hit(bvh, origin, direction, t_min, t_max):
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def any_hit(bvh, origin, direction, t_min, t_max):
     """Whether any triangle lies on the ray in (t_min, t_max): stops at the first one found (shadow rays, §21)."""
-    return _query(_borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), _borrowed(bvh.count),
-                  _borrowed(bvh.order), _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2),
+    return _query(_borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi),
+                  _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), _borrowed(bvh.corners),
                   float(origin[0]), float(origin[1]), float(origin[2]),
                   float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max),
                   True)[0] >= 0
@@ -629,18 +768,17 @@ def _build_kernel(tri_lo, tri_hi, cen, leaf_size, bins, lo, hi, first, count, or
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _gather_kernel(vertices, triangles, order, v0, v1, v2):
-    """The corners of every triangle, in leaf order."""
+def _gather_kernel(vertices, triangles, order, corners):
+    """The corners of every triangle, in leaf order: row k of ``corners`` is v0, v1, v2 of triangle order[k]."""
     for k in range(order.shape[0]):
         t = order[k]
-        for a in range(3):
-            v0[k, a] = vertices[triangles[t, 0], a]
-            v1[k, a] = vertices[triangles[t, 1], a]
-            v2[k, a] = vertices[triangles[t, 2], a]
+        for c in range(3):
+            for a in range(3):
+                corners[k, 3 * c + a] = vertices[triangles[t, c], a]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _refit_kernel(lo, hi, first, count, v0, v1, v2):
+def _refit_kernel(lo, hi, first, count, corners):
     """Node boxes bottom-up: children come after their parent in depth-first order, so walk backwards."""
     for node in range(lo.shape[0] - 1, -1, -1):
         n = count[node]
@@ -649,8 +787,8 @@ def _refit_kernel(lo, hi, first, count, v0, v1, v2):
             for a in range(3):
                 mn, mx = np.inf, -np.inf
                 for k in range(f, f + n):
-                    mn = min(mn, v0[k, a], v1[k, a], v2[k, a])
-                    mx = max(mx, v0[k, a], v1[k, a], v2[k, a])
+                    mn = min(mn, corners[k, a], corners[k, 3 + a], corners[k, 6 + a])
+                    mx = max(mx, corners[k, a], corners[k, 3 + a], corners[k, 6 + a])
                 lo[node, a], hi[node, a] = mn, mx
         else:
             l, r = node + 1, first[node]
@@ -659,16 +797,91 @@ def _refit_kernel(lo, hi, first, count, v0, v1, v2):
                 hi[node, a] = max(hi[l, a], hi[r, a])
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _collapse_kernel(lo, hi, first, count, lane_node, links):
+    """The wide nodes from the binary tree; returns their number M (rows filled in ``lane_node``, ``links``).
+
+    A wide node starts from a binary inner node's two children and, while it has
+    fewer than WIDTH, replaces its inner child of largest surface area by that
+    child's two children (the child most rays that reach the node enter). Each
+    inner child left over becomes a wide node in turn, numbered as made (the
+    children of one node next to each other). ``lane_node[w, j]`` is the binary
+    node of child j of wide node w (−1: an empty lane); ``links[w, j]`` is that
+    child as the traversal codes it: ``ref << 32 | n`` with n = 0 and ref its wide
+    node, or n > 0 triangles from ``ref`` (a leaf).
+    """
+    N = count.shape[0]
+    if N == 0 or count[0] > 0:
+        return 0
+    pending = np.empty(N, np.int64)          # binary inner nodes waiting to be expanded, and their wide numbers
+    pending_w = np.empty(N, np.int64)
+    pending[0], pending_w[0] = 0, 0
+    top = 1
+    made = 1
+    kids = np.empty(WIDTH, np.int64)
+    while top > 0:
+        top -= 1
+        node, w = pending[top], pending_w[top]
+        kids[0], kids[1] = node + 1, first[node]
+        k = 2
+        while k < WIDTH:
+            best, best_area = -1, -1.0
+            for j in range(k):
+                c = kids[j]
+                if count[c] == 0:
+                    ex, ey, ez = hi[c, 0] - lo[c, 0], hi[c, 1] - lo[c, 1], hi[c, 2] - lo[c, 2]
+                    area = _area(ex, ey, ez)
+                    if area > best_area:
+                        best, best_area = j, area
+            if best < 0:
+                break
+            c = kids[best]
+            kids[best], kids[k] = c + 1, first[c]
+            k += 1
+        for j in range(WIDTH):
+            if j >= k:
+                lane_node[w, j] = -1
+                links[w, j] = 0
+                continue
+            c = kids[j]
+            lane_node[w, j] = c
+            if count[c] > 0:
+                links[w, j] = (first[c] << _REF_SHIFT) | count[c]
+            else:
+                links[w, j] = made << _REF_SHIFT
+                pending[top], pending_w[top] = c, made
+                top += 1
+                made += 1
+    return made
+
+
+def _pack_boxes(lo, hi, lane_node, boxes) -> None:
+    """boxes[w, r, j] = coordinate r (lo.x, lo.y, lo.z, hi.x, hi.y, hi.z) of child j's box, in float32
+    rounded outward (lo down, hi up) so that every float32 box holds its float64 box; empty lanes
+    (lo = +inf, hi = −inf) hold nothing."""
+    if len(lane_node) == 0:
+        return
+    empty = lane_node < 0
+    idx = np.where(empty, 0, lane_node)
+    for part, (v, toward) in enumerate(((lo, -np.inf), (hi, np.inf))):
+        c = v[idx]                                          # [M, WIDTH, 3]
+        f = c.astype(np.float32)
+        off = (f < c) if toward > 0 else (f > c)            # rounded inward: one float32 step outward
+        f[off] = np.nextafter(f[off], np.float32(toward))
+        f[empty] = np.float32(-toward)
+        boxes[:, 3 * part:3 * part + 3, :] = f.transpose(0, 2, 1)
+
+
 # ------------------------------------------------------------- batches of rays
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _closest_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, ids, ts, bs):
     stack_node, stack_t = _node_stack(), _t_stack()
-    lo, hi, first, count, order = _borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), \
-        _borrowed(bvh.count), _borrowed(bvh.order)
-    v0, v1, v2 = _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2)
+    boxes, links, lo, hi = _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi)
+    first, count, order, corners = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), \
+        _borrowed(bvh.corners)
     for r in range(lo_, hi_):
-        i, t, b1, b2 = _traverse(lo, hi, first, count, order, v0, v1, v2,
+        i, t, b1, b2 = _traverse(boxes, links, lo, hi, first, count, order, corners,
                                  origins[r, 0], origins[r, 1], origins[r, 2],
                                  directions[r, 0], directions[r, 1], directions[r, 2],
                                  t_min[r], t_max[r], False, stack_node, stack_t)
@@ -682,11 +895,11 @@ def _closest_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, ids, ts, b
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _any_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, out):
     stack_node, stack_t = _node_stack(), _t_stack()
-    lo, hi, first, count, order = _borrowed(bvh.lo), _borrowed(bvh.hi), _borrowed(bvh.first), \
-        _borrowed(bvh.count), _borrowed(bvh.order)
-    v0, v1, v2 = _borrowed(bvh.v0), _borrowed(bvh.v1), _borrowed(bvh.v2)
+    boxes, links, lo, hi = _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi)
+    first, count, order, corners = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), \
+        _borrowed(bvh.corners)
     for r in range(lo_, hi_):
-        out[r] = _traverse(lo, hi, first, count, order, v0, v1, v2,
+        out[r] = _traverse(boxes, links, lo, hi, first, count, order, corners,
                            origins[r, 0], origins[r, 1], origins[r, 2],
                            directions[r, 0], directions[r, 1], directions[r, 2],
                            t_min[r], t_max[r], True, stack_node, stack_t)[0] >= 0
@@ -769,12 +982,20 @@ class BVH:
             tri, t, b1, b2 = closest_hit(bvh, p, d, 0.0, math.inf)
     """
 
-    def __init__(self, lo, hi, first, count, order, v0, v1, v2, triangles, vertex_count, depth, leaf_size, bins):
+    def __init__(self, lo, hi, first, count, order, corners, triangles, vertex_count, depth, leaf_size, bins):
         self.lo, self.hi, self.first, self.count, self.order = lo, hi, first, count, order
-        self.v0, self.v1, self.v2 = v0, v1, v2
+        self.corners = corners
+        self.v0, self.v1, self.v2 = corners[:, 0:3], corners[:, 3:6], corners[:, 6:9]
         self.triangles, self.vertex_count, self.depth = triangles, vertex_count, depth
         self.leaf_size, self.bins = leaf_size, bins
-        self.uniform = BVHUniform(lo, hi, first, count, order, v0, v1, v2)
+        cap = max(count.shape[0], 1)
+        lane_node, links = np.empty((cap, WIDTH), np.int64), np.empty((cap, WIDTH), np.int64)
+        M = _collapse_kernel(lo, hi, first, count, lane_node, links)
+        self._lane_node, self.links = lane_node[:M].copy(), links[:M].copy()
+        self.boxes = np.empty((M, 6, WIDTH), np.float32)
+        _pack_boxes(lo, hi, self._lane_node, self.boxes)
+        self.uniform = BVHUniform(lo, hi, first, count, order, self.v0, self.v1, self.v2,
+                                  self.boxes, self.links, corners)
 
     @classmethod
     def build(cls, vertices, triangles, *, leaf_size: int = 4, bins: int = 16) -> "BVH":
@@ -824,9 +1045,11 @@ class BVH:
         assert depth < MAX_DEPTH, depth
         lo, hi = lo[:nodes].copy(), hi[:nodes].copy()
         first, count = first[:nodes].copy(), count[:nodes].copy()
-        v0, v1, v2 = np.empty((T, 3)), np.empty((T, 3)), np.empty((T, 3))
-        _gather_kernel(v, tri, order, v0, v1, v2)
-        return cls(lo, hi, first, count, order, v0, v1, v2, tri, len(v), int(depth), int(leaf_size), int(bins))
+        if T >= 2 ** 31:
+            raise ValueError(f"BVH.build: at most 2³¹ − 1 triangles (the traversal's int32 links), got {T}")
+        leaf_corners = np.empty((T, 9))
+        _gather_kernel(v, tri, order, leaf_corners)
+        return cls(lo, hi, first, count, order, leaf_corners, tri, len(v), int(depth), int(leaf_size), int(bins))
 
     def refit(self, vertices) -> None:
         """Move the triangles to new ``vertices`` (same count, same triangles) and refit every box, in place.
@@ -838,8 +1061,9 @@ class BVH:
         ``uniform`` keeps pointing at the same, updated arrays.
         """
         v = _vertices("vertices", vertices, rows=self.vertex_count)
-        _gather_kernel(v, self.triangles, self.order, self.v0, self.v1, self.v2)
-        _refit_kernel(self.lo, self.hi, self.first, self.count, self.v0, self.v1, self.v2)
+        _gather_kernel(v, self.triangles, self.order, self.corners)
+        _refit_kernel(self.lo, self.hi, self.first, self.count, self.corners)
+        _pack_boxes(self.lo, self.hi, self._lane_node, self.boxes)
 
     def __softpipe_uniform__(self) -> BVHUniform:
         """The value a shader receives for this BVH: :attr:`uniform`."""
