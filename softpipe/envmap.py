@@ -41,8 +41,10 @@ from .shadows import CUBE_FACES, render_shadow_maps
 __all__ = ["render_cube_map", "face_cameras", "fill_background", "dynamic_environments", "render_with_environments",
            "ENVIRONMENT_PROGRAMS"]
 
-#: Programs that read the uniform ``environment``; without one given they are drawn with ``phong``.
-ENVIRONMENT_PROGRAMS = ("mirror", "glass")
+#: Programs that read the uniform ``environment`` (or ``tracer``) for what they reflect and transmit.
+ENVIRONMENT_PROGRAMS = ("mirror", "glass", "hall")
+#: Of those, the ones that are drawn with ``phong`` in a cube map's faces when no environment is given.
+_NEEDS_ENVIRONMENT = ("mirror", "glass")
 
 
 def face_cameras(position: Sequence[float], near: float = 0.01, far: float = 100.0):
@@ -113,7 +115,7 @@ def render_cube_map(objects: Union[Scene, Iterable], position: Sequence[float], 
         lighting_uniform = maps.lighting_uniform(lights, camera.view) if maps else lights.uniform(camera.view)
         for obj in drawn:
             name = program_for(obj, program)
-            if name in ENVIRONMENT_PROGRAMS and environment is None:
+            if name in _NEEDS_ENVIRONMENT and environment is None:
                 name = "phong"
             draw_mesh(fb, obj.mesh, camera, name, model=obj.model, lighting=lighting_uniform, texture=obj.texture,
                       cull=obj.cull or cull, uniforms=extra if name in ENVIRONMENT_PROGRAMS else None)
@@ -152,7 +154,12 @@ def fill_background(framebuffer: Framebuffer, camera: Camera, environment: CubeM
 
 
 def _reflective(scene: Scene, camera: Camera):
-    return [o for o in scene.drawn_objects(camera) if program_for(o, scene.program) in ENVIRONMENT_PROGRAMS]
+    """The objects that see their surroundings: mirrors, glasses, and Hall objects with kr or kt."""
+    def sees(obj):
+        name = program_for(obj, scene.program)
+        m = obj.mesh.material
+        return name in _NEEDS_ENVIRONMENT or (name == "hall" and max(*m.kr, *m.kt) > 0.0)
+    return [o for o in scene.drawn_objects(camera) if sees(o)]
 
 
 def dynamic_environments(scene: Scene, size: int = 64, *, sky: Optional[CubeMap] = None,
@@ -174,18 +181,28 @@ def dynamic_environments(scene: Scene, size: int = 64, *, sky: Optional[CubeMap]
     return out
 
 
-def render_with_environments(scene: Scene, environments: Union[CubeMap, Mapping[str, CubeMap], None], *,
+def render_with_environments(scene: Scene, environments: Union[CubeMap, Mapping[str, CubeMap], str, None], *,
                              camera: Optional[Camera] = None, sky: Optional[CubeMap] = None,
-                             uniforms: Optional[Mapping] = None) -> Framebuffer:
-    """:func:`softpipe.render_scene` with the uniform ``environment`` for the mirrors and glasses.
+                             uniforms: Optional[Mapping] = None, max_depth: int = 5) -> Framebuffer:
+    """:func:`softpipe.render_scene` with what the mirrors, glasses and Hall objects see around them.
 
     ``environments`` is one CubeMap for every such object, or a dict name → CubeMap
     (:func:`dynamic_environments`); an object it does not name reflects ``sky`` (or
-    :func:`softpipe.cubemap.sky` without one). With ``sky``, the background is the
-    sky as well (:func:`fill_background`). ``uniforms`` go to every draw (e.g.
-    ``outside_ior``, ``environment_lod``). Shadows are made as render_scene makes them.
+    :func:`softpipe.cubemap.sky` without one; a Hall object, nothing). Or it is
+    ``"rays"``: the objects are rasterized as always, and their reflected and
+    refracted rays are traced through the scene (the uniform ``tracer``,
+    :func:`softpipe.raytrace.tracer_uniform`, to ``max_depth``), so their pixels are
+    the ray tracer's. With ``sky``, the background is the sky as well
+    (:func:`fill_background`). ``uniforms`` go to every draw (e.g. ``outside_ior``,
+    ``environment_lod``). Shadows are made as render_scene makes them.
     """
     camera = camera or scene.view_camera()
+    tracer = None
+    if isinstance(environments, str):
+        if environments != "rays":
+            raise ValueError(f"environments must be a CubeMap, a dict of them, None or 'rays', got {environments!r}")
+        from .raytrace import tracer_uniform
+        tracer = tracer_uniform(scene, camera, max_depth=max_depth)
     fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples)).clear(scene.background)
     objects = scene.drawn_objects(camera)
     lights = scene.lighting_for(camera)
@@ -196,7 +213,9 @@ def render_with_environments(scene: Scene, environments: Union[CubeMap, Mapping[
     for obj in objects:
         name = program_for(obj, scene.program)
         extra = dict(uniforms or {})
-        if name in ENVIRONMENT_PROGRAMS:
+        if name in ENVIRONMENT_PROGRAMS and tracer is not None:
+            extra["tracer"] = tracer
+        elif name in ENVIRONMENT_PROGRAMS:
             env = environments.get(obj.name) if isinstance(environments, Mapping) else environments
             env = env if env is not None else sky
             if env is not None:

@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from softpipe.glsl import add, dot, length, mul, normalize, pow_, scale, sub
+from softpipe.glsl import add, dot, length, mul, normalize, pow_, reflect, refract, scale, sub
 from softpipe.material import (
     LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL, LIGHT_KIND,
     LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION,
@@ -59,7 +59,7 @@ __all__ = [
     "emission", "ambient", "lambert", "phong_specular", "blinn_phong_specular",
     "attenuation", "spot_factor", "light_at", "light_vec3", "light_colors", "light_visibility", "casts_shadows",
     "opengl_lighting",
-    "transmitted_half_vector", "hall_transmission", "hall_local", "medium_falloff",
+    "transmitted_half_vector", "hall_transmission", "hall_local", "fresnel_directions",
     "two_sided_lighting",
     "fresnel_rs_rp", "fresnel", "fresnel_schlick",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting",
@@ -427,7 +427,7 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
     (k_r, k_t terms with T^d) belong to a ray tracer and are not included here:
     :func:`softpipe.raytrace.raytrace_scene` adds them, k_r·I_r·T_r^{d_r} and
     k_t·I_t·T_t^{d_t} with I_r, I_t from the reflected and refracted rays and the
-    falloff of :func:`medium_falloff`.
+    falloff of :func:`softpipe.rays.medium_falloff`.
     """
     m = material
     lights = lighting.lights
@@ -445,20 +445,6 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
             term = add(term, lit)
         color = add(color, scale(term, f))
     return color
-
-
-@njit(cache=True)
-def medium_falloff(transmittance: Color, glassner: bool, a: float, d: float) -> Color:
-    """The share of light (RGB) left after distance d in a medium (FORMULAS §15).
-
-    T^d per channel (Hall's T_r^{d_r} and T_t^{d_t}, §13), T = ``transmittance`` per
-    unit distance; or, with ``glassner`` True, Glassner's 1/(1 + a·d), the same in
-    every channel. T ≈ 1 for air in small scenes (§15): 1^d = 1, and a = 0 gives 1.
-    """
-    if glassner:
-        g = 1.0 / (1.0 + a * d)
-        return (g, g, g)
-    return (transmittance[0] ** d, transmittance[1] ** d, transmittance[2] ** d)
 
 
 # --------------------------------------------------------------------------
@@ -559,6 +545,24 @@ def fresnel_schlick(cos_i: float, n1: float, n2: float) -> float:
             return 1.0
         c = math.sqrt(1.0 - sin2_t)
     return r0 + (1.0 - r0) * (1.0 - c) ** 5
+
+
+@njit(cache=True)
+def fresnel_directions(N: Vec3, V: Vec3, n1: float, n2: float) -> Tuple[Vec3, Vec3, float]:
+    """(R, T, F_R) at a surface between media n1 (V's side) and n2: where light goes, and how much of it reflects.
+
+    R = 2(N·V)N − V (§16); T the refracted direction (§18, η = n1/n2), the zero
+    vector on total internal reflection (§19), when F_R = 1 (all of it reflected);
+    F_R the exact Fresnel reflectance at cos θ₁ = N·V (§20), so 1 − F_R goes to T.
+    N and V unit, N on V's side.
+    """
+    R = reflect(scale(V, -1.0), N)
+    eta = n1 / n2
+    T = refract(scale(V, -1.0), N, eta)
+    c1 = dot(N, V)
+    if eta * eta * (1.0 - c1 * c1) > 1.0:          # §19: total internal reflection
+        return R, T, 1.0
+    return R, T, fresnel(c1, n1, n2)
 
 
 # --------------------------------------------------------------------------

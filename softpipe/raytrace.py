@@ -23,6 +23,10 @@ Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − 
    ray T (§17, §18; η = 1/ior entering an object, ior leaving it, the outside being
    air, n = 1) with weight w·kt, or — beyond the critical angle, §19 — a reflected
    ray carrying that weight too (total internal reflection sends everything to R).
+   An object drawn with ``glass`` splits by Fresnel instead, as that program does:
+   F_R to R and (1 − F_R)·kt to T (§20, from the side the ray comes from), all to R
+   on total internal reflection; one drawn with ``mirror`` sends kr to R and refracts
+   nothing.
    The pixel is Σ weight × local color over the tree: §11's
    c = local + k_r·trace(p, R) + k_t·trace(p, T), unrolled. A branch stops at
    ``max_depth`` or when its weight falls below ``min_weight`` in every channel;
@@ -42,8 +46,15 @@ Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − 
 :func:`ray_tree` records one pixel's tree as data — every ray with its kind, origin,
 direction, hit, local color and weight — and prints it, the ray tracer's pixel history.
 
-Not here yet: textures (a ``textured`` object is lit with its material's kd), Fresnel
-weighting of kr against kt (§20), T^d on shadow rays through glass, area lights.
+:class:`RayTracer` is all of it as one uniform, so that a rasterized fragment can be a
+tree's root: :func:`trace_ray` brings back what a ray from a shader sees, and the
+programs ``mirror``, ``glass`` and ``hall`` call it for their reflected and refracted
+rays when a draw has the uniform ``tracer`` (:func:`tracer_uniform`;
+:func:`softpipe.envmap.render_with_environments` with ``"rays"``) — GPUs' ray queries
+from a fragment shader. Such a pixel is the ray tracer's except where the two see
+different surfaces (a silhouette's edge pixels).
+
+Not here yet: textures (a ``textured`` object is lit with its material's kd), area lights.
 """
 from __future__ import annotations
 
@@ -59,19 +70,20 @@ from ._parallel import in_bands
 from .camera import Camera
 from .framebuffer import Framebuffer
 from .glsl import dot, reflect, refract, scale
-from .lighting import (BLINN_PHONG, PHONG, cook_torrance_lighting, hall_local, medium_falloff, opengl_lighting,
+from .lighting import (BLINN_PHONG, PHONG, cook_torrance_lighting, fresnel_directions, hall_local, opengl_lighting,
                        two_sided_lighting)
 from .material import LightingUniform, MaterialUniform, pack_lights
-from .rays import RayScene, hit_normal
+from .rays import RayScene, hit_normal, medium_falloff
 from .bvh import closest_hit
 from .shadowmap import SHADOW_RAY, ShadowUniform
 
-__all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "RayTree", "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
+__all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "tracer_uniform", "trace_ray", "RayTracer", "RayTree",
+           "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
 
 #: How each program's local color is computed in the ray tracer (the others: as "phong", with a note).
 PROGRAM_CODES = {"phong": 0, "gouraud": 0, "flat": 0, "textured": 0, "phong_phong_specular": 1,
                  "gouraud_phong_specular": 1, "flat_phong_specular": 1, "hall": 2, "cook_torrance": 3,
-                 "two_sided": 4}
+                 "two_sided": 4, "mirror": 5, "glass": 6}
 #: The kinds of ray in a tree.
 RAY_KINDS = ("primary", "reflected", "refracted", "total internal reflection")
 #: The deepest tree allowed (2^(depth+1) rays at most per pixel).
@@ -111,7 +123,7 @@ def _local_color(code, P, N, V, material, lighting):
         return cook_torrance_lighting(P, N, V, material, lighting)
     if code == 4:
         return two_sided_lighting(P, N, V, material, lighting)
-    return opengl_lighting(P, N, V, material, lighting, BLINN_PHONG)
+    return opengl_lighting(P, N, V, material, lighting, BLINN_PHONG)     # 0, and mirror (5) and glass (6)
 
 
 @njit(cache=True)
@@ -121,9 +133,40 @@ def _unit(v):
 
 
 @njit(cache=True)
-def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, facing, background, air, max_depth,
-                 min_weight, record):
-    """The color of one primary ray, its tree walked with an explicit stack; the tree into ``record`` if it has rows."""
+def _branches(code, m, N, V, d, entering):
+    """The two rays a hit spawns: (R, kind, weight factor), (T, kind, weight factor); §16–§20, §13.
+
+    ``glass`` (6): Fresnel (§20) splits the light, F_R to R and (1 − F_R)·kt to T,
+    between air (n = 1) and the material, as the rasterized ``glass`` program; on
+    total internal reflection (§19) all of it goes to R. ``mirror`` (5): kr to R,
+    nothing refracted, as the ``mirror`` program. Every other program: Hall's kr
+    to R and kt to T (§13), T's weight going to R on total internal reflection.
+    """
+    R = reflect(d, N)                                              # §16
+    if code == 6:
+        n1, n2 = (1.0, m.ior) if entering else (m.ior, 1.0)
+        _, T, F = fresnel_directions(N, V, n1, n2)                 # §18, §19, §20
+        if T[0] == 0.0 and T[1] == 0.0 and T[2] == 0.0:
+            return R, 3, (1.0, 1.0, 1.0), T, 2, (0.0, 0.0, 0.0)
+        return R, 1, (F, F, F), T, 2, scale(m.kt, 1.0 - F)
+    if code == 5:
+        return R, 1, m.kr, R, 2, (0.0, 0.0, 0.0)
+    eta = 1.0 / m.ior if entering else m.ior                       # η = η_i/η_t, air outside
+    T = refract(d, N, eta)                                         # §17, §18
+    if T[0] == 0.0 and T[1] == 0.0 and T[2] == 0.0:                # §19: all of it reflected
+        return R, 1, m.kr, R, 3, m.kt
+    return R, 1, m.kr, T, 2, m.kt
+
+
+@njit(cache=True)
+def _trace_tree(tracer, origin, direction, depth0, kind0, weight, far, record):
+    """Σ weight × local over the tree of one ray (world space), walked with an explicit stack.
+
+    ``depth0`` 0 is a primary ray (it passes the faces its object culls, to ``far``);
+    a shader's ray starts at depth 1. The tree goes into ``record`` if it has rows.
+    """
+    scene, materials, programs = tracer.scene, tracer.materials, tracer.programs
+    air, lighting, max_depth = tracer.air, tracer.lighting, tracer.max_depth
     cap = 1 << (max_depth + 1)
     so = np.empty((cap, 3))
     sd = np.empty((cap, 3))
@@ -131,11 +174,10 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
     s_depth = np.empty(cap, np.int64)
     s_kind = np.empty(cap, np.int64)
     s_parent = np.empty(cap, np.int64)
-    top = 0
     so[0, 0], so[0, 1], so[0, 2] = origin[0], origin[1], origin[2]
     sd[0, 0], sd[0, 1], sd[0, 2] = direction[0], direction[1], direction[2]
-    sw[0, 0], sw[0, 1], sw[0, 2] = 1.0, 1.0, 1.0
-    s_depth[0], s_kind[0], s_parent[0] = 0, 0, -1
+    sw[0, 0], sw[0, 1], sw[0, 2] = weight[0], weight[1], weight[2]
+    s_depth[0], s_kind[0], s_parent[0] = depth0, kind0, -1
     top = 1
     red, green, blue = 0.0, 0.0, 0.0
     eps = scene.epsilon
@@ -147,19 +189,20 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
         w = (sw[top, 0], sw[top, 1], sw[top, 2])
         depth, kind, parent = s_depth[top], s_kind[top], s_parent[top]
         if depth == 0:
-            tri, t, b1, b2 = _primary_hit(scene, o, d, far, facing)
+            tri, t, b1, b2 = _primary_hit(scene, tracer.cull, o, d, far)
         else:
             tri, t, b1, b2 = closest_hit(scene.bvh, o, d, eps, np.inf)
         falloff = (1.0, 1.0, 1.0)
         if tri < 0:
-            local = (background[0], background[1], background[2])
+            local = (tracer.background[0], tracer.background[1], tracer.background[2])
         else:
             obj = scene.triangle_object[tri]
             P = (o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2])
             N = hit_normal(scene, tri, b1, b2)
             # front or back by the triangle's winding, as the rasterizer's gl_FrontFacing: a back face is
             # lit with its normal reversed (facing_normal), and a ray meeting a front face enters the object
-            entering = dot((facing.normals[tri, 0], facing.normals[tri, 1], facing.normals[tri, 2]), d) < 0.0
+            n = scene.face_normals[tri]
+            entering = n[0] * d[0] + n[1] * d[1] + n[2] * d[2] < 0.0
             if not entering:
                 N = scale(N, -1.0)
             if depth > 0:          # §13's T^d, §15: inside the object it leaves here, else through air
@@ -170,7 +213,8 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
                 w = (w[0] * falloff[0], w[1] * falloff[1], w[2] * falloff[2])
             V = (-d[0], -d[1], -d[2])
             m = _material(materials, obj)
-            local = _local_color(programs[obj], P, N, V, m, lighting)
+            code = programs[obj]
+            local = _local_color(code, P, N, V, m, lighting)
         red += w[0] * local[0]
         green += w[1] * local[1]
         blue += w[2] * local[2]
@@ -188,20 +232,13 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
             n_recorded += 1
         if tri < 0 or depth >= max_depth:
             continue
+        R, r_kind, kr, T, t_kind, kt = _branches(code, m, N, V, d, entering)
         for branch in range(2):
-            k = m.kr if branch == 0 else m.kt
+            nd, nk, k = (R, r_kind, kr) if branch == 0 else (T, t_kind, kt)
             nw = (w[0] * k[0], w[1] * k[1], w[2] * k[2])
             strongest = max(nw[0], nw[1], nw[2])
-            if strongest <= 0.0 or strongest < min_weight or top >= cap:     # a ray that counts for nothing
+            if strongest <= 0.0 or strongest < tracer.min_weight or top >= cap:     # a ray that counts for nothing
                 continue
-            if branch == 0:
-                nd, nk = reflect(d, N), 1                                # §16
-            else:
-                eta = 1.0 / m.ior if entering else m.ior                 # η = η_i/η_t, air outside
-                nd = refract(d, N, eta)                                  # §17, §18
-                nk = 2
-                if nd[0] == 0.0 and nd[1] == 0.0 and nd[2] == 0.0:       # §19: all of it reflected
-                    nd, nk = reflect(d, N), 3
             nd = _unit(nd)
             so[top, 0], so[top, 1], so[top, 2] = P[0], P[1], P[2]
             sd[top, 0], sd[top, 1], sd[top, 2] = nd[0], nd[1], nd[2]
@@ -212,10 +249,34 @@ def _trace_pixel(origin, direction, far, scene, lighting, materials, programs, f
 
 
 @njit(cache=True)
-def _primary_hit(scene, o, d, far, facing):
+def trace_ray(tracer, origin, direction, weight):
+    """What a ray from a shader brings back: Σ weight × local over its tree, RGB (:class:`RayTracer`).
+
+    The ray starts at ``origin`` (eye space, on a surface) along ``direction`` (eye
+    space), ε off the surface, as the ray tracer's secondary rays (depth 1: its
+    reflections and refractions go on to the tracer's ``max_depth``); ``weight`` (RGB)
+    is what it counts for in the pixel — the ray tracer's k_r, F_R, (1 − F_R)·k_t —
+    so its branches stop at the same ``min_weight``. The rasterized fragment is the
+    tree's root, so a pixel of a mirror drawn with a tracer is the ray tracer's pixel.
+    """
+    if max(weight[0], weight[1], weight[2]) < tracer.min_weight or tracer.max_depth < 1:
+        return 0.0, 0.0, 0.0
+    M = tracer.to_world
+    o = (M[0, 0] * origin[0] + M[0, 1] * origin[1] + M[0, 2] * origin[2] + M[0, 3],
+         M[1, 0] * origin[0] + M[1, 1] * origin[1] + M[1, 2] * origin[2] + M[1, 3],
+         M[2, 0] * origin[0] + M[2, 1] * origin[1] + M[2, 2] * origin[2] + M[2, 3])
+    d = _unit((M[0, 0] * direction[0] + M[0, 1] * direction[1] + M[0, 2] * direction[2],
+               M[1, 0] * direction[0] + M[1, 1] * direction[1] + M[1, 2] * direction[2],
+               M[2, 0] * direction[0] + M[2, 1] * direction[1] + M[2, 2] * direction[2]))
+    r, g, b, _ = _trace_tree(tracer, o, d, 1, 1, weight, np.inf, np.empty((0, _RECORD_COLUMNS)))
+    return r, g, b
+
+
+@njit(cache=True)
+def _primary_hit(scene, cull, o, d, far):
     """The primary ray's nearest hit within the view volume that the rasterizer would have drawn: a face its
-    object culls (``facing.cull``: 1 back faces, 2 front faces) is passed through, as culling removed it."""
-    normals, cull = facing.normals, facing.cull
+    object culls (``cull``: 1 back faces, 2 front faces) is passed through, as culling removed it."""
+    normals = scene.face_normals
     t_min = 0.0
     for _ in range(64):
         tri, t, b1, b2 = closest_hit(scene.bvh, o, d, t_min, far)
@@ -230,14 +291,12 @@ def _primary_hit(scene, o, d, far, facing):
 
 
 @njit(cache=True, nogil=True)
-def _trace_rows(lo, hi, width, height, unproject, scene, lighting, materials, programs, facing, background,
-                air, max_depth, min_weight, out):
+def _trace_rows(lo, hi, width, height, unproject, tracer, out):
     no_record = np.empty((0, _RECORD_COLUMNS))
     for j in range(lo, hi):                 # image rows, top first
         for i in range(width):
             origin, direction, far = _primary_ray(unproject, i, j, width, height)
-            r, g, b, _ = _trace_pixel(origin, direction, far, scene, lighting, materials, programs, facing,
-                                      background, air, max_depth, min_weight, no_record)
+            r, g, b, _ = _trace_tree(tracer, origin, direction, 0, 0, (1.0, 1.0, 1.0), far, no_record)
             out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = r, g, b, 1.0
 
 
@@ -261,28 +320,37 @@ def _unproject(M, x, y, z):
     return v[0] / v[3], v[1] / v[3], v[2] / v[3]
 
 
+RayTracer = namedtuple("RayTracer", ["scene", "lighting", "materials", "programs", "cull", "background", "air",
+                                     "max_depth", "min_weight", "to_world"])
+RayTracer.__doc__ = """The ray tracer as a uniform: everything a ray needs to bring back a color (:func:`tracer_uniform`).
+
+``scene`` (:class:`~softpipe.rays.RaySceneUniform`, world space), ``lighting``
+(:class:`~softpipe.material.LightingUniform` in world space, every light with shadow
+rays), ``materials`` float64 [objects, 28] (MaterialUniform's numbers, then the
+medium's T, Glassner's flag and a), ``programs`` int64 [objects] (:data:`PROGRAM_CODES`),
+``cull`` int64 [objects] (0 none, 1 back, 2 front), ``background`` float64 [3], ``air``
+float64 [3] (T of air, §15), ``max_depth``, ``min_weight`` (§22), ``to_world`` [4, 4]:
+the eye space of the shaders that launch rays (:func:`trace_ray`) → world."""
+
+
 @dataclass
 class _Prepared:
     scene: RayScene
-    uniform: object
-    lighting: LightingUniform
-    materials: np.ndarray
-    programs: np.ndarray
-    facing: "Facing"
-    background: np.ndarray
+    tracer: RayTracer
     unproject: np.ndarray
     notes: List[str]
 
 
-def _prepare(scene, camera: Optional[Camera]) -> _Prepared:
-    from .scene import program_for
+def _prepare(scene, camera: Optional[Camera], max_depth: int = 5, min_weight: float = 1e-3,
+             air_transmittance=1.0) -> _Prepared:
+    _check_limits(max_depth, min_weight)
     camera = camera or scene.view_camera()
     objects = scene.drawn_objects(camera)
     rays = RayScene(objects)
     notes = []
     programs = []
     for obj in objects:
-        name = program_for(obj, scene.program)
+        name = scene.program_of(obj)
         if name not in PROGRAM_CODES:
             notes.append(f"{obj.name}: program {name!r} has no lighting equation for rays; lit as 'phong'")
         elif name == "textured":
@@ -302,27 +370,29 @@ def _prepare(scene, camera: Optional[Camera]) -> _Prepared:
                             np.zeros((0, 3), np.float32), shadow_rays)
     lighting = LightingUniform(lights.global_ambient, packed, shadows)
     materials = np.array([_pack_material(o.mesh.material) for o in objects], np.float64).reshape(-1, _MATERIAL_COLUMNS)
+    cull = np.array([{"none": 0, "back": 1, "front": 2}[obj.cull or scene.cull] for obj in objects], np.int64)
+    tracer = RayTracer(uniform, lighting, materials, np.array(programs, np.int64), cull,
+                       np.asarray(scene.background[:3], np.float64), _air(air_transmittance), int(max_depth),
+                       float(min_weight), np.linalg.inv(camera.view))
     aspect = scene.width / scene.height
     unproject = np.linalg.inv(camera.projection(aspect) @ camera.view)
-    return _Prepared(rays, uniform, lighting, materials, np.array(programs, np.int64), _facing(scene, objects),
-                     np.asarray(scene.background[:3], np.float64), unproject, notes)
+    return _Prepared(rays, tracer, unproject, notes)
 
 
-Facing = namedtuple("Facing", ["normals", "cull"])
-Facing.__doc__ = """Per triangle its world normal from the winding (toward its front: a mirroring model's is turned
-around, as the rasterizer turns its front face), per object its culling: 0 none, 1 back, 2 front."""
+def tracer_uniform(scene, camera: Optional[Camera] = None, *, max_depth: int = 5, min_weight: float = 1e-3,
+                   air_transmittance=1.0, notes: Optional[list] = None) -> RayTracer:
+    """The scene's ray tracer as a uniform for rasterized draws: ``uniforms={"tracer": ...}``.
 
-
-def _facing(scene, objects) -> Facing:
-    normals = []
-    for obj in objects:
-        p = obj.world_positions()
-        tri = np.asarray(obj.mesh.indices).reshape(-1, 3)
-        n = np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]])
-        normals.append(-n if np.linalg.det(np.asarray(obj.model)[:3, :3]) < 0 else n)
-    cull = [{"none": 0, "back": 1, "front": 2}[obj.cull or scene.cull] for obj in objects]
-    return Facing(np.ascontiguousarray(np.concatenate(normals)) if normals else np.zeros((0, 3)),
-                  np.array(cull, np.int64))
+    Shaders launch rays into it with :func:`trace_ray` (eye space of ``camera``, the
+    scene's view camera by default); the programs ``mirror``, ``glass`` and ``hall``
+    do so for their reflected and refracted rays when the draw has it
+    (:func:`softpipe.envmap.render_with_environments` with ``"rays"``). Parameters
+    as :func:`raytrace_scene`'s.
+    """
+    p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
+    if notes is not None:
+        notes.extend(p.notes)
+    return p.tracer
 
 
 def _check_limits(max_depth, min_weight) -> None:
@@ -366,14 +436,11 @@ def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5
     timings : dict, optional
         Receives "build" (the BVH) and "trace" seconds.
     """
-    _check_limits(max_depth, min_weight)
-    air = _air(air_transmittance)
     start = time.perf_counter()
-    p = _prepare(scene, camera)
+    p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
     built = time.perf_counter()
     out = np.zeros((scene.height, scene.width, 4), np.float32)
-    in_bands(_trace_rows, scene.height, scene.width, scene.height, p.unproject, p.uniform, p.lighting, p.materials,
-             p.programs, p.facing, p.background, air, int(max_depth), float(min_weight), out, grain=8)
+    in_bands(_trace_rows, scene.height, scene.width, scene.height, p.unproject, p.tracer, out, grain=8)
     fb = Framebuffer(scene.width, scene.height)
     fb.color[...] = out
     if notes is not None:
@@ -384,11 +451,11 @@ def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5
 
 
 @njit(cache=True, nogil=True)
-def _primary_rows(lo, hi, width, height, unproject, scene, facing, triangle, b):
+def _primary_rows(lo, hi, width, height, unproject, scene, cull, triangle, b):
     for j in range(lo, hi):
         for i in range(width):
             origin, direction, far = _primary_ray(unproject, i, j, width, height)
-            tri, _, b1, b2 = _primary_hit(scene, origin, direction, far, facing)
+            tri, _, b1, b2 = _primary_hit(scene, cull, origin, direction, far)
             triangle[j, i] = tri
             b[j, i, 0], b[j, i, 1] = b1, b2
 
@@ -404,7 +471,7 @@ def primary_visibility(scene, *, camera: Optional[Camera] = None):
     h, w = scene.height, scene.width
     triangle = np.empty((h, w), np.int64)
     b = np.empty((h, w, 2))
-    in_bands(_primary_rows, h, w, h, p.unproject, p.uniform, p.facing, triangle, b, grain=8)
+    in_bands(_primary_rows, h, w, h, p.unproject, p.tracer.scene, p.tracer.cull, triangle, b, grain=8)
     hit = triangle >= 0
     obj = np.where(hit, p.scene.triangle_object[np.where(hit, triangle, 0)], -1)
     local = np.where(hit, p.scene.triangle_local[np.where(hit, triangle, 0)], -1)
@@ -460,14 +527,12 @@ def ray_tree(scene, x: int, y: int, *, camera: Optional[Camera] = None, max_dept
     is its parent's times k_r or k_t times its own ``falloff`` (§13's T^d, §15).
     """
     _check_limits(max_depth, min_weight)
-    air = _air(air_transmittance)
     if not (0 <= x < scene.width and 0 <= y < scene.height):
         raise ValueError(f"pixel ({x}, {y}) is outside the {scene.width}×{scene.height} image")
-    p = _prepare(scene, camera)
+    p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
     origin, direction, far = _primary_ray(p.unproject, x, y, scene.width, scene.height)
     record = np.zeros((1 << (max_depth + 1), _RECORD_COLUMNS))
-    r, g, b, n = _trace_pixel(origin, direction, far, p.uniform, p.lighting, p.materials, p.programs, p.facing,
-                              p.background, air, int(max_depth), float(min_weight), record)
+    r, g, b, n = _trace_tree(p.tracer, origin, direction, 0, 0, (1.0, 1.0, 1.0), far, record)
     names = [o.name for o in p.scene.objects]
     nodes = []
     for k, row in enumerate(record[:n]):

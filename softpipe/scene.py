@@ -271,6 +271,10 @@ class Scene:
             return list(self.objects)
         return list(self.objects) + [ground_object(self, camera)]
 
+    def program_of(self, obj: SceneObject) -> str:
+        """The program ``obj`` is drawn with in this scene (:func:`program_for` with the scene's program)."""
+        return program_for(obj, self.program)
+
 
 #: The ground's material: a light neutral gray, matte, so that shadows read clearly on it.
 GROUND_MATERIAL = Material(ka=(0.6, 0.6, 0.6), kd=(0.6, 0.6, 0.6), ks=(0.0, 0.0, 0.0), name="ground")

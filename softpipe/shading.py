@@ -109,8 +109,8 @@ The lighting equations (:mod:`softpipe.lighting`; § as in FORMULAS.md)
     positive_power (§5, §6), attenuation (§7), spot_factor (§8),
     opengl_lighting (§10) with BLINN_PHONG or PHONG,
     hall_local (§13), hall_transmission (§13, §14), transmitted_half_vector (§14),
-    medium_falloff (§15: T^d or Glassner's 1/(1 + a·d)), two_sided_lighting (§11),
-    fresnel_rs_rp, fresnel, fresnel_schlick (§20),
+    two_sided_lighting (§11),
+    fresnel_rs_rp, fresnel, fresnel_schlick (§20), fresnel_directions (R, T, F_R: §16–§20),
     beckmann_d, geometry_g, cook_torrance, cook_torrance_lighting, gooch (§26)
 The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
     light_at                 (L, f_att · f_spot) of light j at P (§7–§9)
@@ -132,6 +132,10 @@ Ray queries (:mod:`softpipe.rays`; GLSL's ``rayQueryEXT`` in spirit)
     trace_any                whether anything lies on it (a shadow ray)
     hit_position, hit_normal the hit's point and interpolated normal, eye space
     ray_visibility           §21's shadow ray through transparent objects: V of a light
+    medium_falloff           §15: T^d or Glassner's 1/(1 + a·d) over a distance in a medium
+The ray tracer from a shader (:mod:`softpipe.raytrace`)
+    tracer_uniform           the scene's ray tracer as a uniform: ``uniforms={"tracer": tracer_uniform(scene)}``
+    trace_ray                the color a ray brings back (Σ weight × local over its tree), eye space
 What the uniforms are made from (:mod:`softpipe.material`, :mod:`softpipe.shaders.common`)
     Material, MaterialUniform, Light, Lighting, LightingUniform, ShadowSettings,
     lighting_uniform         the ``lighting`` uniform for a camera's view matrix
@@ -140,15 +144,17 @@ from .glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, len
                    mat4_mul_vec4, max_component, min_component, mix, mul, neg, normalize, pow_, reflect,
                    refract, saturate, scale, smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin)
 from .lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
-                       casts_shadows, cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_rs_rp,
+                       casts_shadows, cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_directions,
+                       fresnel_rs_rp,
                        fresnel_schlick, geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert,
-                       light_at, light_colors, light_vec3, light_visibility, medium_falloff, opengl_lighting,
+                       light_at, light_colors, light_vec3, light_visibility, opengl_lighting,
                        phong_specular, positive_power, spot_factor, transmitted_half_vector, two_sided_lighting)
 from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
                        LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
                        LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
                        LightingUniform, Material, MaterialUniform)
-from .rays import RayScene, hit_normal, hit_position, ray_visibility, trace_any, trace_closest
+from .rays import RayScene, hit_normal, hit_position, medium_falloff, ray_visibility, trace_any, trace_closest
+from .raytrace import trace_ray, tracer_uniform
 from .shader import DISCARD, Derivatives, FragInfo, ShaderError
 from .shadowmap import ShadowSettings
 from .shaders import Program
@@ -174,8 +180,8 @@ __all__ = [
     # the lighting equations
     "emission", "ambient", "lambert", "b_factor", "phong_specular", "blinn_phong_specular", "half_vector",
     "positive_power", "attenuation", "spot_factor", "opengl_lighting", "BLINN_PHONG", "PHONG",
-    "hall_local", "hall_transmission", "transmitted_half_vector", "medium_falloff", "two_sided_lighting",
-    "fresnel_rs_rp", "fresnel", "fresnel_schlick",
+    "hall_local", "hall_transmission", "transmitted_half_vector", "two_sided_lighting",
+    "fresnel_rs_rp", "fresnel", "fresnel_schlick", "fresnel_directions",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting", "gooch",
     # the packed lights
     "light_at", "light_vec3", "light_colors", "light_visibility", "casts_shadows",
@@ -183,7 +189,8 @@ __all__ = [
     "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF", "LIGHT_SPOT_EXPONENT",
     "LIGHT_COLUMNS", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
     # ray queries
-    "RayScene", "trace_closest", "trace_any", "hit_position", "hit_normal", "ray_visibility",
+    "RayScene", "trace_closest", "trace_any", "hit_position", "hit_normal", "ray_visibility", "medium_falloff",
+    "tracer_uniform", "trace_ray",
     # what the uniforms are made from
     "Material", "MaterialUniform", "Light", "Lighting", "LightingUniform", "ShadowSettings", "lighting_uniform",
 ]

@@ -16,7 +16,8 @@ import pytest
 
 import softpipe as sp
 from softpipe import shapes
-from softpipe.lighting import medium_falloff, two_sided_lighting
+from softpipe.lighting import two_sided_lighting
+from softpipe.rays import medium_falloff
 from softpipe.material import MEDIA, Light, Lighting, Material, falloff_factor
 from softpipe.raytrace import PROGRAM_CODES, ray_tree, raytrace_scene
 from softpipe.scene import Scene, SceneObject

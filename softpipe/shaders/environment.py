@@ -51,8 +51,9 @@ from numba.core.errors import TypingError
 from numba.extending import overload, register_jitable
 
 from ..cubemap import sky, texture_cube_lod
-from ..glsl import add, dot, mul, refract, reflect, scale
-from ..lighting import BLINN_PHONG, fresnel, opengl_lighting
+from ..glsl import add, mul, reflect, scale
+from ..lighting import BLINN_PHONG, fresnel_directions, opengl_lighting
+from ..raytrace import trace_ray
 from . import Program, register
 from .common import facing_normal, rgba, standard_vertex, toward_eye, uniform_or
 
@@ -106,40 +107,61 @@ def environment(uniforms, d_eye):
     return lookup(uniforms, to_world(view_matrix(uniforms), d_eye))
 
 
+def incoming(uniforms, P, d_eye, weight):
+    """weight × the light that arrives at P from the eye-space direction ``d_eye`` (RGB).
+
+    With the uniform ``tracer`` (:func:`softpipe.raytrace.tracer_uniform`) a ray is
+    traced from P through the scene, recursively (:func:`softpipe.raytrace.trace_ray`:
+    the ray tracer's own tree, so the pixel is the ray tracer's); without it, the
+    environment in that direction (:func:`environment`), as if everything were far away.
+    """
+    if hasattr(uniforms, "tracer"):
+        return trace_ray(uniforms.tracer, P, d_eye, weight)
+    return mul(weight, environment(uniforms, d_eye))
+
+
+@overload(incoming)
+def _incoming_numba(uniforms, P, d_eye, weight):
+    if "tracer" in tuple(getattr(uniforms, "fields", ())):     # decided once, when the shader is typed
+        return lambda uniforms, P, d_eye, weight: trace_ray(uniforms.tracer, P, d_eye, weight)
+    return lambda uniforms, P, d_eye, weight: mul(weight, environment(uniforms, d_eye))
+
+
 @register_jitable
 def glass_weights(N, V, outside_ior, ior):
-    """(R, T, F_R) for unit N (on V's side) and V: §16, §18 with η = outside/ior, §20; T = 0 and F_R = 1 on TIR."""
-    R = reflect(scale(V, -1.0), N)
-    eta = outside_ior / ior
-    T = refract(scale(V, -1.0), N, eta)
-    c1 = dot(N, V)
-    if eta * eta * (1.0 - c1 * c1) > 1.0:          # §19: total internal reflection
-        return R, T, 1.0
-    return R, T, fresnel(c1, outside_ior, ior)
+    """(R, T, F_R) for unit N (on V's side) and V, from the medium ``outside_ior`` into ``ior``: §16, §18–§20.
+
+    :func:`softpipe.lighting.fresnel_directions`; T = 0 and F_R = 1 on total internal reflection.
+    """
+    return fresnel_directions(N, V, outside_ior, ior)
 
 
 def mirror_fragment(varyings, uniforms, frag):
-    """kr·env(R) plus the local lighting (§10)."""
+    """kr·I(R) plus the local lighting (§10); I from the environment, or a traced ray."""
     P = varyings.position
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
     m = uniforms.material
     R = reflect(scale(V, -1.0), N)                 # = 2(N·V)N − V (§16)
     local = opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG)
-    color = add(mul(m.kr, environment(uniforms, R)), local)
+    color = add(incoming(uniforms, P, R, m.kr), local)
     return rgba(color, m.opacity)
 
 
 def glass_fragment(varyings, uniforms, frag):
-    """F_R·env(R) + (1 − F_R)·kt·env(T) plus the local lighting (§10, §16–§20)."""
+    """F_R·I(R) + (1 − F_R)·kt·I(T) plus the local lighting (§10, §16–§20)."""
     P = varyings.position
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
     m = uniforms.material
-    R, T, F = glass_weights(N, V, uniform_or(uniforms, "outside_ior", 1.0), m.ior)
-    color = add(scale(environment(uniforms, R), F), opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG))
+    outside = uniform_or(uniforms, "outside_ior", 1.0)
+    if frag.front_facing:                          # a back face is seen from inside the glass
+        R, T, F = glass_weights(N, V, outside, m.ior)
+    else:
+        R, T, F = glass_weights(N, V, m.ior, outside)
+    color = add(incoming(uniforms, P, R, (F, F, F)), opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG))
     if F < 1.0:
-        color = add(color, scale(mul(m.kt, environment(uniforms, T)), 1.0 - F))
+        color = add(color, incoming(uniforms, P, T, scale(m.kt, 1.0 - F)))
     return rgba(color, m.opacity)
 
 
@@ -150,4 +172,4 @@ glass = register(Program(
     "glass", standard_vertex, glass_fragment,
     "glass: Fresnel (§20) mixes env(R) and kt·env(T) (§16, §18; TIR §19 → all R), plus §10; first surface only"))
 
-__all__ = ["mirror", "glass", "to_world", "environment", "lookup", "glass_weights", "view_matrix"]
+__all__ = ["mirror", "glass", "to_world", "environment", "lookup", "incoming", "glass_weights", "view_matrix"]
