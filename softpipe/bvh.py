@@ -224,18 +224,20 @@ def _hit_sheared(ax, ay, az, bx, by, bz, cx, cy, cz, kx, ky, kz, sx, sy, sz, t_m
     U = Cx * By - Cy * Bx
     V = Ax * Cy - Ay * Cx
     W = Bx * Ay - By * Ax
-    if U == 0.0 or V == 0.0 or W == 0.0:     # on an edge in float64: decide exactly
+    # (the tests below combine their comparisons with | and &, not "or" and "and": one branch
+    # each, where short-circuits would branch on every sign, which a predictor cannot guess)
+    if (U == 0.0) | (V == 0.0) | (W == 0.0):  # on an edge in float64: decide exactly
         U = _exact_cross(Cx, By, Cy, Bx)
         V = _exact_cross(Ax, Cy, Ay, Cx)
         W = _exact_cross(Bx, Ay, By, Ax)
-    if (U < 0.0 or V < 0.0 or W < 0.0) and (U > 0.0 or V > 0.0 or W > 0.0):
+    if ((U < 0.0) | (V < 0.0) | (W < 0.0)) & ((U > 0.0) | (V > 0.0) | (W > 0.0)):
         return False, 0.0, 0.0, 0.0          # the ray passes outside an edge
     det = U + V + W
     if det == 0.0:                           # seen edge-on, or a degenerate triangle
         return False, 0.0, 0.0, 0.0
     T = U * (sz * az) + V * (sz * bz) + W * (sz * cz)
     t = T / det
-    if not (t > t_min and t < t_max):
+    if not ((t > t_min) & (t < t_max)):
         return False, 0.0, 0.0, 0.0
     return True, t, V / det, W / det
 
@@ -491,27 +493,14 @@ def _order2(ta, ca, tb, cb):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _traverse(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
-              stack_node, stack_t):
-    """The stack traversal behind both queries, compiled into each caller (``inline="always"``) on
-    borrowed arrays.
+def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
+    """A ray's constants and the traversal's first state: (ray, state); see :func:`_step`.
 
-    It walks the wide nodes (``boxes``, ``links``; see :class:`BVH`): a visit tests the
-    boxes of all four children (stored side by side in the node), goes on into the
-    nearest child the ray meets and puts the others aside, farthest deepest. The walk
-    is over (ref, n) pairs: n = 0 names wide node ref, n > 0 the leaf of triangles
-    ``ref … ref + n − 1``. ``stack_node``, ``stack_t`` [STACK_SIZE]: the children put
-    aside (``ref << 32 | n``) and the t where each one's box begins (one that begins
-    beyond the nearest hit is skipped). Once per ray: Woop's axis permutation and shear
-    (:func:`_ray_space`), ``1/d``, and which box planes the ray enters by.
+    Once per ray: Woop's axis permutation and shear (:func:`_ray_space`), ``1/d``,
+    which box planes the ray enters by, and the root's box (a ray that misses it,
+    a zero direction or an empty interval starts finished).
     """
-    best_id, best_t, best_b1, best_b2 = -1, t_max, 0.0, 0.0
-    reach = t_max + abs(t_max) * REACH_PAD   # boxes are searched a hair beyond the best t (ties)
-    if count.shape[0] == 0:
-        return best_id, best_t, best_b1, best_b2
     kx, ky, kz, sx, sy, sz = _ray_space(dx, dy, dz)
-    if sz == 0.0 or not (t_min < t_max):
-        return best_id, best_t, best_b1, best_b2
     o3 = (ox, oy, oz)
     okx, oky, okz = o3[kx], o3[ky], o3[kz]
     ix, iy, iz = _inverse(dx), _inverse(dy), _inverse(dz)
@@ -520,57 +509,84 @@ def _traverse(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx
     nx = 3 if ix < 0.0 else 0
     ny = 4 if iy < 0.0 else 1
     nz = 5 if iz < 0.0 else 2
-    if _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, reach) == math.inf:
-        return best_id, best_t, best_b1, best_b2
-    if count[0] > 0:                          # the root is a leaf: no wide nodes
+    ray = (ox, oy, oz, ix, iy, iz, nx, ny, nz, okx, oky, okz, kx, ky, kz, sx, sy, sz, t_min, t_max)
+    reach = t_max + abs(t_max) * REACH_PAD   # boxes are searched a hair beyond the best t (ties)
+    live = count.shape[0] > 0 and sz != 0.0 and t_min < t_max
+    if live:
+        live = _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, reach) != math.inf
+    ref, n = 0, 0
+    if live and count[0] > 0:                # the root is a leaf: no wide nodes
         ref, n = first[0], count[0]
-    else:
-        ref, n = 0, 0
-    top = 0
-    while True:
-        if n > 0:                            # a leaf: its triangles
-            for k in range(ref, ref + n):
-                hit, t, b1, b2 = _hit_sheared(
-                    corners[k, kx] - okx, corners[k, ky] - oky, corners[k, kz] - okz,
-                    corners[k, 3 + kx] - okx, corners[k, 3 + ky] - oky, corners[k, 3 + kz] - okz,
-                    corners[k, 6 + kx] - okx, corners[k, 6 + ky] - oky, corners[k, 6 + kz] - okz,
-                    kx, ky, kz, sx, sy, sz, t_min, t_max)
-                if hit:
-                    tri = order[k]
-                    if any_:
-                        return tri, t, b1, b2
-                    if t < best_t or (t == best_t and tri < best_id):
-                        best_id, best_t, best_b1, best_b2 = tri, t, b1, b2
-                        reach = t + abs(t) * REACH_PAD
-        else:                                # a wide node: its four boxes, then the nearest child first
-            t0, t1, t2, t3 = _lane_entries(boxes, ref, nx, ny, nz, ox, oy, oz, ix, iy, iz, t_min, reach)
-            c0, c1, c2, c3 = links[ref, 0], links[ref, 1], links[ref, 2], links[ref, 3]
-            # sort the four (t, child) by t (a 5-exchange network); misses (+inf) go last
-            t0, c0, t1, c1 = _order2(t0, c0, t1, c1)
-            t2, c2, t3, c3 = _order2(t2, c2, t3, c3)
-            t0, c0, t2, c2 = _order2(t0, c0, t2, c2)
-            t1, c1, t3, c3 = _order2(t1, c1, t3, c3)
-            t1, c1, t2, c2 = _order2(t1, c1, t2, c2)
-            # put aside children 3, 2, 1, farthest first, without a branch: each is written at the
-            # top and kept (top moves up) only if the ray meets it; a miss is overwritten
-            stack_node[top], stack_t[top] = c3, t3
-            top += t3 != math.inf
-            stack_node[top], stack_t[top] = c2, t2
-            top += t2 != math.inf
-            stack_node[top], stack_t[top] = c1, t1
-            top += t1 != math.inf
-            if t0 != math.inf:
-                ref, n = c0 >> _REF_SHIFT, c0 & _COUNT_MASK
-                continue
-        # pop the next child whose box begins no farther than the best hit
-        while True:
-            if top == 0:
-                return best_id, best_t, best_b1, best_b2
-            top -= 1
-            if stack_t[top] <= reach:
-                code = stack_node[top]
-                ref, n = code >> _REF_SHIFT, code & _COUNT_MASK
-                break
+    return ray, (live, ref, n, 0, reach, -1, t_max, 0.0, 0.0)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _step(boxes, links, order, corners, ray, state, any_, stack_node, stack_t):
+    """One step of the stack traversal: a wide node or a leaf visited, then the next one chosen.
+
+    The traversal walks the wide nodes (``boxes``, ``links``; see :class:`BVH`): a
+    visit tests the boxes of all four children (stored side by side in the node),
+    goes on into the nearest child the ray meets and puts the others aside,
+    farthest deepest. It walks (ref, n) pairs: n = 0 names wide node ref, n > 0 the
+    leaf of triangles ``ref … ref + n − 1``. ``stack_node``, ``stack_t``
+    [STACK_SIZE]: the children put aside (``ref << 32 | n``) and the t where each
+    one's box begins (one that begins beyond the nearest hit is skipped).
+    ``state`` = (live, ref, n, top, reach, best id, t, b1, b2); live turns False
+    when the answer is known.
+    """
+    ox, oy, oz, ix, iy, iz, nx, ny, nz, okx, oky, okz, kx, ky, kz, sx, sy, sz, t_min, t_max = ray
+    live, ref, n, top, reach, best_id, best_t, best_b1, best_b2 = state
+    if n > 0:                                # a leaf: its triangles
+        for k in range(ref, ref + n):
+            hit, t, b1, b2 = _hit_sheared(
+                corners[k, kx] - okx, corners[k, ky] - oky, corners[k, kz] - okz,
+                corners[k, 3 + kx] - okx, corners[k, 3 + ky] - oky, corners[k, 3 + kz] - okz,
+                corners[k, 6 + kx] - okx, corners[k, 6 + ky] - oky, corners[k, 6 + kz] - okz,
+                kx, ky, kz, sx, sy, sz, t_min, t_max)
+            if hit:
+                tri = order[k]
+                if any_:
+                    return False, ref, n, top, reach, tri, t, b1, b2
+                if t < best_t or (t == best_t and tri < best_id):
+                    best_id, best_t, best_b1, best_b2 = tri, t, b1, b2
+                    reach = t + abs(t) * REACH_PAD
+    else:                                    # a wide node: its four boxes, then the nearest child first
+        t0, t1, t2, t3 = _lane_entries(boxes, ref, nx, ny, nz, ox, oy, oz, ix, iy, iz, t_min, reach)
+        c0, c1, c2, c3 = links[ref, 0], links[ref, 1], links[ref, 2], links[ref, 3]
+        # sort the four (t, child) by t (a 5-exchange network); misses (+inf) go last
+        t0, c0, t1, c1 = _order2(t0, c0, t1, c1)
+        t2, c2, t3, c3 = _order2(t2, c2, t3, c3)
+        t0, c0, t2, c2 = _order2(t0, c0, t2, c2)
+        t1, c1, t3, c3 = _order2(t1, c1, t3, c3)
+        t1, c1, t2, c2 = _order2(t1, c1, t2, c2)
+        # put aside children 3, 2, 1, farthest first, without a branch: each is written at the
+        # top and kept (top moves up) only if the ray meets it; a miss is overwritten
+        stack_node[top], stack_t[top] = c3, t3
+        top += t3 != math.inf
+        stack_node[top], stack_t[top] = c2, t2
+        top += t2 != math.inf
+        stack_node[top], stack_t[top] = c1, t1
+        top += t1 != math.inf
+        if t0 != math.inf:
+            return True, c0 >> _REF_SHIFT, c0 & _COUNT_MASK, top, reach, best_id, best_t, best_b1, best_b2
+    # pop the next child whose box begins no farther than the best hit
+    while top > 0:
+        top -= 1
+        if stack_t[top] <= reach:
+            code = stack_node[top]
+            return True, code >> _REF_SHIFT, code & _COUNT_MASK, top, reach, best_id, best_t, best_b1, best_b2
+    return False, ref, n, top, reach, best_id, best_t, best_b1, best_b2
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _traverse(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
+              stack_node, stack_t):
+    """One ray's query, (id, t, b1, b2), compiled into each caller (``inline="always"``) on borrowed
+    arrays: :func:`_start`, then :func:`_step` until the answer is known."""
+    ray, state = _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max)
+    while state[0]:
+        state = _step(boxes, links, order, corners, ray, state, any_, stack_node, stack_t)
+    return state[5], state[6], state[7], state[8]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -874,35 +890,79 @@ def _pack_boxes(lo, hi, lane_node, boxes) -> None:
 
 # ------------------------------------------------------------- batches of rays
 
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _start_row(lo, hi, first, count, origins, directions, t_min, t_max, r):
+    """:func:`_start` for ray r of a batch."""
+    return _start(lo, hi, first, count, origins[r, 0], origins[r, 1], origins[r, 2],
+                  directions[r, 0], directions[r, 1], directions[r, 2], t_min[r], t_max[r])
+
+
+# Why two rays at a time. A ray's traversal is one long chain of dependent steps (a node's
+# address comes from its parent's links, which child comes next from the boxes' tests) with
+# hard-to-guess branches, so one ray leaves most of the core idle: measured on the bunny's
+# shadow rays, testing every box and triangle twice added only 15 % to the time. The batch
+# kernels therefore walk two rays in turn, a step of one then a step of the other (each on its
+# own stack), and start the band's next ray where one finishes: the core overlaps the two
+# chains. Each ray's answer is computed exactly as alone, so the bytes do not change.
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _closest_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, ids, ts, bs):
-    stack_node, stack_t = _node_stack(), _t_stack()
+def _batch_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, any_, ids, ts, bs, occluded):
+    """Rays lo_ … hi_ − 1 of a batch, two in flight: closest hits into ids, ts, bs, or (any_) any hits
+    into occluded."""
+    sa_node, sa_t, sb_node, sb_t = _node_stack(), _t_stack(), _node_stack(), _t_stack()
     boxes, links, lo, hi = _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi)
     first, count, order, corners = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), \
         _borrowed(bvh.corners)
-    for r in range(lo_, hi_):
-        i, t, b1, b2 = _traverse(boxes, links, lo, hi, first, count, order, corners,
-                                 origins[r, 0], origins[r, 1], origins[r, 2],
-                                 directions[r, 0], directions[r, 1], directions[r, 2],
-                                 t_min[r], t_max[r], False, stack_node, stack_t)
+    ia, ib = lo_, lo_ + 1
+    ray_a, st_a = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
+    if ib < hi_:
+        ray_b, st_b = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ib)
+    else:
+        ib = -1
+        ray_b, st_b = ray_a, st_a
+    nxt = lo_ + 2
+    while ia >= 0 or ib >= 0:
+        if ia >= 0:
+            if st_a[0]:
+                st_a = _step(boxes, links, order, corners, ray_a, st_a, any_, sa_node, sa_t)
+            else:
+                _store(ia, st_a, any_, ids, ts, bs, occluded)
+                if nxt < hi_:
+                    ia = nxt
+                    nxt += 1
+                    ray_a, st_a = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
+                else:
+                    ia = -1
+        if ib >= 0:
+            if st_b[0]:
+                st_b = _step(boxes, links, order, corners, ray_b, st_b, any_, sb_node, sb_t)
+            else:
+                _store(ib, st_b, any_, ids, ts, bs, occluded)
+                if nxt < hi_:
+                    ib = nxt
+                    nxt += 1
+                    ray_b, st_b = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ib)
+                else:
+                    ib = -1
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _store(r, state, any_, ids, ts, bs, occluded):
+    """Ray r's answer from its final state (see :func:`_step`)."""
+    i = state[5]
+    if any_:
+        occluded[r] = i >= 0
+    else:
         ids[r] = i
         if i >= 0:
-            ts[r], bs[r, 0], bs[r, 1] = t, b1, b2
+            ts[r], bs[r, 0], bs[r, 1] = state[6], state[7], state[8]
         else:
             ts[r], bs[r, 0], bs[r, 1] = np.inf, 0.0, 0.0
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _any_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, out):
-    stack_node, stack_t = _node_stack(), _t_stack()
-    boxes, links, lo, hi = _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi)
-    first, count, order, corners = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), \
-        _borrowed(bvh.corners)
-    for r in range(lo_, hi_):
-        out[r] = _traverse(boxes, links, lo, hi, first, count, order, corners,
-                           origins[r, 0], origins[r, 1], origins[r, 2],
-                           directions[r, 0], directions[r, 1], directions[r, 2],
-                           t_min[r], t_max[r], True, stack_node, stack_t)[0] >= 0
+
+# the outputs a batch kernel is given but does not write (occluded for closest hits, the rest for any hits)
+_NO_IDS, _NO_TS, _NO_BS, _NO_BOOLS = np.empty(0, np.int64), np.empty(0), np.empty((0, 2)), np.empty(0, np.bool_)
 
 
 def _describe(a: np.ndarray) -> str:
@@ -1089,7 +1149,7 @@ class BVH:
         t0, t1 = _interval("t_min", t_min, R), _interval("t_max", t_max, R)
         ids, ts, bs = np.empty(R, np.int64), np.empty(R), np.empty((R, 2))
         if R:
-            in_bands(_closest_kernel, R, self.uniform, o, d, t0, t1, ids, ts, bs, grain=1024)
+            in_bands(_batch_kernel, R, self.uniform, o, d, t0, t1, False, ids, ts, bs, _NO_BOOLS, grain=1024)
         return ids, ts, bs
 
     def occluded(self, origins, directions, t_min=0.0, t_max=np.inf):
@@ -1100,7 +1160,7 @@ class BVH:
         t0, t1 = _interval("t_min", t_min, R), _interval("t_max", t_max, R)
         out = np.empty(R, np.bool_)
         if R:
-            in_bands(_any_kernel, R, self.uniform, o, d, t0, t1, out, grain=1024)
+            in_bands(_batch_kernel, R, self.uniform, o, d, t0, t1, True, _NO_IDS, _NO_TS, _NO_BS, out, grain=1024)
         return out
 
 
