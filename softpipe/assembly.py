@@ -105,14 +105,44 @@ def _check_indices(indices, n_vertices: int) -> np.ndarray:
         # checked before the cast: a uint64 above 2^63 would turn negative in int64
         where = int(np.argmax(flat >= n_vertices))
         raise ValueError(f"indices[{where}] = {int(flat[where])} is out of range for {n_vertices} vertices")
-    arr = flat.astype(np.int64, copy=False)
-    if arr.size:
-        lo, hi = int(arr.min()), int(arr.max())
-        if lo < 0 or hi >= n_vertices:
-            bad = lo if lo < 0 else hi
-            where = int(np.nonzero(arr == bad)[0][0])
-            raise ValueError(f"indices[{where}] = {bad} is out of range for {n_vertices} vertices")
+    if not flat.size:
+        return flat.astype(np.int64)
+    arr, lo, hi = _int64_and_range(flat)
+    if lo < 0 or hi >= n_vertices:
+        bad = lo if lo < 0 else hi
+        where = int(np.nonzero(arr == bad)[0][0])
+        raise ValueError(f"indices[{where}] = {bad} is out of range for {n_vertices} vertices")
     return arr
+
+
+def _int64_and_range(flat: np.ndarray):
+    """(flat as int64, its min, its max): one compiled pass (numpy's cast, min and max made three)."""
+    if not flat.dtype.isnative:                       # (numba reads native byte order only)
+        flat = flat.astype(flat.dtype.newbyteorder("="))
+    if flat.dtype == np.int64:
+        lo, hi = _range_of(flat)
+        return flat, int(lo), int(hi)
+    out = np.empty(flat.shape, np.int64)
+    lo, hi = _copy_range(flat, out)
+    return out, int(lo), int(hi)
+
+
+@numba.njit(cache=True)
+def _range_of(flat):
+    lo, hi = flat[0], flat[0]
+    for v in flat:
+        lo, hi = min(lo, v), max(hi, v)
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def _copy_range(flat, out):
+    lo, hi = np.int64(flat[0]), np.int64(flat[0])
+    for k in range(flat.shape[0]):
+        v = np.int64(flat[k])
+        out[k] = v
+        lo, hi = min(lo, v), max(hi, v)
+    return lo, hi
 
 
 def triangle_indices(topology: str, indices, n_vertices: int) -> np.ndarray:
@@ -314,6 +344,38 @@ def _windows_of(clip, vp):
     return out
 
 
+@numba.njit(cache=True)
+def _ids_with(status, code):
+    """The triangles whose status is ``code``, in order (two compiled passes over the int8 statuses)."""
+    count = 0
+    for t in range(status.shape[0]):
+        count += status[t] == code
+    ids = np.empty(count, np.int64)
+    k = 0
+    for t in range(status.shape[0]):
+        if status[t] == code:
+            ids[k] = t
+            k += 1
+    return ids
+
+
+@numba.njit(cache=True)
+def _output_offsets(status, cut_ids, cut_counts):
+    """Each input triangle's first output row [n + 1]: one for an accepted triangle, its pieces for a
+    clipped one (``cut_ids`` in increasing order, ``cut_counts`` pieces each), none for the rest."""
+    offset = np.empty(status.shape[0] + 1, np.int64)
+    offset[0] = 0
+    rows, p = 0, 0
+    for t in range(status.shape[0]):
+        if p < cut_ids.shape[0] and cut_ids[p] == t:
+            rows += cut_counts[p]
+            p += 1
+        elif status[t] == ACCEPTED:
+            rows += 1
+        offset[t + 1] = rows
+    return offset
+
+
 def _viewport_params(viewport: Viewport) -> np.ndarray:
     return np.array([viewport.x, viewport.y, viewport.width / 2, viewport.height / 2, viewport.near,
                      (viewport.far - viewport.near) / 2], dtype=np.float64)
@@ -366,14 +428,11 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
     if n:
         in_bands(_vertex_codes, len(vout.position), vout.position, planes, vp, codes, vertex_window, grain=8192)
         in_bands(_classify, n, codes, vertex_window, tri, cull_code, ccw_front, status, front, grain=8192)
-    pieces = _clip_cut(vout, tri, np.nonzero(status == CUT)[0], planes, vp, layout, cull_code, ccw_front, status)
-
-    counts = (status == ACCEPTED).astype(np.int64)
-    for t, (win, _, _, f) in pieces.items():
-        counts[t] = len(win)
+    pieces = _clip_cut(vout, tri, _ids_with(status, CUT), planes, vp, layout, cull_code, ccw_front, status)
+    for t, (_, _, _, f) in pieces.items():
         front[t] = f
-    offset = np.zeros(n + 1, np.int64)
-    np.cumsum(counts, out=offset[1:])
+    offset = _output_offsets(status, np.fromiter(pieces, np.int64, len(pieces)),
+                             np.array([len(p[0]) for p in pieces.values()], np.int64))
     total = int(offset[-1])
     k, flat = layout.width, _columns(layout, "flat")
     if indices is None and topology == "triangles" and not pieces and total == n and not len(flat):
@@ -392,9 +451,8 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
         rows = slice(offset[t], offset[t] + len(win))
         window[rows], inv_w[rows], out_var[rows], key[rows], clipped[rows] = win, iw, pv, t, True
 
-    ids = np.arange(n, dtype=np.int64)
-    dropped = {"non-finite": ids[status == NON_FINITE], "outside": ids[status == OUTSIDE],
-               "culled": ids[status == CULLED]}
+    dropped = {"non-finite": _ids_with(status, NON_FINITE), "outside": _ids_with(status, OUTSIDE),
+               "culled": _ids_with(status, CULLED)}
     culled_window = np.zeros((0, 3, 3))
     if keep_culled and len(dropped["culled"]):
         culled_window = _culled_windows(vout, tri, dropped["culled"], vp)
