@@ -105,6 +105,9 @@ MAX_DEPTH = 64
 #: into nodes of up to this many children, whose boxes are tested together.
 WIDTH = 4
 
+#: Triangles are tested in blocks of this many (a leaf's triangles fill one or more blocks).
+BLOCK = 4
+
 #: The traversal's stack: a wide node's level is at most its binary depth, and a visit puts
 #: aside at most WIDTH − 1 children.
 STACK_SIZE = (WIDTH - 1) * MAX_DEPTH + 1     # + 1: a child the ray misses is written, then overwritten
@@ -120,7 +123,7 @@ SLAB_PAD = 1.0 + 2.0 * (3.0 * _U / (1.0 - 3.0 * _U))
 REACH_PAD = 2.0 ** -44
 
 BVHUniform = namedtuple("BVHUniform", ["lo", "hi", "first", "count", "order", "v0", "v1", "v2",
-                                       "boxes", "links", "corners"])
+                                       "boxes", "links", "tris", "tri_ids"])
 BVHUniform.__doc__ = """A BVH as a shader receives it: its numpy arrays (see :class:`BVH`)."""
 
 
@@ -478,6 +481,93 @@ def _lane_entries_compiled(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1)
         _lane_entries_intrinsic(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1)
 
 
+def _block_candidates(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t_min, t_max):
+    """Which lanes of triangle block ``b`` may be hit: a bit mask (bit j: lane j).
+
+    Compiled (:func:`_block_candidates_intrinsic`), the watertight test of
+    :func:`_hit_sheared` on the block's four triangles at once, in vectors of four
+    float64 with the same IEEE operations in the same order (so the same U, V, W,
+    det and t): a lane is a candidate when the test hits it, or when an edge
+    function is exactly 0 (there the exact recomputation decides). The caller runs
+    :func:`_hit_sheared` on the candidates only, so the answer is the scalar test's.
+    In plain Python every lane is a candidate.
+    """
+    return (1 << BLOCK) - 1
+
+
+@intrinsic
+def _block_candidates_intrinsic(typingctx, tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t_min, t_max):
+    # Why: the per-triangle test's branches (which edge rejects the ray, is it in range) are
+    # what a predictor cannot guess, and a leaf's triangles are tested one after another; here
+    # the four are one vector computation and one branch (any candidate?). Written in LLVM
+    # vector IR as _lane_entries_intrinsic is (numba does not vectorize it); no fast-math
+    # flags, so nothing is fused or reordered.
+    if not (isinstance(tris, types.Array) and tris.dtype == types.float64 and tris.ndim == 3
+            and tris.layout == "C"):
+        return None
+    sig = types.int64(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t_min, t_max)
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        i64, i32, f64 = ir.IntType(64), ir.IntType(32), ir.DoubleType()
+        f64v = ir.VectorType(f64, BLOCK)
+
+        def arg_i64(k):
+            return context.cast(builder, args[k], signature.args[k], types.int64)
+
+        def splat(k):
+            x = context.cast(builder, args[k], signature.args[k], types.float64)
+            v = ir.Constant(f64v, ir.Undefined)
+            for j in range(BLOCK):
+                v = builder.insert_element(v, x, ir.Constant(i32, j))
+            return v
+
+        base = builder.mul(arg_i64(1), ir.Constant(i64, 9 * BLOCK))
+        axes = [arg_i64(2), arg_i64(3), arg_i64(4)]
+        origin = [splat(5), splat(6), splat(7)]
+        sx_, sy_, sz_, lo_t, hi_t = splat(8), splat(9), splat(10), splat(11), splat(12)
+
+        def corner(c, a):                         # tris[b, 3c + k_a, :] − o[k_a]
+            r = builder.add(ir.Constant(i64, 3 * c), axes[a])
+            p = builder.gep(ary.data, [builder.add(base, builder.mul(r, ir.Constant(i64, BLOCK)))])
+            v = builder.load(builder.bitcast(p, f64v.as_pointer()), align=8)
+            return builder.fsub(v, origin[a])
+
+        fsub, fmul, fadd = builder.fsub, builder.fmul, builder.fadd
+        ax, ay, az = corner(0, 0), corner(0, 1), corner(0, 2)
+        bx, by, bz = corner(1, 0), corner(1, 1), corner(1, 2)
+        cx, cy, cz = corner(2, 0), corner(2, 1), corner(2, 2)
+        Ax, Ay = fsub(ax, fmul(sx_, az)), fsub(ay, fmul(sy_, az))
+        Bx, By = fsub(bx, fmul(sx_, bz)), fsub(by, fmul(sy_, bz))
+        Cx, Cy = fsub(cx, fmul(sx_, cz)), fsub(cy, fmul(sy_, cz))
+        U = fsub(fmul(Cx, By), fmul(Cy, Bx))
+        V = fsub(fmul(Ax, Cy), fmul(Ay, Cx))
+        W = fsub(fmul(Bx, Ay), fmul(By, Ax))
+        zero = ir.Constant(f64v, [0.0] * BLOCK)
+
+        def cmp(op, x, y):
+            return builder.fcmp_ordered(op, x, y)
+
+        or_, and_ = builder.or_, builder.and_
+        on_edge = or_(or_(cmp("==", U, zero), cmp("==", V, zero)), cmp("==", W, zero))
+        neg = or_(or_(cmp("<", U, zero), cmp("<", V, zero)), cmp("<", W, zero))
+        pos = or_(or_(cmp(">", U, zero), cmp(">", V, zero)), cmp(">", W, zero))
+        det = fadd(fadd(U, V), W)
+        T = fadd(fadd(fmul(U, fmul(sz_, az)), fmul(V, fmul(sz_, bz))), fmul(W, fmul(sz_, cz)))
+        t = builder.fdiv(T, det)
+        ok = and_(and_(builder.not_(and_(neg, pos)), builder.fcmp_unordered("!=", det, zero)),
+                  and_(cmp(">", t, lo_t), cmp("<", t, hi_t)))
+        mask = builder.bitcast(or_(on_edge, ok), ir.IntType(BLOCK))
+        return builder.zext(mask, i64)
+    return sig, codegen
+
+
+@overload(_block_candidates, inline="always")
+def _block_candidates_compiled(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t_min, t_max):
+    return lambda tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t_min, t_max: \
+        _block_candidates_intrinsic(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t_min, t_max)
+
+
 #: A child on the traversal's stack is one int64: ``ref << 32 | n`` (see :func:`_traverse`).
 _REF_SHIFT = 32
 _COUNT_MASK = (1 << 32) - 1
@@ -515,13 +605,13 @@ def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
     if live:
         live = _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, reach) != math.inf
     ref, n = 0, 0
-    if live and count[0] > 0:                # the root is a leaf: no wide nodes
-        ref, n = first[0], count[0]
+    if live and count[0] > 0:                # the root is a leaf (no wide nodes): from block 0
+        ref, n = 0, count[0]
     return ray, (live, ref, n, 0, reach, -1, t_max, 0.0, 0.0)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _step(boxes, links, order, corners, ray, state, any_, stack_node, stack_t):
+def _step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t):
     """One step of the stack traversal: a wide node or a leaf visited, then the next one chosen.
 
     The traversal walks the wide nodes (``boxes``, ``links``; see :class:`BVH`): a
@@ -536,20 +626,26 @@ def _step(boxes, links, order, corners, ray, state, any_, stack_node, stack_t):
     """
     ox, oy, oz, ix, iy, iz, nx, ny, nz, okx, oky, okz, kx, ky, kz, sx, sy, sz, t_min, t_max = ray
     live, ref, n, top, reach, best_id, best_t, best_b1, best_b2 = state
-    if n > 0:                                # a leaf: its triangles
-        for k in range(ref, ref + n):
-            hit, t, b1, b2 = _hit_sheared(
-                corners[k, kx] - okx, corners[k, ky] - oky, corners[k, kz] - okz,
-                corners[k, 3 + kx] - okx, corners[k, 3 + ky] - oky, corners[k, 3 + kz] - okz,
-                corners[k, 6 + kx] - okx, corners[k, 6 + ky] - oky, corners[k, 6 + kz] - okz,
-                kx, ky, kz, sx, sy, sz, t_min, t_max)
-            if hit:
-                tri = order[k]
-                if any_:
-                    return False, ref, n, top, reach, tri, t, b1, b2
-                if t < best_t or (t == best_t and tri < best_id):
-                    best_id, best_t, best_b1, best_b2 = tri, t, b1, b2
-                    reach = t + abs(t) * REACH_PAD
+    if n > 0:                                # a leaf: its blocks of triangles, from block ref
+        for b in range(ref, ref + (n + BLOCK - 1) // BLOCK):
+            lanes = _block_candidates(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t_min, t_max)
+            if lanes == 0:
+                continue
+            for j in range(BLOCK):           # rare: the scalar test decides each candidate
+                tri = tri_ids[b, j]
+                if (lanes >> j) & 1 == 0 or tri < 0:
+                    continue
+                hit, t, b1, b2 = _hit_sheared(
+                    tris[b, kx, j] - okx, tris[b, ky, j] - oky, tris[b, kz, j] - okz,
+                    tris[b, 3 + kx, j] - okx, tris[b, 3 + ky, j] - oky, tris[b, 3 + kz, j] - okz,
+                    tris[b, 6 + kx, j] - okx, tris[b, 6 + ky, j] - oky, tris[b, 6 + kz, j] - okz,
+                    kx, ky, kz, sx, sy, sz, t_min, t_max)
+                if hit:
+                    if any_:
+                        return False, ref, n, top, reach, tri, t, b1, b2
+                    if t < best_t or (t == best_t and tri < best_id):
+                        best_id, best_t, best_b1, best_b2 = tri, t, b1, b2
+                        reach = t + abs(t) * REACH_PAD
     else:                                    # a wide node: its four boxes, then the nearest child first
         t0, t1, t2, t3 = _lane_entries(boxes, ref, nx, ny, nz, ox, oy, oz, ix, iy, iz, t_min, reach)
         c0, c1, c2, c3 = links[ref, 0], links[ref, 1], links[ref, 2], links[ref, 3]
@@ -579,20 +675,20 @@ def _step(boxes, links, order, corners, ray, state, any_, stack_node, stack_t):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _traverse(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
+def _traverse(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
               stack_node, stack_t):
     """One ray's query, (id, t, b1, b2), compiled into each caller (``inline="always"``) on borrowed
     arrays: :func:`_start`, then :func:`_step` until the answer is known."""
     ray, state = _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max)
     while state[0]:
-        state = _step(boxes, links, order, corners, ray, state, any_, stack_node, stack_t)
+        state = _step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t)
     return state[5], state[6], state[7], state[8]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _query(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max, any_):
+def _query(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max, any_):
     """One ray on borrowed arrays, with its stack in this frame."""
-    return _traverse(boxes, links, lo, hi, first, count, order, corners, ox, oy, oz, dx, dy, dz, t_min, t_max,
+    return _traverse(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max,
                      any_, _node_stack(), _t_stack())
 
 
@@ -607,7 +703,7 @@ def closest_hit(bvh, origin, direction, t_min, t_max):
     The hit point is (1 − b1 − b2)·v0 + b1·v1 + b2·v2 of triangle ``id``.
     """
     return _query(_borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi),
-                  _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), _borrowed(bvh.corners),
+                  _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), _borrowed(bvh.tri_ids),
                   float(origin[0]), float(origin[1]), float(origin[2]),
                   float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max), False)
 
@@ -616,7 +712,7 @@ def closest_hit(bvh, origin, direction, t_min, t_max):
 def any_hit(bvh, origin, direction, t_min, t_max):
     """Whether any triangle lies on the ray in (t_min, t_max): stops at the first one found (shadow rays, §21)."""
     return _query(_borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi),
-                  _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), _borrowed(bvh.corners),
+                  _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), _borrowed(bvh.tri_ids),
                   float(origin[0]), float(origin[1]), float(origin[2]),
                   float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max),
                   True)[0] >= 0
@@ -814,7 +910,43 @@ def _refit_kernel(lo, hi, first, count, corners):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _collapse_kernel(lo, hi, first, count, lane_node, links):
+def _leaf_blocks(count, leaf_block):
+    """Each leaf's first block of BLOCK triangles (leaves in depth-first order; −1 for an inner node);
+    returns the number of blocks."""
+    blocks = 0
+    for node in range(count.shape[0]):
+        n = count[node]
+        if n > 0:
+            leaf_block[node] = blocks
+            blocks += (n + BLOCK - 1) // BLOCK
+        else:
+            leaf_block[node] = -1
+    return blocks
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _fill_blocks(first, count, leaf_block, corners, order, tris, tri_ids):
+    """The leaves' triangles in blocks: tris[b, 3c + a, j] is coordinate a of corner c of lane j's
+    triangle, tri_ids[b, j] its id; a leaf's last block is padded with NaN corners (never hit) and id −1."""
+    for node in range(count.shape[0]):
+        n = count[node]
+        if n == 0:
+            continue
+        b0, f = leaf_block[node], first[node]
+        for q in range(((n + BLOCK - 1) // BLOCK) * BLOCK):
+            b, j = b0 + q // BLOCK, q % BLOCK
+            if q < n:
+                tri_ids[b, j] = order[f + q]
+                for r in range(9):
+                    tris[b, r, j] = corners[f + q, r]
+            else:
+                tri_ids[b, j] = -1
+                for r in range(9):
+                    tris[b, r, j] = np.nan
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _collapse_kernel(lo, hi, first, count, leaf_block, lane_node, links):
     """The wide nodes from the binary tree; returns their number M (rows filled in ``lane_node``, ``links``).
 
     A wide node starts from a binary inner node's two children and, while it has
@@ -862,7 +994,7 @@ def _collapse_kernel(lo, hi, first, count, lane_node, links):
             c = kids[j]
             lane_node[w, j] = c
             if count[c] > 0:
-                links[w, j] = (first[c] << _REF_SHIFT) | count[c]
+                links[w, j] = (leaf_block[c] << _REF_SHIFT) | count[c]
             else:
                 links[w, j] = made << _REF_SHIFT
                 pending[top], pending_w[top] = c, made
@@ -911,8 +1043,8 @@ def _batch_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, any_, ids, t
     into occluded."""
     sa_node, sa_t, sb_node, sb_t = _node_stack(), _t_stack(), _node_stack(), _t_stack()
     boxes, links, lo, hi = _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi)
-    first, count, order, corners = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.order), \
-        _borrowed(bvh.corners)
+    first, count, tris, tri_ids = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), \
+        _borrowed(bvh.tri_ids)
     ia, ib = lo_, lo_ + 1
     ray_a, st_a = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
     if ib < hi_:
@@ -924,7 +1056,7 @@ def _batch_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, any_, ids, t
     while ia >= 0 or ib >= 0:
         if ia >= 0:
             if st_a[0]:
-                st_a = _step(boxes, links, order, corners, ray_a, st_a, any_, sa_node, sa_t)
+                st_a = _step(boxes, links, tris, tri_ids, ray_a, st_a, any_, sa_node, sa_t)
             else:
                 _store(ia, st_a, any_, ids, ts, bs, occluded)
                 if nxt < hi_:
@@ -935,7 +1067,7 @@ def _batch_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, any_, ids, t
                     ia = -1
         if ib >= 0:
             if st_b[0]:
-                st_b = _step(boxes, links, order, corners, ray_b, st_b, any_, sb_node, sb_t)
+                st_b = _step(boxes, links, tris, tri_ids, ray_b, st_b, any_, sb_node, sb_t)
             else:
                 _store(ib, st_b, any_, ids, ts, bs, occluded)
                 if nxt < hi_:
@@ -1050,12 +1182,17 @@ class BVH:
         self.leaf_size, self.bins = leaf_size, bins
         cap = max(count.shape[0], 1)
         lane_node, links = np.empty((cap, WIDTH), np.int64), np.empty((cap, WIDTH), np.int64)
-        M = _collapse_kernel(lo, hi, first, count, lane_node, links)
+        self._leaf_block = np.empty(count.shape[0], np.int64)
+        blocks = _leaf_blocks(count, self._leaf_block)
+        self.tris = np.empty((blocks, 9, BLOCK))
+        self.tri_ids = np.empty((blocks, BLOCK), np.int64)
+        _fill_blocks(first, count, self._leaf_block, corners, order, self.tris, self.tri_ids)
+        M = _collapse_kernel(lo, hi, first, count, self._leaf_block, lane_node, links)
         self._lane_node, self.links = lane_node[:M].copy(), links[:M].copy()
         self.boxes = np.empty((M, 6, WIDTH), np.float32)
         _pack_boxes(lo, hi, self._lane_node, self.boxes)
         self.uniform = BVHUniform(lo, hi, first, count, order, self.v0, self.v1, self.v2,
-                                  self.boxes, self.links, corners)
+                                  self.boxes, self.links, self.tris, self.tri_ids)
 
     @classmethod
     def build(cls, vertices, triangles, *, leaf_size: int = 4, bins: int = 16) -> "BVH":
@@ -1123,6 +1260,7 @@ class BVH:
         v = _vertices("vertices", vertices, rows=self.vertex_count)
         _gather_kernel(v, self.triangles, self.order, self.corners)
         _refit_kernel(self.lo, self.hi, self.first, self.count, self.corners)
+        _fill_blocks(self.first, self.count, self._leaf_block, self.corners, self.order, self.tris, self.tri_ids)
         _pack_boxes(self.lo, self.hi, self._lane_node, self.boxes)
 
     def __softpipe_uniform__(self) -> BVHUniform:
