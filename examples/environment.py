@@ -3,19 +3,26 @@
     python examples/environment.py            → out/examples/environment.png
     python examples/environment.py --docs     → also docs/images/environment/maps.png, figure.png, media.png
 
-Row 1, a static environment: (a) a sky panorama made here, latitude-longitude
+A static environment: (a) a sky panorama made here, latitude-longitude
 (equirectangular); (b) the cube map made from it (``CubeMap.from_equirectangular``),
 unfolded as a cross; (c) the scene, the spheres drawn with the programs ``mirror``
 (kr·env(R)) and ``glass`` (F_R·env(R) + (1 − F_R)·kt·env(T)) in that sky, which also
 fills the background. The spheres see the sky only: not the floor, not each other.
 
-Row 2, dynamic environments: (d) each sphere's cube map drawn from its centre, six
+Dynamic environments: (d) each sphere's cube map drawn from its centre, six
 90° draws of the scene (``softpipe.envmap.dynamic_environments``), so the mirror
 shows the checkerboard, the box and the glass sphere; (e) the mirror's map
-unfolded; (f) the same scene ray traced (``softpipe.raytrace``, depth 5) with a
-plain background, where every reflected and refracted ray goes through the scene.
+unfolded.
 
-Row 3, the named media (FORMULAS §17): the glass sphere close up as water (1.33),
+Rays: (f) the scene rasterized, the spheres' fragments tracing their
+reflected and refracted rays through the scene (``render_with_environments(scene,
+"rays")``: ray queries from the fragment shader); (g) the same scene ray traced
+(``softpipe.raytrace``, depth 5), the spheres split by the same formulas (kr for the
+mirror, Fresnel for the glass). (f) and (g) differ only along silhouettes and the
+sun's shadow edges (a shadow map in (f), shadow rays in (g)); both have a plain
+background.
+
+The named media (FORMULAS §17): the glass sphere close up as water (1.33),
 glass (1.52) and diamond (2.417): the denser, the more it bends (the floor seen
 through it shrinks and turns over) and the more Fresnel reflects at the rim.
 """
@@ -53,17 +60,17 @@ def glass(medium):
                     ior=MEDIA[medium])
 
 
-def scene(size, medium="glass", programs=True, background=FLAT_SKY, camera=CAMERA):
-    """The floor, a box, the mirror and the glass sphere; ``programs`` False leaves the spheres to the ray tracer."""
+def scene(size, medium="glass", background=FLAT_SKY, camera=CAMERA):
+    """The floor, a box, the mirror and the glass sphere, drawn with the programs ``mirror`` and ``glass``."""
     width, height = picture_size(size)
     light, dark = checkerboard(10.0, 10, LIGHT_TILE, DARK_TILE)
     objects = [SceneObject("floor, light tiles", light, np.eye(4), cast_shadows=False),
                SceneObject("floor, dark tiles", dark, np.eye(4), cast_shadows=False),
                SceneObject("box", shapes.cube(0.9, material=BOX), translate(0.4, 0.45, -1.6) @ rotate_y(30.0)),
                SceneObject("mirror", shapes.uv_sphere(0.75, 64, 32, material=MIRROR), translate(*MIRROR_CENTRE),
-                           program="mirror" if programs else None),
+                           program="mirror"),
                SceneObject("glass", shapes.uv_sphere(0.6, 64, 32, material=glass(medium)), translate(*GLASS_CENTRE),
-                           program="glass" if programs else None)]
+                           program="glass")]
     sun = Light.directional(SUN, shadows=True, name="sun")    # a shadow map (the ray tracer: shadow rays)
     return Scene(objects, camera=camera, lights=(sun,), ambient=(0.2, 0.2, 0.2), width=width, height=height,
                  background=background)
@@ -104,7 +111,8 @@ def cube_size(width):
 
 
 def sheet(size=240, found=None):
-    """The nine pictures (rows: static sky, dynamic maps and the ray tracer, three media); maps into ``found``."""
+    """The ten pictures (static sky; dynamic maps; rays from the shaders, ray traced; three media); maps
+    into ``found``."""
     width, _ = picture_size(size)
     n = cube_size(width)
     pano = sky_panorama(max(64, 4 * n))
@@ -112,9 +120,10 @@ def sheet(size=240, found=None):
     static = render_with_environments(scene(size), sky, sky=sky)
     maps = dynamic_environments(scene(size), n, sky=sky)
     dynamic = render_with_environments(scene(size), maps, sky=sky)
-    traced = raytrace_scene(scene(size, programs=False))
+    hybrid = render_with_environments(scene(size), "rays")
+    traced = raytrace_scene(scene(size))
     media = {}
-    for letter, medium in zip("ghi", ("water", "glass", "diamond")):
+    for letter, medium in zip("hij", ("water", "glass", "diamond")):
         close = scene(size, medium, camera=CLOSE_UP)
         media[f"({letter}) {medium}, ior {MEDIA[medium]}"] = render_with_environments(close, maps, sky=sky)
     if found is not None:
@@ -124,23 +133,25 @@ def sheet(size=240, found=None):
                 "(c) mirror and glass in the sky map": static.to_uint8(alpha=False),
                 "(d) dynamic maps: 6 draws per sphere": dynamic.to_uint8(alpha=False),
                 "(e) the mirror's dynamic map": fit(maps["mirror"].cross(), size),
-                "(f) ray traced, depth 5, flat sky": traced.to_uint8(alpha=False)}
+                "(f) rasterized, rays from the shaders": hybrid.to_uint8(alpha=False),
+                "(g) ray traced, depth 5": traced.to_uint8(alpha=False)}
     pictures.update({k: fb.to_uint8(alpha=False) for k, fb in media.items()})
     return pictures
 
 
 def write_docs_pictures(size=240):
-    """docs/images/environment/maps.png (a, b, e), figure.png (c, d, f), media.png (the three media)."""
+    """docs/images/environment/maps.png (a, b, e), figure.png (c, d, f, g), media.png (the three media)."""
     pictures = sheet(size)
     names = list(pictures)
-    for file, keys in (("maps.png", [names[0], names[1], names[4]]), ("figure.png", [names[2], names[3], names[5]]),
-                       ("media.png", names[6:])):
-        save_docs_sheet(DOCS_IMAGES / file, {k: pictures[k] for k in keys}, 3)
+    for file, keys in (("maps.png", [names[0], names[1], names[4]]),
+                       ("figure.png", [names[2], names[3], names[5], names[6]]), ("media.png", names[7:])):
+        save_docs_sheet(DOCS_IMAGES / file, {k: pictures[k] for k in keys}, len(keys))
 
 
 def main(size=240, out_dir=None):
     return save_sheet("environment", sheet(size), 3, "Mirror and glass rasterized with cube maps: a sky map, "
-                      "dynamic maps, ray traced; water, glass, diamond (FORMULAS 16-20)", out_dir)
+                      "dynamic maps; with rays from the shaders, ray traced; water, glass, diamond (FORMULAS 16-20)",
+                      out_dir)
 
 
 if __name__ == "__main__":

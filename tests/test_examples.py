@@ -15,7 +15,7 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "spotlight": (24, 10),
     "attenuation": ((32, 20), 10),
     "materials": (24, 12),
-    "cook_torrance_gooch": ((32, 24), 8),
+    "cook_torrance_gooch": ((32, 24), 10),
     "antialiasing": ((36, 24), 10),
     "user_program": (24, 4),
     "shadows": (24, 9),
@@ -25,7 +25,7 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "hall": (24, 9),
     "emission_b_term": (24, 12),
     "fresnel_tir": (24, 8),
-    "environment": (24, 9),
+    "environment": (24, 10),
 }
 
 
