@@ -131,6 +131,19 @@ def test_job_file_errors_name_the_file_table_and_key(tmp_path, text, table, key,
     assert str(e.value).startswith(f"{path}: ") and words in str(e.value) and "\n" not in str(e.value)
 
 
+def test_a_jobs_materials_take_the_media_and_falloff_keys():
+    """A named medium for ior (FORMULAS §17), transmittance, Glassner's falloff (§15); a bad one names its key."""
+    job = parse_job('[materials.hazy]\nior = "water"\nkt = [0.9, 0.9, 0.9]\ntransmittance = [0.5, 0.7, 0.9]\n'
+                    'falloff = "glassner"\nfalloff_a = 1.5\n[sweep]\nmodels = ["bunny"]\nprograms = ["glass"]\n'
+                    'materials = ["hazy"]')
+    assert job.materials["hazy"] == {"kt": (0.9, 0.9, 0.9), "ior": 1.33, "transmittance": (0.5, 0.7, 0.9),
+                                     "falloff": "glassner", "falloff_a": 1.5}
+    assert [f.name for f in job.frames] == ["bunny-glass-hazy-az030-640x480"]
+    with pytest.raises(JobError, match="unknown medium 'jelly'") as e:
+        parse_job('[materials.odd]\nior = "jelly"\n[sweep]\nmodels = ["bunny"]')
+    assert e.value.table == "[materials.odd]"
+
+
 def test_job_file_syntax_and_emptiness(tmp_path, capsys):
     path = tmp_path / "jobs.toml"
     path.write_text("[sweep]\nmodels = [\n")
