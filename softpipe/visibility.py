@@ -111,29 +111,67 @@ def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable
 
 # --------------------------------------------------------------- the visibility pass
 
-@numba.njit(cache=True)
+#: Binning runs in this many bands of triangles (each counted, then filled, on its own).
+BIN_BANDS = 16
+
+
 def bin_triangles(box, tiles_x, tiles_y):
-    """Triangles per tile, in primitive order: (starts [tiles + 1], items)."""
+    """Triangles per tile, in primitive order: (starts [tiles + 1], items).
+
+    In bands of triangles, in parallel: each band counts its triangles per tile, a prefix
+    sum over (tile, band) gives every band its place in each tile's list, and each band
+    fills its places. Band b's triangles come before band b + 1's in every tile, so the
+    lists are in primitive order, the same for any thread count.
+    """
     n_tiles = tiles_x * tiles_y
-    counts = np.zeros(n_tiles + 1, np.int64)
-    for t in range(box.shape[0]):
-        if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
-            continue
-        for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
-            for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
-                counts[ty * tiles_x + tx + 1] += 1
-    starts = np.cumsum(counts)
+    bands = max(1, min(BIN_BANDS, box.shape[0] // 4096))
+    bounds = np.linspace(0, box.shape[0], bands + 1).astype(np.int64)
+    counts = np.zeros((bands, n_tiles), np.int64)
+    in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
+    starts, fill = _bin_places(counts)
     items = np.empty(starts[-1], np.int32)
-    fill = starts[:-1].copy()
-    for t in range(box.shape[0]):
-        if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
-            continue
-        for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
-            for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
-                tile = ty * tiles_x + tx
-                items[fill[tile]] = t
-                fill[tile] += 1
+    in_bands(_bin_fill, bands, bounds, box, tiles_x, fill, items)
     return starts, items
+
+
+@numba.njit(cache=True, nogil=True)
+def _bin_count(band_lo, band_hi, bounds, box, tiles_x, counts):
+    for band in range(band_lo, band_hi):
+        for t in range(bounds[band], bounds[band + 1]):
+            if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
+                continue
+            for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
+                for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
+                    counts[band, ty * tiles_x + tx] += 1
+
+
+@numba.njit(cache=True)
+def _bin_places(counts):
+    """(starts [tiles + 1], fill [bands, tiles]): where each tile's list begins, and each band's place in it."""
+    bands, n_tiles = counts.shape
+    starts = np.empty(n_tiles + 1, np.int64)
+    fill = np.empty((bands, n_tiles), np.int64)
+    running = 0
+    for tile in range(n_tiles):
+        starts[tile] = running
+        for band in range(bands):
+            fill[band, tile] = running
+            running += counts[band, tile]
+    starts[n_tiles] = running
+    return starts, fill
+
+
+@numba.njit(cache=True, nogil=True)
+def _bin_fill(band_lo, band_hi, bounds, box, tiles_x, fill, items):
+    for band in range(band_lo, band_hi):
+        for t in range(bounds[band], bounds[band + 1]):
+            if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
+                continue
+            for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
+                for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
+                    tile = ty * tiles_x + tx
+                    items[fill[band, tile]] = t
+                    fill[band, tile] += 1
 
 
 @numba.njit(cache=True)
