@@ -1003,21 +1003,27 @@ def _collapse_kernel(lo, hi, first, count, leaf_block, lane_node, links):
     return made
 
 
-def _pack_boxes(lo, hi, lane_node, boxes) -> None:
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _pack_boxes(lo, hi, lane_node, boxes):
     """boxes[w, r, j] = coordinate r (lo.x, lo.y, lo.z, hi.x, hi.y, hi.z) of child j's box, in float32
     rounded outward (lo down, hi up) so that every float32 box holds its float64 box; empty lanes
     (lo = +inf, hi = −inf) hold nothing."""
-    if len(lane_node) == 0:
-        return
-    empty = lane_node < 0
-    idx = np.where(empty, 0, lane_node)
-    for part, (v, toward) in enumerate(((lo, -np.inf), (hi, np.inf))):
-        c = v[idx]                                          # [M, WIDTH, 3]
-        f = c.astype(np.float32)
-        off = (f < c) if toward > 0 else (f > c)            # rounded inward: one float32 step outward
-        f[off] = np.nextafter(f[off], np.float32(toward))
-        f[empty] = np.float32(-toward)
-        boxes[:, 3 * part:3 * part + 3, :] = f.transpose(0, 2, 1)
+    down, up = np.float32(-np.inf), np.float32(np.inf)
+    for w in range(lane_node.shape[0]):
+        for j in range(WIDTH):
+            c = lane_node[w, j]
+            for a in range(3):
+                if c < 0:
+                    boxes[w, a, j], boxes[w, 3 + a, j] = up, down
+                    continue
+                f = np.float32(lo[c, a])
+                if f > lo[c, a]:                 # rounded up: one float32 step down
+                    f = np.nextafter(f, down)
+                boxes[w, a, j] = f
+                f = np.float32(hi[c, a])
+                if f < hi[c, a]:
+                    f = np.nextafter(f, up)
+                boxes[w, 3 + a, j] = f
 
 
 # ------------------------------------------------------------- batches of rays
