@@ -38,6 +38,7 @@ import numpy as np
 import pytest
 
 from softpipe import shapes, transforms
+from softpipe import bvh as bvh_module
 from softpipe.bvh import MAX_DEPTH, BVH, BVHUniform, any_hit, closest_hit, intersect_triangle, scene_bvh
 from softpipe.models import load_model
 from softpipe.scene import SceneObject
@@ -373,6 +374,45 @@ def _check_structure(bvh, vertices, triangles):
             assert np.array_equal(np.minimum(bvh.lo[left], bvh.lo[right]), bvh.lo[node])
             assert np.array_equal(np.maximum(bvh.hi[left], bvh.hi[right]), bvh.hi[node])
     assert depth.max() == bvh.depth < MAX_DEPTH
+    _check_wide(bvh)
+
+
+def _check_wide(bvh):
+    """The traversal's arrays against the binary tree: every binary leaf and every wide node is some
+    wide node's child exactly once; each child's float32 box holds its binary node's float64 box and is
+    at most one float32 step larger; the blocks hold each leaf's triangles (NaN and id −1 padding)."""
+    W, B = bvh_module.WIDTH, bvh_module.BLOCK
+    M = len(bvh.links)
+    assert bvh.boxes.shape == (M, 6, W) and bvh.boxes.dtype == np.float32 and bvh.links.dtype == np.int64
+    leaves = np.flatnonzero(bvh.count > 0)
+    if bvh.count.size and bvh.count[0] == 0:
+        assert M > 0
+    else:
+        assert M == 0
+    ref, n = bvh.links >> 32, bvh.links & 0xFFFFFFFF
+    lane = bvh._lane_node
+    used = lane >= 0
+    is_leaf = used & (n > 0)
+    assert np.array_equal(np.sort(lane[is_leaf]), leaves if M else np.zeros(0, np.int64))   # each leaf once
+    assert np.all(bvh.count[lane[used & (n == 0)]] == 0)
+    assert np.array_equal(np.sort(ref[used & (n == 0)]), np.arange(1, M))          # every wide node but the root, once
+    assert np.array_equal(n[used], bvh.count[lane[used]])
+    assert np.array_equal(ref[used & (n > 0)], bvh._leaf_block[lane[used & (n > 0)]])
+    lo = bvh.boxes[:, :3, :].transpose(0, 2, 1)[used].astype(np.float64)
+    hi = bvh.boxes[:, 3:, :].transpose(0, 2, 1)[used].astype(np.float64)
+    want_lo, want_hi = bvh.lo[lane[used]], bvh.hi[lane[used]]
+    assert np.all(lo <= want_lo) and np.all(hi >= want_hi)
+    assert np.all(np.nextafter(lo.astype(np.float32), np.float32(np.inf)) > want_lo)   # one step at most
+    assert np.all(np.nextafter(hi.astype(np.float32), np.float32(-np.inf)) < want_hi)
+    assert np.all(bvh.boxes[:, :3, :][~used[:, None, :].repeat(3, 1)] == np.inf)
+    assert np.all(bvh.boxes[:, 3:, :][~used[:, None, :].repeat(3, 1)] == -np.inf)
+    for node in leaves:
+        b0, f, c = bvh._leaf_block[node], bvh.first[node], bvh.count[node]
+        k = -(-c // B)
+        ids = bvh.tri_ids[b0:b0 + k].ravel()
+        corners = bvh.tris[b0:b0 + k].transpose(0, 2, 1).reshape(-1, 9)
+        assert np.array_equal(ids[:c], bvh.order[f:f + c]) and np.all(ids[c:] == -1)
+        assert np.array_equal(corners[:c], bvh.corners[f:f + c]) and np.all(np.isnan(corners[c:]))
 
 
 def test_the_tree_is_flat_depth_first_and_every_box_is_tight(bunny):
@@ -529,6 +569,7 @@ def test_refit_gives_the_results_of_a_fresh_build(bunny):
     bvh.refit(moved)
     assert bvh.uniform is uniform
     _check_structure_boxes_contain(bvh, moved, tri)
+    _check_wide(bvh)
     fresh = BVH.build(moved, tri)
     o, d, t_min, t_max = random_rays(rng, moved, 50_000)
     a, b = bvh.closest(o, d, t_min, t_max), fresh.closest(o, d, t_min, t_max)
@@ -617,7 +658,8 @@ d[:20, 1:] = 0.0                                  # zero direction components
 ids, t, b = bvh.closest(o, d, 0.0, np.where(np.arange(200) % 3 == 0, 1.0, np.inf))
 occ = bvh.occluded(o, d, 0.5, 2.0)
 one = closest_hit(bvh.uniform, (3.0, 0.0, 0.0), (-1.0, 0.0, 0.0), 0.0, math.inf)
-sys.stdout.write(np.concatenate([ids, t, b.ravel(), occ, bvh.lo.ravel(), bvh.order, np.array(one[1:])]).tobytes().hex())
+sys.stdout.write(np.concatenate([ids, t, b.ravel(), occ, bvh.lo.ravel(), bvh.order, np.array(one[1:]),
+                                 bvh.boxes.ravel(), bvh.links.ravel(), bvh.tris.ravel(), bvh.tri_ids.ravel()]).tobytes().hex())
 """
 
 
@@ -632,3 +674,89 @@ def test_plain_python_gives_the_same_bits():
         assert "Warning" not in out.stderr, out.stderr[-2000:]
         runs[flag] = out.stdout
     assert runs["0"] == runs["1"] and len(runs["0"]) > 1000
+
+
+# ------------------------------------------------------------------ the vector code
+
+@numba.njit
+def _compiled_lane_entries(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1):
+    return bvh_module._lane_entries(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1)
+
+
+@numba.njit
+def _compiled_block_candidates(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t0, t1):
+    return bvh_module._block_candidates(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t0, t1)
+
+
+def _inverse(d):
+    return math.copysign(math.inf, d) if d == 0.0 else 1.0 / d
+
+
+def test_the_vector_box_test_gives_the_scalar_tests_bits():
+    """The four boxes tested in one vector (an LLVM intrinsic) give each lane's scalar result exactly,
+    with zero direction components, origins on a box's planes (NaN slabs) and empty lanes."""
+    rng = np.random.default_rng(11)
+    boxes = np.sort(rng.uniform(-2, 2, (40, 2, 3, 4)), axis=1).reshape(40, 6, 4).astype(np.float32)
+    boxes[7, :3, 2], boxes[7, 3:, 2] = np.inf, -np.inf
+    for trial in range(5000):
+        i = int(rng.integers(40))
+        o = rng.uniform(-3, 3, 3)
+        d = rng.uniform(-1, 1, 3)
+        if trial % 3 == 0:
+            a = int(rng.integers(3))
+            d[a] = rng.choice([0.0, -0.0])
+            o[a] = float(boxes[i, a + 3 * int(rng.integers(2)), int(rng.integers(4))])
+        inv = [_inverse(x) for x in d]
+        n = [3 if inv[0] < 0 else 0, 4 if inv[1] < 0 else 1, 5 if inv[2] < 0 else 2]
+        t0, t1 = float(rng.choice([0.0, 0.5])), float(rng.choice([math.inf, 4.0]))
+        got = _compiled_lane_entries(boxes, i, *n, *o, *inv, t0, t1)
+        with np.errstate(invalid="ignore"):
+            want = tuple(bvh_module._lane_entry(boxes, i, j, *n, *o, *inv, t0, t1) for j in range(4))
+        assert got == want, (trial, got, want)
+
+
+def test_the_vector_triangle_filter_keeps_every_hit():
+    """Four triangles tested in one vector only filter: every triangle the scalar watertight test hits
+    is a candidate, for random rays and for rays exactly through shared edges and corners."""
+    rng = np.random.default_rng(12)
+    m = shapes.icosphere(1.0, 1)
+    p = np.asarray(m.positions, np.float64)
+    tri = np.asarray(m.indices, np.int64).reshape(-1, 3)
+    nb = len(tri) // 4
+    blocks = p[tri[:4 * nb]].reshape(nb, 4, 9).transpose(0, 2, 1).copy()       # [block, 3c + a, lane]
+    hits = candidates = 0
+    for trial in range(4000):
+        b = int(rng.integers(nb))
+        o = rng.normal(size=3) * 0.3
+        if trial % 2:                                 # through a corner or an edge's midpoint of the block
+            c = blocks[b, :, int(rng.integers(4))].reshape(3, 3)
+            target = c[0] if trial % 4 == 1 else 0.5 * (c[0] + c[1])
+        else:
+            target = rng.normal(size=3)
+        d = target - o
+        kx, ky, kz, sx, sy, sz = bvh_module._ray_space(*d)
+        okx, oky, okz = o[kx], o[ky], o[kz]
+        mask = _compiled_block_candidates(blocks, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, 0.0, math.inf)
+        for j in range(4):
+            c = blocks[b, :, j]
+            hit = bvh_module._hit_sheared(c[kx] - okx, c[ky] - oky, c[kz] - okz, c[3 + kx] - okx, c[3 + ky] - oky,
+                                          c[3 + kz] - okz, c[6 + kx] - okx, c[6 + ky] - oky, c[6 + kz] - okz,
+                                          kx, ky, kz, sx, sy, sz, 0.0, math.inf)[0]
+            hits += hit
+            candidates += (mask >> j) & 1
+            assert not hit or (mask >> j) & 1, (trial, j)
+    assert hits > 500 and candidates < 2 * hits          # a filter that passes the hits, not everything
+
+
+def test_batches_of_one_two_and_three_rays_equal_single_queries(bunny):
+    """The batch kernel walks two rays at a time: odd and tiny bands give each ray's own answer."""
+    v, tri = bunny
+    bvh = BVH.build(v, tri)
+    o, d, t_min, t_max = random_rays(np.random.default_rng(13), v, 3)
+    for R in (1, 2, 3):
+        ids, t, b = bvh.closest(o[:R], d[:R], t_min[:R], t_max[:R])
+        occ = bvh.occluded(o[:R], d[:R], t_min[:R], t_max[:R])
+        for r in range(R):
+            one = closest_hit(bvh.uniform, o[r], d[r], t_min[r], t_max[r])
+            assert ids[r] == one[0] and (t[r] == one[1] if one[0] >= 0 else t[r] == np.inf)
+            assert occ[r] == any_hit(bvh.uniform, o[r], d[r], t_min[r], t_max[r])
