@@ -93,7 +93,8 @@ from .material import MEDIA
 from .texture import FILTER_BILINEAR, FILTER_NEAREST, FILTER_NEAREST_MIPMAP, FILTERS, _build_mipmaps, \
     _check_array, _check_size, _choose, _load_image
 
-__all__ = ["CubeMap", "CubeUniform", "texture_cube", "texture_cube_lod", "face_coordinates", "FACES", "MEDIA",
+__all__ = ["CubeMap", "CubeUniform", "texture_cube", "texture_cube_lod", "texture_cube_grad", "cube_level_of_detail",
+           "face_coordinates", "FACES", "MEDIA",
            "sample_directions", "sky", "sky_gradient", "equirectangular_lookup", "texel_directions"]
 
 #: The faces in GL's order (the index a :class:`CubeUniform` and :func:`face_coordinates` use).
@@ -300,6 +301,56 @@ def texture_cube_lod(cube, direction, lod):
     ``"nearest"`` and ``"bilinear"`` cube maps ignore it.
     """
     return _sample_cube(cube, direction, lod)
+
+
+@njit(cache=True, inline="always")
+def _face_st_derivative(face, d, dd):
+    """(∂s, ∂t) of the face coordinates when the direction d moves by dd, on d's face (GL 4.6 §8.13.4).
+
+    s = ½(sc/|ma| + 1): ∂s = ½(∂sc·ma − sc·∂ma)/ma², with sc, tc, ma the components the
+    table picks for the face (signs included), the same for t.
+    """
+    x, y, z = d[0], d[1], d[2]
+    dx, dy, dz = dd[0], dd[1], dd[2]
+    if face == 0:
+        sc, tc, ma, dsc, dtc, dma = -z, -y, x, -dz, -dy, dx
+    elif face == 1:
+        sc, tc, ma, dsc, dtc, dma = z, -y, -x, dz, -dy, -dx
+    elif face == 2:
+        sc, tc, ma, dsc, dtc, dma = x, z, y, dx, dz, dy
+    elif face == 3:
+        sc, tc, ma, dsc, dtc, dma = x, -z, -y, dx, -dz, -dy
+    elif face == 4:
+        sc, tc, ma, dsc, dtc, dma = x, -y, z, dx, -dy, dz
+    else:
+        sc, tc, ma, dsc, dtc, dma = -x, -y, -z, -dx, -dy, -dz
+    m2 = ma * ma
+    if not (m2 > 0.0):
+        return 0.0, 0.0
+    return 0.5 * (dsc * ma - sc * dma) / m2, 0.5 * (dtc * ma - tc * dma) / m2
+
+
+@njit(cache=True)
+def cube_level_of_detail(cube, direction, ddx, ddy):
+    """λ for a lookup in ``direction`` whose screen-space derivatives are ``ddx``, ``ddy`` (GL 4.6 §8.14.1).
+
+    λ = log₂ ρ, ρ = size · max(|∂(s, t)/∂x|, |∂(s, t)/∂y|): how many level-0 texels one pixel
+    step crosses on the face the direction selects. Below 0 (magnification) the
+    lookup takes level 0; zero derivatives give −inf, level 0 too.
+    """
+    face, _, _ = _select(float(direction[0]), float(direction[1]), float(direction[2]))
+    sx, tx = _face_st_derivative(face, direction, ddx)
+    sy, ty = _face_st_derivative(face, direction, ddy)
+    rho = cube.size * max(math.sqrt(sx * sx + tx * tx), math.sqrt(sy * sy + ty * ty))
+    if not (rho > 0.0):
+        return -math.inf
+    return math.log2(rho)
+
+
+@njit(cache=True)
+def texture_cube_grad(cube, direction, ddx, ddy):
+    """Sample with the level of detail of the derivatives (GLSL ``textureGrad(samplerCube, d, ddx, ddy)``)."""
+    return _sample_cube(cube, direction, cube_level_of_detail(cube, direction, ddx, ddy))
 
 
 @njit(cache=True)

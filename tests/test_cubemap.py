@@ -307,17 +307,31 @@ def draw_sphere(program, material, environment, **uniforms):
     return fb.color
 
 
-def sphere_pixels(max_radius=0.85):
-    """(row, col, N_eye) of pixels whose centre sees the unit sphere within ``max_radius`` of its middle."""
+def sphere_pixels(max_radius=0.85, neighbours=False):
+    """(row, col, N_eye) of pixels whose centre sees the unit sphere within ``max_radius`` of its middle; with
+    ``neighbours``, (row, col, N_eye, [N_eye one pixel right, N_eye one pixel up])."""
     centre = (CAMERA.view @ [0.0, 0.0, 0.0, 1.0])[:3]
+    step = 2 * EXTENT / SIZE
     out = []
     for r in range(1, SIZE, 3):
         for c in range(1, SIZE, 3):
             x = ((c + 0.5) / SIZE * 2 - 1) * EXTENT - centre[0]
             y = ((SIZE - 1 - r + 0.5) / SIZE * 2 - 1) * EXTENT - centre[1]
             if x * x + y * y < max_radius ** 2:
-                out.append((r, c, np.array([x, y, math.sqrt(1 - x * x - y * y)])))
+                normal = [np.array([u, v, math.sqrt(1 - u * u - v * v)]) for u, v in ((x, y), (x + step, y),
+                                                                                    (x, y + step))]
+                out.append((r, c, normal[0], normal[1:]) if neighbours else (r, c, normal[0]))
     return out
+
+
+def level_of_detail(d, neighbours, size):
+    """GL's λ for a cube map lookup (4.6 §8.14.1, ρ = size · max |Δ(s, t)| per pixel step), by differences of
+    the face coordinates of d and of d at the neighbouring pixels; None where they straddle two faces."""
+    faces, s, t = face_coordinates(np.array([d, *neighbours]))
+    if len(set(faces.tolist())) > 1:
+        return None
+    rho = size * max(math.hypot(s[k] - s[0], t[k] - t[0]) for k in (1, 2))
+    return max(math.log2(rho), 0.0)
 
 
 def to_world(d):
@@ -330,16 +344,43 @@ FILTERING = 2e-3
 
 
 def test_a_mirror_sphere_returns_the_maps_texel_in_the_mirror_direction(environment):
+    """At the level of detail GL would take: R's change to the next pixel, in texels of the face (computed here
+    from the sphere's normals at the neighbouring pixel centres), picks the mip level (§16; GL 4.6 §8.14.1)."""
     color = draw_sphere("mirror", Material(ka=0.0, kd=0.0, ks=0.0, kr=(1.0, 0.8, 0.6)), environment)
-    pixels = sphere_pixels()
+    pixels = sphere_pixels(neighbours=True)
     assert len(pixels) > 100
     V = np.array([0.0, 0.0, 1.0])                     # orthographic: every view ray along −z
-    for r, c, N in pixels:
+    levels = []
+    for r, c, N, near in pixels:
         R = to_world(2 * N.dot(V) * N - V)             # §16, in world space
-        texel = np.array(environment.sample(R))[:3] * (1.0, 0.8, 0.6)
+        Rs = [to_world(2 * n.dot(V) * n - V) for n in near]
+        lod = level_of_detail(R, Rs, environment.size)
+        if lod is None:
+            continue
+        levels.append(lod)
+        texel = np.array(environment.sample(R, lod))[:3] * (1.0, 0.8, 0.6)
         np.testing.assert_allclose(color[r, c, :3], texel, atol=FILTERING)
-        np.testing.assert_allclose(color[r, c, :3], env_function(R) * (1.0, 0.8, 0.6), atol=FILTERING + 2e-3)
+        if lod < 2.0:       # coarser levels average the function over 4+ texels: no longer its point value
+            np.testing.assert_allclose(color[r, c, :3], env_function(R) * (1.0, 0.8, 0.6), atol=FILTERING + 3e-3)
+    assert len(levels) > 100 and min(levels) > 1.0 and max(levels) > 2.5     # the rim turns R fastest
     assert np.all(color[0, 0] == (0.0, 0.0, 0.0, 1.0))
+
+
+def test_the_level_of_detail_is_the_faces_texels_crossed_per_pixel():
+    """cube_level_of_detail against the texels counted here: a step of δ across the middle of face +z moves s by
+    δ/2, so ρ = size·δ/2; along a face's diagonal the step is worked out by differences of its coordinates."""
+    from softpipe.cubemap import cube_level_of_detail
+    cube = CubeMap.from_function(env_function, 64).__softpipe_uniform__()
+    for delta in (1 / 32, 1 / 8, 1 / 2):
+        assert cube_level_of_detail(cube, (0.0, 0.0, 1.0), (delta, 0.0, 0.0), (0.0, 0.0, 0.0)) == \
+            pytest.approx(math.log2(64 * delta / 2), abs=1e-12)
+    d, dx, dy = np.array([0.3, -0.4, 1.0]), np.array([1e-4, 2e-5, 0.0]), np.array([0.0, 1e-4, -3e-5])
+    expected = level_of_detail(d, [d + dx, d + dy], 64)
+    assert cube_level_of_detail(cube, tuple(d), tuple(dx), tuple(dy)) == pytest.approx(
+        math.log2(64 * max(np.hypot(*np.subtract(face_coordinates(d + e)[1:], face_coordinates(d)[1:]))
+                           for e in (dx, dy))), abs=1e-3)
+    assert expected == 0.0                               # such small steps magnify: level 0
+    assert cube_level_of_detail(cube, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)) == -math.inf
 
 
 def test_a_flat_mirror_returns_the_texel_to_float32_rounding(environment):
@@ -369,22 +410,50 @@ def test_a_flat_mirror_returns_the_texel_to_float32_rounding(environment):
     np.testing.assert_allclose(fb.color[covered][:, :3], np.broadcast_to(expected, (covered.sum(), 3)), rtol=2e-7)
 
 
+def glass_directions(N, V, n1, n2):
+    """(R, T) in world space for an eye-space N, V from n1 into n2 (§16, §18); T None on TIR (§19)."""
+    c1 = N.dot(V)
+    eta = n1 / n2
+    R = to_world(2 * c1 * N - V)
+    if eta * eta * (1 - c1 * c1) > 1:
+        return R, None
+    return R, to_world((eta * c1 - math.sqrt(1 - eta * eta * (1 - c1 * c1))) * N - eta * V)
+
+
+def sampled(environment, d, d_near):
+    """The environment in world direction d at the level of detail of d at the neighbouring pixels, and a
+    quarter level either side, [3, RGB]; None if those straddle two faces. (λ here comes from the sphere's own
+    normals, the shader's from the mesh's interpolated ones: near the rim, where a face is a few texels wide at
+    λ ≈ 3, they differ by a tenth of a level.)"""
+    lod = level_of_detail(d, d_near, environment.size)
+    if lod is None:
+        return None
+    return np.array([environment.sample(d, max(lod + k, 0.0))[:3] for k in (-0.25, 0.0, 0.25)])
+
+
+def assert_within(color, candidates, atol=FILTERING):
+    """color lies, per channel, within the range of the candidate colors [k, 3], ± atol."""
+    lo, hi = candidates.min(axis=0) - atol, candidates.max(axis=0) + atol
+    assert np.all((lo <= color) & (color <= hi)), (color, candidates)
+
+
 def test_glass_mixes_reflection_and_refraction_by_fresnel(environment):
     kt = (0.9, 0.8, 0.7)
     glass = Material(ka=0.0, kd=0.0, ks=0.0, kt=kt, ior=MEDIA["glass"])
     color = draw_sphere("glass", glass, environment)
     V = np.array([0.0, 0.0, 1.0])
     weights = []
-    for r, c, N in sphere_pixels():
-        c1 = N.dot(V)
-        F = fresnel(c1, 1.0, MEDIA["glass"])
-        eta = 1.0 / MEDIA["glass"]
-        T = (eta * c1 - math.sqrt(1 - eta * eta * (1 - c1 * c1))) * N - eta * V     # §18
-        R = 2 * c1 * N - V
-        expected = (F * np.array(environment.sample(to_world(R)))[:3]
-                    + (1 - F) * np.array(kt) * np.array(environment.sample(to_world(T)))[:3])
-        np.testing.assert_allclose(color[r, c, :3], expected, atol=FILTERING)
+    for r, c, N, near in sphere_pixels(neighbours=True):
+        F = fresnel(N.dot(V), 1.0, MEDIA["glass"])
+        R, T = glass_directions(N, V, 1.0, MEDIA["glass"])
+        R_near, T_near = zip(*(glass_directions(n, V, 1.0, MEDIA["glass"]) for n in near))
+        reflected, refracted = sampled(environment, R, R_near), sampled(environment, T, T_near)
+        if reflected is None or refracted is None:
+            continue
+        np.testing.assert_allclose(color[r, c, :3], F * reflected[1] + (1 - F) * np.array(kt) * refracted[1],
+                                   atol=FILTERING)
         weights.append(F)
+    assert len(weights) > 100
     assert min(weights) == pytest.approx(0.0426, abs=2e-3)      # ((1 − 1.52)/(1 + 1.52))² near the middle
     assert max(weights) > 0.06
 
@@ -396,19 +465,24 @@ def test_glass_sends_everything_to_reflection_beyond_the_critical_angle(environm
     V = np.array([0.0, 0.0, 1.0])
     critical_c1 = math.sqrt(1 - 1 / MEDIA["water"] ** 2)
     inside = outside = 0
-    for r, c, N in sphere_pixels(0.95):
+    for r, c, N, near in sphere_pixels(0.95, neighbours=True):
         c1 = N.dot(V)
-        R = to_world(2 * c1 * N - V)
+        R, T = glass_directions(N, V, MEDIA["water"], 1.0)
+        R_near, T_near = zip(*(glass_directions(n, V, MEDIA["water"], 1.0) for n in near))
+        reflected = sampled(environment, R, R_near)
+        if reflected is None:
+            continue
         if c1 < critical_c1 - 0.02:                        # TIR: the reflection alone, at full strength
-            np.testing.assert_allclose(color[r, c, :3], np.array(environment.sample(R))[:3], atol=FILTERING)
+            assert T is None
+            assert_within(color[r, c, :3], reflected)
             outside += 1
         elif c1 > critical_c1 + 0.1:                       # (F_R is steep just inside the critical cone)
             F = fresnel(c1, MEDIA["water"], 1.0)
             assert F < 1.0
-            eta = MEDIA["water"]
-            T = to_world((eta * c1 - math.sqrt(1 - eta * eta * (1 - c1 * c1))) * N - eta * V)
-            expected = F * np.array(environment.sample(R))[:3] + (1 - F) * np.array(environment.sample(T))[:3]
-            np.testing.assert_allclose(color[r, c, :3], expected, atol=FILTERING)
+            refracted = sampled(environment, T, T_near)
+            if refracted is None:
+                continue
+            assert_within(color[r, c, :3], (F * reflected[:, None] + (1 - F) * refracted[None, :]).reshape(-1, 3))
             inside += 1
     assert inside > 20 and outside > 20
 

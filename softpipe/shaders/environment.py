@@ -39,8 +39,14 @@ and then only as seen from the map's centre. The ray tracer
 Without an ``environment`` uniform (a draw from the command line, say) both reflect
 :func:`softpipe.cubemap.sky`, a plain gradient from the ground to the zenith.
 
-Optional uniform ``environment_lod`` (default 0): the level of detail of the
-lookups, to blur the environment for a rough-looking mirror (a ``"trilinear"`` map).
+The level of detail of a lookup is GL's for a samplerCube: the shaders take the
+screen-space derivatives of their varyings (the fragment shader's 4th parameter),
+work out R and T at the neighbouring pixels too (a forward difference), and read the
+cube map at the level whose texels one pixel step crosses
+(:func:`softpipe.cubemap.cube_level_of_detail`), so a curved mirror's rim, where R
+turns fast, does not alias. The optional uniform ``environment_lod`` (default 0) is
+added to it: a bias that blurs the environment for a rough-looking mirror (a
+``"trilinear"`` map). A tracer's rays need no level of detail.
 
 Programs ``mirror`` and ``glass``. Uniforms: ``model_view``, ``projection``,
 ``normal_matrix``, ``view``, ``material``, ``lighting`` (see
@@ -50,8 +56,8 @@ Programs ``mirror`` and ``glass``. Uniforms: ``model_view``, ``projection``,
 from numba.core.errors import TypingError
 from numba.extending import overload, register_jitable
 
-from ..cubemap import sky, texture_cube_lod
-from ..glsl import add, mul, reflect, scale
+from ..cubemap import cube_level_of_detail, sky, texture_cube_lod
+from ..glsl import add, mul, reflect, scale, sub
 from ..lighting import BLINN_PHONG, fresnel_directions, opengl_lighting
 from ..raytrace import trace_ray
 from . import Program, register
@@ -82,49 +88,61 @@ def to_world(view, d):
             float(view[0, 2] * d[0] + view[1, 2] * d[1] + view[2, 2] * d[2]))
 
 
-def lookup(uniforms, d_world):
-    """The environment's RGB in a world direction: the cube map ``environment``, or :func:`softpipe.cubemap.sky`."""
+def lookup(uniforms, d_world, dx_world, dy_world):
+    """The environment's RGB in a world direction: the cube map ``environment``, or :func:`softpipe.cubemap.sky`.
+
+    ``dx_world``, ``dy_world`` are the direction's screen-space derivatives: the cube map is
+    read at their level of detail (:func:`softpipe.cubemap.cube_level_of_detail`, as GLSL's
+    ``texture`` picks it for a samplerCube), at least 0, plus the uniform ``environment_lod``.
+    """
     if not hasattr(uniforms, "environment"):
         return sky(d_world)
-    c = texture_cube_lod(uniforms.environment, d_world, uniform_or(uniforms, "environment_lod", 0.0))
-    return (c[0], c[1], c[2])
+    return _from_cube_map(uniforms, d_world, dx_world, dy_world)
 
 
 @overload(lookup)
-def _lookup_numba(uniforms, d_world):
+def _lookup_numba(uniforms, d_world, dx_world, dy_world):
     if "environment" not in tuple(getattr(uniforms, "fields", ())):   # decided once, when the shader is typed
-        return lambda uniforms, d_world: sky(d_world)
-
-    def from_cube_map(uniforms, d_world):
-        c = texture_cube_lod(uniforms.environment, d_world, uniform_or(uniforms, "environment_lod", 0.0))
-        return (c[0], c[1], c[2])
-    return from_cube_map
+        return lambda uniforms, d_world, dx_world, dy_world: sky(d_world)
+    return lambda uniforms, d_world, dx_world, dy_world: _from_cube_map(uniforms, d_world, dx_world, dy_world)
 
 
 @register_jitable
-def environment(uniforms, d_eye):
-    """The environment's RGB in the eye-space direction ``d_eye`` (turned to world space by ``view``)."""
-    return lookup(uniforms, to_world(view_matrix(uniforms), d_eye))
+def _from_cube_map(uniforms, d, dx, dy):
+    env = uniforms.environment
+    lod = max(cube_level_of_detail(env, d, dx, dy), 0.0) + uniform_or(uniforms, "environment_lod", 0.0)
+    c = texture_cube_lod(env, d, lod)
+    return (c[0], c[1], c[2])
 
 
-def incoming(uniforms, P, d_eye, weight):
+@register_jitable
+def environment(uniforms, d_eye, dx_eye, dy_eye):
+    """The environment's RGB in the eye-space direction ``d_eye`` whose screen-space derivatives are ``dx_eye``,
+    ``dy_eye`` (all turned to world space by ``view``); zero derivatives read level 0."""
+    view = view_matrix(uniforms)
+    return lookup(uniforms, to_world(view, d_eye), to_world(view, dx_eye), to_world(view, dy_eye))
+
+
+def incoming(uniforms, P, d_eye, dx_eye, dy_eye, weight):
     """weight × the light that arrives at P from the eye-space direction ``d_eye`` (RGB).
 
     With the uniform ``tracer`` (:func:`softpipe.raytrace.tracer_uniform`) a ray is
     traced from P through the scene, recursively (:func:`softpipe.raytrace.trace_ray`:
     the ray tracer's own tree, so the pixel is the ray tracer's); without it, the
-    environment in that direction (:func:`environment`), as if everything were far away.
+    environment in that direction (:func:`environment`, at the level of detail of the
+    direction's derivatives ``dx_eye``, ``dy_eye``), as if everything were far away.
     """
     if hasattr(uniforms, "tracer"):
         return trace_ray(uniforms.tracer, P, d_eye, weight)
-    return mul(weight, environment(uniforms, d_eye))
+    return mul(weight, environment(uniforms, d_eye, dx_eye, dy_eye))
 
 
 @overload(incoming)
-def _incoming_numba(uniforms, P, d_eye, weight):
+def _incoming_numba(uniforms, P, d_eye, dx_eye, dy_eye, weight):
     if "tracer" in tuple(getattr(uniforms, "fields", ())):     # decided once, when the shader is typed
-        return lambda uniforms, P, d_eye, weight: trace_ray(uniforms.tracer, P, d_eye, weight)
-    return lambda uniforms, P, d_eye, weight: mul(weight, environment(uniforms, d_eye))
+        return lambda uniforms, P, d_eye, dx_eye, dy_eye, weight: trace_ray(uniforms.tracer, P, d_eye, weight)
+    return lambda uniforms, P, d_eye, dx_eye, dy_eye, weight: mul(weight, environment(uniforms, d_eye, dx_eye,
+                                                                                        dy_eye))
 
 
 @register_jitable
@@ -136,32 +154,52 @@ def glass_weights(N, V, outside_ior, ior):
     return fresnel_directions(N, V, outside_ior, ior)
 
 
-def mirror_fragment(varyings, uniforms, frag):
+@register_jitable
+def surface_at(varyings, step, uniforms, front_facing):
+    """(N, V) where the varyings are ``varyings + step``: at the neighbouring pixel, for a derivative."""
+    P = add(varyings.position, step.position)
+    return facing_normal(add(varyings.normal, step.normal), front_facing), toward_eye(P, uniforms.projection)
+
+
+@register_jitable
+def media(uniforms, m, front_facing):
+    """(n₁, n₂): from the viewer's medium into the glass, or out of it for a back face (seen from inside)."""
+    outside = uniform_or(uniforms, "outside_ior", 1.0)
+    return (outside, m.ior) if front_facing else (m.ior, outside)
+
+
+def mirror_fragment(varyings, uniforms, frag, derivatives):
     """kr·I(R) plus the local lighting (§10); I from the environment, or a traced ray."""
     P = varyings.position
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
     m = uniforms.material
     R = reflect(scale(V, -1.0), N)                 # = 2(N·V)N − V (§16)
+    Nx, Vx = surface_at(varyings, derivatives.dx, uniforms, frag.front_facing)
+    Ny, Vy = surface_at(varyings, derivatives.dy, uniforms, frag.front_facing)
+    dRx = sub(reflect(scale(Vx, -1.0), Nx), R)     # R's change to the next pixel, for the level of detail
+    dRy = sub(reflect(scale(Vy, -1.0), Ny), R)
     local = opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG)
-    color = add(incoming(uniforms, P, R, m.kr), local)
+    color = add(incoming(uniforms, P, R, dRx, dRy, m.kr), local)
     return rgba(color, m.opacity)
 
 
-def glass_fragment(varyings, uniforms, frag):
+def glass_fragment(varyings, uniforms, frag, derivatives):
     """F_R·I(R) + (1 − F_R)·kt·I(T) plus the local lighting (§10, §16–§20)."""
     P = varyings.position
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
     m = uniforms.material
-    outside = uniform_or(uniforms, "outside_ior", 1.0)
-    if frag.front_facing:                          # a back face is seen from inside the glass
-        R, T, F = glass_weights(N, V, outside, m.ior)
-    else:
-        R, T, F = glass_weights(N, V, m.ior, outside)
-    color = add(incoming(uniforms, P, R, (F, F, F)), opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG))
+    n1, n2 = media(uniforms, m, frag.front_facing)
+    R, T, F = glass_weights(N, V, n1, n2)
+    Nx, Vx = surface_at(varyings, derivatives.dx, uniforms, frag.front_facing)
+    Ny, Vy = surface_at(varyings, derivatives.dy, uniforms, frag.front_facing)
+    Rx, Tx, _ = glass_weights(Nx, Vx, n1, n2)
+    Ry, Ty, _ = glass_weights(Ny, Vy, n1, n2)
+    color = add(incoming(uniforms, P, R, sub(Rx, R), sub(Ry, R), (F, F, F)),
+                opengl_lighting(P, N, V, m, uniforms.lighting, BLINN_PHONG))
     if F < 1.0:
-        color = add(color, incoming(uniforms, P, T, scale(m.kt, 1.0 - F)))
+        color = add(color, incoming(uniforms, P, T, sub(Tx, T), sub(Ty, T), scale(m.kt, 1.0 - F)))
     return rgba(color, m.opacity)
 
 

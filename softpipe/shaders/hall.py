@@ -23,7 +23,8 @@ environment.incoming`):
   through the scene, recursively; T_r^{d_r}, T_t^{d_t} are the falloff over the
   distance each ray travels (§15), so the pixel is the ray tracer's;
 - the uniform ``environment`` (a cube map): I_r = env(R), I_t = env(T), the
-  environment taken as far away in clear air (T^d = 1);
+  environment taken as far away in clear air (T^d = 1), read at its level 0 (this
+  program takes no derivatives; ``mirror`` and ``glass`` do);
 - neither: the global terms are 0 — Hall's model with k_r = 0, "a Phong-like local
   model" (§13). They are compiled out.
 
@@ -62,7 +63,8 @@ def _global_terms(uniforms, P, N, V, m, front_facing):
     T = refract(scale(V, -1.0), N, eta)                              # §18
     if T[0] == 0.0 and T[1] == 0.0 and T[2] == 0.0:                  # §19: kt's share is reflected too
         T = R
-    return add(incoming(uniforms, P, R, m.kr), incoming(uniforms, P, T, m.kt))
+    still = (0.0, 0.0, 0.0)        # no derivatives taken: the environment's level 0
+    return add(incoming(uniforms, P, R, still, still, m.kr), incoming(uniforms, P, T, still, still, m.kt))
 
 
 def hall_fragment(varyings, uniforms, frag):
