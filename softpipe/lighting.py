@@ -113,7 +113,7 @@ def b_factor(N: Vec3, L: Vec3) -> float:
     return 1.0 if dot(N, L) > 0.0 else 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def half_vector(L: Vec3, V: Vec3) -> Vec3:
     """H = (L + V)/|L + V| (FORMULAS notation); the zero vector when L = −V."""
     return normalize(add(L, V))
@@ -123,19 +123,19 @@ def half_vector(L: Vec3, V: Vec3) -> Vec3:
 # The OpenGL / Blinn-Phong family (§1–§10)
 # --------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def emission(ke: Color) -> Color:
     """I = ke (FORMULAS §1)."""
     return (ke[0], ke[1], ke[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def ambient(ka: Color, Ia: Color) -> Color:
     """I = ka · I_a (FORMULAS §2)."""
     return mul(ka, Ia)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def lambert(kd: Color, Id: Color, N: Vec3, L: Vec3) -> Color:
     """I = kd · I_d · B · (N·L) (FORMULAS §3, with B of §4)."""
     n_dot_l = dot(N, L)
@@ -144,7 +144,7 @@ def lambert(kd: Color, Id: Color, N: Vec3, L: Vec3) -> Color:
     return scale(mul(kd, Id), n_dot_l)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def phong_specular(ks: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, n: float) -> Color:
     """I = ks · I_s · B · (R·V)₊ⁿ, R = 2(N·L)N − L (FORMULAS §5)."""
     n_dot_l = dot(N, L)
@@ -154,7 +154,7 @@ def phong_specular(ks: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, n: float) ->
     return scale(mul(ks, Is), positive_power(dot(R, V), n))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def blinn_phong_specular(ks: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, n: float) -> Color:
     """I = ks · I_s · B · (N·H)₊ⁿ, H = normalize(L + V) (FORMULAS §6)."""
     if dot(N, L) <= 0.0:  # B = 0
@@ -163,7 +163,7 @@ def blinn_phong_specular(ks: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, n: flo
     return scale(mul(ks, Is), positive_power(dot(N, H), n))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def attenuation(a: float, b: float, c: float, r: float) -> float:
     """f_att = 1/(a + b·r + c·r²) at distance r (FORMULAS §7); finite even for a = r = 0."""
     d = a + b * r + c * r * r
@@ -172,7 +172,7 @@ def attenuation(a: float, b: float, c: float, r: float) -> float:
     return 1.0 / d
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def spot_factor(L: Vec3, S: Vec3, cos_cutoff: float, e: float) -> float:
     """f_spot = (−L·S)ᵉ if −L·S ≥ cos β, else 0 (FORMULAS §8).
 
