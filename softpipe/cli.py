@@ -230,6 +230,10 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--raytrace", action="store_true",
                         help="ray trace the scene instead (Whitted: shadow rays, mirrors and glass, FORMULAS §11, "
                              "§16-§22) with the same camera, materials and lights")
+    render.add_argument("--rays", action="store_true",
+                        help="rasterize, and let the objects drawn with mirror, glass or hall trace their reflected "
+                             "and refracted rays from the fragment shader (ray queries) instead of reading an "
+                             "environment map: their pixels are the ray tracer's")
     render.add_argument("--stages", metavar="DIR",
                         help="also trace every draw and write each stage's picture (vertices, primitives, coverage, "
                              "depth, overdraw, final) and a contact sheet into DIR (one folder per draw when there "
@@ -540,6 +544,16 @@ def _render(args) -> int:
             _progress(args, f"draw {k + 1}/{total}: {obj.name} ({obj.mesh.triangle_count} triangles)")
 
     results: list = []
+    if args.rays:
+        if args.raytrace or args.stages:
+            raise CLIError(f"--rays rasterizes with rays from the shaders; it does not apply with "
+                           f"{'--raytrace' if args.raytrace else '--stages'}")
+        from .envmap import render_with_environments
+        fb = render_with_environments(scene, "rays")
+        where = _save_image(fb, output)
+        _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
+                             f"rasterized, rays from the shaders, {time.perf_counter() - start:.2f} s)")
+        return 0
     if args.raytrace:
         if args.stages:
             raise CLIError("--stages shows the rasterizer's stages; it does not apply with --raytrace")

@@ -12,6 +12,7 @@ import math
 import numba
 import numpy as np
 import pytest
+from PIL import Image
 
 import softpipe as sp
 from softpipe import shapes
@@ -182,6 +183,27 @@ def test_render_raytrace_on_the_command_line(tmp_path, capsys):
     assert out.is_file()
     assert main(["render", "suzanne", "--raytrace", "--stages", str(tmp_path / "s"), "-o", str(out)]) == 2
     assert "does not apply with --raytrace" in capsys.readouterr().err
+
+
+def test_render_with_rays_from_the_shaders_on_the_command_line(tmp_path, capsys):
+    """--rays: a scene file's mirror ball rasterized with its rays traced equals render_with_environments(scene,
+    "rays") byte for byte; it refuses --raytrace and --stages by name."""
+    from softpipe.envmap import render_with_environments
+    from softpipe.scenefile import load_scene
+    scene_file = tmp_path / "mirror.toml"
+    scene_file.write_text('[render]\nwidth = 32\nheight = 24\n[camera]\neye = [0, 1.5, 4]\ntarget = [0, 0.5, 0]\n'
+                          '[[meshes]]\nname = "floor"\nshape = "plane"\nsize = 6.0\n'
+                          '[[meshes]]\nname = "ball"\nshape = "uv_sphere"\nradius = 0.6\n'
+                          'transform = { translate = [0, 0.6, 0] }\nprogram = "mirror"\n'
+                          'material = { kd = 0.0, ks = 0.5, shininess = 60, kr = 0.9 }\n')
+    out = tmp_path / "m.png"
+    assert main(["render", str(scene_file), "--rays", "-o", str(out)]) == 0
+    assert "rays from the shaders" in capsys.readouterr().out
+    expected = render_with_environments(load_scene(scene_file), "rays").to_uint8(alpha=False)
+    np.testing.assert_array_equal(np.asarray(Image.open(out).convert("RGB")), expected)
+    for other in (["--raytrace"], ["--stages", str(tmp_path / "s")]):
+        assert main(["render", str(scene_file), "--rays", *other, "-o", str(out)]) == 2
+        assert f"does not apply with {other[0]}" in capsys.readouterr().err
 
 
 def test_a_fragment_shader_can_ask_a_ray_query():
