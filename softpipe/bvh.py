@@ -32,11 +32,46 @@ If the centroids of a range coincide (no plane separates them), or the tree has
 become deep, the range is halved at its median instead: the depth stays below
 :data:`MAX_DEPTH`, the size of the traversal's fixed stack.
 
-**Flattened, depth first** (pbrt's LinearBVHNode, Embree's layout): node 0 is the
+**Flattened, depth first** (pbrt's LinearBVHNode): node 0 is the
 root; an inner node's left child is the next node, ``first[node]`` its right child;
 a leaf's triangles are ``order[first : first + count]``. The triangles' corners
 are stored in that leaf order (``v0[k]`` is a corner of triangle ``order[k]``), so
-a leaf reads contiguous memory.
+a leaf reads contiguous memory. This binary tree is the BVH's definition (its
+invariants are tested, :meth:`BVH.refit` works on it); the traversal walks a
+copy made for speed:
+
+**The traversal's tree: four children per node** (multi-branching BVHs: Wald,
+Benthin and Boulos 2008, Dammertz et al. 2008; Embree's BVH4), collapsed from the
+binary SAH tree. A wide node starts
+from a binary node's two children and, while it has fewer than four, replaces
+the inner child of largest surface area by that child's two; every inner child
+left over becomes a wide node in turn. A wide node stores its four children's
+boxes side by side (``boxes`` [M, 6, 4]: a row per coordinate, a column per
+child) in float32 *rounded outward* (lo down, hi up, so each holds its float64
+box and the test below stays conservative), and its children as
+``ref << 32 | n`` (n = 0: wide node ref; n > 0: a leaf of n triangles from block
+ref). A visit tests the four boxes in one vector of four float64s (the same
+IEEE operations as the scalar slab test, written as LLVM vector code because
+numba's vectorizer leaves them scalar), sorts the four entry distances by a
+five-exchange network, goes on into the nearest child and pushes the others the
+ray meets, farthest first, without a branch. A leaf's triangles are stored in
+blocks of four (``tris`` [B, 9, 4], ``tri_ids`` [B, 4], NaN-padded): one
+vector computation of the watertight test on the block's four triangles names
+the candidates (a hit, or an edge function exactly 0), and the scalar test
+below decides each candidate, so the answers are the scalar test's, bit for bit.
+
+Why this shape (measured on the bunny's and the armadillo's shadow and mirror
+rays): a ray's traversal is a chain of dependent steps with branches a
+predictor cannot guess (which child is nearer, which edge rejects the ray), and
+the arithmetic is nearly free: testing every box and every triangle twice added
+10-15 % to the time. So the levers were fewer, branch-free steps: four boxes
+per visit halve the visits (25 binary nodes per shadow ray → 12.5 wide ones), the
+triangle test's sign checks are combined with ``|`` and ``&`` (one branch, not one
+per sign), the block filter leaves one branch per four triangles, and the batch
+kernels walk two rays in turn so that the core overlaps their chains. The
+per-triangle test had also been an out-of-line call (its arguments spilled to
+memory): it is inlined now. Leaf sizes 2 to 8 traced within 5-10 % of each
+other; 3-4 was best. float64 boxes instead of float32 gained nothing measurable.
 
 **Watertight triangle test.** A ray that passes exactly through the edge two
 triangles share must hit at least one of them; otherwise a closed mesh leaks:
@@ -58,7 +93,11 @@ face is culled.
 (±inf for a zero component, and the NaN of ``0·inf`` when the origin lies on a
 slab's plane leaves that slab unconstrained), and the far distance is enlarged by
 ``1 + 2γ(3)`` (pbrt's robust slab test, 3rd ed. §3.9), so rounding in the box test never
-drops a box that holds the hit the triangle test would find.
+drops a box that holds the hit the triangle test would find. The wide nodes pick
+each slab's near and far plane once per ray from the sign of ``1/direction``
+instead of swapping per slab: the same numbers (for a finite 1/d the products
+keep their order; ±0 gives ±inf and the NaN rule above). Their float32 boxes
+contain the float64 ones, so they can only let more boxes through.
 
 **Scenes: flattened, not instanced.** :func:`scene_bvh` puts every object's
 triangles, moved to world space by its model matrix, into one BVH. Instancing (a
@@ -69,17 +108,23 @@ one t for all objects. When the scene moves: :meth:`BVH.refit` for small motion,
 :meth:`BVH.build` again for large.
 
 Speed (measured on this kind of 2-core machine, warm, while other jobs shared
-it): the bunny's 69,451 triangles build in about 60 ms, the armadillo's 99,976
-in about 95 ms, and refit in 2 and 3 ms; one thread answers about 4 M closest-hit
-camera rays a second on the bunny, 2.3 M shadow rays (any hit) from its surface.
+it; benchmarks/README.md, "Rays", has the side-by-side figures with Embree): the
+bunny's 69,451 triangles build in about 63 ms, the armadillo's 99,976 in about
+107 ms (about 5 ms of each for the wide nodes and the blocks), and refit in about
+5.5 and 8.5 ms; one thread answers about 6.5 M closest-hit camera rays a second on
+the bunny, 4 M shadow rays (any hit) from its surface and 4.3 M mirror rays.
+:func:`closest_hit` and :func:`any_hit` called once per ray (a shader, the ray
+tracer) are 1.1-1.35× faster than before the wide nodes; the batch queries, with
+two rays in flight, 1.5-1.7× on shadow and mirror rays.
 
 Numba: :func:`intersect_triangle`, :func:`closest_hit` and :func:`any_hit` are
 ``@njit(cache=True)`` functions: other compiled code, a shader among them, calls
 them with ``bvh.uniform`` (a :class:`BVHUniform`, or the :class:`BVH` itself when
 it is a shader uniform: ``__softpipe_uniform__``). :meth:`BVH.closest` and
 :meth:`BVH.occluded` run them on arrays of rays from Python, in parallel bands
-(:func:`softpipe._parallel.in_bands`); each ray's answer does not depend on which
-thread computes it, so the result is the same bytes for any thread count.
+(:func:`softpipe._parallel.in_bands`), two rays in flight per band; each ray's
+answer does not depend on which thread computes it nor on which ray shares its
+band, so the result is the same bytes for any thread count.
 """
 from __future__ import annotations
 
@@ -124,7 +169,9 @@ REACH_PAD = 2.0 ** -44
 
 BVHUniform = namedtuple("BVHUniform", ["lo", "hi", "first", "count", "order", "v0", "v1", "v2",
                                        "boxes", "links", "tris", "tri_ids"])
-BVHUniform.__doc__ = """A BVH as a shader receives it: its numpy arrays (see :class:`BVH`)."""
+BVHUniform.__doc__ = """A BVH as a shader receives it: its numpy arrays (see :class:`BVH`). The queries read
+``lo``, ``hi`` (the root's box), ``first``, ``count`` (whether the root is a leaf) and the traversal's
+``boxes``, ``links``, ``tris``, ``tri_ids``; ``order`` and ``v0``, ``v1``, ``v2`` are there for shaders."""
 
 
 # ----------------------------------------------------------- the triangle test
@@ -1161,7 +1208,20 @@ class BVH:
     Triangle arrays (T triangles, in leaf order):
 
     - ``order`` int64 [T]: the triangle ids, leaf by leaf;
-    - ``v0``, ``v1``, ``v2`` float64 [T, 3]: the corners of triangle ``order[k]``.
+    - ``corners`` float64 [T, 9]: v0, v1, v2 of triangle ``order[k]``; ``v0``,
+      ``v1``, ``v2`` [T, 3] are views of its columns.
+
+    The traversal's arrays (see the module docstring; made from the above by
+    the build, kept up to date by :meth:`refit`):
+
+    - ``boxes`` float32 [M, 6, 4]: wide node w's children's boxes, row r
+      (lo.x, lo.y, lo.z, hi.x, hi.y, hi.z) of child j at ``[w, r, j]``, rounded
+      outward; an empty child is lo = +inf, hi = −inf;
+    - ``links`` int64 [M, 4]: child j of wide node w as ``ref << 32 | n``
+      (n = 0: wide node ref; n > 0: a leaf of n triangles from block ref);
+    - ``tris`` float64 [B, 9, 4], ``tri_ids`` int64 [B, 4]: the leaves'
+      triangles in blocks of four, coordinate ``3c + a`` of corner c of lane j at
+      ``[b, 3c + a, j]``, the lane's triangle id (−1 and NaN corners: padding).
 
     ``triangles`` (int64 [T, 3]) and ``vertex_count`` are the input, kept for
     :meth:`refit`; ``depth`` is the deepest leaf's depth (root 0). ``uniform``
@@ -1209,11 +1269,12 @@ class BVH:
         triangles (zero area) are kept and never hit.
 
         Measured (warm; other jobs shared the 2-core machine): the bunny
-        (69,451 triangles) builds in about 60 ms, the armadillo (99,976) in
-        about 95 ms (``leaf_size=4, bins=16``). The build is serial and
-        deterministic: the same input gives the same arrays. Of leaf sizes 1, 2,
-        4 and 8 (and 8 with the SAH choosing smaller leaves), 4 traced the
-        bunny fastest: 10-20 % ahead of the others.
+        (69,451 triangles) builds in about 63 ms, the armadillo (99,976) in
+        about 107 ms (``leaf_size=4, bins=16``; about 5 ms of it the wide nodes
+        and the triangle blocks). The build is serial and deterministic: the
+        same input gives the same arrays. With the wide nodes, leaf sizes 2 to
+        8 traced the bunny and the armadillo within 5-10 % of each other, 3
+        and 4 fastest (with binary nodes 4 had been 10-20 % ahead).
         """
         if isinstance(leaf_size, bool) or not isinstance(leaf_size, (int, np.integer)) or leaf_size < 1:
             raise ValueError(f"BVH.build: leaf_size must be an integer ≥ 1, got {leaf_size!r}")
