@@ -17,6 +17,11 @@ For each model (default: the bunny and the armadillo, :func:`softpipe.models.loa
     ``t_max`` = the distance to the light.
   - ``secondary``: from every primary hit in the mirror direction (``d − 2(d·n)n``, n the
     triangle's geometric normal), closest hit, ``t_min = ε``, ``t_max = ∞``.
+  - ``shadow-closest``: the shadow rays again, as closest-hit queries (:meth:`BVH.closest`,
+    Embree's INTERSECT): any hit against closest hit on the *same* rays. (Shadow and
+    secondary rays are different rays: a shadow ray toward the light crosses more of the
+    model than a mirror ray, which mostly leaves it, so ``shadow`` below ``secondary`` says
+    nothing about the any-hit query itself; this row does.)
 
   The shadow and secondary rays start at softpipe's primary hits; every side traces the same
   rays. Million rays per second on 1 and 2 numba threads (``numba.set_num_threads``;
@@ -83,10 +88,14 @@ from softpipe.scene import Scene  # noqa: E402
 from .run import machine_info, source_state  # noqa: E402
 from .scenes import REPO_ROOT  # noqa: E402
 
-__all__ = ["KINDS", "DEFAULT_MODELS", "EMBREE_REQUIREMENT", "primary_rays", "secondary_rays", "embree_status",
+__all__ = ["KINDS", "SAME_RAYS", "ALL_KINDS", "DEFAULT_MODELS", "EMBREE_REQUIREMENT", "primary_rays",
+           "secondary_rays", "embree_status",
            "EmbreeSide", "SoftpipeSide", "agreement", "run_model", "run", "format_table", "main"]
 
 KINDS = ("primary", "shadow", "secondary")
+#: Measured after KINDS: the shadow rays as closest-hit queries (see the module docstring).
+SAME_RAYS = ("shadow-closest",)
+ALL_KINDS = KINDS + SAME_RAYS
 DEFAULT_MODELS = ("bunny", "armadillo")
 DEFAULT_SIZE = 1024
 DEFAULT_REPEATS = 7
@@ -349,13 +358,14 @@ def run_model(model: str, size: int = DEFAULT_SIZE, threads: Sequence[int] = DEF
                       "t_max": sec["shadow_tmax"]}
     rays["secondary"] = {"origins": sec["points"], "directions": sec["mirror_dir"], "t_min": np.full(n, eps),
                          "t_max": np.full(n, np.inf)}
+    rays["shadow-closest"] = rays["shadow"]          # the same rays (and Embree's float32 copy of them)
     result["rays"] = {k: int(len(v["origins"])) for k, v in rays.items()}
     result["epsilon"] = eps
     result["light"] = [float(x) for x in light]
 
     # warm-up: one untimed build and one untimed run of every query on every side
     sp.build()
-    for kind in KINDS:
+    for kind in ALL_KINDS:
         sp.trace(kind, rays[kind])
         if peer is not None:
             peer.build()
@@ -363,8 +373,8 @@ def run_model(model: str, size: int = DEFAULT_SIZE, threads: Sequence[int] = DEF
 
     sides = [("softpipe", n_) for n_ in threads] + ([("embree", n_) for n_ in threads] if peer is not None else [])
     build = {s: [] for s in sides if s[1] == max(threads)}
-    secs = {(kind, s): [] for kind in KINDS for s in sides}
-    cpu = {(kind, s): [] for kind in KINDS for s in sides}
+    secs = {(kind, s): [] for kind in ALL_KINDS for s in sides}
+    cpu = {(kind, s): [] for kind in ALL_KINDS for s in sides}
     last = {}
     for rnd in range(repeats):
         order = sides if rnd % 2 == 0 else sides[::-1]
@@ -372,7 +382,7 @@ def run_model(model: str, size: int = DEFAULT_SIZE, threads: Sequence[int] = DEF
         for name, n_ in order:
             if (name, n_) in build:
                 build[(name, n_)].append(sp.build() if name == "softpipe" else peer.build())
-        for kind in KINDS:
+        for kind in ALL_KINDS:
             for name, n_ in order:
                 if name == "softpipe":
                     numba.set_num_threads(n_)
@@ -389,7 +399,7 @@ def run_model(model: str, size: int = DEFAULT_SIZE, threads: Sequence[int] = DEF
     result["build_ms"] = {name: 1e3 * _median(v) for (name, _), v in build.items()}
     result["build_ms_all"] = {name: [1e3 * x for x in v] for (name, _), v in build.items()}
     table = {}
-    for kind in KINDS:
+    for kind in ALL_KINDS:
         R = result["rays"][kind]
         row = {"rays": R}
         for name, n_ in sides:
@@ -475,7 +485,7 @@ def format_table(report: dict) -> str:
         rule += "---:|" * (2 * len(threads)) + "---:|---:|"
     lines += [head + " |", rule]
     for m in report["models"]:
-        for kind in KINDS:
+        for kind in ALL_KINDS:
             r = m["kinds"][kind]
             row = f"| {m['model']} | {kind} | {r['rays']:,} | " + \
                   " | ".join(f"{r[f'softpipe_{n}t_mrays_s']:.2f}" for n in threads)
@@ -493,7 +503,7 @@ def format_table(report: dict) -> str:
               " | ".join(f"{n} M rays/CPU-s" for n in names) + " |",
               "|---|---|" + "---:|" * (2 * len(sides))]
     for m in report["models"]:
-        for kind in KINDS:
+        for kind in ALL_KINDS:
             r = m["kinds"][kind]
             per_cpu = [r[f"{s_}_mrays_per_cpu_s"] for s_ in sides]
             lines.append(f"| {m['model']} | {kind} | " + " | ".join(f"{r[f'{s_}_cpu_per_wall']:.2f}" for s_ in sides)
@@ -539,7 +549,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     else:
         print("\nM/s = million rays per second (median of the rounds); Embree at n threads = embreex's run on n "
               "Python threads over bands of the rays; sp/Embree n t = softpipe's rays/s over Embree's at n threads "
-              "(medians; paired: median of the per-round ratios).")
+              "(medians; paired: median of the per-round ratios). shadow-closest = the shadow rays as closest-hit "
+              "queries (any hit against closest hit on the same rays).")
     print(f"load average: {report['machine'].get('load_average_at_start')} at start, {report['load_at_end']} at end")
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(report, indent=1))

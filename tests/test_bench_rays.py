@@ -57,9 +57,10 @@ def _check(report, embree):
     (m,) = report["models"]
     assert m["model"] == MODEL and m["triangles"] > 0 and m["size"] == [SIZE, SIZE]
     assert m["rays"]["primary"] == SIZE * SIZE and m["rays"]["shadow"] == m["rays"]["secondary"] > 0
+    assert m["rays"]["shadow-closest"] == m["rays"]["shadow"]          # the same rays, closest hit
     assert m["build_ms"]["softpipe"] > 0 and m["epsilon"] > 0 and len(m["light"]) == 3
     assert m["load_before"] is None or len(m["load_before"]) == 3
-    for kind in rays.KINDS:
+    for kind in rays.ALL_KINDS:
         r = m["kinds"][kind]
         assert r["rays"] == m["rays"][kind]
         for n in THREADS:
@@ -78,7 +79,7 @@ def _check(report, embree):
         else:
             assert "agreement" not in r and "embree_1t_mrays_s" not in r
     table = rays.format_table(report)
-    assert MODEL in table and all(k in table for k in rays.KINDS)
+    assert MODEL in table and all(k in table for k in rays.ALL_KINDS)
     assert ("Embree 1t M/s" in table) == embree
     json.dumps(report)
 
