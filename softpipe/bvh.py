@@ -109,13 +109,13 @@ one t for all objects. When the scene moves: :meth:`BVH.refit` for small motion,
 
 Speed (measured on this kind of 2-core machine, warm, while other jobs shared
 it; benchmarks/README.md, "Rays", has the side-by-side figures with Embree): the
-bunny's 69,451 triangles build in about 63 ms, the armadillo's 99,976 in about
-107 ms (about 5 ms of each for the wide nodes and the blocks), and refit in about
-5.5 and 8.5 ms; one thread answers about 6.5 M closest-hit camera rays a second on
-the bunny, 4 M shadow rays (any hit) from its surface and 4.3 M mirror rays.
+bunny's 69,451 triangles build in about 60 ms, the armadillo's 99,976 in about
+99 ms (5 and 8 ms of that for the wide nodes and the blocks), and refit in about
+5.5 and 8.7 ms; one thread answers about 6.4 M closest-hit camera rays a second on
+the bunny, 4.0 M shadow rays (any hit) from its surface and 4.4 M mirror rays.
 :func:`closest_hit` and :func:`any_hit` called once per ray (a shader, the ray
 tracer) are 1.1-1.35× faster than before the wide nodes; the batch queries, with
-two rays in flight, 1.5-1.7× on shadow and mirror rays.
+two rays in flight, 1.5-1.8× on shadow and mirror rays.
 
 Numba: :func:`intersect_triangle`, :func:`closest_hit` and :func:`any_hit` are
 ``@njit(cache=True)`` functions: other compiled code, a shader among them, calls
@@ -1268,10 +1268,9 @@ class BVH:
         integer type). No triangles is allowed: every ray misses. Degenerate
         triangles (zero area) are kept and never hit.
 
-        Measured (warm; other jobs shared the 2-core machine): the bunny
-        (69,451 triangles) builds in about 63 ms, the armadillo (99,976) in
-        about 107 ms (``leaf_size=4, bins=16``; about 5 ms of it the wide nodes
-        and the triangle blocks). The build is serial and deterministic: the
+        Measured (warm, 2-core machine): the bunny (69,451 triangles) builds in
+        about 60 ms, the armadillo (99,976) in about 99 ms (``leaf_size=4,
+        bins=16``; 5 and 8 ms of it the wide nodes and the triangle blocks). The build is serial and deterministic: the
         same input gives the same arrays. With the wide nodes, leaf sizes 2 to
         8 traced the bunny and the armadillo within 5-10 % of each other, 3
         and 4 fastest (with binary nodes 4 had been 10-20 % ahead).
