@@ -69,8 +69,9 @@ per visit halve the visits (25 binary nodes per shadow ray → 12.5 wide ones), 
 triangle test's sign checks are combined with ``|`` and ``&`` (one branch, not one
 per sign), the block filter leaves one branch per four triangles, and the batch
 kernels walk two rays in turn so that the core overlaps their chains. The
-per-triangle test had also been an out-of-line call (its arguments spilled to
-memory): it is inlined now. Leaf sizes 2 to 8 traced within 5-10 % of each
+per-triangle test had also been an out-of-line call for every triangle (its 17
+arguments spilled to memory); now the block filter runs inline and the scalar
+test is called only for its candidates. Leaf sizes 2 to 8 traced within 5-10 % of each
 other; 3-4 was best. float64 boxes instead of float32 gained nothing measurable.
 
 **Watertight triangle test.** A ray that passes exactly through the edge two
@@ -260,7 +261,9 @@ def _ray_space(dx, dy, dz):
     return kx, ky, kz, d[kx] / dkz, d[ky] / dkz, 1.0 / dkz
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+# Not inlined into the traversal: it runs only on the block filter's candidates (about once per
+# hit), and inlining it into every caller had cost 0.5-1 s of cold compilation for nothing.
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _hit_sheared(ax, ay, az, bx, by, bz, cx, cy, cz, kx, ky, kz, sx, sy, sz, t_min, t_max):
     """The watertight test on corners already relative to the origin, in axis order (kx, ky, kz)."""
     # shear the corners into ray space (x', y'); z' scaled below
