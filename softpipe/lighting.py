@@ -161,8 +161,11 @@ def blinn_phong_specular(ks: Color, Is: Color, N: Vec3, L: Vec3, V: Vec3, n: flo
     """I = ks · I_s · B · (N·H)₊ⁿ, H = normalize(L + V) (FORMULAS §6)."""
     if dot(N, L) <= 0.0:  # B = 0
         return ZERO3
-    H = half_vector(L, V)
-    return scale(mul(ks, Is), positive_power(dot(N, H), n))
+    # N·H as N·(L + V) / |L + V|: one division, not normalize's three (H itself is not needed)
+    S = add(L, V)
+    norm = length(S)
+    n_dot_h = dot(N, S) / norm if norm > 0.0 else 0.0     # L = −V: H is the zero vector
+    return scale(mul(ks, Is), positive_power(n_dot_h, n))
 
 
 @njit(cache=True)
