@@ -115,15 +115,15 @@ def _material(rows, k):
 @njit(cache=True)
 def _local_color(code, P, N, V, material, lighting):
     """The object's program's lighting at P (§10, §13, §26), every light's V_j from a shadow ray."""
-    if code == 1:
-        return opengl_lighting(P, N, V, material, lighting, PHONG)
     if code == 2:
         return hall_local(P, N, V, material, lighting, material.ior)
     if code == 3:
         return cook_torrance_lighting(P, N, V, material, lighting)
     if code == 4:
         return two_sided_lighting(P, N, V, material, lighting)
-    return opengl_lighting(P, N, V, material, lighting, BLINN_PHONG)     # 0, and mirror (5) and glass (6)
+    # 0, mirror (5) and glass (6): Blinn-Phong; 1: Phong's (R·V)ⁿ. One call: opengl_lighting is inlined, and
+    # numba's pedantic check warned about two inlined copies of its shadow lookups in one function
+    return opengl_lighting(P, N, V, material, lighting, PHONG if code == 1 else BLINN_PHONG)
 
 
 @njit(cache=True)
