@@ -283,6 +283,12 @@ def _light_visibility_numba(lighting, j, P):
                                                        j, P)
 
 
+def _rays_only(shadows_type) -> bool:
+    """Is this ShadowUniform's numba type one without maps (``maps`` None: every shadow from rays)?"""
+    fields = tuple(getattr(shadows_type, "fields", ()))
+    return "maps" in fields and isinstance(shadows_type.types[fields.index("maps")], types.NoneType)
+
+
 def _borrow_shadows(shadows):
     """The ShadowUniform with its arrays borrowed (see :func:`softpipe.bvh._borrowed`); plain Python: itself."""
     return shadows
@@ -290,6 +296,10 @@ def _borrow_shadows(shadows):
 
 @overload(_borrow_shadows, inline="always")
 def _borrow_shadows_numba(shadows):
+    if _rays_only(shadows):                                              # shadow rays only: no map arrays
+        return lambda shadows: ShadowUniform(_borrowed(shadows.light_maps), None, None, None, None, None,
+                                             shadows.rays)
+
     def impl(shadows):
         return ShadowUniform(_borrowed(shadows.light_maps), _borrowed(shadows.maps), _borrowed(shadows.matrices),
                              _borrowed(shadows.depth), _borrowed(shadows.transparent_depth),
@@ -297,11 +307,19 @@ def _borrow_shadows_numba(shadows):
     return impl
 
 
-@njit(cache=True, inline="always")
 def _shadowed_visibility(lights, shadows, j, P):
     if shadows.light_maps[j, 2] == SHADOW_RAY:
         return _shadow_ray(shadows.rays, lights, j, P)
     return shadow_map_visibility(shadows, j, P)
+
+
+@overload(_shadowed_visibility, inline="always")
+def _shadowed_visibility_numba(lights, shadows, j, P):
+    # shadows from rays only (maps None, as the ray tracer's): no map lookup compiled; a light that casts
+    # shadows then has method SHADOW_RAY (casts_shadows asked first)
+    if _rays_only(shadows):
+        return lambda lights, shadows, j, P: _shadow_ray(shadows.rays, lights, j, P)
+    return _shadowed_visibility
 
 
 def _shadow_ray(rays, lights, j, P):

@@ -158,7 +158,7 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
 def shadow_map_pictures(uniforms, height: int, width: int) -> Dict[str, np.ndarray]:
     """The shadow maps a draw's ``lighting`` uniform carries, each as a [height, width, 3] picture."""
     shadows = getattr(getattr(uniforms, "lighting", None), "shadows", None)
-    if shadows is None or not len(shadows.maps):
+    if shadows is None or shadows.maps is None or not len(shadows.maps):     # None: shadows from rays only
         return {}
     from .shadowmap import CUBE_FACE_NAMES
     owner = {}

@@ -365,9 +365,7 @@ def _prepare(scene, camera: Optional[Camera], max_depth: int = 5, min_weight: fl
     # shadow rays meet the shadow casters only (an object with cast_shadows false casts none, as with maps)
     casters = [o for o in objects if getattr(o, "cast_shadows", True)]
     shadow_rays = uniform if len(casters) == len(objects) else RayScene(casters).uniform()
-    empty = np.zeros(0, np.float32)
-    shadows = ShadowUniform(light_maps, np.zeros((0, 5), np.int64), np.zeros((0, 4, 4)), empty, empty,
-                            np.zeros((0, 3), np.float32), shadow_rays)
+    shadows = ShadowUniform(light_maps, None, None, None, None, None, shadow_rays)     # rays only: no map code
     lighting = LightingUniform(lights.global_ambient, packed, shadows)
     materials = np.array([_pack_material(o.mesh.material) for o in objects], np.float64).reshape(-1, _MATERIAL_COLUMNS)
     cull = np.array([{"none": 0, "back": 1, "front": 2}[obj.cull or scene.cull] for obj in objects], np.int64)

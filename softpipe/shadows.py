@@ -302,13 +302,16 @@ class ShadowMaps:
         The texels are packed once and shared by every uniform made (only the matrices
         depend on the view).
         """
+        # None without ray lights: a shader then carries no ray scene (numba counts every array it holds)
+        rays = self.rays.uniform(view_matrix) if self.rays is not None else None
+        if not self.maps and rays is not None:
+            # rays only: no map arrays either, so no map lookup is compiled into the shaders
+            return ShadowUniform(self.light_maps.copy(), None, None, None, None, None, rays)
         if self._packed is None:
             self._packed = self._pack()
         maps, depth, transparent_depth, transmission = self._packed
         inverse_view = np.linalg.inv(np.asarray(view_matrix, np.float64))
         matrices = np.array([m.matrix @ inverse_view for m in self.maps], np.float64).reshape(-1, 4, 4)
-        # None without ray lights: a shader then carries no ray scene (numba counts every array it holds)
-        rays = self.rays.uniform(view_matrix) if self.rays is not None else None
         return ShadowUniform(self.light_maps.copy(), maps, matrices, depth, transparent_depth, transmission, rays)
 
     def _pack(self):
