@@ -73,7 +73,7 @@ from .glsl import dot, reflect, refract, scale
 from .lighting import (BLINN_PHONG, PHONG, cook_torrance_lighting, fresnel_directions, hall_local, opengl_lighting,
                        two_sided_lighting)
 from .material import LightingUniform, MaterialUniform, pack_lights
-from .rays import RayScene, hit_normal, medium_falloff
+from .rays import RayScene, _direction_to_world, _point_to_world, hit_normal, medium_falloff
 from .bvh import closest_hit
 from .shadowmap import SHADOW_RAY, ShadowUniform
 
@@ -261,13 +261,8 @@ def trace_ray(tracer, origin, direction, weight):
     """
     if max(weight[0], weight[1], weight[2]) < tracer.min_weight or tracer.max_depth < 1:
         return 0.0, 0.0, 0.0
-    M = tracer.to_world
-    o = (M[0, 0] * origin[0] + M[0, 1] * origin[1] + M[0, 2] * origin[2] + M[0, 3],
-         M[1, 0] * origin[0] + M[1, 1] * origin[1] + M[1, 2] * origin[2] + M[1, 3],
-         M[2, 0] * origin[0] + M[2, 1] * origin[1] + M[2, 2] * origin[2] + M[2, 3])
-    d = _unit((M[0, 0] * direction[0] + M[0, 1] * direction[1] + M[0, 2] * direction[2],
-               M[1, 0] * direction[0] + M[1, 1] * direction[1] + M[1, 2] * direction[2],
-               M[2, 0] * direction[0] + M[2, 1] * direction[1] + M[2, 2] * direction[2]))
+    o = _point_to_world(tracer.to_world, origin)
+    d = _unit(_direction_to_world(tracer.to_world, direction))
     r, g, b, _ = _trace_tree(tracer, o, d, 1, 1, weight, np.inf, np.empty((0, _RECORD_COLUMNS)))
     return r, g, b
 

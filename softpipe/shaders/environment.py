@@ -145,13 +145,9 @@ def _incoming_numba(uniforms, P, d_eye, dx_eye, dy_eye, weight):
                                                                                         dy_eye))
 
 
-@register_jitable
-def glass_weights(N, V, outside_ior, ior):
-    """(R, T, F_R) for unit N (on V's side) and V, from the medium ``outside_ior`` into ``ior``: §16, §18–§20.
-
-    :func:`softpipe.lighting.fresnel_directions`; T = 0 and F_R = 1 on total internal reflection.
-    """
-    return fresnel_directions(N, V, outside_ior, ior)
+#: (R, T, F_R) for unit N (on V's side) and V, from the medium ``outside_ior`` into ``ior`` (§16, §18–§20;
+#: T = 0 and F_R = 1 on total internal reflection): :func:`softpipe.lighting.fresnel_directions`.
+glass_weights = fresnel_directions
 
 
 @register_jitable
