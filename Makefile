@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench bench-peers bench-batch bench-rays fuzz clean
+.PHONY: demo test bench bench-cold bench-peers bench-batch bench-rays fuzz clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,11 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m benchmarks.run
+
+# Cold start, in fresh processes (benchmarks/cold.py): `softpipe render bunny` with empty kernel
+# caches, and the first draw of a user's shader (README's stripes, a lit user program).
+bench-cold: $(STAMP)
+	$(PY) -m benchmarks.cold
 
 # softpipe vs Mesa's llvmpipe, alternated frame by frame (benchmarks/README.md, "Peers").
 # Installs Debian's Mesa/EGL packages (apt-get, as root) and moderngl (pip) when missing;

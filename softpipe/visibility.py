@@ -47,8 +47,8 @@ from .fragment import default_fragment_shader, derivative_gradients
 from .output import DEPTH_FUNCS, MergeState, depth_passes
 from .raster import Fragments
 from .sampling import SUBPIXEL
-from .setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, covers, depth_at, edge_values, pixel_coverage,
-                    plane_depth, sample_depth, shading_point)
+from .setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, covers, depth_at, edge_values, offset_bounds,
+                    pixel_coverage, plane_depth, sample_depth, shading_point)
 
 __all__ = ["TILE_W", "TILE_H", "NARROW", "Visibility", "ShadedSamples", "bin_triangles", "visibility_pass",
            "shade_visible", "choose_path", "fast_path_blocker", "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath",
@@ -332,13 +332,12 @@ def _save_tile(depth, saved_depth, row_lo, row_hi, col_lo, col_hi):
                 saved_depth[s, row, i] = depth[s, row, i]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
                  depth, vis, touched, saved_depth):
     """One tile of the visibility pass: its triangles, in primitive order (see :func:`raster_tiles`)."""
     hiz = depth_write and (func == LESS or func == LEQUAL)
-    ox_lo, ox_hi = offsets[:, 0].min(), offsets[:, 0].max()
-    oy_lo, oy_hi = offsets[:, 1].min(), offsets[:, 1].max()
+    ox_lo, ox_hi, oy_lo, oy_hi = offset_bounds(offsets)
     tx, ty = tile % tiles_x, tile // tiles_x
     x_lo, x_hi = tx * TILE_W, min(tx * TILE_W + TILE_W, width) - 1
     y_lo, y_hi = ty * TILE_H, min(ty * TILE_H + TILE_H, height) - 1

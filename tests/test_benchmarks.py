@@ -188,3 +188,24 @@ def test_the_shadow_maps_scale_with_the_scene():
         assert [(l.name, l.kind, l.shadows.resolution, l.shadows.pcf) for l in lighting.lights] == \
             [("sun", "directional", res, 1), ("spot", "spot", res, 1)]
     assert scenes.build_scene("bunny-plane", SCALE).prepare is None
+
+
+def test_the_cold_start_scripts_run_and_print_their_draws_time(capsys):
+    """benchmarks.cold's timed scripts (README's stripes shader, the lit user program) run as written.
+
+    Here in this process (the cold-start figures need fresh processes: ``make bench-cold``);
+    each prints one positive number, the seconds of its timed draw.
+    """
+    from benchmarks import cold
+    for script in (cold.STRIPES, cold.LIT.format(examples=os.path.join(ROOT, "examples"))):
+        exec(compile(script, "<benchmarks.cold script>", "exec"), {"__name__": "cold_script"})
+        assert float(capsys.readouterr().out.split()[-1]) > 0.0
+
+
+def test_the_cold_start_report_says_which_targets_are_met():
+    from benchmarks import cold
+    table = cold.report({"render": [9.0, 9.5, 12.0], "stripes": [1.5, 1.6, 1.4], "lit": [1.0]})
+    rows = {line.split("  ")[0]: line for line in table.splitlines()[1:]}
+    assert rows[cold.LABELS["render"]].endswith("met") and " 9.50 " in rows[cold.LABELS["render"]]
+    assert rows[cold.LABELS["stripes"]].endswith("1.50x")
+    assert rows[cold.LABELS["lit"]].endswith("met")
