@@ -28,6 +28,7 @@ from .camera import Camera
 from .material import Light, Lighting, Material
 from .mesh import Mesh
 from .shaders import PROGRAMS
+from .transforms import transform_points
 
 __all__ = ["Scene", "SceneObject", "FrameSpec", "framed_camera", "studio_lights", "default_program", "program_for"]
 
@@ -80,8 +81,7 @@ class SceneObject:
 
     def world_positions(self) -> np.ndarray:
         """The mesh's positions after its model matrix (affine: no divide), [N, 3]."""
-        p = self.mesh.positions
-        return p @ self.model[:3, :3].T + self.model[:3, 3]
+        return transform_points(self.model, self.mesh.positions)
 
 
 @dataclass

@@ -46,7 +46,7 @@ from .pipeline import DrawCall
 from .rays import RayScene, transmission_of
 from .shadowmap import (CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, SHADOW_MAP, SHADOW_RAY, ShadowSettings,
                         ShadowUniform, cube_face_half_extent)
-from .transforms import frustum, look_at, orthographic
+from .transforms import frustum, look_at, orthographic, transform_points
 
 __all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of"]
 
@@ -78,8 +78,8 @@ def casters_of(objects) -> List[ShadowCaster]:
             continue
         mesh = obj.mesh
         for _, part in (mesh.by_material() if len(getattr(mesh, "materials", ()) or ()) > 1 else [(None, mesh)]):
-            p = part.positions @ obj.model[:3, :3].T + obj.model[:3, 3]
-            out.append(ShadowCaster(obj.name, np.ascontiguousarray(p, np.float64),
+            p = transform_points(obj.model, part.positions)
+            out.append(ShadowCaster(obj.name, p,
                                     np.asarray(part.indices).reshape(-1, 3), transmission_of(part.material)))
     return out
 
@@ -94,7 +94,7 @@ def _basis_view(eye: np.ndarray, forward: np.ndarray) -> np.ndarray:
 
 
 def _in_view(view: np.ndarray, points: np.ndarray) -> np.ndarray:
-    return points @ view[:3, :3].T + view[:3, 3]
+    return transform_points(view, points)
 
 
 def _depth_range(depths: np.ndarray, near_floor: float) -> Tuple[float, float]:
@@ -246,7 +246,7 @@ def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: n
     opaque = target
     clear = Framebuffer(res, res).clear((1.0, 1.0, 1.0, 1.0)) if any(c.transmission for c in casters) else None
     for c in casters:
-        clip = np.ascontiguousarray(np.c_[c.positions, np.ones(len(c.positions))] @ matrix.T)
+        clip = transform_points(matrix, c.positions, rows=4)
         indices = _in_frustum(clip, c.indices)
         if not len(indices):
             continue

@@ -341,3 +341,20 @@ def test_viewport_bad_arguments():
     with pytest.raises(ValueError, match=r"depth range must lie in \[0, 1\]"):
         Viewport(0, 0, 4, 4, -0.5, 1.0)
     assert isinstance(softpipe.Viewport(0, 0, 4, 4), Viewport)
+
+
+def test_transform_points_is_the_matrix_times_each_homogeneous_point():
+    """transform_points(M, P) = (M · (p, 1))[:rows] per point, written out here one point at a time."""
+    from softpipe.transforms import transform_points
+    rng = np.random.default_rng(7)
+    m, points = rng.normal(size=(4, 4)), rng.normal(size=(50, 3))
+    for rows in (3, 4):
+        got = transform_points(m, points, rows)
+        assert got.shape == (50, rows)
+        for p, q in zip(points, got):
+            expected = [m[r, 0] * p[0] + m[r, 1] * p[1] + m[r, 2] * p[2] + m[r, 3] for r in range(rows)]
+            assert list(q) == expected           # the same sum in the same order: the same bytes
+    with pytest.raises(ValueError, match=r"points \(50, 2\)"):
+        transform_points(m, points[:, :2])
+    with pytest.raises(ValueError, match="rows 2"):
+        transform_points(m, points, 2)
