@@ -638,9 +638,9 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
             "    qs = q0 + q1 + q2",
             "    if not qs > 0.0:",         # an extrapolated pixel centre (multisampling) can make it 0
             "        q0, q1, q2, qs = b0, b1, b2, 1.0",
-            "    p0 = q0 / qs",
-            "    p1 = q1 / qs",
-            "    p2 = q2 / qs",
+            # v = (Σ q_k v_k) · (1/qs): one division a fragment, which the sums need not wait for
+            # (q_k/qs per weight put three divisions in front of every sum: 5-7 % of a lit sample)
+            "    r = 1.0 / qs",
         ]
     exprs = []
     for n, off, size, q in layout.fields:
@@ -649,7 +649,7 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
             if q == "flat":
                 comps.append(f"corner[t, 2, {k}]")
             elif q == "smooth":
-                comps.append(f"p0 * corner[t, 0, {k}] + p1 * corner[t, 1, {k}] + p2 * corner[t, 2, {k}]")
+                comps.append(f"(q0 * corner[t, 0, {k}] + q1 * corner[t, 1, {k}] + q2 * corner[t, 2, {k}]) * r")
             else:
                 comps.append(f"b0 * corner[t, 0, {k}] + b1 * corner[t, 1, {k}] + b2 * corner[t, 2, {k}]")
         value = comps[0] if size == 1 else f"({', '.join(comps)})"
@@ -775,8 +775,8 @@ def fragment_module(shader: Callable, layout: VaryingLayout):
 def _fragment_module(shader: Callable, layout: VaryingLayout, derivatives: bool):
     """The generated module holding ``fragment_inputs`` and ``fragment_loop`` for a shader and layout.
 
-    Interpolation (DESIGN.md): ``smooth`` is perspective-correct, weights
-    b_k/w_k renormalized; ``noperspective`` uses the window-space barycentrics
+    Interpolation (DESIGN.md): ``smooth`` is perspective-correct,
+    Σ q_k v_k / Σ q_k with q_k = b_k/w_k; ``noperspective`` uses the window-space barycentrics
     b_k directly; ``flat`` takes the provoking vertex's value, which primitive
     assembly has copied to every corner.
     """
