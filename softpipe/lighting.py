@@ -216,7 +216,7 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
         return position, 1.0
     to_light = sub(position, P)
     r = length(to_light)
-    L = normalize(to_light)
+    L = scale(to_light, 1.0 / r) if r > 0.0 else ZERO3     # normalize(to_light), one division for three
     f_att = attenuation(lights[j, LIGHT_ATTENUATION], lights[j, LIGHT_ATTENUATION + 1],
                         lights[j, LIGHT_ATTENUATION + 2], r)
     f_spot = spot_factor(L, light_vec3(lights, j, LIGHT_SPOT_DIRECTION),

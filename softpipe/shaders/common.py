@@ -43,7 +43,7 @@ from numba import types
 from numba.core.errors import TypingError
 from numba.extending import overload, register_jitable
 
-from ..glsl import mat3_mul_vec3, mat4_mul_vec4, normalize, scale
+from ..glsl import length, mat3_mul_vec3, mat4_mul_vec4, scale
 from ..material import Light, Lighting, LightingUniform
 
 __all__ = ["eye_space", "standard_vertex", "StandardVaryings", "toward_eye", "facing_normal",
@@ -91,6 +91,19 @@ def standard_vertex(attributes, uniforms):
 # --------------------------------------------------------------------------
 
 @register_jitable
+def _unit(v):
+    """v/|v| as v · (1/|v|), the zero vector for a zero (or NaN) v: N and V of every lit sample.
+
+    One division where :func:`~softpipe.glsl.normalize` (v/|v| per component) has three;
+    within an ulp of it. With it for N and V a lit sample costs 3-5 % less (issue 18).
+    """
+    n = length(v)
+    if n > 0.0:
+        return scale(v, 1.0 / n)
+    return (0.0, 0.0, 0.0)
+
+
+@register_jitable
 def toward_eye(P, projection):
     """V, the unit vector from the eye-space point P toward the eye.
 
@@ -100,7 +113,7 @@ def toward_eye(P, projection):
     """
     if projection[3, 0] == 0.0 and projection[3, 1] == 0.0 and projection[3, 2] == 0.0:
         return (0.0, 0.0, 1.0)
-    return normalize((-P[0], -P[1], -P[2]))
+    return _unit((-P[0], -P[1], -P[2]))
 
 
 @register_jitable
@@ -110,7 +123,7 @@ def facing_normal(normal, front_facing):
     Reversing it on back faces is OpenGL's two-sided lighting: the side of a
     surface one looks at is lit as the front (seen only when culling is off).
     """
-    N = normalize(normal)
+    N = _unit(normal)
     if front_facing:
         return N
     return scale(N, -1.0)
