@@ -147,20 +147,17 @@ def _bin_count(band_lo, band_hi, bounds, box, tiles_x, counts):
                     counts[band, ty * tiles_x + tx] += 1
 
 
-@numba.njit(cache=True)
 def _bin_places(counts):
-    """(starts [tiles + 1], fill [bands, tiles]): where each tile's list begins, and each band's place in it."""
+    """(starts [tiles + 1], fill [bands, tiles]): where each tile's list begins, and each band's place in it.
+
+    A prefix sum over (tile, band) in that order; numpy's (the arrays are a few hundred
+    entries: a compiled loop would cost its compile at a cold start and save nothing).
+    """
     bands, n_tiles = counts.shape
-    starts = np.empty(n_tiles + 1, np.int64)
-    fill = np.empty((bands, n_tiles), np.int64)
-    running = 0
-    for tile in range(n_tiles):
-        starts[tile] = running
-        for band in range(bands):
-            fill[band, tile] = running
-            running += counts[band, tile]
-    starts[n_tiles] = running
-    return starts, fill
+    running = np.zeros(n_tiles * bands + 1, np.int64)
+    np.cumsum(counts.T.ravel(), out=running[1:])
+    fill = np.ascontiguousarray(running[:-1].reshape(n_tiles, bands).T)
+    return np.ascontiguousarray(running[::bands]), fill
 
 
 @numba.njit(cache=True, nogil=True)
