@@ -156,8 +156,8 @@ def _bin_places(counts):
     bands, n_tiles = counts.shape
     running = np.zeros(n_tiles * bands + 1, np.int64)
     np.cumsum(counts.T.ravel(), out=running[1:])
-    fill = np.ascontiguousarray(running[:-1].reshape(n_tiles, bands).T)
-    return np.ascontiguousarray(running[::bands]), fill
+    fill = running[:-1].reshape(n_tiles, bands).T.copy()     # (copies: _bin_fill counts fill up in place)
+    return running[::bands].copy(), fill
 
 
 @numba.njit(cache=True, nogil=True)
