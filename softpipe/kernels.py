@@ -690,10 +690,41 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         "        out_color[i, 3] = c[3]",
         "",
         "",
+    ]
+    lines += _visible_loop_lines("visible_loop", inputs, call, at_samples=False)
+    lines += ["", ""] + _visible_loop_lines("visible_loop_at_samples", inputs, call, at_samples=True)
+    return "\n".join(lines) + "\n"
+
+
+def _visible_loop_lines(name: str, inputs: str, call: str, at_samples: bool) -> list:
+    """Source of the fast path's shading loop ``name``; ``at_samples``: for ``shading`` 0 only."""
+    mode = "0" if at_samples else "shading"
+    choose = (["                    mask, depth_sample, count = 0, s, 1"] if at_samples else [
+        "                    if shading == 0:           # at the sample",
+        "                        mask, depth_sample, count = 0, s, 1",
+        "                    else:                      # multisampling: once per pixel and triangle",
+        "                        earlier = -1",
+        "                        for m in range(s):",
+        "                            if vis[m, row, i] == t:",
+        "                                earlier = m",
+        "                                break",
+        "                        if earlier >= 0:",
+        "                            if status[0] != 0:       # (its color may not have been written)",
+        "                                continue",
+        "                            for c in range(4):",
+        "                                out_color[s, row, i, c] = out_color[earlier, row, i, c]",
+        "                            continue",
+        "                        mask, depth_sample, count = pixel_coverage(edges, bias, t, i, j, offsets)",
+    ])
+    return [
         "@JIT",
-        "def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plane, offsets, positions,",
+        f"def {name}(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plane, offsets, positions,",
         f"                 shading, {_TRIANGLE_ARGS}, uniforms, out_color, saved_color, started, status):",
         '    """Shade the samples the visibility pass kept (visibility.py), image rows row_lo:row_hi.',
+        "",
+        "    ``visible_loop_at_samples`` is this loop for ``shading`` 0 alone (each visible sample",
+        "    shaded at itself): without the multisampling branches, its first compile is a fifth",
+        "    shorter, and a draw that shades at the samples compiles only it.",
         "",
         "    Barycentrics, depth and position come from the triangle setup's functions (setup.py), as",
         "    the rasterizer's do. Tiles no triangle touched are skipped; each sample is shaded on its",
@@ -733,23 +764,9 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         "                    t = vis[s, row, i]",
         "                    if t < 0:",
         "                        continue",
-        "                    if shading == 0:           # at the sample",
-        "                        mask, depth_sample, count = 0, s, 1",
-        "                    else:                      # multisampling: once per pixel and triangle",
-        "                        earlier = -1",
-        "                        for m in range(s):",
-        "                            if vis[m, row, i] == t:",
-        "                                earlier = m",
-        "                                break",
-        "                        if earlier >= 0:",
-        "                            if status[0] != 0:       # (its color may not have been written)",
-        "                                continue",
-        "                            for c in range(4):",
-        "                                out_color[s, row, i, c] = out_color[earlier, row, i, c]",
-        "                            continue",
-        "                        mask, depth_sample, count = pixel_coverage(edges, bias, t, i, j, offsets)",
+        *choose,
         "                    b0, b1, b2, fx, fy = shading_point(edges, plane, t, i, j, s, mask, count, offsets,",
-        "                                                       positions, shading)",
+        f"                                                       positions, {mode})",
         "                    z = sample_depth(edges, plane, t, i, j, depth_sample, offsets)",
         f"                    {inputs} = interpolate(t, b0, b1, b2, fx, fy, z, {_TRIANGLE_ARGS})",
         f"                    c = rgba({call})",
@@ -761,7 +778,6 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
         "                    else:                      # NaN alpha: the reference path discards it",
         "                        status[0] = 1",
     ]
-    return "\n".join(lines) + "\n"
 
 
 def _fragment_preamble(layout: VaryingLayout) -> str:
@@ -790,9 +806,14 @@ def fragment_kernel(shader: Callable, layout: VaryingLayout):
     return fragment_module(shader, layout).fragment_loop
 
 
-def visible_kernel(shader: Callable, layout: VaryingLayout):
-    """The compiled loop that shades the samples a visibility pass kept (:mod:`softpipe.visibility`)."""
-    return fragment_module(shader, layout).visible_loop
+def visible_kernel(shader: Callable, layout: VaryingLayout, shading: str = "sample"):
+    """The compiled loop that shades the samples a visibility pass kept (:mod:`softpipe.visibility`).
+
+    ``shading`` "sample" (at each sample) has a loop of its own, ``visible_loop_at_samples``;
+    "center" and "centroid" (once per pixel and triangle) share ``visible_loop``.
+    """
+    module = fragment_module(shader, layout)
+    return module.visible_loop_at_samples if shading == "sample" else module.visible_loop
 
 
 def _is_nan(value) -> bool:

@@ -627,7 +627,7 @@ def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader
         if len(prims) == 0:
             return ShadedSamples(visibility, shading)
         shader = fragment_shader or default_fragment_shader(prims.layout)
-        kernel = kernels.visible_kernel(shader, prims.layout)
+        kernel = kernels.visible_kernel(shader, prims.layout, shading)
         args = visible_loop_args(prims, visibility, fb, shader, uniforms, shading)
         started, status = args[-2], args[-1]
         if _failure_modes(shader, prims.layout)[0]:
