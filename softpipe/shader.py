@@ -36,7 +36,10 @@ e.g. to choose a mipmap level) takes a fourth parameter::
 They are exact, not finite differences: the derivative of each varying's
 interpolation formula at the fragment, per window pixel (y up).
 
-``uniforms`` is built once per draw from a dict by :func:`make_uniforms`.
+``uniforms`` is built once per draw from a dict by :func:`make_uniforms`. A
+shader may declare the uniforms it reads, as GLSL does (``uniform mat4
+model_view;``), with :func:`reads_uniforms`: its compiled loop then takes only
+those, and serves every draw whose other uniforms differ.
 
 This module is the contract: the types a shader receives and returns. How a
 shader runs (the generated loop that inlines it, numba's compilation and cache,
@@ -55,7 +58,7 @@ from typing import Any, Callable, Dict, Mapping, Sequence, Tuple
 import numpy as np
 
 __all__ = ["FragInfo", "DISCARD", "Derivatives", "ShaderError", "make_uniforms", "VaryingLayout", "QUALIFIERS",
-           "wants_derivatives"]
+           "wants_derivatives", "reads_uniforms", "declared_uniforms"]
 
 #: The fragment's fixed-function inputs (``gl_FragCoord`` and friends).
 FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id"])
@@ -151,6 +154,38 @@ def __getattr__(attr: str):
     if attr.startswith("Uniforms_"):
         return _uniforms_class(_names_from_class_name(attr))
     raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
+
+
+def reads_uniforms(*names: str) -> Callable[[Callable], Callable]:
+    """Declare the uniforms a shader reads: ``@reads_uniforms("model_view", "projection")``.
+
+    As GLSL's ``uniform`` declarations: the compiled loop that runs the shader
+    is given only these (:func:`declared_uniforms`), so a program whose other
+    uniforms differ (another material, a user's own uniform) reuses the loop
+    compiled, and cached, for the first one instead of compiling it again for
+    a new uniforms type. A declared shader that reads an undeclared uniform
+    fails to compile with an error naming it. Undeclared shaders get every uniform.
+    """
+    for n in names:
+        check_name("uniform", n)
+
+    def declare(shader: Callable) -> Callable:
+        python_function(shader).uniforms_read = tuple(names)
+        return shader
+    return declare
+
+
+def declared_uniforms(shader: Callable, uniforms):
+    """``uniforms`` (a :func:`make_uniforms` namedtuple) cut down to those ``shader`` declares
+    with :func:`reads_uniforms` (the ones given of them), or ``uniforms`` itself."""
+    names = getattr(python_function(shader), "uniforms_read", None)
+    if names is None or uniforms is None:
+        return uniforms
+    names = tuple(n for n in names if n in uniforms._fields)
+    if names == tuple(uniforms._fields):
+        return uniforms
+    cls = _uniforms_class(names)
+    return cls(*(getattr(uniforms, n) for n in names)) if names else cls(0.0)
 
 
 def check_name(what: str, name) -> None:

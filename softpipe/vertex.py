@@ -19,7 +19,7 @@ import numpy as np
 
 from . import kernels
 from ._parallel import in_bands
-from .shader import VaryingLayout, check_name
+from .shader import VaryingLayout, check_name, declared_uniforms
 
 __all__ = ["VertexOut", "run_vertex_stage"]
 
@@ -134,6 +134,7 @@ def run_vertex_stage(positions, varyings: Optional[Mapping[str, Any]] = None,
 
 
 def _run_shader(vertex_shader: Callable, inputs: Dict[str, np.ndarray], uniforms) -> VertexOut:
+    uniforms = declared_uniforms(vertex_shader, uniforms)     # (its loop serves every such program)
     n = len(inputs["position"])
     sizes = [(k, a.shape[1]) for k, a in inputs.items()]
     Attributes = namedtuple("Attributes", list(inputs))

@@ -45,6 +45,7 @@ from numba.extending import overload, register_jitable
 
 from ..glsl import length, mat3_mul_vec3, mat4_mul_vec4, scale
 from ..material import Light, Lighting, LightingUniform
+from ..shader import reads_uniforms
 
 __all__ = ["eye_space", "standard_vertex", "StandardVaryings", "toward_eye", "facing_normal",
            "uniform_or", "rgba", "DEFAULT_LIGHTING", "lighting_uniform"]
@@ -72,6 +73,7 @@ def eye_space(attributes, uniforms):
 StandardVaryings = namedtuple("StandardVaryings", ["position", "normal"])
 
 
+@reads_uniforms("model_view", "projection", "normal_matrix")
 def standard_vertex(attributes, uniforms):
     """The usual vertex shader: model-view-projection, eye-space P and N as varyings.
 

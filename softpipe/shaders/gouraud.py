@@ -19,12 +19,14 @@ from collections import namedtuple
 
 from ..glsl import normalize, saturate
 from ..lighting import BLINN_PHONG, PHONG, opengl_lighting
+from ..shader import reads_uniforms
 from . import Program, register
 from .common import eye_space, rgba, toward_eye
 
 GouraudVaryings = namedtuple("GouraudVaryings", ["color"])  # RGBA
 
 
+@reads_uniforms("model_view", "projection", "normal_matrix", "material", "lighting")
 def gouraud_vertex(attributes, uniforms):
     """Light the vertex (§10, Blinn-Phong specular); pass its color on."""
     clip, P, N = eye_space(attributes, uniforms)
@@ -34,6 +36,7 @@ def gouraud_vertex(attributes, uniforms):
     return clip, GouraudVaryings(rgba(saturate(color), uniforms.material.opacity))
 
 
+@reads_uniforms("model_view", "projection", "normal_matrix", "material", "lighting")
 def gouraud_phong_specular_vertex(attributes, uniforms):
     """Light the vertex (§10 with Phong's (R·V)₊ⁿ specular); pass its color on."""
     clip, P, N = eye_space(attributes, uniforms)

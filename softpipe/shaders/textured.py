@@ -24,6 +24,7 @@ from collections import namedtuple
 from ..glsl import mul
 from ..lighting import BLINN_PHONG, opengl_lighting
 from ..material import MaterialUniform
+from ..shader import reads_uniforms
 from ..texture import texture_grad
 from . import Program, register
 from .common import eye_space, facing_normal, rgba, toward_eye
@@ -31,6 +32,7 @@ from .common import eye_space, facing_normal, rgba, toward_eye
 TexturedVaryings = namedtuple("TexturedVaryings", ["position", "normal", "uv"])
 
 
+@reads_uniforms("model_view", "projection", "normal_matrix")
 def textured_vertex(attributes, uniforms):
     """Eye-space P and N, and the texture coordinates, for the rasterizer to interpolate."""
     clip, P, N = eye_space(attributes, uniforms)
