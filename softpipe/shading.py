@@ -32,7 +32,9 @@ A shader is a plain Python function, written like GLSL and compiled by numba::
     a :class:`Material` its :class:`MaterialUniform` (``uniforms.material.kd``),
     the ``lighting`` uniform a :class:`LightingUniform` (``global_ambient``
     and ``lights``, the packed eye-space lights, one row per light).
-    :func:`uniform_or` reads an optional one with a default.
+    :func:`uniform_or` reads an optional one with a default. A vertex shader
+    may declare the ones it reads, ``@reads_uniforms("model_view", …)``, as
+    GLSL's ``uniform`` lines: its compiled loop then serves every program.
 ``Varyings``
     Any namedtuple class; its fields (a float or a tuple of 2–4 floats each)
     are what the rasterizer interpolates, and the fragment shader receives
@@ -155,7 +157,7 @@ from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DI
                        LightingUniform, Material, MaterialUniform)
 from .rays import RayScene, hit_normal, hit_position, medium_falloff, ray_visibility, trace_any, trace_closest
 from .raytrace import trace_ray, tracer_uniform
-from .shader import DISCARD, Derivatives, FragInfo, ShaderError
+from .shader import DISCARD, Derivatives, FragInfo, ShaderError, reads_uniforms
 from .shadowmap import ShadowSettings
 from .shaders import Program
 from .shaders.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
@@ -163,7 +165,7 @@ from .shaders.common import (StandardVaryings, eye_space, facing_normal, lightin
 
 __all__ = [
     # the contract
-    "FragInfo", "DISCARD", "Derivatives", "ShaderError",
+    "FragInfo", "DISCARD", "Derivatives", "ShaderError", "reads_uniforms",
     # programs and the vertex side
     "Program", "standard_vertex", "StandardVaryings", "eye_space",
     # surface vectors and helpers
