@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench bench-cold bench-peers bench-batch bench-rays fuzz clean
+.PHONY: demo test bench bench-cold bench-peers bench-batch bench-rays fuzz clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,15 @@ bench-rays: $(STAMP)
 
 clean:
 	rm -rf $(VENV) out build *.egg-info
+
+# numba keeps each compiled function in __pycache__ beside its source and checks only that
+# file: after editing one of softpipe's modules, a function in another module that calls it
+# may still load its old compiled copy. This drops softpipe's compiled functions and its
+# generated kernels (these are keyed by a hash of the sources, but take room).
+clean-cache:
+	find softpipe -name __pycache__ -type d -prune -exec rm -rf {} +
+	rm -rf "$${SOFTPIPE_CACHE_DIR:-$${XDG_CACHE_HOME:-$$HOME/.cache}/softpipe/kernels}"
+	@[ -z "$$NUMBA_CACHE_DIR" ] || echo "NUMBA_CACHE_DIR is set ($$NUMBA_CACHE_DIR): numba caches there; empty it yourself"
 
 # Coverage-guided fuzzing of the OBJ and scene-file parsers (fuzz/README.md): atheris
 # when it installs, hypothesis otherwise. SECONDS per target.
