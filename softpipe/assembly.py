@@ -101,8 +101,9 @@ def _check_indices(indices, n_vertices: int) -> np.ndarray:
     if not (arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] == 3)):
         raise ValueError(f"indices must have shape [M] or [M, 3], got {list(np.shape(indices))}")
     flat = arr.reshape(-1)
-    if flat.size and flat.dtype.kind == "u" and int(flat.max()) >= n_vertices:
-        # checked before the cast: a uint64 above 2^63 would turn negative in int64
+    if flat.size and flat.dtype.kind == "u" and flat.dtype.itemsize == 8 and int(flat.max()) >= n_vertices:
+        # checked before the cast: a uint64 above 2^63 would turn negative in int64 (narrower
+        # unsigned integers cast exactly, and the range check below sees them)
         where = int(np.argmax(flat >= n_vertices))
         raise ValueError(f"indices[{where}] = {int(flat[where])} is out of range for {n_vertices} vertices")
     if not flat.size:

@@ -51,6 +51,7 @@ from __future__ import annotations
 import inspect
 import keyword
 import math
+import types
 from collections import namedtuple
 from dataclasses import dataclass
 from typing import Any, Callable, Dict, Mapping, Sequence, Tuple
@@ -285,8 +286,11 @@ Derivatives = namedtuple("Derivatives", ["dx", "dy"])
 
 def wants_derivatives(shader: Callable) -> bool:
     """Does the fragment shader take a 4th parameter (screen-space derivatives of its varyings)?"""
+    f = python_function(shader)
+    if isinstance(f, types.FunctionType) and not hasattr(f, "__wrapped__"):
+        return f.__code__.co_argcount >= 4      # (what inspect.signature counts, without its cost per draw)
     try:
-        params = inspect.signature(python_function(shader)).parameters.values()
+        params = inspect.signature(f).parameters.values()
     except (TypeError, ValueError):
         return False
     return sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params) >= 4

@@ -275,3 +275,12 @@ def test_a_huge_unsigned_index_is_reported_as_it_is_not_wrapped_negative():
     idx = np.array([0, 1, 2, 0, 1, 2**64 - 1], dtype=np.uint64)
     with pytest.raises(ValueError, match=r"indices\[5\] = 18446744073709551615 is out of range for 3 vertices"):
         sp.draw(sp.Framebuffer(8, 8), clip, idx, varyings={"color": np.ones((3, 3))})
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.uint32, np.int32])
+def test_an_index_past_the_vertices_is_named_whatever_its_integer_type(dtype):
+    import softpipe as sp
+    clip = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [0, 1, 0, 1]], float)
+    idx = np.array([0, 1, 2, 2, 1, 200], dtype=dtype)
+    with pytest.raises(ValueError, match=r"indices\[5\] = 200 is out of range for 3 vertices"):
+        sp.draw(sp.Framebuffer(8, 8), clip, idx, varyings={"color": np.ones((3, 3))})
