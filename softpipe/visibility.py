@@ -343,6 +343,7 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
             vis[s, row, x_lo:x_hi + 1] = -1
     far = 0.0
     save = saved_depth.shape[0] > 0
+    tile_touched = touched[tile]
     if hiz and starts[tile + 1] > starts[tile]:
         for s in range(offsets.shape[0]):
             for row in range(height - 1 - y_hi, height - y_lo):
@@ -365,9 +366,12 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
                 continue
             if whole_tile and _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
                 far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
-        if save and not touched[tile]:      # the tile's depth before this draw, to undo it (shade_visible)
-            _save_tile(depth, saved_depth, height - 1 - y_hi, height - y_lo, x_lo, x_hi + 1)
-        touched[tile] = True
+        if not tile_touched:
+            if save:                        # the tile's depth before this draw, to undo it (shade_visible)
+                _save_tile(depth, saved_depth, height - 1 - y_hi, height - y_lo, x_lo, x_hi + 1)
+            # written once per tile, not per triangle: neighbouring tiles' flags share a cache
+            # line, and the other thread is drawing those tiles
+            touched[tile] = tile_touched = True
         if i1 - i0 < NARROW:
             _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
         else:
