@@ -43,7 +43,7 @@ STRIPES = r'''
 import sys, time
 import numpy as np
 import softpipe as sp
-from softpipe.glsl import mix
+from softpipe.language.glsl import mix
 
 fb = sp.Framebuffer(64, 48)
 positions = np.array([[-0.8, -0.8, 0.0, 1.0], [0.8, -0.8, 0.0, 1.0], [0.0, 0.8, 0.0, 1.0]])
@@ -70,8 +70,8 @@ import sys, time
 sys.path.insert(0, {examples!r})
 from user_program import wrapped
 from common import key_light, render
-from softpipe import shapes
-from softpipe.camera import Camera
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
 from softpipe.shading import Material
 
 camera = Camera(eye=(0.0, 0.0, 3.4), fovy=38.0)

@@ -58,8 +58,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
-from softpipe.framebuffer import Framebuffer  # noqa: E402
-from softpipe.material import LIGHT_COLUMNS, Light, Lighting  # noqa: E402
+from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
+from softpipe.light.material import LIGHT_COLUMNS, Light, Lighting  # noqa: E402
 
 from .run import machine_info, render_frame, source_state  # noqa: E402
 from .scenes import REPO_ROOT, SCENES, Scene, build_scene, color_vertex  # noqa: E402
@@ -77,8 +77,8 @@ DEFAULT_JSON = REPO_ROOT / "out" / "bench-peers.json"
 
 def _bunny_blinn(scale: float = 1.0) -> Scene:
     """The bunny with softpipe's ``phong`` program (Blinn-Phong) and sphere200k's one directional light."""
-    from softpipe.shaders import get_program
-    import softpipe.shaders.phong  # noqa: F401  (registers the program)
+    from softpipe.programs import get_program
+    import softpipe.programs.phong  # noqa: F401  (registers the program)
 
     base = build_scene("bunny", scale)
     program = get_program("phong")
@@ -91,7 +91,7 @@ def _bunny_blinn(scale: float = 1.0) -> Scene:
     return replace(base, name="bunny-blinn", draws=draws, notes=[],
                    description=f"Stanford bunny ({base.triangles} triangles), softpipe's phong (Blinn-Phong per "
                                "fragment), sphere200k's one directional light, the bunny's material",
-                   shading="vertex softpipe.shaders.common.standard_vertex, fragment softpipe.shaders.phong."
+                   shading="vertex softpipe.programs.common.standard_vertex, fragment softpipe.programs.phong."
                            "phong_fragment")
 
 
@@ -148,7 +148,7 @@ in vec3 in_position;
 in vec3 in_normal;
 out vec3 v_position;
 out vec3 v_normal;
-void main() {                       // softpipe.shaders.common.standard_vertex
+void main() {                       // softpipe.programs.common.standard_vertex
     vec4 P = model_view * vec4(in_position, 1.0);
     gl_Position = projection * P;
     v_position = P.xyz;
@@ -156,12 +156,12 @@ void main() {                       // softpipe.shaders.common.standard_vertex
 }
 """
 
-#: Lights the GLSL program takes (packed as softpipe.material.pack_lights packs them).
+#: Lights the GLSL program takes (packed as softpipe.light.material.pack_lights packs them).
 MAX_LIGHTS = 8
 
 LIT_FRAGMENT = """#version 430
-// softpipe.shaders.phong: phong_fragment (specular_model 0, Blinn-Phong (N.H)+^n) and
-// phong_phong_specular_fragment (1, Phong (R.V)+^n); softpipe.lighting.opengl_lighting (FORMULAS 10).
+// softpipe.programs.phong: phong_fragment (specular_model 0, Blinn-Phong (N.H)+^n) and
+// phong_phong_specular_fragment (1, Phong (R.V)+^n); softpipe.light.lighting.opengl_lighting (FORMULAS 10).
 const int MAX_LIGHTS = %(max_lights)d;
 const int COLS = %(cols)d;
 uniform vec3 ke;
@@ -172,14 +172,14 @@ uniform float shininess;
 uniform float opacity;
 uniform vec3 global_ambient;
 uniform int num_lights;
-uniform float lights[MAX_LIGHTS * COLS];   // softpipe.material.pack_lights' rows, eye space
+uniform float lights[MAX_LIGHTS * COLS];   // softpipe.light.material.pack_lights' rows, eye space
 uniform int specular_model;
 uniform int orthographic;
 in vec3 v_position;
 in vec3 v_normal;
 out vec4 f_color;
 
-vec3 safe_normalize(vec3 v) {       // softpipe.glsl.normalize: the zero vector stays zero
+vec3 safe_normalize(vec3 v) {       // softpipe.language.glsl.normalize: the zero vector stays zero
     float n = length(v);
     return n > 0.0 ? v / n : vec3(0.0);
 }
@@ -239,7 +239,7 @@ void main() {
 
 
 def _lit_fragment_source() -> str:
-    from softpipe import material as m
+    from softpipe.light import material as m
     return LIT_FRAGMENT % dict(max_lights=MAX_LIGHTS, cols=LIGHT_COLUMNS, kind=m.LIGHT_KIND,
                                directional=m.LIGHT_DIRECTIONAL, position=m.LIGHT_POSITION,
                                att=m.LIGHT_ATTENUATION, cutoff=m.LIGHT_SPOT_COS_CUTOFF,
@@ -353,8 +353,8 @@ def _set(prog, name: str, data: bytes) -> None:
 
 def _specular_model(fragment) -> int:
     """0 (Blinn-Phong) or 1 (Phong) for the lit fragment shaders the scenes use; PeerUnsupported otherwise."""
-    from softpipe.shaders import get_program
-    import softpipe.shaders.phong  # noqa: F401
+    from softpipe.programs import get_program
+    import softpipe.programs.phong  # noqa: F401
     from . import scenes
     if fragment is get_program("phong").fragment or fragment is scenes.blinn_phong_fragment:
         return 0

@@ -1,15 +1,15 @@
 """Ray queries: ``python -m benchmarks.rays`` (``make bench-rays``; issue 16, "Speed").
 
-For each model (default: the bunny and the armadillo, :func:`softpipe.models.load_model`):
+For each model (default: the bunny and the armadillo, :func:`softpipe.scenes.models.load_model`):
 
-* **build**: :meth:`softpipe.bvh.BVH.build` (binned SAH, ``leaf_size=4, bins=16``), warm
+* **build**: :meth:`softpipe.rays.bvh.BVH.build` (binned SAH, ``leaf_size=4, bins=16``), warm
   (one untimed build first), median of ``--repeats``;
 * **rays** at ``--size`` (default 1024²), three kinds, each a batch query of the whole set:
 
   - ``primary``: one ray per pixel centre of the framing camera
     (``Scene.from_model(model, width=size, height=size).view_camera()``), from the near
     plane toward the far plane, ``t`` in (0, distance to the far plane): the rays of
-    ``softpipe.raytrace._primary_ray``, generated here in numpy. Closest hit
+    ``softpipe.tracers.whitted._primary_ray``, generated here in numpy. Closest hit
     (:meth:`BVH.closest`). Rays that miss the model count: the figure is pixels/s.
   - ``shadow``: from every primary hit toward a point light (three radii of the model
     from its centre, in the direction of the studio key light), any hit
@@ -37,7 +37,7 @@ ratios). What embreex gives, and what that means for the comparison:
 * ``run`` traces its rays one by one on the calling thread, and releases the GIL while it does
   (embreex 4.4: 2 Python threads trace 1024² bunny rays 1.7× faster than one). Embree at n
   threads is therefore ``run`` on n Python threads over bands of the rays (4 bands per thread,
-  at least 1024 rays each, taken in turn), as softpipe's :func:`~softpipe._parallel.in_bands` does;
+  at least 1024 rays each, taken in turn), as softpipe's :func:`~softpipe.core.parallel.in_bands` does;
   softpipe at n threads is compared with Embree at n threads.
 * Embree's build uses its own TBB thread pool (every core); it cannot be limited from
   embreex. Its build time is "scene + geometry + commit", the device made once before.
@@ -81,9 +81,9 @@ from typing import Callable, Dict, List, Optional, Sequence  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
-from softpipe.bvh import BVH  # noqa: E402
-from softpipe.models import load_model  # noqa: E402
-from softpipe.scene import Scene  # noqa: E402
+from softpipe.rays.bvh import BVH  # noqa: E402
+from softpipe.scenes.models import load_model  # noqa: E402
+from softpipe.scenes.scene import Scene  # noqa: E402
 
 from .run import machine_info, source_state  # noqa: E402
 from .scenes import REPO_ROOT  # noqa: E402
@@ -106,7 +106,7 @@ EMBREE_REQUIREMENT = "embreex"
 EPSILON_REL = 1e-4
 #: The point light: this many bounding-sphere radii from the model's centre, toward the studio key light.
 LIGHT_DISTANCE_RADII = 3.0
-#: The studio key light's direction toward the light, in eye space (softpipe.scene.studio_lights).
+#: The studio key light's direction toward the light, in eye space (softpipe.scenes.scene.studio_lights).
 KEY_TOWARD_LIGHT_EYE = (-0.6, 0.7, 0.7)
 
 
@@ -116,7 +116,7 @@ def primary_rays(camera, width: int, height: int):
     """One ray per pixel centre: (origins [R, 3] on the near plane, unit directions [R, 3], t_max [R]).
 
     Pixel (i, image row j) is ray ``j * width + i``; numpy's version of
-    ``softpipe.raytrace._primary_ray``: NDC (2(i+½)/w − 1, 1 − 2(j+½)/h) unprojected at
+    ``softpipe.tracers.whitted._primary_ray``: NDC (2(i+½)/w − 1, 1 − 2(j+½)/h) unprojected at
     z = −1 (origin) and z = +1, the direction their unit difference, t_max its length.
     """
     unproject = np.linalg.inv(camera.projection(width / height) @ camera.view)

@@ -23,7 +23,7 @@ by default; ``out/`` is git-ignored). See ``benchmarks/README.md`` for what each
 column means and for measured figures.
 
 Counting does not touch the timed frames: after them, one more, untimed frame
-runs with three of ``softpipe.pipeline``'s functions wrapped: ``assemble`` (its
+runs with three of ``softpipe.pipeline.draw``'s functions wrapped: ``assemble`` (its
 triangles' covered samples, by ``count_fragments``: "covered"),
 ``run_fragment_stage`` on the reference path (its shader invocations) and
 ``shade_visible`` on the fast path (the samples its visibility pass left to
@@ -61,11 +61,11 @@ from typing import Callable, Dict, List, Optional, Sequence  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
-import softpipe.pipeline as _pipeline  # noqa: E402
-from softpipe._runtime import release_memory  # noqa: E402
-from softpipe.framebuffer import Framebuffer  # noqa: E402
-from softpipe.pipeline import DrawCall  # noqa: E402
-from softpipe.raster import count_fragments  # noqa: E402
+import softpipe.pipeline.draw as _pipeline  # noqa: E402
+from softpipe.core.runtime import release_memory  # noqa: E402
+from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
+from softpipe.pipeline.draw import DrawCall  # noqa: E402
+from softpipe.pipeline.raster import count_fragments  # noqa: E402
 
 from .scenes import REPO_ROOT, SCENES, Scene, build_scene  # noqa: E402
 
@@ -284,7 +284,7 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
         Framebuffer(scene.width, scene.height)
     notes = list(scene.notes)
     gc.collect()
-    release_memory()        # what earlier scenes left for reuse (softpipe._runtime) is not this scene's
+    release_memory()        # what earlier scenes left for reuse (softpipe.core.runtime) is not this scene's
     start_rss = _rss_mb()
     reset = _reset_peak_rss()
 
@@ -310,7 +310,7 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
 
     covered, fragments = count_fragments_of(scene, fb)
     if fragments is None:
-        notes.append(f"{scene.name}: could not count shaded fragments (softpipe.pipeline has neither "
+        notes.append(f"{scene.name}: could not count shaded fragments (softpipe.pipeline.draw has neither "
                      "run_fragment_stage nor shade_visible any more); shaded px/s left out")
     image = fb.to_uint8()
     clear = np.rint(np.clip(np.asarray(scene.clear_color, np.float64), 0, 1) * 255).astype(np.uint8)
@@ -463,7 +463,7 @@ def source_state() -> dict:
 
 
 def _threading_layer() -> str:
-    """numba's threading layer, if some parallel kernel started it (softpipe's own run none: softpipe._parallel)."""
+    """numba's threading layer, if some parallel kernel started it (softpipe's own run none: softpipe.core.parallel)."""
     try:
         return numba.threading_layer()
     except ValueError:

@@ -1,11 +1,11 @@
-"""The standard benchmark scenes of issue 6, built from code and the bundled models (``softpipe.models``).
+"""The standard benchmark scenes of issue 6, built from code and the bundled models (``softpipe.scenes.models``).
 
 Each scene is a function ``scene(scale=1.0) -> Scene``. ``scale`` 1 is the size
 the issue specifies; a smaller scale shrinks the framebuffer by ``scale`` on
 each side and the generated geometry to match (so that ``make test`` can run
 every scene in a fraction of a second); meshes loaded from files keep their
 triangles. A :class:`Scene` is plain data: a framebuffer size, a clear color and
-a list of draws, each the keyword arguments of :class:`softpipe.pipeline.DrawCall`
+a list of draws, each the keyword arguments of :class:`softpipe.pipeline.draw.DrawCall`
 (without the framebuffer). Everything random is seeded: a scene is the same
 bytes in every process.
 
@@ -25,11 +25,11 @@ bytes in every process.
 =================== ===================================================================
 
 The lit scenes use softpipe's built-in programs when they are there
-(``phong``, ``phong_phong_specular`` and ``textured`` of ``softpipe.shaders``,
-with the uniforms of :mod:`softpipe.shaders.common`); if one is missing, the
+(``phong``, ``phong_phong_specular`` and ``textured`` of ``softpipe.programs``,
+with the uniforms of :mod:`softpipe.programs.common`); if one is missing, the
 scene falls back to a shader written here (module-level functions, so numba
-compiles each once per process) with :mod:`softpipe.glsl` and
-:mod:`softpipe.lighting`, and says so in its notes. :attr:`Scene.shading`
+compiles each once per process) with :mod:`softpipe.language.glsl` and
+:mod:`softpipe.light.lighting`, and says so in its notes. :attr:`Scene.shading`
 names the shaders a scene ran.
 """
 from __future__ import annotations
@@ -43,29 +43,29 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from softpipe.camera import Camera
-from softpipe.glsl import dot, mat3_mul_vec3, mat4_mul_vec4, neg, normalize
-from softpipe.lighting import BLINN_PHONG, PHONG, opengl_lighting
-from softpipe.material import Light, Lighting, Material
-from softpipe.models import MODELS_DIR
-from softpipe.obj import load_obj
-from softpipe.drawing import standard_uniforms
-from softpipe.shaders import get_program
-from softpipe.shapes import plane, uv_sphere
-from softpipe.texture import Texture2D, texture
-from softpipe.transforms import compose
+from softpipe.pipeline.camera import Camera
+from softpipe.language.glsl import dot, mat3_mul_vec3, mat4_mul_vec4, neg, normalize
+from softpipe.light.lighting import BLINN_PHONG, PHONG, opengl_lighting
+from softpipe.light.material import Light, Lighting, Material
+from softpipe.scenes.models import MODELS_DIR
+from softpipe.scenes.obj import load_obj
+from softpipe.scenes.drawing import standard_uniforms
+from softpipe.programs import get_program
+from softpipe.scenes.shapes import plane, uv_sphere
+from softpipe.light.texture import Texture2D, texture
+from softpipe.pipeline.transforms import compose
 from softpipe.shading import standard_vertex
 
 __all__ = ["Scene", "SCENES", "build_scene", "AssetMissing", "ASSETS", "asset_path", "TEXTURE_NOTE"]
 
-#: Where the meshes are: the models bundled with softpipe (:mod:`softpipe.models`). A relative
+#: Where the meshes are: the models bundled with softpipe (:mod:`softpipe.scenes.models`). A relative
 #: path here would be taken from the repository root (the folder holding ``benchmarks/``).
 ASSETS = MODELS_DIR
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 #: What ``spot-textured`` samples with when the built-in ``textured`` program is missing.
 TEXTURE_NOTE = ("spot-textured: the built-in 'textured' program is missing, so the fallback shader samples with "
-                "softpipe.texture.texture(), i.e. level of detail 0 (bilinear from mip level 0), not trilinear")
+                "softpipe.light.texture.texture(), i.e. level of detail 0 (bilinear from mip level 0), not trilinear")
 
 
 class AssetMissing(FileNotFoundError):
@@ -86,7 +86,7 @@ def asset_path(relative: str, scene: str) -> Path:
 class Scene:
     """One benchmark frame: clear the framebuffer, then run ``draws`` in order.
 
-    ``draws`` are keyword arguments of :class:`softpipe.pipeline.DrawCall` (all but
+    ``draws`` are keyword arguments of :class:`softpipe.pipeline.draw.DrawCall` (all but
     the framebuffer). ``triangles`` counts the triangles submitted per frame.
     """
 
@@ -187,10 +187,10 @@ def _sphere_meshes(scale: float):
 def _program(name: str, module: str, fallback_vertex: Callable, fallback_fragment: Callable, scene: str):
     """(vertex, fragment, notes) of built-in program ``name``, else of the fallback shaders here.
 
-    ``softpipe.shaders.<module>`` is imported first (importing it registers the program).
+    ``softpipe.programs.<module>`` is imported first (importing it registers the program).
     """
     try:
-        importlib.import_module(f"softpipe.shaders.{module}")
+        importlib.import_module(f"softpipe.programs.{module}")
         program = get_program(name)
         return program.vertex, program.fragment, []
     except (ImportError, ValueError) as err:
@@ -405,9 +405,9 @@ def _bunny_on_plane(name: str, shadows: bool) -> Callable[[float], Scene]:
     renders both maps in every frame and hands them to the draws' lighting uniform.
     """
     def scene(scale: float = 1.0) -> Scene:
-        from softpipe.scene import SceneObject
-        from softpipe.shadowmap import ShadowSettings
-        from softpipe.shadows import render_shadow_maps
+        from softpipe.scenes.scene import SceneObject
+        from softpipe.light.shadowmap import ShadowSettings
+        from softpipe.scenes.shadow_pass import render_shadow_maps
 
         w, h = _size(1024, 1024, scale)
         mesh = load_obj(asset_path("stanford-bunny.obj", name))
@@ -463,7 +463,7 @@ def _bunny_on_plane(name: str, shadows: bool) -> Callable[[float], Scene]:
 #: name → scene function, in the issue's order.
 def _bunny_aa(name: str, pattern_name: str, sample_shading: str) -> Callable[[float], Scene]:
     """The bunny at 512×512 with a sample pattern: the cost of each antialiasing mode (issue 8)."""
-    from softpipe.sampling import pattern_named
+    from softpipe.pipeline.sampling import pattern_named
 
     def scene(scale: float = 1.0) -> Scene:
         base = bunny(scale * 0.5)

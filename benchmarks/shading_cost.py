@@ -30,10 +30,10 @@ import time
 
 import numba
 
-from softpipe import kernels
-from softpipe.framebuffer import Framebuffer
-from softpipe.pipeline import DrawCall
-from softpipe.visibility import visible_loop_args
+from softpipe.language import kernels
+from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.visibility import visible_loop_args
 
 from .scenes import build_scene
 

@@ -5,7 +5,7 @@
 Top row, the whole picture; bottom row, the same edge zoomed so the pixels show.
 
 * 1 sample at the pixel centre (§23): stair steps.
-* 4 samples on a regular 2×2 grid (§24, ``softpipe.sampling.grid(2)``), every
+* 4 samples on a regular 2×2 grid (§24, ``softpipe.pipeline.sampling.grid(2)``), every
   sample shaded and the pixel their average: supersampling (SSAA).
 * 4 samples on the rotated grid (``rotated_grid_4x()``): the same cost, but
   near-horizontal and near-vertical edges get 4 coverage levels instead of 2.
@@ -23,11 +23,11 @@ import numpy as np
 from common import image, key_light, render, save_sheet, zoom
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.material import Material
-from softpipe.sampling import CENTER, grid, jittered, rotated_grid_4x
-from softpipe.transforms import compose, rotate_x, rotate_y, translate
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Material
+from softpipe.pipeline.sampling import CENTER, grid, jittered, rotated_grid_4x
+from softpipe.pipeline.transforms import compose, rotate_x, rotate_y, translate
 
 MODES = (("1 sample", CENTER, "sample"),
          ("4 grid SSAA", grid(2), "sample"),

@@ -18,17 +18,17 @@ if str(REPO) not in sys.path:          # run from a checkout without installing
     sys.path.insert(0, str(REPO))
 
 import softpipe as sp  # noqa: E402
-from softpipe.material import Lighting  # noqa: E402
-from softpipe.mesh import Mesh  # noqa: E402
-from softpipe.models import MODELS_DIR, model_path  # noqa: E402
-from softpipe.obj import load_obj  # noqa: E402
-from softpipe.pictures import contact_sheet  # noqa: E402
-from softpipe.drawing import draw_mesh  # noqa: E402
+from softpipe.light.material import Lighting  # noqa: E402
+from softpipe.scenes.mesh import Mesh  # noqa: E402
+from softpipe.scenes.models import MODELS_DIR, model_path  # noqa: E402
+from softpipe.scenes.obj import load_obj  # noqa: E402
+from softpipe.views.pictures import contact_sheet  # noqa: E402
+from softpipe.scenes.drawing import draw_mesh  # noqa: E402
 # the lit programs register themselves when imported
-from softpipe.shaders import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: E402,F401
-from softpipe.shaders.common import lighting_uniform  # noqa: E402
+from softpipe.programs import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: E402,F401
+from softpipe.programs.common import lighting_uniform  # noqa: E402
 
-#: The test meshes bundled with softpipe (:mod:`softpipe.models`, ``softpipe/data/models/``).
+#: The test meshes bundled with softpipe (:mod:`softpipe.scenes.models`, ``softpipe/data/models/``).
 ASSETS = MODELS_DIR
 #: Where the contact sheets go.
 OUT = REPO / "out" / "examples"
@@ -128,13 +128,13 @@ def zoom(picture: np.ndarray, factor: int) -> np.ndarray:
 
 def key_light(**kw) -> Lighting:
     """One white directional light from the upper left, in front (its rays travel down, right, back)."""
-    from softpipe.material import Light
+    from softpipe.light.material import Light
     return Lighting([Light.directional((1.0, -1.0, -1.2), **kw)], global_ambient=(0.15, 0.15, 0.15))
 
 
 def studio_lighting() -> Lighting:
     """Key, fill and rim lights: a directional key, a dimmer bluish point fill, a spot from behind."""
-    from softpipe.material import Light
+    from softpipe.light.material import Light
     return Lighting([
         Light.directional((1.0, -1.0, -1.2), name="key"),
         Light.point((3.0, 0.5, 3.0), diffuse=(0.25, 0.3, 0.4), specular=(0.3, 0.3, 0.4), name="fill"),

@@ -8,7 +8,7 @@ Beckmann D, the geometry term G, exact Fresnel F) for a smooth dielectric
 angles) and a rougher, metal-like surface (m = 0.35, a large real index, 10,
 standing in for a metal's complex one: F ≈ 0.67); Gooch's cool-to-warm tones
 (``gooch``) with a silhouette rim, on a light background as in the paper.
-The meshes are the models bundled with softpipe (:mod:`softpipe.models`).
+The meshes are the models bundled with softpipe (:mod:`softpipe.scenes.models`).
 
 Gooch's columns take the paper's set-up (Gooch et al. 1998, §4.2 and Figures 2, 5, 7):
 b = 0.4, y = 0.4, α = 0.2, β = 0.6 (the program's defaults), the light perpendicular
@@ -21,8 +21,8 @@ k_cool = (0.2, 0, 0.4) to k_warm = (1, 0.4, 0).
 import numpy as np
 from common import image, key_light, load_asset, render, save_sheet
 
-from softpipe.camera import Camera
-from softpipe.material import Light, Lighting, Material
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Light, Lighting, Material
 
 BASE = dict(ka=(0.06, 0.05, 0.05), kd=(0.55, 0.45, 0.4), ks=(0.9, 0.9, 0.9))
 COLUMNS = (
@@ -32,7 +32,7 @@ COLUMNS = (
     ("Gooch, gray kd 0.5", "gooch", Material(kd=(0.5, 0.5, 0.5)), {"gooch_outline": 0.3}),   # the paper's Fig. 5
     ("Gooch, red kd (1, 0, 0)", "gooch", Material(kd=(1.0, 0.0, 0.0)), {"gooch_outline": 0.3}),   # its Fig. 2
 )
-MODELS = (("bunny", 20.0, 10.0), ("teapot", 25.0, 20.0))   # softpipe.models names
+MODELS = (("bunny", 20.0, 10.0), ("teapot", 25.0, 20.0))   # softpipe.scenes.models names
 
 
 def side_light(camera: Camera) -> Lighting:

@@ -10,14 +10,14 @@ unfolded as a cross; (c) the scene, the spheres drawn with the programs ``mirror
 fills the background. The spheres see the sky only: not the floor, not each other.
 
 Dynamic environments: (d) each sphere's cube map drawn from its centre, six
-90° draws of the scene (``softpipe.envmap.dynamic_environments``), so the mirror
+90° draws of the scene (``softpipe.scenes.environment_pass.dynamic_environments``), so the mirror
 shows the checkerboard, the box and the glass sphere; (e) the mirror's map
 unfolded.
 
 Rays: (f) the scene rasterized, the spheres' fragments tracing their
 reflected and refracted rays through the scene (``render_with_environments(scene,
 "rays")``: ray queries from the fragment shader); (g) the same scene ray traced
-(``softpipe.raytrace``, depth 5), the spheres split by the same formulas (kr for the
+(``softpipe.tracers.whitted``, depth 5), the spheres split by the same formulas (kr for the
 mirror, Fresnel for the glass). (f) and (g) differ only along silhouettes and the
 sun's shadow edges (a shadow map in (f), shadow rays in (g)); both have a plain
 background.
@@ -31,14 +31,14 @@ import sys
 import numpy as np
 from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.cubemap import MEDIA, CubeMap, sky_gradient
-from softpipe.envmap import dynamic_environments, render_with_environments
-from softpipe.material import Light, Material
-from softpipe.raytrace import raytrace_scene
-from softpipe.scene import Scene, SceneObject
-from softpipe.transforms import rotate_y, translate
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.cubemap import MEDIA, CubeMap, sky_gradient
+from softpipe.scenes.environment_pass import dynamic_environments, render_with_environments
+from softpipe.light.material import Light, Material
+from softpipe.tracers.whitted import raytrace_scene
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.transforms import rotate_y, translate
 
 DOCS_IMAGES = REPO / "docs" / "images" / "environment"
 
@@ -55,7 +55,7 @@ FLAT_SKY = (0.55, 0.65, 0.8, 1.0)          # the ray tracer's background: a cons
 
 
 def glass(medium):
-    """A clear material of the named medium's index (softpipe.cubemap.MEDIA)."""
+    """A clear material of the named medium's index (softpipe.light.cubemap.MEDIA)."""
     return Material(ka=0.0, kd=0.0, ks=0.6, shininess=120.0, kr=(0.08, 0.08, 0.08), kt=(0.95, 0.95, 0.95),
                     ior=MEDIA[medium])
 
@@ -77,7 +77,7 @@ def scene(size, medium="glass", background=FLAT_SKY, camera=CAMERA):
 
 
 def sky_panorama(width=256):
-    """A generated sky, equirectangular (2:1): softpipe.cubemap.sky_gradient with a few soft clouds, float RGB."""
+    """A generated sky, equirectangular (2:1): softpipe.light.cubemap.sky_gradient with a few soft clouds, float RGB."""
     h = width // 2
     theta = (np.arange(h) + 0.5) / h * np.pi
     phi = ((np.arange(width) + 0.5) / width - 0.5) * 2.0 * np.pi

@@ -3,15 +3,15 @@
     python examples/fresnel_tir.py           → out/examples/fresnel_tir.png
     python examples/fresnel_tir.py --docs    → also docs/images/hall/fresnel.png, tir.png
 
-Row 1, plots of §20 over θ₁ from 0° to 90° (:func:`softpipe.lighting.fresnel_rs_rp`):
+Row 1, plots of §20 over θ₁ from 0° to 90° (:func:`softpipe.light.lighting.fresnel_rs_rp`):
 R_s (red), R_p (blue) and F_R = (R_s + R_p)/2 (white), from air into water (1.33),
-glass (1.52) and diamond (2.417) — the media of §17 (``softpipe.material.MEDIA``) —
+glass (1.52) and diamond (2.417) — the media of §17 (``softpipe.light.material.MEDIA``) —
 each with Brewster's angle tan θ_B = n₂/n₁ marked (yellow), where R_p = 0; and from
 glass out into air, where everything is reflected beyond the critical angle
 sin θ_c = n₂/n₁ (magenta, §19). At θ₁ = 0 all three curves start at
 ((n₁ − n₂)/(n₁ + n₂))²: 0.02, 0.04, 0.17.
 
-Row 2, ray traced (:func:`softpipe.raytrace.raytrace_scene`): a glass block and a
+Row 2, ray traced (:func:`softpipe.tracers.whitted.raytrace_scene`): a glass block and a
 diamond one on a checkered floor — light that enters the top and meets a side face
 beyond the critical angle is reflected inside (§19), so the sides show the floor
 and the boxes folded back; then Snell's window, a camera inside a tank of glass and
@@ -26,13 +26,13 @@ import numpy as np
 from common import REPO, picture_size, save_docs_sheet, save_sheet
 from hall import checkerboard
 
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.lighting import fresnel_rs_rp
-from softpipe.material import MEDIA, Light, Material
-from softpipe.raytrace import raytrace_scene
-from softpipe.scene import Scene, SceneObject
-from softpipe.transforms import rotate_y, scale, translate
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.lighting import fresnel_rs_rp
+from softpipe.light.material import MEDIA, Light, Material
+from softpipe.tracers.whitted import raytrace_scene
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.transforms import rotate_y, scale, translate
 
 DOCS_IMAGES = REPO / "docs" / "images" / "hall"
 PLOTS = (("air->water", 1.0, MEDIA["water"]), ("air->glass", 1.0, MEDIA["glass"]),

@@ -17,7 +17,7 @@ the ball one of Hall's terms alone (the floor and boxes stay as they are):
 
 then the falloff inside the ball (§15): T^d with T = (0.35, 0.6, 0.9) per unit
 distance (the thick middle darkest, blue left), and Glassner's 1/(1 + a·d), a = 1.5.
-Every picture is :func:`softpipe.raytrace.raytrace_scene`: the local terms with
+Every picture is :func:`softpipe.tracers.whitted.raytrace_scene`: the local terms with
 ``max_depth=0`` (no secondary rays), the global ones to depth 5. kt drives both
 transmission terms, so "transmission of other surfaces" is the depth-5 picture minus
 the depth-0 one on the ball's pixels (the back light's lobe taken out). The colors
@@ -28,12 +28,12 @@ import sys
 import numpy as np
 from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.material import Light, Material
-from softpipe.raytrace import primary_visibility, raytrace_scene
-from softpipe.scene import Scene, SceneObject
-from softpipe.transforms import rotate_y, translate
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Light, Material
+from softpipe.tracers.whitted import primary_visibility, raytrace_scene
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.transforms import rotate_y, translate
 
 DOCS_IMAGES = REPO / "docs" / "images" / "hall"
 BACKGROUND = (0.3, 0.42, 0.6, 1.0)

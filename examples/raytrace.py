@@ -8,7 +8,7 @@ floor under a sun, one Scene drawn four ways:
 
 * rasterized, V_j from a shadow map (``ShadowSettings()``, PCF radius 1);
 * rasterized, V_j from shadow rays (``ShadowSettings(method="ray")``, §21);
-* ray traced (:func:`softpipe.raytrace.raytrace_scene`: primary rays through the
+* ray traced (:func:`softpipe.tracers.whitted.raytrace_scene`: primary rays through the
   pixel centres §23, the same lighting with shadow rays, reflected and refracted
   rays §16–§19 to depth 5, the ray tree §22);
 * ray traced with ``max_depth=0``: primary and shadow rays only, which is the
@@ -26,7 +26,7 @@ rays multiply both, (0.9, 0.3, 0.2)·(0.2, 0.4, 0.9) = (0.18, 0.12, 0.18); the r
 tracer's shadow rays agree, and it sees through the panes besides.
 
 Run, it also prints the ray tree of one pixel on the glass sphere
-(:func:`softpipe.raytrace.ray_tree`) and the time each picture took.
+(:func:`softpipe.tracers.whitted.ray_tree`) and the time each picture took.
 """
 import sys
 import time
@@ -35,13 +35,13 @@ import numpy as np
 from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.material import Light, Material
-from softpipe.raytrace import ray_tree, raytrace_scene
-from softpipe.scene import Scene, SceneObject
-from softpipe.shadowmap import ShadowSettings
-from softpipe.transforms import rotate_y, scale, translate
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Light, Material
+from softpipe.tracers.whitted import ray_tree, raytrace_scene
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.transforms import rotate_y, scale, translate
 
 DOCS_IMAGES = REPO / "docs" / "images" / "raytracing"
 BACKGROUND = (0.35, 0.5, 0.7, 1.0)               # a sky: what a reflected ray that meets nothing brings back

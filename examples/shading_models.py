@@ -10,9 +10,9 @@ three converge, and only the facets of flat shading remain visible.
 """
 from common import key_light, render, image, save_sheet
 
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.material import Material
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Material
 
 PLASTIC = Material(ka=(0.1, 0.03, 0.03), kd=(0.65, 0.12, 0.1), ks=(0.35, 0.35, 0.35), shininess=40.0)
 

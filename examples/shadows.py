@@ -19,11 +19,11 @@ import numpy as np
 from common import REPO, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.material import Light, Material
-from softpipe.scene import Scene, SceneObject
-from softpipe.transforms import translate
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Light, Material
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.transforms import translate
 
 FLOOR = Material(ka=0.25, kd=(0.78, 0.76, 0.72), ks=0.1, shininess=10.0)
 BALLS = (((-1.1, 0.75, 0.3), 0.45, (0.80, 0.25, 0.20)),
@@ -100,14 +100,14 @@ def sheet(size=200, maps_out=None):
 
 def shadow_settings(width):
     """A map of about twice the picture's width (at least 32 texels), PCF radius 1."""
-    from softpipe.shadowmap import ShadowSettings
+    from softpipe.light.shadowmap import ShadowSettings
     return ShadowSettings(resolution=max(32, 2 * width), pcf=1)
 
 
 def write_docs_pictures(size=200):
     """docs/images/shadows/figure.png (the 2×3 figure) and maps.png (the maps, faces labelled)."""
     from PIL import Image
-    from softpipe.pictures import contact_sheet
+    from softpipe.views.pictures import contact_sheet
     DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
     found = {}
     pictures = sheet(size, maps_out=found)

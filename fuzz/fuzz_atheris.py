@@ -35,8 +35,8 @@ import PIL.Image  # noqa: E402,F401
 
 with atheris.instrument_imports(include=["softpipe", "tomllib"]):
     import tomllib  # noqa: F401
-    import softpipe.obj  # noqa: F401
-    import softpipe.scenefile  # noqa: F401
+    import softpipe.scenes.obj  # noqa: F401
+    import softpipe.scenes.scenefile  # noqa: F401
 
 import targets  # noqa: E402
 

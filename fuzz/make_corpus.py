@@ -18,7 +18,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-DEFAULT_ASSETS = ROOT / "softpipe" / "data" / "models"   # the bundled models (softpipe.models.MODELS_DIR)
+DEFAULT_ASSETS = ROOT / "softpipe" / "data" / "models"   # the bundled models (softpipe.scenes.models.MODELS_DIR)
 
 
 def obj_slice(lines, first: int, count: int) -> str:

@@ -3,10 +3,10 @@
 Contract: any input either loads, or raises the library's documented error type with a
 non-empty message:
 
-``obj``    :func:`softpipe.obj.parse_obj` (and :func:`softpipe.obj.parse_mtl`, the same
+``obj``    :func:`softpipe.scenes.obj.parse_obj` (and :func:`softpipe.scenes.obj.parse_mtl`, the same
            module's MTL parser, on the same text) → a ``Mesh``, or ``OBJError``; ``OSError``
            is allowed for files the text names (``mtllib``).
-``scene``  :func:`softpipe.scenefile.parse_scene` → a ``Scene``, or ``SceneError``.
+``scene``  :func:`softpipe.scenes.scenefile.parse_scene` → a ``Scene``, or ``SceneError``.
 
 Anything else (``IndexError``, ``KeyError``, ``RecursionError``, ``TypeError``, …) is a
 finding, and so is an input that takes longer than the time bound (a hang), which
@@ -69,7 +69,7 @@ def _decode(data: bytes) -> str:
 
 def check_obj(data: bytes) -> str:
     """Run the OBJ and MTL parsers on ``data``; returns "ok" or the error class name."""
-    from softpipe.obj import OBJError, parse_mtl, parse_obj
+    from softpipe.scenes.obj import OBJError, parse_mtl, parse_obj
 
     text = _decode(data)
     outcome = []
@@ -104,7 +104,7 @@ def _check_mesh(mesh) -> None:
 
 def check_scene(data: bytes) -> str:
     """Run the scene-file parser on ``data``; returns "ok" or "SceneError"."""
-    import softpipe.scenefile as scenefile
+    import softpipe.scenes.scenefile as scenefile
 
     text = _decode(data)
     scenefile.MAX_SCENE_TRIANGLES = FUZZ_SCENE_TRIANGLES

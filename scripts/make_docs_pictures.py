@@ -10,7 +10,7 @@ removes. Every page of docs/ starts with the same lines (between the markers
 below; tests/test_docs.py checks that they match), so what a page prints is
 what this script draws.
 
-Writes each stage picture of :meth:`softpipe.trace.Trace.save_pictures`
+Writes each stage picture of :meth:`softpipe.pipeline.trace.Trace.save_pictures`
 (``01-vertices.png`` … ``06-final.png``, ``contact-sheet.png``) and
 ``eye-space.png``, a top view of the scene and the view frustum, and prints
 each path with its size.
@@ -25,7 +25,7 @@ from collections import namedtuple
 
 import numpy as np
 import softpipe as sp
-from softpipe.glsl import mat4_mul_vec4
+from softpipe.shading import mat4_mul_vec4
 
 corners = np.array([                                                # world coordinates
     [[-2.0, -1.4, 0.0], [2.2, -1.4, 0.0], [0.0, 1.9, 0.0]],         # 0 red, at the back

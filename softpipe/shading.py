@@ -1,9 +1,9 @@
 """Everything a shader author needs, in one import: ``from softpipe.shading import *``.
 
 This module defines nothing; it gathers, under one name, what the shader
-contract (:mod:`softpipe.shader`), the GLSL math (:mod:`softpipe.glsl`), the
-lighting equations (:mod:`softpipe.lighting`), the packed lights
-(:mod:`softpipe.material`) and the built-in programs (:mod:`softpipe.shaders`)
+contract (:mod:`softpipe.language.contract`), the GLSL math (:mod:`softpipe.language.glsl`), the
+lighting equations (:mod:`softpipe.light.lighting`), the packed lights
+(:mod:`softpipe.light.material`) and the built-in programs (:mod:`softpipe.programs`)
 offer. Each name here *is* the object of its home module. A walk through
 writing one: ``docs/shaders.md``.
 
@@ -84,19 +84,19 @@ Colors are RGB 3-tuples, multiplied per channel (``mul(kd, I_d)``).
 
 What is offered
 ---------------
-The contract (:mod:`softpipe.shader`)
+The contract (:mod:`softpipe.language.contract`)
     FragInfo, DISCARD, Derivatives, ShaderError
-Programs and the vertex side (:mod:`softpipe.shaders`, :mod:`softpipe.shaders.common`)
+Programs and the vertex side (:mod:`softpipe.programs`, :mod:`softpipe.programs.common`)
     Program                  a vertex and a fragment shader with a name, for ``draw_mesh``
     standard_vertex          the usual vertex shader: varyings P (``position``) and N (``normal``)
     StandardVaryings         its varyings
     eye_space                (clip, P, N) of a vertex: model_view · p, projection · P, normal_matrix · n
-Surface vectors and helpers (:mod:`softpipe.shaders.common`)
+Surface vectors and helpers (:mod:`softpipe.programs.common`)
     facing_normal            N: the interpolated normal renormalized, reversed on back faces (§12)
     toward_eye               V, also for an orthographic projection
     uniform_or               an optional uniform with its default
     rgba                     (r, g, b, a) from a color and an alpha
-GLSL math on tuples (:mod:`softpipe.glsl`)
+GLSL math on tuples (:mod:`softpipe.language.glsl`)
     vec2, vec3, vec4                                 constructors
     add, sub, mul, div, scale, neg                   arithmetic, per component
     dot, cross, length, distance, normalize          geometry
@@ -105,7 +105,7 @@ GLSL math on tuples (:mod:`softpipe.glsl`)
     vmin, vmax, vabs                                 GLSL's min, max, abs
     hsum, max_component, min_component               reductions
     mat4_mul_vec4, mat3_mul_vec3                     M · v
-The lighting equations (:mod:`softpipe.lighting`; § as in FORMULAS.md)
+The lighting equations (:mod:`softpipe.light.lighting`; § as in FORMULAS.md)
     emission (§1), ambient (§2), lambert (§3), b_factor (§4),
     phong_specular (§5), blinn_phong_specular (§6), half_vector (§6),
     positive_power (§5, §6), attenuation (§7), spot_factor (§8),
@@ -114,7 +114,7 @@ The lighting equations (:mod:`softpipe.lighting`; § as in FORMULAS.md)
     two_sided_lighting (§11),
     fresnel_rs_rp, fresnel, fresnel_schlick (§20), fresnel_directions (R, T, F_R: §16–§20),
     beckmann_d, geometry_g, cook_torrance, cook_torrance_lighting, gooch (§26)
-The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
+The packed lights (:mod:`softpipe.light.lighting`, :mod:`softpipe.light.material`)
     light_at                 (L, f_att · f_spot) of light j at P (§7–§9)
     light_vec3               three columns of light j: ``light_vec3(lights, j, LIGHT_DIFFUSE)`` is I_d
     light_colors             (I_a, I_d, I_s) of light j
@@ -127,7 +127,7 @@ The packed lights (:mod:`softpipe.lighting`, :mod:`softpipe.material`)
     LIGHT_ATTENUATION, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_COS_CUTOFF,
     LIGHT_SPOT_EXPONENT, LIGHT_COLUMNS     the columns of a packed light
     LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT             the values of LIGHT_KIND
-Ray queries (:mod:`softpipe.rays`; GLSL's ``rayQueryEXT`` in spirit)
+Ray queries (:mod:`softpipe.rays.queries`; GLSL's ``rayQueryEXT`` in spirit)
     RayScene                 the scene as a uniform: ``uniforms={"scene": RayScene(objects)}``
                              (the draw's ``view`` turns it to eye space: ``scene.uniform(view)``)
     trace_closest            (triangle or −1, t, b1, b2) of the nearest hit on an eye-space ray
@@ -135,32 +135,32 @@ Ray queries (:mod:`softpipe.rays`; GLSL's ``rayQueryEXT`` in spirit)
     hit_position, hit_normal the hit's point and interpolated normal, eye space
     ray_visibility           §21's shadow ray through transparent objects: V of a light
     medium_falloff           §15: T^d or Glassner's 1/(1 + a·d) over a distance in a medium
-The ray tracer from a shader (:mod:`softpipe.raytrace`)
+The ray tracer from a shader (:mod:`softpipe.tracers.whitted`)
     tracer_uniform           the scene's ray tracer as a uniform: ``uniforms={"tracer": tracer_uniform(scene)}``
     trace_ray                the color a ray brings back (Σ weight × local over its tree), eye space
-What the uniforms are made from (:mod:`softpipe.material`, :mod:`softpipe.shaders.common`)
+What the uniforms are made from (:mod:`softpipe.light.material`, :mod:`softpipe.programs.common`)
     Material, MaterialUniform, Light, Lighting, LightingUniform, ShadowSettings,
     lighting_uniform         the ``lighting`` uniform for a camera's view matrix
 """
-from .glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, length, mat3_mul_vec3,
+from softpipe.language.glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, length, mat3_mul_vec3,
                    mat4_mul_vec4, max_component, min_component, mix, mul, neg, normalize, pow_, reflect,
                    refract, saturate, scale, smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin)
-from .lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
+from softpipe.light.lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
                        casts_shadows, cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_directions,
                        fresnel_rs_rp,
                        fresnel_schlick, geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert,
                        light_at, light_colors, light_vec3, light_visibility, opengl_lighting,
                        phong_specular, positive_power, spot_factor, transmitted_half_vector, two_sided_lighting)
-from .material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
+from softpipe.light.material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
                        LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
                        LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
                        LightingUniform, Material, MaterialUniform)
-from .rays import RayScene, hit_normal, hit_position, medium_falloff, ray_visibility, trace_any, trace_closest
-from .raytrace import trace_ray, tracer_uniform
-from .shader import DISCARD, Derivatives, FragInfo, ShaderError, reads_uniforms
-from .shadowmap import ShadowSettings
-from .shaders import Program
-from .shaders.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
+from softpipe.rays.queries import RayScene, hit_normal, hit_position, medium_falloff, ray_visibility, trace_any, trace_closest
+from softpipe.tracers.whitted import trace_ray, tracer_uniform
+from softpipe.language.contract import DISCARD, Derivatives, FragInfo, ShaderError, reads_uniforms
+from softpipe.light.shadowmap import ShadowSettings
+from softpipe.programs.registry import Program
+from softpipe.programs.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
                              standard_vertex, toward_eye, uniform_or)
 
 __all__ = [

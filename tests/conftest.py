@@ -6,8 +6,8 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
 
-from softpipe.assembly import Primitives  # noqa: E402
-from softpipe.shader import VaryingLayout  # noqa: E402
+from softpipe.pipeline.assembly import Primitives  # noqa: E402
+from softpipe.language.contract import VaryingLayout  # noqa: E402
 
 
 def window_prims(tris, z=0.5):

@@ -1,7 +1,7 @@
 """The exact reference rasterizer for the tests: softpipe.testing's, the one implementation.
 
 Plain Python and exact rational arithmetic, written independently of
-softpipe.raster (see softpipe/testing/reference.py). The suite uses
+softpipe.pipeline.raster (see softpipe/testing/reference.py). The suite uses
 ``covered(tri, width, height, samples)`` (a set of (i, j, s), window rows, y up),
 ``snap`` and ``picture``; users get the same rules as
 ``softpipe.testing.reference_coverage``.

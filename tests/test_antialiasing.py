@@ -7,7 +7,7 @@ import pytest
 import reference
 import softpipe as sp
 from conftest import window_to_clip
-from softpipe.sampling import SUBPIXEL, grid, jittered, random_pattern, rotated_grid_4x, pattern_named
+from softpipe.pipeline.sampling import SUBPIXEL, grid, jittered, random_pattern, rotated_grid_4x, pattern_named
 
 PATTERNS = [sp.CENTER, grid(2), grid(3), grid(4), rotated_grid_4x(), jittered(4, seed=3), random_pattern(8, seed=5)]
 IDS = [p.name for p in PATTERNS]

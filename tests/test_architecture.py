@@ -1,12 +1,14 @@
-"""The house rules of the module layout (issue #12), checked on the source.
+"""The house rules of the module layout (issues #12 and #27), checked on the source.
 
+- The folders of softpipe/ are layers, bottom to top (FOLDERS): a module imports only
+  modules of its own folder and of the folders below it. The library never imports the
+  tools (softpipe.tools): the command line, the demo and batch import the library.
 - No import circle among softpipe's modules.
-- The stages import only earlier stages: vertex → assembly → setup → raster →
-  fragment → output → visibility (the fast order of the same stages) → pipeline.
-  A stage never imports a later one, directly or through another module.
-- Generated shader modules import only the contract (softpipe.shader) and the
-  module that generated them (softpipe.kernels), which names in its own
-  imports everything the generated code calls.
+- The stages import only earlier stages (STAGES, the order of softpipe/pipeline/):
+  a stage never imports a later one, directly or through another module.
+- Generated shader modules import only the contract (softpipe.language.contract), the
+  module that generated them (softpipe.language.kernels), which names in its own
+  imports everything the generated code calls, and the triangle setup.
 """
 from __future__ import annotations
 
@@ -16,12 +18,26 @@ from pathlib import Path
 import numpy as np
 
 import softpipe as sp
-from softpipe import kernels
-from softpipe.shader import VaryingLayout
+from softpipe.language import kernels
+from softpipe.language.contract import VaryingLayout
 
 PACKAGE = Path(sp.__file__).parent
-#: The pipeline's modules in order; each may import only those before it.
-STAGES = ["vertex", "assembly", "setup", "raster", "fragment", "output", "visibility", "pipeline"]
+#: softpipe/'s folders, bottom to top: each imports only itself and the folders before it.
+FOLDERS = ["core", "language", "pipeline", "rays", "light", "tracers", "programs", "views", "scenes",
+           "tools"]
+#: The top-level modules and the highest folder each may import: the shader author's one import
+#: sits above the programs it re-exports; softpipe.testing needs only the pipeline.
+TOP_LEVEL = {"shading": "programs", "testing": "views", "": "scenes", "__main__": "tools"}
+#: Imports made at call time that reach *up* a layer, each a convenience on the API, named here
+#: so that no other one can creep in: a trace draws its pictures and writes its explorer page
+#: with the views, and (until the shadow terms move out of the lighting formulas) asks lighting
+#: for each light's V_j in a pixel history; ``softpipe.batch`` is the batch tool, imported on
+#: first use.
+LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.explorer"),
+               ("pipeline.trace", "light.lighting"), ("", "tools.batch")}
+#: softpipe/pipeline/ in pipeline order; each may import only those before it.
+STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "raster",
+          "fragment", "output", "visibility", "trace", "draw"]
 
 
 def _module_name(path: Path) -> str:
@@ -44,11 +60,10 @@ def _imports(path: Path) -> set:
                 mod = node.module[len("softpipe."):] if node.module != "softpipe" else ""
             else:
                 continue
-            if node.module is None or mod == "":     # from . import x, y
-                for alias in node.names:
-                    found.add(".".join([m for m in (mod, alias.name) if m]))
-            else:
+            if mod:
                 found.add(mod)
+            for alias in node.names:                 # from softpipe.language import kernels
+                found.add(".".join([m for m in (mod, alias.name) if m]))
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.startswith("softpipe."):
@@ -60,7 +75,9 @@ def _graph() -> dict:
     files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
     graph = {}
     for name, path in files.items():
-        graph[name] = {m for m in _imports(path) if m in files and m != name}
+        found = {m for m in _imports(path) if m in files and m != name}
+        # `from softpipe.tools import batch` imports the module batch; the package is its way there
+        graph[name] = {m for m in found if not any(o.startswith(m + ".") for o in found)}
     return graph
 
 
@@ -74,11 +91,51 @@ def _reachable(graph: dict, start: str) -> set:
     return seen
 
 
+def _layer(module: str) -> int:
+    """Where a module stands: its folder's place in FOLDERS, or for a top-level module the
+    place of the highest folder it may import."""
+    head = module.split(".")[0] if module else ""
+    if head in FOLDERS:
+        return FOLDERS.index(head)
+    return FOLDERS.index(TOP_LEVEL[head])
+
+
 def test_the_import_graph_sees_the_imports_it_should():
     graph = _graph()
-    assert {"assembly", "setup", "sampling"} <= graph["raster"]
-    assert {"raster", "setup", "output", "fragment", "kernels"} <= graph["visibility"]
-    assert "kernels" in graph["vertex"]
+    assert {"pipeline.assembly", "pipeline.setup", "pipeline.sampling"} <= graph["pipeline.raster"]
+    assert {"pipeline.raster", "pipeline.setup", "pipeline.output", "pipeline.fragment",
+            "language.kernels"} <= graph["pipeline.visibility"]
+    assert "language.kernels" in graph["pipeline.vertex"]
+    assert "scenes.drawing" in graph["tools.cli"]
+
+
+def test_every_module_lives_in_a_known_folder():
+    for module in _graph():
+        head = module.split(".")[0] if module else ""
+        assert head in FOLDERS or head in TOP_LEVEL or head == "data", \
+            f"softpipe.{module}: put it in one of the folders {FOLDERS} (or name it in TOP_LEVEL)"
+
+
+def test_a_module_imports_only_its_folder_and_the_folders_below():
+    graph = _graph()
+    upward = set()
+    for module, imported in graph.items():
+        for other in imported:
+            if _layer(other) > _layer(module):
+                upward.add((module, other))
+    unexpected = sorted(upward - LATE_UPWARD)
+    assert not unexpected, f"imports that reach up a layer (FOLDERS: {FOLDERS}): {unexpected}"
+    assert upward == LATE_UPWARD, f"LATE_UPWARD names imports that are gone: {sorted(LATE_UPWARD - upward)}"
+
+
+def test_the_upward_imports_are_made_at_call_time():
+    """The named exceptions import inside a function, so importing a lower layer never loads a higher one."""
+    for module, other in LATE_UPWARD:
+        path = PACKAGE / (module.replace(".", "/") + ".py") if module else PACKAGE / "__init__.py"
+        tree = ast.parse(path.read_text())
+        top = {n.module for n in tree.body if isinstance(n, ast.ImportFrom) and n.module}
+        assert f"softpipe.{other}" not in top and not any(m.startswith(f"softpipe.{other}") for m in top), \
+            (module, other)
 
 
 def test_no_import_circle():
@@ -89,10 +146,14 @@ def test_no_import_circle():
 
 def test_no_stage_imports_a_later_stage():
     graph = _graph()
+    assert sorted(STAGES) == sorted(m.split(".")[1] for m in graph if m.startswith("pipeline.")), \
+        "STAGES lists softpipe/pipeline/'s modules in pipeline order: add the new one where it belongs"
     for k, stage in enumerate(STAGES):
-        later = set(STAGES[k + 1:])
-        reached = _reachable(graph, stage) & later
-        assert not reached, f"{stage}.py reaches the later stage(s) {sorted(reached)}"
+        later = {f"pipeline.{s}" for s in STAGES[k + 1:]}
+        reached = _reachable(graph, f"pipeline.{stage}") & later
+        if stage == "trace":     # the trace's views (LATE_UPWARD) reach the draw only at call time
+            reached -= {"pipeline.draw"}
+        assert not reached, f"pipeline/{stage}.py reaches the later stage(s) {sorted(reached)}"
 
 
 def test_generated_modules_import_only_the_contract_their_generator_and_the_setup():
@@ -102,13 +163,14 @@ def test_generated_modules_import_only_the_contract_their_generator_and_the_setu
     source = kernels.fragment_module(shader, VaryingLayout.from_sizes([("c", 1)])).__softpipe_source__
     imports = {m for line in source.splitlines() if line.startswith(("import ", "from "))
                for m in [line.split()[1]]}
-    assert imports == {"numba", "collections", "softpipe.shader", "softpipe.kernels", "softpipe.setup"}, imports
-    from softpipe import raster
-    names = {n.strip() for line in source.splitlines() if line.startswith("from softpipe.setup import")
+    assert imports == {"numba", "collections", "softpipe.language.contract", "softpipe.language.kernels",
+                       "softpipe.pipeline.setup"}, imports
+    from softpipe.pipeline import raster, setup
+    names = {n.strip() for line in source.splitlines() if line.startswith("from softpipe.pipeline.setup import")
              for n in line.split("import", 1)[1].split(",")}
     assert {"pixel_coverage", "shading_point"} <= names
     for name in {"pixel_coverage", "shading_point"}:       # the rasterizer calls the very same functions
-        assert getattr(raster, name) is getattr(sp.setup, name), name
+        assert getattr(raster, name) is getattr(setup, name), name
 
 
 def test_the_fast_path_and_the_reference_share_one_triangle_setup():

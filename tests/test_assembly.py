@@ -12,7 +12,7 @@ import pytest
 import reference
 import softpipe
 from conftest import window_to_clip
-from softpipe.vertex import run_vertex_stage
+from softpipe.pipeline.vertex import run_vertex_stage
 
 S = 8
 RED, GREEN = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)

@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 import softpipe as sp
-from softpipe.cli import main
+from softpipe.tools.cli import main
 
 TETRA = """v 0 0 0
 v 1.2 0 0.1
@@ -47,7 +47,7 @@ def run(capsys, *argv):
 
 
 @pytest.mark.parametrize("name, value", [
-    ("width", 10_000), ("height", 3), ("pattern", sp.sampling.pattern_named("grid16")),
+    ("width", 10_000), ("height", 3), ("pattern", sp.pipeline.sampling.pattern_named("grid16")),
     ("samples_color", np.zeros((1, 100, 100, 4), np.float32)),
     ("samples_depth", np.zeros((1, 6, 8), np.float64)),
     ("samples_color", np.zeros((1, 8, 6, 4), np.float32)[:, ::-1]),
@@ -63,7 +63,7 @@ def test_assigning_the_size_pattern_or_arrays_is_refused(name, value):
 
 
 def test_the_arrays_are_written_in_place():
-    fb = sp.Framebuffer(8, 6, sp.sampling.pattern_named("rgss4"))
+    fb = sp.Framebuffer(8, 6, sp.pipeline.sampling.pattern_named("rgss4"))
     fb.samples_color[...] = (0.5, 0.25, 1.0, 1.0)
     fb.samples_depth[:, 2, 3] = 0.25
     fb.samples_color[2, 1, 1] = (1.0, 1.0, 1.0, 1.0)
@@ -287,8 +287,8 @@ def no_rendering(monkeypatch):
     """Rendering fails the test: what is checked must be checked before it."""
     def rendered(*args, **kwargs):
         raise AssertionError("rendered before the output was checked")
-    monkeypatch.setattr("softpipe.drawing.render_scene", rendered)
-    monkeypatch.setattr("softpipe.demo.render_demo", rendered)
+    monkeypatch.setattr("softpipe.scenes.drawing.render_scene", rendered)
+    monkeypatch.setattr("softpipe.tools.demo.render_demo", rendered)
 
 
 def test_demo_writes_a_real_jpeg_or_refuses_the_extension_before_rendering(capsys, tmp_path, monkeypatch):
@@ -296,7 +296,7 @@ def test_demo_writes_a_real_jpeg_or_refuses_the_extension_before_rendering(capsy
     assert code == 0, err
     with Image.open(tmp_path / "x.jpg") as im:
         assert im.format == "JPEG" and im.size == (16, 12)
-    monkeypatch.setattr("softpipe.demo.render_demo", lambda *a: pytest.fail("rendered before the check"))
+    monkeypatch.setattr("softpipe.tools.demo.render_demo", lambda *a: pytest.fail("rendered before the check"))
     code, _, err = run(capsys, "demo", "-o", tmp_path / "x.foo")
     assert code == 2
     assert err.strip() == ("softpipe demo: error: " + str(tmp_path / "x.foo") +

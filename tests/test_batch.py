@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from softpipe import cli
-from softpipe.batch import (CONTACT_SHEET, CRASH_ONCE_ENV, MANIFEST, BatchProgress, Frame, JobError, batch,
+from softpipe.tools import cli
+from softpipe.tools.batch import (CONTACT_SHEET, CRASH_ONCE_ENV, MANIFEST, BatchProgress, Frame, JobError, batch,
                             job_from_dict, load_job, parse_job, read_manifest)
-from softpipe.shapes import uv_sphere
+from softpipe.scenes.shapes import uv_sphere
 
 HAVE_DASK = importlib.util.find_spec("distributed") is not None
 needs_dask = pytest.mark.skipif(not HAVE_DASK, reason="dask[distributed] is not installed "

@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 
 from benchmarks import rays
-from softpipe.models import load_model
-from softpipe.scene import Scene
+from softpipe.scenes.models import load_model
+from softpipe.scenes.scene import Scene
 
 MODEL, SIZE = "suzanne", 32
 THREADS = [1, 2] if numba.config.NUMBA_NUM_THREADS >= 2 else [1]
 
 
 def test_primary_rays_are_the_ray_tracers():
-    """The numpy rays are softpipe.raytrace._primary_ray's, pixel for pixel."""
-    from softpipe.raytrace import _primary_ray
+    """The numpy rays are softpipe.tracers.whitted._primary_ray's, pixel for pixel."""
+    from softpipe.tracers.whitted import _primary_ray
     camera = Scene.from_model(MODEL, width=SIZE, height=SIZE).view_camera()
     o, d, far = rays.primary_rays(camera, SIZE, SIZE)
     assert o.shape == d.shape == (SIZE * SIZE, 3) and far.shape == (SIZE * SIZE,)

@@ -1,4 +1,4 @@
-"""softpipe.bvh against brute force (issue #16).
+"""softpipe.rays.bvh against brute force (issue #16).
 
 The oracle is written here, independently of the module: Möller-Trumbore
 (1997) over *every* triangle for every ray, vectorized over blocks of rays in a
@@ -37,12 +37,13 @@ import numba
 import numpy as np
 import pytest
 
-from softpipe import shapes, transforms
-from softpipe import bvh as bvh_module
-from softpipe.bvh import MAX_DEPTH, BVH, BVHUniform, any_hit, closest_hit, intersect_triangle, scene_bvh
-from softpipe.models import load_model
-from softpipe.scene import SceneObject
-from softpipe._parallel import in_bands
+from softpipe.scenes import shapes
+from softpipe.pipeline import transforms
+from softpipe.rays import bvh as bvh_module
+from softpipe.rays.bvh import MAX_DEPTH, BVH, BVHUniform, any_hit, closest_hit, intersect_triangle, scene_bvh
+from softpipe.scenes.models import load_model
+from softpipe.scenes.scene import SceneObject
+from softpipe.core.parallel import in_bands
 
 T_RTOL = 1e-6       # t of the BVH vs the oracle, relative
 EDGE_EPS = 1e-9     # the oracle's loosened barycentric test, for edge cases only
@@ -647,8 +648,8 @@ def test_the_same_bytes_for_one_and_two_threads(bunny):
 
 _PLAIN_PYTHON_RUN = """
 import math, sys, numpy as np
-from softpipe import shapes
-from softpipe.bvh import BVH, closest_hit, any_hit
+from softpipe.scenes import shapes
+from softpipe.rays.bvh import BVH, closest_hit, any_hit
 m = shapes.icosphere(1.0, 2)
 bvh = BVH.build(m.positions, m.indices)
 rng = np.random.default_rng(0)

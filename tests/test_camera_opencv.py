@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.transforms import opencv_camera, rotate_y
+from softpipe.pipeline.transforms import opencv_camera, rotate_y
 
 
 def opencv_project(K, R, t, X):

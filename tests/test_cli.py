@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from softpipe.cli import main
-from softpipe.shaders import PROGRAMS
+from softpipe.tools.cli import main
+from softpipe.programs import PROGRAMS
 
 # An asymmetric tetrahedron with uvs: every turntable frame differs, so the GIF keeps them all.
 TETRA = """# tetrahedron

@@ -257,7 +257,7 @@ def test_triangle_entirely_behind_the_eye_draws_nothing():
     behind = np.array([to_clip(v) for v in [(-1, -1, 1.0), (1, -1, 2.0), (0, 1, 0.5)]], float)
     softpipe.draw(fb, behind, varyings={"color": np.ones((3, 3))})
     assert (fb.color == (0, 0, 0, 1)).all()
-    prims = softpipe.assemble(softpipe.vertex.run_vertex_stage(np.concatenate([visible, -visible, behind])),
+    prims = softpipe.assemble(softpipe.pipeline.vertex.run_vertex_stage(np.concatenate([visible, -visible, behind])),
                               viewport=softpipe.Viewport(0, 0, N, N))
     assert list(prims.dropped["outside"]) == [1, 2]
     assert set(prims.primitive_id) == {0}
@@ -353,7 +353,7 @@ def test_non_finite_vertices_drop_only_their_triangles(vertex, component, value)
         want |= {(i, j) for i, j, _ in reference.covered([GRID[k] for k in GRID_TRIS[t]], 8, 8)}
     assert drawn_8(fb) == want
     assert set(np.unique(fb.color[..., 0])) <= {0.0, 1.0}
-    prims = softpipe.assemble(softpipe.vertex.run_vertex_stage(pos), "triangles", np.array(GRID_TRIS),
+    prims = softpipe.assemble(softpipe.pipeline.vertex.run_vertex_stage(pos), "triangles", np.array(GRID_TRIS),
                               viewport=softpipe.Viewport(0, 0, 8, 8))
     assert sorted(prims.dropped["non-finite"]) == sorted(set(range(8)) - set(kept))
     assert np.isfinite(prims.window).all()

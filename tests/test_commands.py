@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from softpipe.cli import main
+from softpipe.tools.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
 PAGES = [REPO / "README.md", REPO / "examples" / "README.md"]

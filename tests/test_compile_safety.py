@@ -17,7 +17,7 @@ import threading
 
 import pytest
 
-from softpipe import kernels
+from softpipe.language import kernels
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -12,7 +12,7 @@
 * The programs: a mirror sphere under an orthographic camera returns the map's
   texel in the mirror direction (N from the sphere's geometry, R and the lookup
   computed here); a flat mirror does so to float32 rounding; glass mixes by
-  ``softpipe.lighting.fresnel``; TIR sends everything to reflection.
+  ``softpipe.light.lighting.fresnel``; TIR sends everything to reflection.
 * render_cube_map: boxes around a point show in the faces they should, at the
   (s, t) GL's table gives.
 """
@@ -24,18 +24,18 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.cubemap import (FACES, MEDIA, CubeMap, face_coordinates, sky, sky_gradient, texture_cube,
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.cubemap import (FACES, MEDIA, CubeMap, face_coordinates, sky, sky_gradient, texture_cube,
                               texture_cube_lod)
-from softpipe.drawing import draw_mesh
-from softpipe.envmap import fill_background, render_cube_map
-from softpipe.glsl import refract, reflect
-from softpipe.lighting import fresnel
-from softpipe.material import Lighting, Material
-from softpipe.scene import SceneObject
-from softpipe.shaders.environment import glass_weights
-from softpipe.transforms import orthographic, rotate, translate
+from softpipe.scenes.drawing import draw_mesh
+from softpipe.scenes.environment_pass import fill_background, render_cube_map
+from softpipe.language.glsl import refract, reflect
+from softpipe.light.lighting import fresnel
+from softpipe.light.material import Lighting, Material
+from softpipe.scenes.scene import SceneObject
+from softpipe.programs.environment import glass_weights
+from softpipe.pipeline.transforms import orthographic, rotate, translate
 
 RNG = np.random.default_rng(17)
 DARK = Lighting([], global_ambient=(0.0, 0.0, 0.0))
@@ -369,7 +369,7 @@ def test_a_mirror_sphere_returns_the_maps_texel_in_the_mirror_direction(environm
 def test_the_level_of_detail_is_the_faces_texels_crossed_per_pixel():
     """cube_level_of_detail against the texels counted here: a step of δ across the middle of face +z moves s by
     δ/2, so ρ = size·δ/2; along a face's diagonal the step is worked out by differences of its coordinates."""
-    from softpipe.cubemap import cube_level_of_detail
+    from softpipe.light.cubemap import cube_level_of_detail
     cube = CubeMap.from_function(env_function, 64).__softpipe_uniform__()
     for delta in (1 / 32, 1 / 8, 1 / 2):
         assert cube_level_of_detail(cube, (0.0, 0.0, 1.0), (delta, 0.0, 0.0), (0.0, 0.0, 0.0)) == \
@@ -488,7 +488,7 @@ def test_glass_sends_everything_to_reflection_beyond_the_critical_angle(environm
 
 
 def test_the_programs_need_the_view_uniform_and_say_so(environment):
-    from softpipe.shaders import get_program
+    from softpipe.programs import get_program
     prog = get_program("mirror")
     fb = sp.Framebuffer(8, 8)
     pos = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
@@ -546,8 +546,8 @@ def test_render_cube_map_fills_the_empty_texels_from_a_sky_and_fill_background_p
 
 
 def test_dynamic_environments_make_a_map_per_mirror_and_render_with_environments_uses_it():
-    from softpipe.envmap import dynamic_environments, render_with_environments
-    from softpipe.scene import Scene
+    from softpipe.scenes.environment_pass import dynamic_environments, render_with_environments
+    from softpipe.scenes.scene import Scene
     box = SceneObject("box", shapes.cube(1.0, material=emitter((1.0, 0.5, 0.0))), translate(3.0, 0.0, 0.0))
     ball = SceneObject("ball", shapes.uv_sphere(0.5, 32, 16, material=Material(ka=0.0, kd=0.0, ks=0.0, kr=1.0)),
                        np.eye(4), program="mirror")

@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import kernels, shapes
-from softpipe.camera import Camera
-from softpipe.drawing import draw_mesh
-from softpipe.shader import ShaderError, declared_uniforms, make_uniforms, reads_uniforms
-from softpipe.shaders.common import standard_vertex
+from softpipe.language import kernels
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.scenes.drawing import draw_mesh
+from softpipe.language.contract import ShaderError, declared_uniforms, make_uniforms, reads_uniforms
+from softpipe.programs.common import standard_vertex
 
 
 def test_declared_uniforms_keeps_the_declared_ones_in_their_order():

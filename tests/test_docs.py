@@ -177,7 +177,7 @@ def _stable(line: str) -> str:
 
 
 def test_the_debugging_page_command_lines_print_what_it_shows(tmp_path, monkeypatch, capsys):
-    from softpipe.cli import main
+    from softpipe.tools.cli import main
     page = DOCS / "07-debugging.md"
     blocks = _command_blocks(page.read_text())
     assert blocks, "07-debugging.md runs no softpipe command"
@@ -205,7 +205,7 @@ def test_links_and_images_point_at_files_that_exist():
 
 
 def test_the_breakpoint_lines_in_the_debugging_page_are_right():
-    from softpipe import raster
+    from softpipe.pipeline import raster
     path = DOCS / "07-debugging.md"
     text = path.read_text()
     src, first = inspect.getsourcelines(raster._cover_triangle)

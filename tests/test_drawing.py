@@ -1,7 +1,7 @@
-"""Drawing (softpipe.drawing): one draw_mesh for the API, scene files and the command line.
+"""Drawing (softpipe.scenes.drawing): one draw_mesh for the API, scene files and the command line.
 
 Also the scene model's Scene.from_model (what ``softpipe render MODEL`` draws), the
-wireframe overlay (softpipe.pictures.draw_wireframe), and which module may import which.
+wireframe overlay (softpipe.views.pictures.draw_wireframe), and which module may import which.
 """
 from __future__ import annotations
 
@@ -13,12 +13,12 @@ import pytest
 from PIL import Image
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.cli import main
-from softpipe.drawing import DrawResult, draw_mesh, render_scene, standard_uniforms
-from softpipe.scene import Scene, program_for
-from softpipe.scenefile import parse_scene
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.tools.cli import main
+from softpipe.scenes.drawing import DrawResult, draw_mesh, render_scene, standard_uniforms
+from softpipe.scenes.scene import Scene, program_for
+from softpipe.scenes.scenefile import parse_scene
 
 SOFTPIPE = Path(sp.__file__).resolve().parent
 
@@ -121,7 +121,7 @@ shape = "cube"
 transform = [{ rotate_y = 30 }, { rotate_x = 20 }]
 """
 
-# What the wireframe drew before it moved to softpipe.pictures ('#': the wire color,
+# What the wireframe drew before it moved to softpipe.views.pictures ('#': the wire color,
 # '+': the cube, '.': the background). The cube's back edges (cull = "none" keeps its
 # back faces) are hidden by the depth test; the diagonals of the visible faces show.
 WIRE_PIXELS = """
@@ -221,41 +221,45 @@ def test_the_bundled_spot_is_drawn_textured():
 
 
 def test_each_name_has_one_home():
-    import softpipe.scene
-    import softpipe.scenefile
-    from softpipe import drawing
+    import softpipe.scenes.scene
+    import softpipe.scenes.scenefile
+    from softpipe.scenes import drawing
     assert sp.draw_mesh is drawing.draw_mesh and sp.Scene is Scene
     for name in ("render_scene", "DrawResult", "draw_wireframe", "draw_object"):
-        assert not hasattr(softpipe.scenefile, name), name         # the reader draws nothing
-    assert not hasattr(softpipe.scene, "draw_mesh")      # the model holds no drawing, not even an alias
+        assert not hasattr(softpipe.scenes.scenefile, name), name         # the reader draws nothing
+    assert not hasattr(softpipe.scenes.scene, "draw_mesh")      # the model holds no drawing, not even an alias
 
 
 def _module_imports(name: str, anywhere: bool) -> set:
-    """The softpipe modules ``softpipe/NAME.py`` imports: at import time, or ``anywhere`` (in functions too)."""
-    tree = ast.parse((SOFTPIPE / f"{name}.py").read_text())
+    """The softpipe modules ``softpipe/NAME.py`` imports (NAME dotted: ``scenes.scene``), as dotted names
+    below softpipe: at import time, or ``anywhere`` (in functions too)."""
+    tree = ast.parse((SOFTPIPE / f"{name.replace('.', '/')}.py").read_text())
     found = set()
     for node in (ast.walk(tree) if anywhere else tree.body):
-        if isinstance(node, ast.ImportFrom) and node.level == 1:
-            found.add(node.module or "")
-            if node.module is None:
-                found.update(a.name for a in node.names)
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("softpipe."):
+            found.add(node.module[len("softpipe."):])
     return found
 
 
 @pytest.mark.parametrize("module, anywhere, never", [
-    ("scene", True, {"drawing", "pipeline", "pictures", "scenefile", "cli", "demo"}),   # the model draws nothing
+    # the model draws nothing
+    ("scenes.scene", True, {"scenes.drawing", "pipeline.draw", "views.pictures", "scenes.scenefile",
+                            "tools.cli", "tools.demo"}),
     # reading draws nothing
-    ("scenefile", False, {"drawing", "pipeline", "pictures", "cli", "demo"}),
-    ("drawing", True, {"cli", "demo"}),
-    ("drawing", False, {"scenefile"}),
+    ("scenes.scenefile", False, {"scenes.drawing", "pipeline.draw", "views.pictures", "tools.cli", "tools.demo"}),
+    ("scenes.drawing", True, {"tools.cli", "tools.demo"}),
+    ("scenes.drawing", False, {"scenes.scenefile"}),
 ])
 def test_lower_modules_do_not_import_higher_ones(module, anywhere, never):
-    assert not _module_imports(module, anywhere) & never
+    imports = _module_imports(module, anywhere)
+    assert imports, f"{module}: no imports found (is the parser reading the right file?)"
+    assert not imports & never
 
 
 def test_drawing_reads_a_scene_file_only_for_render():
     """draw_mesh and render_scene read no files; softpipe.render(PATH.toml) reads one, in one function."""
-    tree = ast.parse((SOFTPIPE / "drawing.py").read_text())
+    tree = ast.parse((SOFTPIPE / "scenes" / "drawing.py").read_text())
     readers = {fn.name for fn in ast.walk(tree) if isinstance(fn, ast.FunctionDef)
-               for node in ast.walk(fn) if isinstance(node, ast.ImportFrom) and node.module == "scenefile"}
+               for node in ast.walk(fn) if isinstance(node, ast.ImportFrom)
+               and node.module == "softpipe.scenes.scenefile"}
     assert readers == {"_load_input"}

@@ -8,7 +8,7 @@ import pytest
 import softpipe
 import softpipe.shading
 from softpipe import ShaderError
-from softpipe.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
+from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 
 TRI = np.array([[-1.0, -1.0, 0.0, 1.0], [1.0, -1.0, 0.0, 1.0], [-1.0, 1.0, 0.0, 1.0]])
 RGB = {"color": np.ones((3, 3))}

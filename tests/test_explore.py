@@ -1,4 +1,4 @@
-"""The pipeline explorer (softpipe.explore, issue #20): one self-contained HTML page per render.
+"""The pipeline explorer (softpipe.views.explorer, issue #20): one self-contained HTML page per render.
 
 Without a browser: the page needs nothing from outside itself, its embedded data for a pixel
 is ``trace.pixel_history`` field by field (across the draws of a scene, in order), and its
@@ -28,8 +28,8 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.cli import main
-from softpipe.explore import read_explorer, write_explorer
+from softpipe.tools.cli import main
+from softpipe.views.explorer import read_explorer, write_explorer
 
 #: A small scene: a ball in front of a box on a floor, 4 samples a pixel, a light with a shadow map.
 SCENE = """

@@ -11,10 +11,10 @@ import pytest
 
 import softpipe as sp
 from conftest import window_to_clip
-from softpipe.output import DEPTH_FUNCS
-from softpipe.pipeline import DrawCall
-from softpipe.sampling import grid, rotated_grid_4x
-from softpipe.transforms import perspective
+from softpipe.pipeline.output import DEPTH_FUNCS
+from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.sampling import grid, rotated_grid_4x
+from softpipe.pipeline.transforms import perspective
 
 
 def both_paths(make_fb, **draw):
@@ -80,8 +80,8 @@ def test_every_depth_function_and_write_mode(func, write):
     if func == "notequal" and write:
         # the fast path takes it only for a shader whose alpha is a finite literal (a hidden
         # fragment discarded could change which one shows): the default shader's is not proven
-        from softpipe.output import MergeState
-        from softpipe.visibility import fast_path_blocker
+        from softpipe.pipeline.output import MergeState
+        from softpipe.pipeline.visibility import fast_path_blocker
         assert "notequal" in fast_path_blocker(MergeState(func, write), None)
         assert fast_path_blocker(MergeState(func, write), opaque) is None
         shader = opaque
@@ -150,7 +150,7 @@ def test_fast_path_is_refused_when_it_cannot_give_the_same_bytes():
 def test_narrow_and_wide_triangles_across_tile_edges(pattern, func):
     """Boxes just under, at and over NARROW pixels wide (sample by sample vs row spans), 1-pixel
     triangles and slivers, placed across the 128×32 tile edges, overlapping at random depths."""
-    from softpipe.visibility import NARROW, TILE_H, TILE_W
+    from softpipe.pipeline.visibility import NARROW, TILE_H, TILE_W
     rng = np.random.default_rng(11)
     w, h = 2 * TILE_W + 20, 3 * TILE_H + 7
     tris = []

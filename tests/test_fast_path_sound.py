@@ -16,10 +16,10 @@ import pytest
 
 import softpipe as sp
 from conftest import window_to_clip
-from softpipe import kernels
-from softpipe.pipeline import DrawCall
-from softpipe.sampling import rotated_grid_4x
-from softpipe.visibility import FAST_PATH_MIN_SAMPLES
+from softpipe.language import kernels
+from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.sampling import rotated_grid_4x
+from softpipe.pipeline.visibility import FAST_PATH_MIN_SAMPLES
 
 W, H = 160, 128
 assert W * H >= FAST_PATH_MIN_SAMPLES
@@ -219,7 +219,7 @@ def test_random_thresholds_same_bytes_or_same_error(seed):
 
 def test_a_shader_that_raises_in_a_later_batch_leaves_the_framebuffer_unchanged(monkeypatch):
     """The reference path merges batch by batch: an error in a later batch undoes the earlier ones."""
-    import softpipe.pipeline as pipeline
+    import softpipe.pipeline.draw as pipeline
     monkeypatch.setattr(pipeline, "MAX_FRAGMENTS_PER_BATCH", 3000)
     fb, before, call, error = run("reference", raising, 5, uniforms={"cut": 150.0, "alpha": 1.0})
     assert isinstance(error, sp.ShaderError)
@@ -231,13 +231,13 @@ def test_the_built_in_programs_still_take_the_fast_path():
     import importlib
     import pkgutil
 
-    import softpipe.shaders
-    from softpipe.fragment import color_rgb, color_rgba
-    from softpipe.output import MergeState
-    from softpipe.visibility import fast_path_blocker
+    import softpipe.programs
+    from softpipe.pipeline.fragment import color_rgb, color_rgba
+    from softpipe.pipeline.output import MergeState
+    from softpipe.pipeline.visibility import fast_path_blocker
     found = [color_rgb, color_rgba]
-    for info in pkgutil.iter_modules(softpipe.shaders.__path__):
-        module = importlib.import_module(f"softpipe.shaders.{info.name}")
+    for info in pkgutil.iter_modules(softpipe.programs.__path__):
+        module = importlib.import_module(f"softpipe.programs.{info.name}")
         found += [f for name, f in vars(module).items() if name.endswith("_fragment") and callable(f)
                   and getattr(f, "__module__", None) == module.__name__]
     assert len(found) > 8

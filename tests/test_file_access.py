@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
-from softpipe.files import PathPolicyError, atomic_write, check_writable, excerpt, resolve_inside
-from softpipe.models import load_model
-from softpipe.obj import OBJWarning, load_mtl, load_obj, parse_obj
-from softpipe.scenefile import SceneError, load_scene, parse_scene
+from softpipe.core.files import PathPolicyError, atomic_write, check_writable, excerpt, resolve_inside
+from softpipe.scenes.models import load_model
+from softpipe.scenes.obj import OBJWarning, load_mtl, load_obj, parse_obj
+from softpipe.scenes.scenefile import SceneError, load_scene, parse_scene
 
 TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from softpipe.camera import Camera
-from softpipe.drawing import render_scene
-from softpipe.mesh import Mesh
-from softpipe.scene import FrameSpec, Scene, framed_camera
+from softpipe.pipeline.camera import Camera
+from softpipe.scenes.drawing import render_scene
+from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.scene import FrameSpec, Scene, framed_camera
 
 
 def covered_fraction(fb):

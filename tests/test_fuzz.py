@@ -43,12 +43,12 @@ def test_corpus_stays_small():
 
 
 def test_the_contract_rejects_other_exceptions(monkeypatch):
-    import softpipe.obj
+    import softpipe.scenes.obj
 
     def broken(*args, **kwargs):
         raise IndexError("list index out of range")
 
-    monkeypatch.setattr(softpipe.obj, "parse_obj", broken)
+    monkeypatch.setattr(softpipe.scenes.obj, "parse_obj", broken)
     with pytest.raises(IndexError):
         targets.check_obj(b"v 1 2 3\n")
 

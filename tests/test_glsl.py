@@ -1,6 +1,6 @@
-"""softpipe.glsl against numpy, as plain Python and jitted, for vec2/vec3/vec4.
+"""softpipe.language.glsl against numpy, as plain Python and jitted, for vec2/vec3/vec4.
 
-Expected values are computed here with numpy/math, never with softpipe.glsl.
+Expected values are computed here with numpy/math, never with softpipe.language.glsl.
 """
 import math
 import os
@@ -13,7 +13,7 @@ import numba
 from numba import njit
 from numba.core.errors import TypingError
 
-from softpipe.glsl import (
+from softpipe.language.glsl import (
     add, clamp, cross, distance, div, dot, faceforward, hsum, length, mat3_mul_vec3, mat4_mul_vec4,
     max_component, min_component, mix, mul, neg, normalize, pow_, reflect, refract, saturate, scale,
     smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin,
@@ -229,7 +229,7 @@ def test_length_mismatch_is_an_error_in_both_worlds():
     def bad(a, b):
         return add(a, b)
 
-    with pytest.raises(TypingError, match="softpipe.glsl.add: vectors of different lengths"):
+    with pytest.raises(TypingError, match="softpipe.language.glsl.add: vectors of different lengths"):
         bad((1.0, 2.0, 3.0), (1.0, 2.0))
 
 

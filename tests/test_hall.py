@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.lighting import two_sided_lighting
-from softpipe.rays import medium_falloff
-from softpipe.material import MEDIA, Light, Lighting, Material, falloff_factor
-from softpipe.raytrace import PROGRAM_CODES, ray_tree, raytrace_scene
-from softpipe.scene import Scene, SceneObject
-from softpipe.shaders import PROGRAMS
-from softpipe.transforms import scale, translate
+from softpipe.scenes import shapes
+from softpipe.light.lighting import two_sided_lighting
+from softpipe.rays.queries import medium_falloff
+from softpipe.light.material import MEDIA, Light, Lighting, Material, falloff_factor
+from softpipe.tracers.whitted import PROGRAM_CODES, ray_tree, raytrace_scene
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.programs import PROGRAMS
+from softpipe.pipeline.transforms import scale, translate
 
 DARK = dict(ka=0.0, kd=0.0, ks=0.0)                     # no local terms: only the global ones show
 GLOW = (0.2, 0.5, 0.9)
@@ -201,9 +201,9 @@ def test_the_two_sided_program_is_formulas_11_at_a_pixel(lights):
 
 
 def test_the_two_sided_program_takes_v_i_from_shadow_rays():
-    """V_i(p) of §11 from :func:`softpipe.lighting.light_visibility`: a small box between the middle point and the
+    """V_i(p) of §11 from :func:`softpipe.light.lighting.light_visibility`: a small box between the middle point and the
     light (off the camera's line of sight) leaves ρ_d·L_a only, rasterized with shadow rays and ray traced."""
-    from softpipe.shadowmap import ShadowSettings
+    from softpipe.light.shadowmap import ShadowSettings
     light = dataclasses.replace(IN_FRONT, shadows=ShadowSettings(method="ray"))
     scene = facing_plane_scene((light,))
     blocker = SceneObject("blocker", shapes.cube(0.1), translate(0.3, 0.2, 1.0))

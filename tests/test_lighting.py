@@ -1,7 +1,7 @@
 """The lighting equations (FORMULAS §1–§10, §13, §14, §20, §26) against the formulas.
 
 Every expected value is evaluated here, independently, with numpy/math — never by
-calling softpipe.lighting to make it.
+calling softpipe.light.lighting to make it.
 """
 import math
 import os
@@ -12,15 +12,15 @@ import numba
 import numpy as np
 import pytest
 
-from softpipe.material import LightingUniform
-from softpipe.shadowmap import no_shadows
-from softpipe.lighting import (
+from softpipe.light.material import LightingUniform
+from softpipe.light.shadowmap import no_shadows
+from softpipe.light.lighting import (
     BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular, cook_torrance,
     cook_torrance_lighting, emission, fresnel, fresnel_rs_rp, fresnel_schlick, geometry_g, gooch,
     hall_local, hall_transmission, lambert, opengl_lighting, phong_specular, spot_factor,
     transmitted_half_vector,
 )
-from softpipe.material import Light, Lighting, Material, pack_lights
+from softpipe.light.material import Light, Lighting, Material, pack_lights
 
 N_UP = (0.0, 0.0, 1.0)
 NO_LIGHTS = np.zeros((0, 22))

@@ -28,14 +28,14 @@ from hypothesis import given, note
 from hypothesis import strategies as st
 
 import softpipe
-import softpipe.framebuffer
-import softpipe.pipeline
-import softpipe.transforms
-import softpipe.vertex
-from softpipe.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
-from softpipe.pipeline import DrawCall
-from softpipe.sampling import CENTER, MAX_SAMPLES, SamplePattern, grid, random_pattern
-from softpipe.vertex import MAX_VERTICES
+import softpipe.pipeline.framebuffer
+import softpipe.pipeline.draw
+import softpipe.pipeline.transforms
+import softpipe.pipeline.vertex
+from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
+from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.sampling import CENTER, MAX_SAMPLES, SamplePattern, grid, random_pattern
+from softpipe.pipeline.vertex import MAX_VERTICES
 from test_properties import assert_same_bytes, describe, examples, render, scenes
 
 SMALL = 1 << 20          # "nothing big": at most 1 MiB allocated while refusing
@@ -107,8 +107,8 @@ def test_more_than_MAX_TOTAL_SAMPLES_is_refused_before_allocating(width, height,
 
 def test_the_framebuffer_limits_are_inclusive(monkeypatch):
     # The real limits take gigabytes to reach; the same checks with the limits made small.
-    monkeypatch.setattr(softpipe.framebuffer, "MAX_DIMENSION", 64)
-    monkeypatch.setattr(softpipe.framebuffer, "MAX_TOTAL_SAMPLES", 64 * 64)
+    monkeypatch.setattr(softpipe.pipeline.framebuffer, "MAX_DIMENSION", 64)
+    monkeypatch.setattr(softpipe.pipeline.framebuffer, "MAX_TOTAL_SAMPLES", 64 * 64)
     assert softpipe.Framebuffer(64, 64).samples_depth.size == 64 * 64
     assert softpipe.Framebuffer(8, 8, random_pattern(64)).samples_depth.size == 64 * 64
     with pytest.raises(ValueError, match=r"MAX_DIMENSION\b.*\b64\b"):
@@ -166,7 +166,7 @@ def test_more_than_MAX_VERTICES_vertices_are_refused_before_allocating():
 
 
 def test_the_vertex_limit_is_inclusive(monkeypatch):
-    monkeypatch.setattr(softpipe.vertex, "MAX_VERTICES", 6)
+    monkeypatch.setattr(softpipe.pipeline.vertex, "MAX_VERTICES", 6)
     fb = softpipe.Framebuffer(8, 8)
     pos = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [0, 1, 0, 1]] * 3, float)
     softpipe.draw(fb, pos[:6], varyings={"color": np.ones((6, 3))})
@@ -182,8 +182,8 @@ def test_too_many_vertices_names_MAX_VERTICES():
 
 
 def test_a_mesh_over_MAX_VERTICES_is_refused_when_made(monkeypatch):
-    from softpipe import mesh as mesh_module
-    for module in (softpipe.vertex, mesh_module):
+    from softpipe.scenes import mesh as mesh_module
+    for module in (softpipe.pipeline.vertex, mesh_module):
         monkeypatch.setattr(module, "MAX_VERTICES", 6, raising=False)
     with pytest.raises(ValueError, match="MAX_VERTICES"):
         mesh_module.Mesh(positions=np.zeros((9, 3)), indices=[[0, 1, 2]])
@@ -215,7 +215,7 @@ def test_a_huge_viewport_draws_right_or_is_refused_with_its_limit(x, size, path)
     assert cover_with_viewport(viewport, path) == 64
 
 
-MAX_VIEWPORT = softpipe.transforms.MAX_VIEWPORT
+MAX_VIEWPORT = softpipe.pipeline.transforms.MAX_VIEWPORT
 
 
 @pytest.mark.parametrize("path", ["reference", "fast"])
@@ -232,7 +232,7 @@ def test_the_largest_viewport_draws_right_and_a_larger_one_is_refused(path):
 @contextmanager
 def batch_limit(limit: int):
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(softpipe.pipeline, "MAX_FRAGMENTS_PER_BATCH", limit)
+        mp.setattr(softpipe.pipeline.draw, "MAX_FRAGMENTS_PER_BATCH", limit)
         yield
 
 

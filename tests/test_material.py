@@ -5,7 +5,7 @@ import numba
 import numpy as np
 import pytest
 
-from softpipe.material import (
+from softpipe.light.material import (
     LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_KIND, LIGHT_POSITION,
     LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
     LightingUniform, Material, MaterialUniform, pack_lights,
@@ -43,7 +43,7 @@ def test_material_loader_keywords_still_work():
     (dict(ks=(math.inf, 0, 0)), ValueError, "Material.ks must be finite and non-negative"),
     (dict(ka=(1, 2)), ValueError, "Material.ka must have 3 components"),
     (dict(ke=[None, 0, 0]), TypeError, "Material.ke must be an RGB triple"),
-    (dict(ke="reed"), ValueError, "Material.ke: unknown color 'reed'"),  # a name is a color (softpipe.colors)
+    (dict(ke="reed"), ValueError, "Material.ke: unknown color 'reed'"),  # a name is a color (softpipe.core.colors)
     (dict(shininess=-1), ValueError, "Material.shininess must be finite and >= 0"),
     (dict(shininess=math.nan), ValueError, "Material.shininess must be finite"),
     (dict(ior=0), ValueError, "Material.ior must be > 0"),

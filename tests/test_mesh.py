@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from softpipe.material import Material
-from softpipe.mesh import Mesh, concatenate
+from softpipe.light.material import Material
+from softpipe.scenes.mesh import Mesh, concatenate
 
 TETRA_POSITIONS = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]
 # Counter-clockwise seen from outside.

@@ -13,16 +13,16 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.cubemap import CubeMap
-from softpipe.drawing import draw_mesh
-from softpipe.envmap import render_with_environments
-from softpipe.material import MEDIA, Light, Lighting, Material
-from softpipe.raytrace import primary_visibility, ray_tree, raytrace_scene
-from softpipe.rays import RayScene, ray_visibility
-from softpipe.scene import Scene, SceneObject
-from softpipe.shadowmap import ShadowSettings
-from softpipe.transforms import orthographic, rotate, scale, translate
+from softpipe.scenes import shapes
+from softpipe.light.cubemap import CubeMap
+from softpipe.scenes.drawing import draw_mesh
+from softpipe.scenes.environment_pass import render_with_environments
+from softpipe.light.material import MEDIA, Light, Lighting, Material
+from softpipe.tracers.whitted import primary_visibility, ray_tree, raytrace_scene
+from softpipe.rays.queries import RayScene, ray_visibility
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.transforms import orthographic, rotate, scale, translate
 
 DARK = dict(ka=0.0, kd=0.0, ks=0.0)
 GLOW = (0.2, 0.5, 0.9)
@@ -137,7 +137,7 @@ def hybrid_scene():
 
 def test_a_rasterized_mirror_glass_and_hall_ball_tracing_their_rays_is_the_ray_tracers_picture():
     """render_with_environments(scene, "rays"): every fragment of the three balls traces its reflected and
-    refracted rays through the scene (softpipe.raytrace.trace_ray), so each pixel is the ray tracer's tree with
+    refracted rays through the scene (softpipe.tracers.whitted.trace_ray), so each pixel is the ray tracer's tree with
     the rasterized fragment as its root. Equal within 1/255 except where the two renderers see different
     surfaces: within a pixel of an object's silhouette (the rasterizer samples a triangle's interpolated P and
     N, the tracer the ray's hit)."""

@@ -1,4 +1,4 @@
-"""The bundled models (softpipe/models.py, softpipe/data/models/): present, unchanged, found by name."""
+"""The bundled models (softpipe/scenes/models.py, softpipe/data/models/): present, unchanged, found by name."""
 from __future__ import annotations
 
 import hashlib
@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 import softpipe
-from softpipe import models
-from softpipe.models import MODELS, MODELS_DIR, TEXTURES, load_model, model_path, texture_path
+from softpipe.scenes import models
+from softpipe.scenes.models import MODELS, MODELS_DIR, TEXTURES, load_model, model_path, texture_path
 
 README = MODELS_DIR / "README.md"
 

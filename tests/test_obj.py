@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softpipe.material import Material
-from softpipe.models import MODELS_DIR
-from softpipe.obj import OBJError, OBJWarning, _OBJParser, _parse_faces, load_mtl, load_obj, parse_mtl, parse_obj
+from softpipe.light.material import Material
+from softpipe.scenes.models import MODELS_DIR
+from softpipe.scenes.obj import OBJError, OBJWarning, _OBJParser, _parse_faces, load_mtl, load_obj, parse_mtl, parse_obj
 
 ASSETS = MODELS_DIR  # the bundled models (softpipe/data/models/README.md)
 DATA = Path(__file__).parent / "data" / "obj"
@@ -427,9 +427,9 @@ def test_a_rendered_row_across_a_teapot_seam_has_no_step():
     three channels). Take the pair of pixels where per-record normals made the largest step
     (a patch border): there it was 0.077, twelve times the row's median step (0.0065), and
     welded it is 0.0067, like its neighbours."""
-    from softpipe.camera import Camera
-    from softpipe.drawing import render_scene
-    from softpipe.scene import Scene
+    from softpipe.pipeline.camera import Camera
+    from softpipe.scenes.drawing import render_scene
+    from softpipe.scenes.scene import Scene
 
     mesh = load_obj(ASSETS / "teapot.obj")
     camera = Camera(eye=(4.33, 3.99, 5.99), target=(0.74, 1.38, -0.22), fovy=35.0, near=5.0, far=12.0)

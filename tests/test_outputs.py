@@ -10,13 +10,13 @@ import pytest
 from PIL import Image
 
 import softpipe as sp
-from softpipe.camera import Camera
-from softpipe.cli import main
-from softpipe.colors import color_names, parse_color
-from softpipe.drawing import as_mesh, draw_mesh, gif_frame, prepare_scene
-from softpipe.material import Lighting
-from softpipe.scene import Scene, studio_lights
-from softpipe.trace import PixelEvent, PixelHistory
+from softpipe.pipeline.camera import Camera
+from softpipe.tools.cli import main
+from softpipe.core.colors import color_names, parse_color
+from softpipe.scenes.drawing import as_mesh, draw_mesh, gif_frame, prepare_scene
+from softpipe.light.material import Lighting
+from softpipe.scenes.scene import Scene, studio_lights
+from softpipe.pipeline.trace import PixelEvent, PixelHistory
 
 TETRA = """v 0 0 0
 v 1.2 0 0.1
@@ -185,7 +185,7 @@ def test_parse_color_errors(value, error, message):
 
 
 def test_the_command_line_uses_the_same_parser():
-    from softpipe import cli
+    from softpipe.tools import cli
     for text in ("red", "#102030", "0.1,0.2,0.3", "rgb(1,2,3)"):
         assert cli._color(text) == parse_color(text)
     assert "steelblue" in color_names() and len(color_names()) > 100

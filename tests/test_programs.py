@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.material import Light, Lighting, LightingUniform, Material
-from softpipe.drawing import draw_mesh
-from softpipe.shader import make_uniforms
-from softpipe.shaders import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
-from softpipe.shaders.common import DEFAULT_LIGHTING, facing_normal, lighting_uniform, toward_eye, uniform_or
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Light, Lighting, LightingUniform, Material
+from softpipe.scenes.drawing import draw_mesh
+from softpipe.language.contract import make_uniforms
+from softpipe.programs import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
+from softpipe.programs.common import DEFAULT_LIGHTING, facing_normal, lighting_uniform, toward_eye, uniform_or
 
 EXAMPLES_README = Path(__file__).resolve().parent.parent / "examples" / "README.md"
 
@@ -50,7 +50,7 @@ def test_n_and_v_are_within_two_ulp_of_normalize_and_the_same_compiled_and_in_py
     """N and V are v·(1/|v|), one division for normalize's three (issue 18): the same bits compiled
     and in plain Python (both paths and NUMBA_DISABLE_JIT run this code), within two ulp of v/|v|
     (1/|v| and the product are each rounded; one ulp at most in 6 million random components)."""
-    from softpipe.glsl import normalize
+    from softpipe.language.glsl import normalize
 
     @numba.njit
     def n_and_v(v, front, projection):
@@ -138,7 +138,7 @@ def test_the_documented_user_program_runs_and_changes_only_the_diffuse_term(tmp_
 
 
 def test_demo_is_a_lit_scene():
-    from softpipe.demo import demo_lighting, render_demo
+    from softpipe.tools.demo import demo_lighting, render_demo
     kinds = {light.kind for light in demo_lighting().lights}
     assert kinds == {"directional", "point", "spot"}
     fb = render_demo(80, 60)

@@ -48,12 +48,12 @@ from hypothesis import strategies as st
 
 import reference
 import softpipe
-import softpipe.visibility
+import softpipe.pipeline.visibility
 from conftest import window_prims, window_to_clip
-from softpipe.assembly import GUARD_PIXELS, W_MIN
-from softpipe.output import DEPTH_FUNCS
-from softpipe.raster import rasterize
-from softpipe.sampling import CENTER, grid, rotated_grid_4x
+from softpipe.pipeline.assembly import GUARD_PIXELS, W_MIN
+from softpipe.pipeline.output import DEPTH_FUNCS
+from softpipe.pipeline.raster import rasterize
+from softpipe.pipeline.sampling import CENTER, grid, rotated_grid_4x
 
 # ------------------------------------------------------------ hypothesis profiles
 
@@ -535,8 +535,8 @@ def test_multisampled_fast_path_gives_the_bytes_of_the_reference_path(scene, sha
 
 
 #: the fast path's tile (a compile-time constant of its numba kernels): 64×64 once, now wide tiles
-TILE_W = getattr(softpipe.visibility, "TILE_W", getattr(softpipe.visibility, "TILE", 64))
-TILE_H = getattr(softpipe.visibility, "TILE_H", getattr(softpipe.visibility, "TILE", 64))
+TILE_W = getattr(softpipe.pipeline.visibility, "TILE_W", getattr(softpipe.pipeline.visibility, "TILE", 64))
+TILE_H = getattr(softpipe.pipeline.visibility, "TILE_H", getattr(softpipe.pipeline.visibility, "TILE", 64))
 
 
 def around_tiles(tile: int) -> st.SearchStrategy:
@@ -562,7 +562,7 @@ DETERMINISM_SCRIPT = r'''
 import sys
 import numpy as np
 import softpipe
-from softpipe.sampling import CENTER, grid
+from softpipe.pipeline.sampling import CENTER, grid
 
 DEPTH = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always", None)
 

@@ -11,7 +11,7 @@ import pytest
 
 import reference
 from conftest import window_prims
-from softpipe.raster import count_fragments, rasterize, snap
+from softpipe.pipeline.raster import count_fragments, rasterize, snap
 
 
 def covered(tris, width, height):

@@ -15,13 +15,13 @@ import pytest
 from PIL import Image
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.cli import main
-from softpipe.material import Light, Lighting, Material
-from softpipe.raytrace import RAY_KINDS, ray_tree, raytrace_scene
-from softpipe.scene import Scene, SceneObject, studio_lights
-from softpipe.shadowmap import ShadowSettings
-from softpipe.transforms import translate
+from softpipe.scenes import shapes
+from softpipe.tools.cli import main
+from softpipe.light.material import Light, Lighting, Material
+from softpipe.tracers.whitted import RAY_KINDS, ray_tree, raytrace_scene
+from softpipe.scenes.scene import Scene, SceneObject, studio_lights
+from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.transforms import translate
 
 RAYS = ShadowSettings(method="ray")
 
@@ -188,8 +188,8 @@ def test_render_raytrace_on_the_command_line(tmp_path, capsys):
 def test_render_with_rays_from_the_shaders_on_the_command_line(tmp_path, capsys):
     """--rays: a scene file's mirror ball rasterized with its rays traced equals render_with_environments(scene,
     "rays") byte for byte; it refuses --raytrace and --stages by name."""
-    from softpipe.envmap import render_with_environments
-    from softpipe.scenefile import load_scene
+    from softpipe.scenes.environment_pass import render_with_environments
+    from softpipe.scenes.scenefile import load_scene
     scene_file = tmp_path / "mirror.toml"
     scene_file.write_text('[render]\nwidth = 32\nheight = 24\n[camera]\neye = [0, 1.5, 4]\ntarget = [0, 0.5, 0]\n'
                           '[[meshes]]\nname = "floor"\nshape = "plane"\nsize = 6.0\n'
@@ -271,7 +271,7 @@ def test_primary_visibility_is_the_rasterizers_at_every_pixel_centre_but_on_edge
     """The triangle a primary ray meets is the one whose fragment the rasterizer's pixel shows, except where the
     centre lies on an edge within the rasterizer's snapping: vertices are snapped to 1/256 pixel, so a centre
     closer than that to an edge may fall either way (every mismatch is checked to be within 1/256 px)."""
-    from softpipe.raytrace import primary_visibility
+    from softpipe.tracers.whitted import primary_visibility
     scene = model_on_ground("teapot")
     obj, tri, _ = primary_visibility(scene)
     results = []
@@ -294,10 +294,10 @@ def test_the_tracers_local_shading_is_the_phong_programs():
     """At a primary hit, the tracer's local color equals the phong program's fragment shader given the same
     surface point: P and N interpolated at the hit's barycentrics in eye space, front_facing by winding, the same
     lighting uniform (shadow rays for V_j) — within 1e-5."""
-    from softpipe.raytrace import primary_visibility
-    from softpipe.shaders.common import StandardVaryings
-    from softpipe.shaders.phong import phong_fragment
-    from softpipe.shader import FragInfo
+    from softpipe.tracers.whitted import primary_visibility
+    from softpipe.programs.common import StandardVaryings
+    from softpipe.programs.phong import phong_fragment
+    from softpipe.language.contract import FragInfo
     scene = model_on_ground("suzanne")
     camera = scene.camera
     objects = scene.drawn_objects(camera)
@@ -320,7 +320,7 @@ def test_the_tracers_local_shading_is_the_phong_programs():
         N = tuple(np.linalg.inv(view[:3, :3]).T @ n)
         p = o.world_positions()[corners]
         front = np.cross(p[1] - p[0], p[2] - p[0]) @ (world - np.asarray(camera.eye)) < 0
-        uniforms = sp.shader.make_uniforms({"projection": camera.projection(scene.width / scene.height),
+        uniforms = sp.make_uniforms({"projection": camera.projection(scene.width / scene.height),
                                             "material": o.mesh.material, "lighting": lighting})
         expected = phong_fragment(StandardVaryings(P, N), uniforms, FragInfo(i + 0.5, j + 0.5, 0.5, bool(front), 0))
         local = ray_tree(scene, int(i), int(j), max_depth=0)[0].local

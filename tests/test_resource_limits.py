@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from softpipe import texture
-from softpipe.texture import Texture2D, texture_bytes
+from softpipe.light import texture
+from softpipe.light.texture import Texture2D, texture_bytes
 
 
 def _png_header_only(path, width: int, height: int) -> None:
@@ -66,7 +66,7 @@ def _triangles(n: int, size: float = 0.01):
 
 def test_a_draw_whose_triangles_cannot_fit_fails_before_assembly_with_the_estimate(monkeypatch):
     import softpipe as sp
-    from softpipe import _runtime
+    from softpipe.core import runtime as _runtime
     pos, varyings = _triangles(10_000)
     fb = sp.Framebuffer(64, 64)
     before = fb.samples_color.copy()
@@ -83,7 +83,8 @@ def test_a_draw_whose_triangles_cannot_fit_fails_before_assembly_with_the_estima
 
 def test_a_trace_too_large_for_memory_fails_before_it_keeps_the_fragments(monkeypatch):
     import softpipe as sp
-    from softpipe import _runtime, pipeline
+    from softpipe.core import runtime as _runtime
+    from softpipe.pipeline import draw as pipeline
     pos, varyings = _triangles(20, size=0.5)
     fb = sp.Framebuffer(64, 64)
     covered = int(sp.DrawCall(sp.Framebuffer(64, 64), pos, varyings=varyings, path="reference").run(trace=True)
@@ -99,7 +100,7 @@ def test_a_trace_too_large_for_memory_fails_before_it_keeps_the_fragments(monkey
 
 
 def test_small_needs_are_not_checked_at_all(monkeypatch):
-    from softpipe import _runtime
+    from softpipe.core import runtime as _runtime
     asked = []
     monkeypatch.setattr(_runtime, "available_memory", lambda: asked.append(1) or 0)
     _runtime.check_memory("a small draw", _runtime.CHECK_MEMORY_FROM - 1)

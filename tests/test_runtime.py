@@ -1,5 +1,5 @@
-"""Process-wide behaviour: the allocator setting softpipe applies on import (softpipe/_runtime.py) and the
-way out of it, and its threads in a forked child (softpipe/_parallel.py)."""
+"""Process-wide behaviour: the allocator setting softpipe applies on import (softpipe/core/runtime.py) and the
+way out of it, and its threads in a forked child (softpipe/core/parallel.py)."""
 import json
 import os
 import subprocess
@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-PROBE = ("import json, softpipe._runtime as r; r.release_memory(); "
+PROBE = ("import json, softpipe.core.runtime as r; r.release_memory(); "
          "print(json.dumps({'tuned': r.malloc_tuned}))")
 
 
@@ -47,7 +47,7 @@ if __name__ == "__main__":
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork here")
 def test_a_forked_child_draws_with_threads_of_its_own(tmp_path):
     # The parent's thread pools are copied into a forked child without their threads;
-    # softpipe._parallel starts new ones there instead of waiting forever.
+    # softpipe.core.parallel starts new ones there instead of waiting forever.
     script = tmp_path / "fork.py"
     script.write_text(FORK_SCRIPT)
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)

@@ -1,4 +1,4 @@
-"""Scene files (softpipe.scenefile): every key, every error message, and a small render (softpipe.drawing)."""
+"""Scene files (softpipe.scenes.scenefile): every key, every error message, and a small render (softpipe.scenes.drawing)."""
 from __future__ import annotations
 
 import warnings
@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import softpipe.scenefile as scenefile
-from softpipe.camera import Camera
-from softpipe.material import Light
-from softpipe.models import MODELS, model_path
-from softpipe.drawing import render_scene
-from softpipe.scene import Scene, default_program, studio_lights
-from softpipe.scenefile import SceneError, SceneWarning, load_scene, parse_scene
+import softpipe.scenes.scenefile as scenefile
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Light
+from softpipe.scenes.models import MODELS, model_path
+from softpipe.scenes.drawing import render_scene
+from softpipe.scenes.scene import Scene, default_program, studio_lights
+from softpipe.scenes.scenefile import SceneError, SceneWarning, load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "scene.toml"

@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import ShaderError, kernels
+from softpipe import ShaderError
+from softpipe.language import kernels
 
 import shader_python_helpers as other_module
 

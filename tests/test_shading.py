@@ -3,7 +3,7 @@
 Each test renders a scene in which N, L and V at a pixel are known — a large
 plane facing the camera, or a sphere centred on the view axis — and compares the
 pixel with the formula, evaluated here independently with numpy/math (never by
-calling softpipe.lighting). The framebuffer holds float32, so the tolerance is
+calling softpipe.light.lighting). The framebuffer holds float32, so the tolerance is
 1e-5 relative to the formula.
 """
 import math
@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.camera import Camera
-from softpipe.material import Light, Lighting, Material
-from softpipe.mesh import Mesh
-from softpipe.drawing import draw_mesh, standard_uniforms
-from softpipe.shaders import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
-from softpipe.shaders import Program, get_program
-from softpipe.texture import Texture2D
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.light.material import Light, Lighting, Material
+from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.drawing import draw_mesh, standard_uniforms
+from softpipe.programs import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
+from softpipe.programs import Program, get_program
+from softpipe.light.texture import Texture2D
 
 RTOL, ATOL = 1e-5, 1e-6
 BLACK = (0.0, 0.0, 0.0)

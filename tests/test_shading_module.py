@@ -6,7 +6,7 @@
   object of its home module (the module that defines it).
 * It offers all of the GLSL math, every lighting function and the packed
   lights' columns.
-* ``standard_vertex`` (softpipe/shaders/common.py, written with ``eye_space``)
+* ``standard_vertex`` (softpipe/programs/common.py, written with ``eye_space``)
   computes the written-out model-view-projection bit for bit, compiled and as
   Python, and is the vertex shader of the built-in programs.
 """
@@ -23,9 +23,12 @@ import numpy as np
 import pytest
 
 import softpipe
-from softpipe import glsl, lighting, material, shading
-from softpipe.shaders import PROGRAMS
-from softpipe.shaders import common
+from softpipe import shading
+from softpipe.language import glsl
+from softpipe.light import lighting
+from softpipe.light import material
+from softpipe.programs import PROGRAMS
+from softpipe.programs import common
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -89,7 +92,7 @@ def test_it_offers_all_the_glsl_math_every_lighting_function_and_the_light_colum
     assert set(glsl.__all__) <= offered
     assert set(lighting.__all__) <= offered
     functions = {name for name, obj in vars(lighting).items()
-                 if not name.startswith("_") and getattr(obj, "__module__", None) == "softpipe.lighting"
+                 if not name.startswith("_") and getattr(obj, "__module__", None) == "softpipe.light.lighting"
                  and callable(obj) and not inspect.isclass(obj)}
     assert functions <= offered, f"lighting functions not offered: {sorted(functions - offered)}"
     assert {name for name in material.__all__ if name.startswith("LIGHT_")} <= offered
@@ -109,9 +112,9 @@ def test_the_docstring_lists_every_name_and_defines_the_notes_names():
 def test_examples_user_program_imports_its_shader_things_from_softpipe_shading_only():
     source = (ROOT / "examples" / "user_program.py").read_text()
     modules = re.findall(r"^from (softpipe[\w.]*) import", source, re.M)
-    shader_modules = [m for m in modules if m in ("softpipe.glsl", "softpipe.lighting", "softpipe.material",
-                                                  "softpipe.shaders", "softpipe.shaders.common",
-                                                  "softpipe.vertex", "softpipe.shader", "softpipe.shading")]
+    shader_modules = [m for m in modules if m in ("softpipe.language.glsl", "softpipe.light.lighting", "softpipe.light.material",
+                                                  "softpipe.programs", "softpipe.programs.common",
+                                                  "softpipe.pipeline.vertex", "softpipe.language.contract", "softpipe.shading")]
     assert shader_modules == ["softpipe.shading"]
 
 
@@ -166,8 +169,8 @@ def test_the_built_in_programs_use_the_standard_vertex_shader_next_to_them():
 @pytest.mark.parametrize("name", ["phong", "gooch"])
 def test_a_program_made_from_shading_draws_like_the_built_in_one(name):
     """A Program of the re-exported standard_vertex and a built-in fragment shader is the built-in program."""
-    from softpipe import shapes
-    from softpipe.camera import Camera
+    from softpipe.scenes import shapes
+    from softpipe.pipeline.camera import Camera
 
     mesh = shapes.uv_sphere(segments=16, rings=8)
     camera = Camera(eye=(0.5, 0.4, 3.0))

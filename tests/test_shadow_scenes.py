@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe import shapes
-from softpipe.cli import main
-from softpipe.material import Light, Material
-from softpipe.scene import Scene, SceneObject, ground_object
-from softpipe.scenefile import SceneError, parse_scene
-from softpipe.shadowmap import ShadowSettings
-from softpipe.transforms import translate
+from softpipe.scenes import shapes
+from softpipe.tools.cli import main
+from softpipe.light.material import Light, Material
+from softpipe.scenes.scene import Scene, SceneObject, ground_object
+from softpipe.scenes.scenefile import SceneError, parse_scene
+from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.transforms import translate
 
 SUN = (0.3, -1.0, -0.2)
 
@@ -168,7 +168,7 @@ def test_render_shadows_on_the_command_line(tmp_path, capsys):
 
 
 def test_demo_draws_shadows_unless_told_not_to(tmp_path, capsys):
-    from softpipe.demo import render_demo
+    from softpipe.tools.demo import render_demo
     with_shadows = render_demo(96, 72)
     without = render_demo(96, 72, shadows=False)
     assert np.all(with_shadows.color <= without.color)
@@ -238,7 +238,7 @@ def test_ray_shadows_give_the_same_bytes_on_both_paths():
 def test_lighting_without_shadows_compiles_them_out_and_draws_the_same_bytes():
     """shadows=None (the default uniform) and an empty ShadowUniform (every light without a map) are two types, two
     compiled variants; both draw the same picture."""
-    from softpipe.shadowmap import no_shadows
+    from softpipe.light.shadowmap import no_shadows
     scene = box_over_floor(False)
     lighting = scene.lighting_for(scene.camera).uniform(scene.camera.view)
     assert lighting.shadows is None

@@ -22,12 +22,13 @@ import math
 import numpy as np
 import pytest
 
-from softpipe import Camera, DrawCall, Framebuffer, draw_mesh, render_shadow_maps, shapes
-from softpipe.material import Light, Lighting, Material
-from softpipe.scene import SceneObject
-from softpipe.shadowmap import ShadowSettings, depth_texture, shadow_map_visibility as light_visibility, texture_compare
-from softpipe.shadows import casters_of
-from softpipe.transforms import orthographic, rotate, scale, translate
+from softpipe import Camera, DrawCall, Framebuffer, draw_mesh, render_shadow_maps
+from softpipe.scenes import shapes
+from softpipe.light.material import Light, Lighting, Material
+from softpipe.scenes.scene import SceneObject
+from softpipe.light.shadowmap import ShadowSettings, depth_texture, shadow_map_visibility as light_visibility, texture_compare
+from softpipe.scenes.shadow_pass import casters_of
+from softpipe.pipeline.transforms import orthographic, rotate, scale, translate
 
 # A receiver lit by one white light: A = 0.2 (ka = 1 times the global ambient 0.2),
 # D = 0.8·(N·L); no specular, so that color = A + V·D exactly.

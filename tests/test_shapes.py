@@ -7,8 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from softpipe import shapes
-from softpipe.mesh import Mesh
+from softpipe.scenes import shapes
+from softpipe.scenes.mesh import Mesh
 
 CLOSED = {
     "cube": (lambda: shapes.cube(2.0), 8.0),

@@ -27,7 +27,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from softpipe import raster
+from softpipe.pipeline import raster
 
 TIMEOUT = 600
 
@@ -52,8 +52,9 @@ SCENE = textwrap.dedent('''
     import numba
     import numpy as np
     import softpipe as sp
-    from softpipe import output, raster
-    from softpipe.sampling import rotated_grid_4x
+    from softpipe.pipeline import output
+    from softpipe.pipeline import raster
+    from softpipe.pipeline.sampling import rotated_grid_4x
 
     jit = not numba.config.DISABLE_JIT
     kernels = (raster._cover_triangle, raster._emit_kernel, output._merge_kernel, output._merge_one)

@@ -12,8 +12,8 @@ from PIL import Image
 
 import softpipe as sp
 from conftest import window_prims
-from softpipe.raster import rasterize
-from softpipe.sampling import pattern_named
+from softpipe.pipeline.raster import rasterize
+from softpipe.pipeline.sampling import pattern_named
 from softpipe.testing import (Coverage, ascii_picture, assert_pixels_equal, check_golden, coverage,
                               covered_pixels, from_ascii, reference_coverage, to_8bit)
 

@@ -1,7 +1,7 @@
 """Textures: wrap modes, filters, orientation, mipmaps, level of detail, bad input.
 
 Every expected value is worked out by hand in the test from the GL rules quoted
-in softpipe/texture.py: texel i covers [i/W, (i+1)/W); nearest takes
+in softpipe/light/texture.py: texel i covers [i/W, (i+1)/W); nearest takes
 floor(u·W); bilinear takes i0 = floor(u·W − ½) with weight frac(u·W − ½) on i0 + 1.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from softpipe.texture import (
+from softpipe.light.texture import (
     Texture2D,
     TextureUniform,
     mip_level,

@@ -345,7 +345,7 @@ def test_viewport_bad_arguments():
 
 def test_transform_points_is_the_matrix_times_each_homogeneous_point():
     """transform_points(M, P) = (M · (p, 1))[:rows] per point, written out here one point at a time."""
-    from softpipe.transforms import transform_points
+    from softpipe.pipeline.transforms import transform_points
     rng = np.random.default_rng(7)
     m, points = rng.normal(size=(4, 4)), rng.normal(size=(50, 3))
     for rows in (3, 4):

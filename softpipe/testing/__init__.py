@@ -15,10 +15,10 @@
 
 docs/testing.md shows them at work.
 """
-from .compare import assert_pixels_equal, check_golden, diff_image, to_8bit
-from .coverage import Coverage, coverage, covered_pixels
-from .pictures import ascii_picture, from_ascii
-from .reference import reference_coverage
+from softpipe.testing.compare import assert_pixels_equal, check_golden, diff_image, to_8bit
+from softpipe.testing.coverage import Coverage, coverage, covered_pixels
+from softpipe.testing.pictures import ascii_picture, from_ascii
+from softpipe.testing.reference import reference_coverage
 
 __all__ = ["coverage", "covered_pixels", "Coverage", "reference_coverage", "assert_pixels_equal", "ascii_picture",
            "from_ascii", "check_golden", "diff_image", "to_8bit"]

@@ -15,7 +15,7 @@ from typing import Optional, Union
 
 import numpy as np
 
-from .pictures import as_pixels
+from softpipe.testing.pictures import as_pixels
 
 __all__ = ["assert_pixels_equal", "diff_image", "to_8bit", "check_golden", "MAP_COLUMNS", "MAP_ROWS"]
 
@@ -253,7 +253,7 @@ def png_bytes(a: np.ndarray) -> bytes:
 
 def write_png(a: np.ndarray, path) -> Path:
     """Write uint8 ``a`` as a PNG at ``path`` (whole or not at all; folders made); returns the path."""
-    from ..files import atomic_write
+    from softpipe.core.files import atomic_write
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = png_bytes(a)

@@ -25,12 +25,12 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from ..assembly import CULL_MODES, FRONT_FACES, GUARD_PIXELS, Primitives, assemble, triangle_indices
-from ..raster import rasterize
-from ..sampling import CENTER, SamplePattern, pattern_named
-from ..shader import VaryingLayout
-from ..transforms import Viewport
-from ..vertex import run_vertex_stage
+from softpipe.pipeline.assembly import CULL_MODES, FRONT_FACES, GUARD_PIXELS, Primitives, assemble, triangle_indices
+from softpipe.pipeline.raster import rasterize
+from softpipe.pipeline.sampling import CENTER, SamplePattern, pattern_named
+from softpipe.language.contract import VaryingLayout
+from softpipe.pipeline.transforms import Viewport
+from softpipe.pipeline.vertex import run_vertex_stage
 
 __all__ = ["Coverage", "coverage", "covered_pixels", "SPACES", "MAX_COVERAGE_SAMPLES", "as_pattern", "check_size",
            "check_samples"]

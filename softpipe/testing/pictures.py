@@ -127,8 +127,8 @@ def from_ascii(picture: str, legend: Optional[Mapping[str, object]] = None, dtyp
 
 def as_pixels(value, name: str) -> np.ndarray:
     """``value`` as an array [H, W] or [H, W, C] (C ≤ 4), or a one-line error naming ``name``."""
-    from ..framebuffer import Framebuffer
-    from .coverage import Coverage
+    from softpipe.pipeline.framebuffer import Framebuffer
+    from softpipe.testing.coverage import Coverage
 
     if isinstance(value, Framebuffer):
         return np.asarray(value)

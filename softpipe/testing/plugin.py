@@ -26,7 +26,7 @@ from pathlib import Path
 
 import pytest
 
-from .compare import check_golden
+from softpipe.testing.compare import check_golden
 
 __all__ = ["golden", "Golden"]
 

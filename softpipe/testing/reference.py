@@ -1,6 +1,6 @@
 """A reference rasterizer: plain Python, exact rational arithmetic, slow on purpose.
 
-Written independently of softpipe.raster (and imported by nothing in the
+Written independently of softpipe.pipeline.raster (and imported by nothing in the
 pipeline) from the rules in DESIGN.md: snap to 1/256 pixel (round half to
 even), then decide every sample with exact integers and Fractions. The fill
 rule is stated here geometrically, not with softpipe's edge-direction test: a
@@ -115,8 +115,8 @@ def reference_coverage(positions, width: int, height: int, *, indices=None, samp
     ``cull``) is the sign of the exact signed area of the given corners. Slow:
     keep images small (a few thousand samples per triangle).
     """
-    from ..assembly import CULL_MODES, FRONT_FACES, triangle_indices
-    from .coverage import Coverage, as_pattern, check_samples, check_size
+    from softpipe.pipeline.assembly import CULL_MODES, FRONT_FACES, triangle_indices
+    from softpipe.testing.coverage import Coverage, as_pattern, check_samples, check_size
 
     width, height = check_size(width, height)
     if cull not in CULL_MODES:

@@ -1,0 +1,297 @@
+"""Shaders: per-invocation Python functions, compiled by numba, run over a batch.
+
+A shader is written like GLSL: it sees one vertex or one fragment, small vectors
+are tuples of floats, and its inputs arrive as namedtuples so that they read by
+name (``varyings.normal``, ``uniforms.light_dir``, ``frag.x``).
+
+Vertex shader::
+
+    def vertex(attributes, uniforms):
+        ...
+        return clip_position, Varyings(normal=..., color=...)
+
+``attributes`` has one field per vertex attribute (``position`` and the arrays
+given as ``attributes=``); a field is a float for an ``[N]`` array and a tuple of
+k floats for ``[N, k]``. It returns the clip position (x, y, z, w) and a
+namedtuple (any namedtuple class) of varyings; each varying is a float or a
+tuple of 2–4 floats. softpipe learns the varyings' names and sizes by running
+the vertex shader once as plain Python, on the first vertex.
+
+Fragment shader::
+
+    def fragment(varyings, uniforms, frag):
+        return (r, g, b, a)          # or DISCARD
+
+``varyings`` has the interpolated varyings by name, ``frag`` is a
+:data:`FragInfo` (``x``, ``y``: the window position of the sample, y up, pixel
+centres at +½, as ``gl_FragCoord``; ``z`` its depth; ``front_facing``;
+``primitive_id``). Returning :data:`DISCARD` discards the fragment.
+
+A fragment shader that needs screen-space derivatives (GLSL's ``dFdx``/``dFdy``,
+e.g. to choose a mipmap level) takes a fourth parameter::
+
+    def fragment(varyings, uniforms, frag, derivatives):
+        duv_dx, duv_dy = derivatives.dx.uv, derivatives.dy.uv
+
+They are exact, not finite differences: the derivative of each varying's
+interpolation formula at the fragment, per window pixel (y up).
+
+``uniforms`` is built once per draw from a dict by :func:`make_uniforms`. A
+shader may declare the uniforms it reads, as GLSL does (``uniform mat4
+model_view;``), with :func:`reads_uniforms`: its compiled loop then takes only
+those, and serves every draw whose other uniforms differ.
+
+This module is the contract: the types a shader receives and returns. How a
+shader runs (the generated loop that inlines it, numba's compilation and cache,
+how errors are reported) is :mod:`softpipe.language.kernels`; the functions a shader
+calls (GLSL math, lighting) are offered by :mod:`softpipe.shading`.
+"""
+from __future__ import annotations
+
+import inspect
+import keyword
+import math
+import types
+from collections import namedtuple
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, Mapping, Sequence, Tuple
+
+import numpy as np
+
+__all__ = ["FragInfo", "DISCARD", "Derivatives", "ShaderError", "make_uniforms", "VaryingLayout", "QUALIFIERS",
+           "wants_derivatives", "reads_uniforms", "declared_uniforms"]
+
+#: The fragment's fixed-function inputs (``gl_FragCoord`` and friends).
+FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id"])
+
+#: Return this from a fragment shader to discard the fragment (GLSL ``discard``).
+#: It is the color whose alpha is NaN; the fragment stage tests for exactly that.
+DISCARD = (math.nan, math.nan, math.nan, math.nan)
+
+QUALIFIERS = ("smooth", "noperspective", "flat")
+
+
+class ShaderError(Exception):
+    """A shader could not be compiled or run; the message says what is wrong and names the shader,
+    its file and line.
+
+    Attributes: ``file`` and ``line`` (where in the shader's code, when known),
+    ``invocation`` (for an error raised while it ran: the fragment or vertex, in
+    words) and ``numba_message`` (for a compile error: numba's full text, which
+    ``SOFTPIPE_SHADER_DEBUG=1`` adds to the message).
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 invocation: str | None = None, numba_message: str | None = None):
+        super().__init__(message)
+        self.file, self.line, self.invocation, self.numba_message = file, line, invocation, numba_message
+
+
+def shader_name(fn: Callable) -> str:
+    f = getattr(fn, "py_func", fn)
+    return f"{getattr(f, '__module__', '?')}.{getattr(f, '__qualname__', repr(f))}"
+
+
+def python_function(fn: Callable) -> Callable:
+    """The plain-Python function behind a shader (numba dispatcher or not)."""
+    return getattr(fn, "py_func", fn)
+
+
+# --------------------------------------------------------------------- uniforms
+
+def _uniform_value(name: str, value: Any):
+    if hasattr(value, "__softpipe_uniform__"):
+        return value.__softpipe_uniform__()
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return float(value)
+    if isinstance(value, tuple) and hasattr(value, "_fields"):
+        return value  # already a namedtuple: pass through
+    arr = np.asarray(value)
+    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise TypeError(f"uniform {name!r}: cannot pass a {type(value).__name__} to a shader; "
+                        "use numbers, sequences, numpy arrays or an object with __softpipe_uniform__")
+    if arr.ndim == 1 and arr.size <= 4:
+        return tuple(float(c) for c in arr)
+    return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+def _uniforms_class_name(names: Sequence[str]) -> str:
+    """A module attribute name that spells out the field names (length-prefixed, unambiguous)."""
+    return "Uniforms_" + "_".join(f"{len(n)}{n}" for n in names)
+
+
+def _names_from_class_name(attr: str) -> list:
+    rest, names = attr[len("Uniforms_"):], []
+    while rest:
+        digits = len(rest) - len(rest.lstrip("0123456789"))
+        if digits == 0:
+            raise AttributeError(attr)
+        n = int(rest[:digits])
+        names.append(rest[digits:digits + n])
+        rest = rest[digits + n + 1:]
+    return names
+
+
+def _uniforms_class(names: Sequence[str]) -> type:
+    """The namedtuple class for a set of uniform names, one per set, as a module attribute.
+
+    numba's on-disk cache finds a kernel by its argument types, and a namedtuple
+    type is its class: the class must be the same in every process, which it
+    is when pickle can find it here by name (see ``__getattr__``).
+    """
+    attr = _uniforms_class_name(names)
+    cls = globals().get(attr)
+    if cls is None:
+        cls = namedtuple(attr, list(names) or ["empty"])
+        cls.__module__ = __name__
+        globals()[attr] = cls
+    return cls
+
+
+def __getattr__(attr: str):
+    # Unpickling a cached kernel's signature asks for Uniforms_… classes by name.
+    if attr.startswith("Uniforms_"):
+        return _uniforms_class(_names_from_class_name(attr))
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
+
+
+def reads_uniforms(*names: str) -> Callable[[Callable], Callable]:
+    """Declare the uniforms a shader reads: ``@reads_uniforms("model_view", "projection")``.
+
+    As GLSL's ``uniform`` declarations: the compiled loop that runs the shader
+    is given only these (:func:`declared_uniforms`), so a program whose other
+    uniforms differ (another material, a user's own uniform) reuses the loop
+    compiled, and cached, for the first one instead of compiling it again for
+    a new uniforms type. A declared shader that reads an undeclared uniform
+    fails to compile with an error naming it. Undeclared shaders get every uniform.
+    """
+    for n in names:
+        check_name("uniform", n)
+
+    def declare(shader: Callable) -> Callable:
+        python_function(shader).uniforms_read = tuple(names)
+        return shader
+    return declare
+
+
+def declared_uniforms(shader: Callable, uniforms):
+    """``uniforms`` (a :func:`make_uniforms` namedtuple) cut down to those ``shader`` declares
+    with :func:`reads_uniforms` (the ones given of them), or ``uniforms`` itself."""
+    names = getattr(python_function(shader), "uniforms_read", None)
+    if names is None or uniforms is None:
+        return uniforms
+    names = tuple(n for n in names if n in uniforms._fields)
+    if names == tuple(uniforms._fields):
+        return uniforms
+    cls = _uniforms_class(names)
+    return cls(*(getattr(uniforms, n) for n in names)) if names else cls(0.0)
+
+
+def check_name(what: str, name) -> None:
+    """A shader reads its inputs by attribute (``varyings.normal``): a name must be a Python
+    identifier and not a keyword (``varyings.lambda`` is not Python)."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"{what} name {name!r} is not a valid Python identifier")
+    if keyword.iskeyword(name):
+        raise ValueError(f"{what} name {name!r} is a Python keyword: a shader could not read it "
+                         f"(`….{name}` is not Python); rename it, e.g. {name + '_'!r}")
+
+
+def make_uniforms(uniforms: Mapping[str, Any] | None):
+    """The shader's ``uniforms`` namedtuple from a dict.
+
+    Numbers become floats, sequences of up to 4 numbers tuples of floats (vec2–4),
+    other arrays float64 arrays (matrices, tables), and objects with a
+    ``__softpipe_uniform__`` method (materials, lights, textures) what it returns.
+    """
+    if uniforms is None:
+        uniforms = {}
+    if not isinstance(uniforms, Mapping):
+        raise TypeError(f"uniforms must be a dict of name → value, got {type(uniforms).__name__}")
+    names = tuple(uniforms)
+    for n in names:
+        check_name("uniform", n)
+    cls = _uniforms_class(names)
+    if not names:
+        return cls(0.0)
+    return cls(*(_uniform_value(n, uniforms[n]) for n in names))
+
+
+# ---------------------------------------------------------------- varying layout
+
+@dataclass(frozen=True)
+class VaryingLayout:
+    """How named varyings are packed side by side in one float64 array [.., K].
+
+    ``fields`` is a tuple of (name, offset, size, qualifier); size 1 is a float,
+    2–4 a tuple.
+    """
+
+    fields: Tuple[Tuple[str, int, int, str], ...] = ()
+
+    @property
+    def width(self) -> int:
+        return sum(f[2] for f in self.fields)
+
+    @property
+    def names(self) -> Tuple[str, ...]:
+        return tuple(f[0] for f in self.fields)
+
+    def slice(self, name: str) -> slice:
+        for n, off, size, _ in self.fields:
+            if n == name:
+                return slice(off, off + size)
+        raise KeyError(name)
+
+    def with_qualifiers(self, qualifiers: Mapping[str, str] | None) -> "VaryingLayout":
+        qualifiers = dict(qualifiers or {})
+        for name, q in qualifiers.items():
+            if name not in self.names:
+                raise ValueError(f"interpolation names varying {name!r}, but the varyings are {list(self.names)}")
+            if q not in QUALIFIERS:
+                raise ValueError(f"interpolation[{name!r}] must be one of {QUALIFIERS}, got {q!r}")
+        return VaryingLayout(tuple((n, o, s, qualifiers.get(n, q)) for n, o, s, q in self.fields))
+
+    @staticmethod
+    def from_sizes(items: Sequence[Tuple[str, int]]) -> "VaryingLayout":
+        fields, off = [], 0
+        for name, size in items:
+            fields.append((name, off, size, "smooth"))
+            off += size
+        return VaryingLayout(tuple(fields))
+
+    def unpack(self, packed: np.ndarray) -> Dict[str, np.ndarray]:
+        """The packed array [..., K] as a dict of name → [...] or [..., k] arrays."""
+        out = {}
+        for n, off, size, _ in self.fields:
+            out[n] = packed[..., off] if size == 1 else packed[..., off:off + size]
+        return out
+
+
+def _field_size(name: str, what: str, value) -> int:
+    if isinstance(value, (int, float, np.integer, np.floating, bool)):
+        return 1
+    if isinstance(value, tuple) and 2 <= len(value) <= 4 and all(
+            isinstance(c, (int, float, np.integer, np.floating)) for c in value):
+        return len(value)
+    raise ShaderError(f"{what} {name!r} must be a float or a tuple of 2–4 floats, got {value!r}")
+
+
+
+#: The 4th argument of a fragment shader that asks for it: ``derivatives.dx.uv`` is ∂uv/∂x.
+Derivatives = namedtuple("Derivatives", ["dx", "dy"])
+
+
+def wants_derivatives(shader: Callable) -> bool:
+    """Does the fragment shader take a 4th parameter (screen-space derivatives of its varyings)?"""
+    f = python_function(shader)
+    if isinstance(f, types.FunctionType) and not hasattr(f, "__wrapped__"):
+        return f.__code__.co_argcount >= 4      # (what inspect.signature counts, without its cost per draw)
+    try:
+        params = inspect.signature(f).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params) >= 4
+

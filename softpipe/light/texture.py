@@ -1,0 +1,606 @@
+"""2D textures: images with mipmaps, and the GLSL-like functions shaders sample them with.
+
+Two halves, as on a GPU:
+
+* :class:`Texture2D` is the host side. It loads an image file or a numpy array,
+  checks it, converts it to linear float RGBA, builds the mip pyramid once, and
+  hands shaders a :class:`TextureUniform` through ``__softpipe_uniform__``.
+* :func:`texture`, :func:`texture_lod`, :func:`texture_grad`, :func:`mip_level`
+  and :func:`texture_size` are the shader side: numba functions that a shader
+  calls on the uniform, named after GLSL's ``texture``, ``textureLod``,
+  ``textureGrad``, ``textureQueryLod`` and ``textureSize``. They run the same
+  as plain Python under ``NUMBA_DISABLE_JIT=1``.
+
+Orientation (the one place softpipe maps images to texture coordinates)
+-----------------------------------------------------------------------
+Images are stored as numpy and pillow store them: row 0 is the TOP row.
+Texture coordinates follow OpenGL: ``(u, v) = (0, 0)`` is the LOWER-LEFT
+corner of the image, ``(1, 1)`` the upper-right; u grows to the right, v grows
+UP. So texel column ``i`` and texel row ``j`` counted from the bottom
+(``j = 0`` is the bottom row) is image element ``[H - 1 - j, i]``. The flip
+happens in exactly one place, :func:`_fetch`; every level in
+:attr:`Texture2D.levels` and in ``TextureUniform.texels`` is in image order.
+
+Texel addressing and filtering (OpenGL 4.6 §8.14)
+-------------------------------------------------
+Texel ``i`` of a level ``W`` texels wide covers ``[i/W, (i+1)/W)`` in u; its
+centre is at ``(i + ½)/W``. With ``x = u·W``:
+
+* nearest: texel ``wrap(floor(x))``;
+* bilinear: ``i0 = floor(x − ½)``, ``α = frac(x − ½)``; the texels
+  ``wrap(i0)`` and ``wrap(i0 + 1)`` weighted ``1 − α`` and ``α`` (and the same
+  in v), the wrap applied to each of the four texel indices.
+
+Wrap modes, applied to integer texel indices (GL's Table 8.20):
+``"repeat"`` ``i mod W``; ``"clamp"`` (CLAMP_TO_EDGE) ``clamp(i, 0, W − 1)``;
+``"mirror"`` (MIRRORED_REPEAT) ``(W − 1) − mirror((i mod 2W) − W)`` with
+``mirror(a) = a`` for ``a ≥ 0`` and ``−(1 + a)`` otherwise.
+
+A NaN coordinate samples as coordinate 0, and texel coordinates (±inf
+included) are clamped to ±2**40 before they become integers, so that jitted
+and plain-Python runs agree on every input (GL leaves both undefined).
+
+Filters and mip levels
+----------------------
+``filter`` names GL's pair of minification/magnification filters:
+
+=================== ============================ =====================
+softpipe             GL minification filter       magnification
+=================== ============================ =====================
+``"nearest"``        NEAREST (level 0 only)       NEAREST
+``"bilinear"``       LINEAR (level 0 only)        LINEAR
+``"nearest_mipmap"`` NEAREST_MIPMAP_NEAREST       NEAREST
+``"trilinear"``      LINEAR_MIPMAP_LINEAR         LINEAR
+=================== ============================ =====================
+
+The level of detail is ``λ = log2 ρ`` with
+``ρ = max(sqrt((∂u/∂x)² + (∂v/∂x)²), sqrt((∂u/∂y)² + (∂v/∂y)²))`` measured in
+texels of level 0 (u scaled by W, v by H). It is clamped to ``[0, levels − 1]``;
+``λ ≤ 0`` is magnification and samples level 0. ``"trilinear"`` mixes the
+bilinear samples of levels ``floor(λ)`` and ``floor(λ) + 1`` by ``frac(λ)``;
+``"nearest_mipmap"`` takes the nearest texel of level ``ceil(λ + ½) − 1`` (the
+nearest level, halves rounding down). ``"nearest"`` and ``"bilinear"`` ignore
+λ and always sample level 0, as GL does for non-mipmap filters.
+
+:func:`texture` has no derivatives (softpipe does not compute screen-space
+derivatives behind a shader's back), so it samples with ``λ = 0``: level 0 for
+every filter. Shaders that want mipmapping pass derivatives to
+:func:`texture_grad` or a level to :func:`texture_lod`.
+
+Mipmaps
+-------
+Every texture gets a full pyramid down to 1×1, built level by level. Each level
+is ``max(1, floor(w/2)) × max(1, floor(h/2))`` of the one before, and each of
+its texels is the box-filter average of the region of the previous level it
+covers, every texel weighted by the area it contributes. For an even size that
+is exactly the mean of a 2×2 block; for an odd size a destination texel covers
+2 + 1/k source texels (e.g. 5 → 2: each covers 2.5), so the middle source texel
+is shared between two destination texels. The number of levels is
+``floor(log2(max(W, H))) + 1``. Sums are done in float64 and each level is
+stored as float32.
+
+Texel values
+------------
+8-bit data (uint8 arrays, 8-bit image files) become float32 ``c / 255``, so
+0 → 0.0 and 255 → 1.0 exactly; 16-bit grayscale files become ``c / 65535``.
+Float arrays are taken as they are (linear values; no sRGB decoding; values
+outside [0, 1] are allowed) and must be finite. Grayscale becomes
+``(g, g, g, 1)``, RGB becomes ``(r, g, b, 1)``.
+"""
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from collections import namedtuple
+from typing import Optional, Tuple, Union
+
+import numpy as np
+from numba import njit
+
+__all__ = [
+    "MAX_TEXTURE_BYTES", "texture_bytes",
+    "Texture2D",
+    "TextureUniform",
+    "texture",
+    "texture_lod",
+    "texture_grad",
+    "mip_level",
+    "texture_size",
+    "WRAP_MODES",
+    "FILTERS",
+]
+
+RGBA = Tuple[float, float, float, float]
+
+# Codes stored in TextureUniform; module-level ints so numba folds them as constants.
+WRAP_REPEAT = 0
+WRAP_CLAMP = 1
+WRAP_MIRROR = 2
+WRAP_MODES = {"repeat": WRAP_REPEAT, "clamp": WRAP_CLAMP, "mirror": WRAP_MIRROR}
+
+FILTER_NEAREST = 0
+FILTER_BILINEAR = 1
+FILTER_NEAREST_MIPMAP = 2
+FILTER_TRILINEAR = 3
+FILTERS = {
+    "nearest": FILTER_NEAREST,
+    "bilinear": FILTER_BILINEAR,
+    "nearest_mipmap": FILTER_NEAREST_MIPMAP,
+    "trilinear": FILTER_TRILINEAR,
+}
+
+# Far beyond any meaningful texel coordinate, yet small enough that int64 index
+# arithmetic (i mod 2W) cannot overflow in compiled code.
+_COORD_LIMIT = 2.0**40
+
+TextureUniform = namedtuple(
+    "TextureUniform", ["texels", "widths", "heights", "offsets", "wrap_s", "wrap_t", "filter"]
+)
+TextureUniform.__doc__ = """What a shader receives for a :class:`Texture2D`.
+
+Fields
+------
+texels : float32 array [total, 4]
+    All mip levels, level 0 first, each in image order (row 0 = top) and row-major:
+    texel (column c, image row r) of level k is ``texels[offsets[k] + r * widths[k] + c]``.
+widths, heights, offsets : int64 arrays [levels]
+    Size of each level and the index of its first texel in ``texels``.
+wrap_s, wrap_t : int
+    Wrap codes for u and v (0 repeat, 1 clamp, 2 mirror).
+filter : int
+    0 nearest, 1 bilinear, 2 nearest_mipmap, 3 trilinear.
+"""
+
+
+# --------------------------------------------------------------------------
+# Shader side: numba functions (plain Python under NUMBA_DISABLE_JIT=1)
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _wrap(i, size, mode):
+    """Map an integer texel index into [0, size) by wrap mode (GL Table 8.20)."""
+    if 0 <= i < size:  # the common case; every mode leaves it alone, and skips an int division
+        return i
+    if mode == WRAP_REPEAT:
+        return i % size  # Python's and numba's % are both non-negative for size > 0
+    if mode == WRAP_CLAMP:
+        return min(max(i, 0), size - 1)
+    m = i % (2 * size) - size
+    if m < 0:
+        m = -(1 + m)
+    return size - 1 - m
+
+
+@njit(cache=True, inline="always")
+def _floor_frac(x):
+    """Split a texel coordinate into (integer floor, fraction), safe for any float."""
+    if x != x:  # NaN: int() of it would raise in Python and be undefined in numba
+        x = 0.0
+    elif x > _COORD_LIMIT:
+        x = _COORD_LIMIT
+    elif x < -_COORD_LIMIT:
+        x = -_COORD_LIMIT
+    f = math.floor(x)
+    return f, x - f
+
+
+# Speed: each array handed to a (non-inlined) numba call costs an atomic
+# reference-count increment and decrement, and with the four arrays of a
+# TextureUniform that dominated the cost of a sample. So the per-level helpers
+# take one array and plain ints, the tiny helpers and _sample are inlined (all
+# inside this module, so the on-disk cache keeps them), and only the public
+# functions take the whole uniform. Measured (2 cores): bilinear ~20 M samples/s
+# through texture_lod from a jitted loop, trilinear ~10 M/s, about 2× the
+# un-inlined version. Inlining the public functions too doubles that again but
+# adds ~0.7 s to the compile of every user shader that calls them, so they are
+# left as calls.
+
+
+@njit(cache=True, inline="always")
+def _fetch(texels, offset, w, h, i, j):
+    """Texel (i, j) of a level, j counted from the BOTTOM row (the v-flip lives here)."""
+    k = offset + (h - 1 - j) * w + i
+    return (float(texels[k, 0]), float(texels[k, 1]), float(texels[k, 2]), float(texels[k, 3]))
+
+
+@njit(cache=True)
+def _nearest(texels, offset, w, h, wrap_s, wrap_t, u, v):
+    """GL NEAREST on one level: the texel whose square contains (u, v)."""
+    # float() keeps plain-Python results Python floats rather than numpy scalars
+    i, _ = _floor_frac(u * float(w))
+    j, _ = _floor_frac(v * float(h))
+    return _fetch(texels, offset, w, h, _wrap(i, w, wrap_s), _wrap(j, h, wrap_t))
+
+
+@njit(cache=True)
+def _bilinear(texels, offset, w, h, wrap_s, wrap_t, u, v):
+    """GL LINEAR on one level: the 2×2 texels around (u, v), weighted by distance to their centres."""
+    i0, a = _floor_frac(u * float(w) - 0.5)
+    j0, b = _floor_frac(v * float(h) - 0.5)
+    i1 = _wrap(i0 + 1, w, wrap_s)
+    j1 = _wrap(j0 + 1, h, wrap_t)
+    i0 = _wrap(i0, w, wrap_s)
+    j0 = _wrap(j0, h, wrap_t)
+    t00 = _fetch(texels, offset, w, h, i0, j0)
+    t10 = _fetch(texels, offset, w, h, i1, j0)
+    t01 = _fetch(texels, offset, w, h, i0, j1)
+    t11 = _fetch(texels, offset, w, h, i1, j1)
+    w00 = (1.0 - a) * (1.0 - b)
+    w10 = a * (1.0 - b)
+    w01 = (1.0 - a) * b
+    w11 = a * b
+    return (
+        w00 * t00[0] + w10 * t10[0] + w01 * t01[0] + w11 * t11[0],
+        w00 * t00[1] + w10 * t10[1] + w01 * t01[1] + w11 * t11[1],
+        w00 * t00[2] + w10 * t10[2] + w01 * t01[2] + w11 * t11[2],
+        w00 * t00[3] + w10 * t10[3] + w01 * t01[3] + w11 * t11[3],
+    )
+
+
+@njit(cache=True)
+def _mix4(a, b, t):
+    s = 1.0 - t
+    return (s * a[0] + t * b[0], s * a[1] + t * b[1], s * a[2] + t * b[2], s * a[3] + t * b[3])
+
+
+@njit(cache=True, inline="always")
+def _sample(tex, u, v, lod):
+    """Sample at level of detail ``lod`` by the texture's filter (see the module docstring).
+
+    Inlined into texture / texture_lod / texture_grad so that they unpack the
+    uniform once instead of passing it on.
+    """
+    f = tex.filter
+    texels = tex.texels
+    widths = tex.widths
+    heights = tex.heights
+    offsets = tex.offsets
+    ws = tex.wrap_s
+    wt = tex.wrap_t
+    if f == FILTER_NEAREST:
+        return _nearest(texels, offsets[0], widths[0], heights[0], ws, wt, u, v)
+    if f == FILTER_BILINEAR:
+        return _bilinear(texels, offsets[0], widths[0], heights[0], ws, wt, u, v)
+    top = widths.shape[0] - 1
+    lam = float(lod)
+    if not (lam > 0.0):  # magnification, and NaN, use level 0
+        lam = 0.0
+    if lam > top:
+        lam = float(top)
+    if f == FILTER_NEAREST_MIPMAP:
+        d = int(math.ceil(lam + 0.5)) - 1
+        return _nearest(texels, offsets[d], widths[d], heights[d], ws, wt, u, v)
+    d = int(math.floor(lam))
+    t = lam - d
+    near = _bilinear(texels, offsets[d], widths[d], heights[d], ws, wt, u, v)
+    if t == 0.0:  # also covers d == top, where there is no level d + 1
+        return near
+    d += 1
+    far = _bilinear(texels, offsets[d], widths[d], heights[d], ws, wt, u, v)
+    return _mix4(near, far, t)
+
+
+@njit(cache=True)
+def texture(tex, uv):
+    """Sample a texture at ``uv`` with level of detail 0 (GLSL ``texture`` without derivatives).
+
+    Parameters
+    ----------
+    tex : TextureUniform
+        The uniform of a :class:`Texture2D`.
+    uv : (float, float)
+        Texture coordinates; (0, 0) is the lower-left corner of the image.
+
+    Returns
+    -------
+    (float, float, float, float)
+        RGBA. Mipmapping filters sample level 0 here (no derivatives are known);
+        use :func:`texture_grad` or :func:`texture_lod` to select levels.
+    """
+    return _sample(tex, uv[0], uv[1], 0.0)
+
+
+@njit(cache=True)
+def texture_lod(tex, uv, lod):
+    """Sample at an explicit level of detail λ (GLSL ``textureLod``).
+
+    ``lod`` is clamped to ``[0, levels − 1]``; 0.5 with ``"trilinear"`` is the
+    even mix of levels 0 and 1. ``"nearest"`` and ``"bilinear"`` ignore it.
+    """
+    return _sample(tex, uv[0], uv[1], lod)
+
+
+@njit(cache=True)
+def mip_level(tex, duv_dx, duv_dy):
+    """The level of detail λ = log2 ρ for the given derivatives (GLSL ``textureQueryLod``'s raw λ).
+
+    Parameters
+    ----------
+    tex : TextureUniform
+    duv_dx, duv_dy : (float, float)
+        (∂u/∂x, ∂v/∂x) and (∂u/∂y, ∂v/∂y): change of uv per pixel along window x and y.
+
+    Returns
+    -------
+    float
+        ``log2(max(|duv_dx|, |duv_dy|))`` with u measured in texels of level 0
+        (scaled by its width) and v in texels (scaled by its height). Not
+        clamped: negative means magnification; ``-inf`` for zero derivatives.
+    """
+    w = float(tex.widths[0])
+    h = float(tex.heights[0])
+    rx = math.sqrt((duv_dx[0] * w) ** 2 + (duv_dx[1] * h) ** 2)
+    ry = math.sqrt((duv_dy[0] * w) ** 2 + (duv_dy[1] * h) ** 2)
+    rho = rx if rx > ry else ry
+    if rho > 0.0:
+        return math.log2(rho)
+    return -math.inf  # math.log2(0) raises in Python; numba would give -inf
+
+
+@njit(cache=True)
+def texture_grad(tex, uv, duv_dx, duv_dy):
+    """Sample with the level of detail given by screen-space derivatives (GLSL ``textureGrad``).
+
+    λ is :func:`mip_level` of the derivatives, then sampled as :func:`texture_lod`.
+    """
+    return _sample(tex, uv[0], uv[1], mip_level(tex, duv_dx, duv_dy))
+
+
+@njit(cache=True)
+def texture_size(tex, level):
+    """(width, height) of a mip level, as ints (GLSL ``textureSize``)."""
+    return (int(tex.widths[level]), int(tex.heights[level]))
+
+
+# --------------------------------------------------------------------------
+# Host side: loading, checking, mipmaps
+# --------------------------------------------------------------------------
+
+
+#: Peak memory a texture costs while it is made, per texel of level 0: measured 96 bytes in
+#: numpy arrays (float32 RGBA level 0, the mip chain, its packed copy for shaders, float64
+#: while halving) for 1024² and 2048² images, plus Pillow's decoded copy; rounded up.
+PEAK_BYTES_PER_TEXEL = 110
+#: The largest peak a texture may cost (bytes); larger images are refused before they are
+#: decoded. ``Texture2D(..., max_bytes=...)`` raises or lowers it for one texture.
+MAX_TEXTURE_BYTES = 2 << 30
+
+
+def texture_bytes(width: int, height: int) -> int:
+    """The peak memory (bytes) making a ``width`` × ``height`` texture takes (:data:`PEAK_BYTES_PER_TEXEL`)."""
+    return int(width) * int(height) * PEAK_BYTES_PER_TEXEL
+
+
+def _check_size(name: str, width: int, height: int, max_bytes: Optional[int]) -> None:
+    limit = MAX_TEXTURE_BYTES if max_bytes is None else max_bytes
+    need = texture_bytes(width, height)
+    if need > limit:
+        raise ValueError(f"Texture2D: {name} is {width}×{height} texels, which needs about {need / 2**30:.1f} GiB "
+                         f"while its mipmaps are made ({PEAK_BYTES_PER_TEXEL} bytes a texel), more than the "
+                         f"limit of {limit / 2**30:.1f} GiB (Texture2D(..., max_bytes=...) or "
+                         "softpipe.light.texture.MAX_TEXTURE_BYTES)")
+
+
+def _load_image(path: Union[str, os.PathLike], max_bytes: Optional[int] = None) -> np.ndarray:
+    """Read an image file into float32 RGBA [H, W, 4], row 0 = top; its size is checked before decoding."""
+    from PIL import Image, UnidentifiedImageError
+
+    name = os.fspath(path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)   # the size check below says more
+            img_file = Image.open(name)
+        with img_file as img:
+            _check_size(f"image file {name!r}", img.width, img.height, max_bytes)
+            img.load()
+            mode = img.mode
+            if mode.startswith("I;16"):
+                gray = np.asarray(img, dtype=np.float64) / 65535.0
+                return _to_rgba(gray.astype(np.float32))
+            if mode in ("I", "F"):
+                raise ValueError(
+                    f"Texture2D: image file {name!r} has 32-bit pixel mode {mode!r}; expected an "
+                    "8-bit grayscale/RGB/RGBA (or palette) image or 16-bit grayscale"
+                )
+            rgba = np.asarray(img.convert("RGBA"), dtype=np.uint8)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"Texture2D: image file not found: {name!r}") from None
+    except Image.DecompressionBombError as err:
+        raise ValueError(f"Texture2D: image file {name!r} is too large to decode safely: {err}") from None
+    except (UnidentifiedImageError, OSError, SyntaxError) as err:
+        # pillow reports truncated and corrupt files as OSError or SyntaxError
+        raise ValueError(f"Texture2D: cannot read image file {name!r}: {err}") from None
+    return rgba.astype(np.float32) / np.float32(255.0)
+
+
+def _to_rgba(data: np.ndarray) -> np.ndarray:
+    """[H, W], [H, W, 3] or [H, W, 4] float32 → [H, W, 4] float32 with alpha 1 where missing."""
+    h, w = data.shape[:2]
+    out = np.ones((h, w, 4), dtype=np.float32)
+    if data.ndim == 2:
+        out[..., :3] = data[..., None]
+    else:
+        out[..., : data.shape[2]] = data
+    return out
+
+
+def _check_array(array: np.ndarray) -> np.ndarray:
+    """Validate a texture array and return it as float32 RGBA [H, W, 4]."""
+    a = np.asarray(array)
+    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (3, 4)):
+        raise ValueError(
+            f"Texture2D: array must have shape [H, W], [H, W, 3] or [H, W, 4], got shape {a.shape}"
+        )
+    if a.shape[0] == 0 or a.shape[1] == 0:
+        raise ValueError(f"Texture2D: array must be at least 1×1 texels, got shape {a.shape}")
+    if a.dtype == np.uint8:
+        f = a.astype(np.float32) / np.float32(255.0)
+    elif np.issubdtype(a.dtype, np.floating):
+        with np.errstate(over="ignore"):  # overflow to inf is reported just below
+            f = a.astype(np.float32)
+        bad = ~np.isfinite(f)
+        if bad.any():
+            r, c = np.argwhere(bad)[0][:2]
+            raise ValueError(
+                f"Texture2D: array has non-finite texels (NaN or inf, or too large for float32), "
+                f"first at row {r}, column {c}; texels must be finite"
+            )
+    else:
+        raise TypeError(
+            f"Texture2D: array dtype must be uint8 (0..255) or floating point, got {a.dtype}"
+        )
+    return _to_rgba(f)
+
+
+def _box_taps(n_in: int) -> Tuple[np.ndarray, np.ndarray]:
+    """Indices and weights [n_out, 4] of the box filter that halves a size (floored, at least 1).
+
+    Destination texel d covers source interval [d·r, (d+1)·r) with r = n_in/n_out
+    (2 for even sizes, 2 + 1/k for odd ones); each source texel weighs by its overlap.
+    r ≤ 3, so at most 4 source texels touch one interval.
+    """
+    n_out = max(1, n_in // 2)
+    d = np.arange(n_out)
+    lo = d * n_in / n_out
+    hi = (d + 1) * n_in / n_out
+    idx = np.floor(lo).astype(np.int64)[:, None] + np.arange(4)[None, :]
+    overlap = np.minimum(idx + 1, hi[:, None]) - np.maximum(idx, lo[:, None])
+    weights = np.clip(overlap, 0.0, None) * (n_out / n_in)
+    return np.minimum(idx, n_in - 1), weights
+
+
+def _halve_axis(level: np.ndarray, axis: int) -> np.ndarray:
+    idx, weights = _box_taps(level.shape[axis])
+    moved = np.moveaxis(level, axis, 0)
+    out = sum(weights[:, t, None, None] * moved[idx[:, t]] for t in range(4))
+    return np.moveaxis(out, 0, axis)
+
+
+def _build_mipmaps(level0: np.ndarray) -> list:
+    """The mip pyramid of a float32 [H, W, 4] image, level 0 first, down to 1×1.
+
+    See the module docstring ("Mipmaps") for sizes and the box filter.
+    """
+    levels = [level0]
+    while levels[-1].shape[0] > 1 or levels[-1].shape[1] > 1:
+        prev = levels[-1].astype(np.float64)
+        levels.append(_halve_axis(_halve_axis(prev, 0), 1).astype(np.float32))
+    return levels
+
+
+def _choose(kind: str, value: str, allowed: dict) -> int:
+    if not isinstance(value, str) or value not in allowed:
+        choices = ", ".join(repr(k) for k in allowed)
+        raise ValueError(f"Texture2D: {kind} must be one of {choices}; got {value!r}")
+    return allowed[value]
+
+
+class Texture2D:
+    """A 2D RGBA texture with mipmaps, loaded from an image file or a numpy array.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or numpy.ndarray
+        An image file readable by pillow (8-bit grayscale, RGB, RGBA or palette;
+        16-bit grayscale) or an array [H, W], [H, W, 3] or [H, W, 4] of uint8
+        (scaled by 1/255) or floats (taken as they are; must be finite).
+        Row 0 is the top of the image; texture coordinate v = 0 is its bottom.
+    wrap : {"repeat", "clamp", "mirror"}
+        Wrap mode for both coordinates: GL's REPEAT, CLAMP_TO_EDGE, MIRRORED_REPEAT.
+    filter : {"nearest", "bilinear", "nearest_mipmap", "trilinear"}
+        See the module docstring for what each does with the level of detail.
+    wrap_s, wrap_t : str, optional
+        Wrap mode for u (s) or v (t) alone, overriding ``wrap``.
+    max_bytes : int, optional
+        The most memory making this texture may take (default
+        :data:`MAX_TEXTURE_BYTES`, 2 GiB); a larger image is refused before it
+        is decoded, with the estimate (:func:`texture_bytes`) in the message.
+
+    Attributes
+    ----------
+    width, height : int
+        Size of level 0 in texels.
+    levels : list of numpy.ndarray
+        The mip pyramid, float32 [h, w, 4] each, row 0 = top, read-only.
+    wrap_s, wrap_t, filter : str
+    """
+
+    def __init__(
+        self,
+        source: Union[str, os.PathLike, np.ndarray],
+        *,
+        wrap: str = "repeat",
+        filter: str = "bilinear",
+        wrap_s: Optional[str] = None,
+        wrap_t: Optional[str] = None,
+        max_bytes: Optional[int] = None,
+    ) -> None:
+        self.wrap_s = wrap if wrap_s is None else wrap_s
+        self.wrap_t = wrap if wrap_t is None else wrap_t
+        self.filter = filter
+        self._wrap_s = _choose("wrap" if wrap_s is None else "wrap_s", self.wrap_s, WRAP_MODES)
+        self._wrap_t = _choose("wrap" if wrap_t is None else "wrap_t", self.wrap_t, WRAP_MODES)
+        self._filter = _choose("filter", filter, FILTERS)
+        if isinstance(source, (str, os.PathLike)):
+            self.source = os.fspath(source)
+            level0 = _load_image(source, max_bytes)
+        elif isinstance(source, np.ndarray):
+            self.source = "array"
+            if source.ndim >= 2:
+                _check_size(f"the array of shape {source.shape}", source.shape[1], source.shape[0], max_bytes)
+            level0 = _check_array(source)
+        else:
+            raise TypeError(
+                "Texture2D: source must be an image file path or a numpy array, "
+                f"got {type(source).__name__}"
+            )
+        self.levels = _build_mipmaps(level0)
+        for lv in self.levels:
+            lv.flags.writeable = False
+        self.height, self.width = level0.shape[:2]
+        self._uniform = self._pack()
+
+    @classmethod
+    def from_framebuffer(cls, framebuffer, **options) -> "Texture2D":
+        """Render to texture: a framebuffer's (resolved) color as a texture, ``options`` as the constructor's.
+
+        The framebuffer's top row becomes the image's top row, so texture coordinate
+        v = 0 is the framebuffer's bottom row (window row 0), as in OpenGL.
+        """
+        return cls(np.ascontiguousarray(framebuffer.resolve()), **options)
+
+    def _pack(self) -> TextureUniform:
+        widths = np.array([lv.shape[1] for lv in self.levels], dtype=np.int64)
+        heights = np.array([lv.shape[0] for lv in self.levels], dtype=np.int64)
+        counts = widths * heights
+        offsets = np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64)
+        texels = np.concatenate([lv.reshape(-1, 4) for lv in self.levels])
+        for a in (texels, widths, heights, offsets):
+            a.flags.writeable = False  # shared by every draw that uses the texture
+        return TextureUniform(texels, widths, heights, offsets, self._wrap_s, self._wrap_t, self._filter)
+
+    def __softpipe_uniform__(self) -> TextureUniform:
+        """The value a shader receives for this texture (built once; arrays are read-only)."""
+        return self._uniform
+
+    @property
+    def num_levels(self) -> int:
+        """Number of mip levels, ``floor(log2(max(width, height))) + 1``."""
+        return len(self.levels)
+
+    def sample(self, u: float, v: float, lod: float = 0.0) -> RGBA:
+        """Sample at (u, v) and level of detail ``lod`` from plain Python.
+
+        Runs the same code as :func:`texture_lod` in a shader, so it is the
+        easy way to look at what a shader would get.
+        """
+        return texture_lod(self._uniform, (float(u), float(v)), float(lod))
+
+    def __repr__(self) -> str:
+        wrap = self.wrap_s if self.wrap_s == self.wrap_t else f"({self.wrap_s}, {self.wrap_t})"
+        return (
+            f"Texture2D({self.source!r}, {self.width}×{self.height}, {self.num_levels} levels, "
+            f"wrap={wrap}, filter={self.filter})"
+        )

@@ -1,0 +1,469 @@
+"""Stage 2: primitive assembly — vertices to window-space triangles.
+
+In order: topology (lists, strips, fans; indexed or not) → drop primitives with
+non-finite positions → homogeneous clipping → perspective divide → viewport →
+face culling. Output: :class:`Primitives`.
+
+Clipping happens in clip space, before the divide, against
+``w ≥ W_MIN`` (so nothing with w ≤ 0 is ever divided), the near plane
+``z ≥ −w``, the far plane ``z ≤ w``, and a guard band ``|x|, |y| ≤ g·w`` that
+keeps window coordinates within ``GUARD_PIXELS`` of the viewport's centre (so the
+rasterizer's 64-bit edge functions cannot overflow). Inside the guard band, the
+rasterizer's bounding box does the x/y clipping exactly, pixel by pixel. A new
+vertex on a clipped edge is always computed from the edge's inside end, so two
+triangles sharing the edge get the same new vertex (no cracks).
+
+Varyings at a new vertex: ``smooth`` ones are interpolated linearly in clip
+space (which is what makes them perspective-correct afterwards),
+``noperspective`` ones linearly in window space (the parameter is t·w_b/w_new,
+OpenGL 4.6 §13.7), ``flat`` ones carry the provoking vertex's value, which is
+copied to every corner before clipping. The provoking vertex is the last one of
+each triangle, as OpenGL's default.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Dict, Optional
+
+import numba
+import numpy as np
+
+from softpipe.core.parallel import in_bands
+from softpipe.language.contract import VaryingLayout
+from softpipe.pipeline.transforms import Viewport
+from softpipe.pipeline.vertex import VertexOut
+
+__all__ = ["Primitives", "assemble", "triangle_indices", "TOPOLOGIES", "CULL_MODES", "FRONT_FACES"]
+
+TOPOLOGIES = ("triangles", "triangle_strip", "triangle_fan")
+CULL_MODES = ("none", "back", "front")
+FRONT_FACES = ("ccw", "cw")
+
+#: Window coordinates stay within this many pixels of the viewport's centre.
+GUARD_PIXELS = 32768.0
+#: The clip plane w ≥ W_MIN: vertices at or behind the eye never reach the divide.
+W_MIN = 1e-9
+
+
+@dataclass
+class Primitives:
+    """Post-clip triangles in window coordinates — the rasterizer's input.
+
+    Attributes
+    ----------
+    window : float64 [P, 3, 3]
+        (x_w, y_w, z_w) of each corner: OpenGL window coordinates (origin at the
+        lower-left, y up), depth in the depth range.
+    inv_w : float64 [P, 3]
+        1/w_clip of each corner (for perspective-correct interpolation).
+    varyings : float64 [P, 3, K]
+        The varyings of each corner, packed as ``layout`` says.
+    layout : VaryingLayout
+    primitive_id : int64 [P]
+        Index of the input triangle each comes from (a clipped triangle may give several).
+    front_facing : bool [P]
+    clipped : bool [P]
+        True for pieces of a triangle that clipping cut.
+    dropped : dict reason → int64 array of primitive ids
+        Input triangles that produced nothing here, and why: ``"non-finite"``,
+        ``"outside"`` (entirely outside the clip volume), ``"culled"``.
+    input_count : int
+        Number of triangles the topology produced.
+    culled_window : float64 [C, 3, 3]
+        Window coordinates of the triangles culled for their facing (kept for pictures).
+    """
+
+    window: np.ndarray
+    inv_w: np.ndarray
+    varyings: np.ndarray
+    layout: VaryingLayout
+    primitive_id: np.ndarray
+    front_facing: np.ndarray
+    clipped: np.ndarray
+    dropped: Dict[str, np.ndarray] = field(default_factory=dict)
+    input_count: int = 0
+    culled_window: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+
+    def __len__(self) -> int:
+        return len(self.window)
+
+    def __repr__(self) -> str:
+        drops = ", ".join(f"{k}: {len(v)}" for k, v in self.dropped.items() if len(v))
+        return (f"Primitives({len(self)} triangles from {self.input_count} input"
+                f"{'; dropped ' + drops if drops else ''}; {int(self.clipped.sum())} clipped pieces)")
+
+
+def _check_indices(indices, n_vertices: int) -> np.ndarray:
+    arr = np.asarray(indices)
+    if arr.size and not np.issubdtype(arr.dtype, np.integer):
+        raise TypeError(f"indices must be an integer array, got dtype {arr.dtype}")
+    if not (arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] == 3)):
+        raise ValueError(f"indices must have shape [M] or [M, 3], got {list(np.shape(indices))}")
+    flat = arr.reshape(-1)
+    if flat.size and flat.dtype.kind == "u" and flat.dtype.itemsize == 8 and int(flat.max()) >= n_vertices:
+        # checked before the cast: a uint64 above 2^63 would turn negative in int64 (narrower
+        # unsigned integers cast exactly, and the range check below sees them)
+        where = int(np.argmax(flat >= n_vertices))
+        raise ValueError(f"indices[{where}] = {int(flat[where])} is out of range for {n_vertices} vertices")
+    if not flat.size:
+        return flat.astype(np.int64)
+    arr, lo, hi = _int64_and_range(flat)
+    if lo < 0 or hi >= n_vertices:
+        bad = lo if lo < 0 else hi
+        where = int(np.nonzero(arr == bad)[0][0])
+        raise ValueError(f"indices[{where}] = {bad} is out of range for {n_vertices} vertices")
+    return arr
+
+
+def _int64_and_range(flat: np.ndarray):
+    """(flat as int64, its min, its max): one compiled pass (numpy's cast, min and max made three)."""
+    if not flat.dtype.isnative:                       # (numba reads native byte order only)
+        flat = flat.astype(flat.dtype.newbyteorder("="))
+    if flat.dtype == np.int64:
+        lo, hi = _range_of(flat)
+        return flat, int(lo), int(hi)
+    out = np.empty(flat.shape, np.int64)
+    lo, hi = _copy_range(flat, out)
+    return out, int(lo), int(hi)
+
+
+@numba.njit(cache=True)
+def _range_of(flat):
+    lo, hi = flat[0], flat[0]
+    for v in flat:
+        lo, hi = min(lo, v), max(hi, v)
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def _copy_range(flat, out):
+    lo, hi = np.int64(flat[0]), np.int64(flat[0])
+    for k in range(flat.shape[0]):
+        v = np.int64(flat[k])
+        out[k] = v
+        lo, hi = min(lo, v), max(hi, v)
+    return lo, hi
+
+
+def triangle_indices(topology: str, indices, n_vertices: int) -> np.ndarray:
+    """The vertex indices [T, 3] of each triangle; corner 2 is the provoking vertex.
+
+    Strips: triangle i is (s_i, s_i+1, s_i+2) for even i and (s_i+1, s_i, s_i+2)
+    for odd i, so every triangle keeps the winding of the first. Fans: triangle
+    i is (s_0, s_i+1, s_i+2). (OpenGL 4.6 §10.1.)
+    """
+    if topology not in TOPOLOGIES:
+        raise ValueError(f"topology must be one of {TOPOLOGIES}, got {topology!r}")
+    if indices is None:
+        seq = np.arange(n_vertices, dtype=np.int64)
+    else:
+        if topology != "triangles" and np.ndim(indices) != 1:
+            raise ValueError(f"indices for a {topology} must be 1-D, got shape {list(np.shape(indices))}")
+        seq = _check_indices(indices, n_vertices)
+    if topology == "triangles":
+        if len(seq) % 3:
+            what = "positions (no indices)" if indices is None else "indices"
+            raise ValueError(f"{what}: a triangle list needs a multiple of 3 vertices, got {len(seq)}")
+        return seq.reshape(-1, 3)
+    t = max(len(seq) - 2, 0)
+    i = np.arange(t)
+    if topology == "triangle_strip":
+        odd = (i % 2).astype(bool)
+        a = np.where(odd, seq[i + 1], seq[i]) if t else seq[:0]
+        b = np.where(odd, seq[i], seq[i + 1]) if t else seq[:0]
+        return np.stack([a, b, seq[i + 2]], axis=1) if t else np.zeros((0, 3), np.int64)
+    return np.stack([np.full(t, seq[0]), seq[i + 1], seq[i + 2]], axis=1) if t else np.zeros((0, 3), np.int64)
+
+
+def _planes(viewport: Viewport) -> np.ndarray:
+    """Clip planes as rows (a, b, c, d, e): inside where a·x + b·y + c·z + d·w + e ≥ 0."""
+    gx = max(1.0, GUARD_PIXELS / (viewport.width / 2.0))
+    gy = max(1.0, GUARD_PIXELS / (viewport.height / 2.0))
+    return np.array([
+        [0, 0, 0, 1, -W_MIN],   # w ≥ W_MIN, first, so later planes see w > 0
+        [0, 0, 1, 1, 0],        # near: z ≥ −w
+        [0, 0, -1, 1, 0],       # far:  z ≤ w
+        [1, 0, 0, gx, 0],       # guard band left
+        [-1, 0, 0, gx, 0],      # guard band right
+        [0, 1, 0, gy, 0],       # guard band bottom
+        [0, -1, 0, gy, 0],      # guard band top
+    ], dtype=np.float64)
+
+
+#: Beyond this magnitude, clip-space coordinates are clipped in exact rational arithmetic.
+EXACT_CLIP_ABOVE = float(1 << 20)
+
+
+def _window_parameter(t, w_out, w_new) -> float:
+    """Where the new vertex lies between the edge's ends in window space: t·w_out/w_new.
+
+    Meaningful when both ends are in front of the eye (then it is in [0, 1]); with
+    the outside end behind the eye the window position of that end does not
+    exist, and the parameter is clamped to [0, 1] so varyings stay finite.
+    """
+    try:
+        value = float(t * w_out / w_new)
+    except (OverflowError, ZeroDivisionError):
+        value = 1.0 if (w_out > 0) == (w_new > 0) else 0.0
+    return min(max(value, 0.0), 1.0) if value == value else 0.0
+
+
+def _clip_polygon(poly_pos, poly_var, planes, noperspective_cols):
+    """Sutherland–Hodgman in homogeneous clip space; returns lists of corners.
+
+    Floating point for ordinary coordinates. For huge ones (|c| > 2^20, e.g.
+    1e30) ``x + g·w`` would round to ``x`` and the new vertex land in the wrong
+    place, so positions are then clipped exactly with Fractions and rounded
+    once at the end.
+    """
+    exact = max(abs(float(c)) for p in poly_pos for c in p) > EXACT_CLIP_ABOVE
+    if exact:
+        poly_pos = [[Fraction(float(c)) for c in p] for p in poly_pos]
+        planes = [[Fraction(float(c)) for c in plane] for plane in planes]
+    for plane in planes:
+        if len(poly_pos) < 3:
+            break
+        d = [sum(plane[k] * p[k] for k in range(4)) + plane[4] for p in poly_pos]
+        out_pos, out_var = [], []
+        n = len(poly_pos)
+        for k in range(n):
+            a, b = k, (k + 1) % n
+            if d[a] >= 0:
+                out_pos.append(poly_pos[a])
+                out_var.append(poly_var[a])
+            if (d[a] >= 0) != (d[b] >= 0):
+                inside, outside = (a, b) if d[a] >= 0 else (b, a)   # always from the inside end
+                t = d[inside] / (d[inside] - d[outside])
+                p_in, p_out = poly_pos[inside], poly_pos[outside]
+                pos = [p_in[c] + t * (p_out[c] - p_in[c]) for c in range(4)]
+                tf = float(t)
+                var = poly_var[inside] + tf * (poly_var[outside] - poly_var[inside])
+                if len(noperspective_cols):
+                    sw = _window_parameter(t, p_out[3], pos[3])
+                    v_in, v_out = poly_var[inside], poly_var[outside]
+                    var[noperspective_cols] = v_in[noperspective_cols] + sw * (
+                        v_out[noperspective_cols] - v_in[noperspective_cols])
+                out_pos.append(np.array(pos, dtype=object if exact else np.float64))
+                out_var.append(var)
+        poly_pos, poly_var = out_pos, out_var
+    return [np.array([float(c) for c in p]) for p in poly_pos], poly_var
+
+
+def _columns(layout: VaryingLayout, qualifier: str) -> np.ndarray:
+    cols = [off + c for _, off, size, q in layout.fields if q == qualifier for c in range(size)]
+    return np.array(cols, dtype=np.int64)
+
+
+ACCEPTED, NON_FINITE, OUTSIDE, CUT, CULLED = 0, 1, 2, 3, 4
+
+
+@numba.njit(cache=True)
+def _to_window(x, y, z, w, vp):
+    """Divide by w and apply the viewport (vp = x, y, width/2, height/2, near, (far − near)/2)."""
+    return (vp[0] + (x / w + 1.0) * vp[2],
+            vp[1] + (y / w + 1.0) * vp[3],
+            vp[4] + (z / w + 1.0) * vp[5])
+
+
+@numba.njit(cache=True)
+def _signed_area(ax, ay, bx, by, cx, cy):
+    return (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+
+
+NON_FINITE_BIT = 1 << 7   # beside one bit per clip plane (7 planes)
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_codes(lo, hi, pos, planes, vp, codes, window):
+    """Per vertex lo:hi, once (vertices are shared by triangles): a bit per clip plane it is
+    outside of (and NON_FINITE_BIT), and its window position when it is inside every plane."""
+    for v in range(lo, hi):
+        code = 0
+        if not (np.isfinite(pos[v, 0]) and np.isfinite(pos[v, 1]) and np.isfinite(pos[v, 2])
+                and np.isfinite(pos[v, 3])):
+            code = NON_FINITE_BIT
+        else:
+            for p in range(planes.shape[0]):
+                d = (planes[p, 0] * pos[v, 0] + planes[p, 1] * pos[v, 1] + planes[p, 2] * pos[v, 2]
+                     + planes[p, 3] * pos[v, 3] + planes[p, 4])
+                if d < 0:
+                    code |= 1 << p
+        codes[v] = code
+        if code == 0:
+            window[v, 0], window[v, 1], window[v, 2] = _to_window(pos[v, 0], pos[v, 1], pos[v, 2], pos[v, 3], vp)
+
+
+@numba.njit(cache=True, nogil=True)
+def _classify(lo, hi, codes, window, tri, cull, ccw_front, status, front):
+    """Per input triangle: ACCEPTED, NON_FINITE, OUTSIDE, CUT or CULLED, and its facing.
+
+    From its corners' codes: any corner non-finite → NON_FINITE; all three outside
+    one plane → OUTSIDE; some corner outside some plane → CUT (clipped later);
+    else facing from the window-space area, and culling.
+    """
+    for t in range(lo, hi):
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+        any_out = codes[a] | codes[b] | codes[c]
+        if any_out & NON_FINITE_BIT:
+            status[t] = NON_FINITE
+        elif codes[a] & codes[b] & codes[c]:
+            status[t] = OUTSIDE
+        elif any_out:
+            status[t] = CUT           # facing comes from the clipped polygon, later
+        else:
+            area = _signed_area(window[a, 0], window[a, 1], window[b, 0], window[b, 1], window[c, 0], window[c, 1])
+            front[t] = area > 0 if ccw_front else area < 0
+            status[t] = CULLED if (cull == 1 and not front[t]) or (cull == 2 and front[t]) else ACCEPTED
+
+
+@numba.njit(cache=True, nogil=True)
+def _emit_accepted(lo, hi, pos, var, tri, status, offset, vertex_window, flat, window, inv_w, out_var, key):
+    """Write the accepted triangles among lo:hi at their output rows (primitive order kept by ``offset``)."""
+    for t in range(lo, hi):
+        if status[t] != ACCEPTED:
+            continue
+        o = offset[t]
+        key[o] = t
+        for c in range(3):
+            v = tri[t, c]
+            window[o, c, 0] = vertex_window[v, 0]
+            window[o, c, 1] = vertex_window[v, 1]
+            window[o, c, 2] = vertex_window[v, 2]
+            inv_w[o, c] = 1.0 / pos[v, 3]
+            for k in range(var.shape[1]):
+                out_var[o, c, k] = var[v, k]
+            for k in flat:                       # the provoking (last) vertex's value on every corner
+                out_var[o, c, k] = var[tri[t, 2], k]
+
+
+@numba.njit(cache=True)
+def _windows_of(clip, vp):
+    out = np.empty((clip.shape[0], 3))
+    for n in range(clip.shape[0]):
+        out[n, 0], out[n, 1], out[n, 2] = _to_window(clip[n, 0], clip[n, 1], clip[n, 2], clip[n, 3], vp)
+    return out
+
+
+@numba.njit(cache=True)
+def _ids_with(status, code):
+    """The triangles whose status is ``code``, in order (two compiled passes over the int8 statuses)."""
+    count = 0
+    for t in range(status.shape[0]):
+        count += status[t] == code
+    ids = np.empty(count, np.int64)
+    k = 0
+    for t in range(status.shape[0]):
+        if status[t] == code:
+            ids[k] = t
+            k += 1
+    return ids
+
+
+@numba.njit(cache=True)
+def _output_offsets(status, cut_ids, cut_counts):
+    """Each input triangle's first output row [n + 1]: one for an accepted triangle, its pieces for a
+    clipped one (``cut_ids`` in increasing order, ``cut_counts`` pieces each), none for the rest."""
+    offset = np.empty(status.shape[0] + 1, np.int64)
+    offset[0] = 0
+    rows, p = 0, 0
+    for t in range(status.shape[0]):
+        if p < cut_ids.shape[0] and cut_ids[p] == t:
+            rows += cut_counts[p]
+            p += 1
+        elif status[t] == ACCEPTED:
+            rows += 1
+        offset[t + 1] = rows
+    return offset
+
+
+def _viewport_params(viewport: Viewport) -> np.ndarray:
+    return np.array([viewport.x, viewport.y, viewport.width / 2, viewport.height / 2, viewport.near,
+                     (viewport.far - viewport.near) / 2], dtype=np.float64)
+
+
+def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status):
+    """Clip the triangles that cross a plane; returns {t: (window [n,3,3], inv_w [n,3], var [n,3,K], front)}."""
+    flat, nopersp = _columns(layout, "flat"), _columns(layout, "noperspective")
+    pieces = {}
+    for t in cut_ids:
+        corners = vout.position[tri[t]]
+        cvar = vout.varyings[tri[t]].copy()
+        if len(flat):
+            cvar[:, flat] = cvar[2, flat]
+        ppos, pvar = _clip_polygon(list(corners), list(cvar), planes, nopersp)
+        if len(ppos) < 3:
+            status[t] = OUTSIDE
+            continue
+        fan = [(0, k, k + 1) for k in range(1, len(ppos) - 1)]
+        clip = np.array([[ppos[i] for i in f] for f in fan])                 # [n, 3, 4]
+        win = _windows_of(clip.reshape(-1, 4), vp).reshape(-1, 3, 3)
+        total = sum(_signed_area(*w[0, :2], *w[1, :2], *w[2, :2]) for w in win)
+        front = total > 0 if ccw_front else total < 0
+        if (cull == 1 and not front) or (cull == 2 and front):
+            status[t] = CULLED
+            continue
+        pieces[int(t)] = (win, 1.0 / clip[:, :, 3], np.array([[pvar[i] for i in f] for f in fan]), front)
+    return pieces
+
+
+def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
+             viewport: Viewport, cull: str = "none", front_face: str = "ccw",
+             keep_culled: bool = True) -> Primitives:
+    """Primitive assembly: see the module docstring for the steps and their order.
+
+    ``keep_culled`` keeps the window coordinates of culled triangles (for pictures).
+    """
+    if cull not in CULL_MODES:
+        raise ValueError(f"cull must be one of {CULL_MODES}, got {cull!r}")
+    if front_face not in FRONT_FACES:
+        raise ValueError(f"front_face must be one of {FRONT_FACES}, got {front_face!r}")
+    tri = triangle_indices(topology, indices, len(vout.position))
+    layout, n = vout.layout, len(tri)
+    planes, vp = _planes(viewport), _viewport_params(viewport)
+    cull_code, ccw_front = CULL_MODES.index(cull), front_face == "ccw"
+    status = np.empty(n, np.int8)
+    front = np.zeros(n, bool)
+    codes = np.empty(len(vout.position), np.uint8)
+    vertex_window = np.empty((len(vout.position), 3))
+    if n:
+        in_bands(_vertex_codes, len(vout.position), vout.position, planes, vp, codes, vertex_window, grain=8192)
+        in_bands(_classify, n, codes, vertex_window, tri, cull_code, ccw_front, status, front, grain=8192)
+    pieces = _clip_cut(vout, tri, _ids_with(status, CUT), planes, vp, layout, cull_code, ccw_front, status)
+    for t, (_, _, _, f) in pieces.items():
+        front[t] = f
+    offset = _output_offsets(status, np.fromiter(pieces, np.int64, len(pieces)),
+                             np.array([len(p[0]) for p in pieces.values()], np.int64))
+    total = int(offset[-1])
+    k, flat = layout.width, _columns(layout, "flat")
+    if indices is None and topology == "triangles" and not pieces and total == n and not len(flat):
+        # Every triangle kept whole, and vertex 3t + c is corner c of triangle t: the
+        # per-vertex arrays already are the per-corner ones (views, not copies).
+        window, inv_w = vertex_window.reshape(n, 3, 3), 1.0 / vout.position[:, 3].reshape(n, 3)
+        out_var, key = vout.varyings.reshape(n, 3, k), np.arange(n, dtype=np.int64)
+    else:
+        window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
+        out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
+        if n:
+            in_bands(_emit_accepted, n, vout.position, vout.varyings, tri, status, offset, vertex_window, flat,
+                     window, inv_w, out_var, key, grain=8192)
+    clipped = np.zeros(total, bool)
+    for t, (win, iw, pv, _) in pieces.items():
+        rows = slice(offset[t], offset[t] + len(win))
+        window[rows], inv_w[rows], out_var[rows], key[rows], clipped[rows] = win, iw, pv, t, True
+
+    dropped = {"non-finite": _ids_with(status, NON_FINITE), "outside": _ids_with(status, OUTSIDE),
+               "culled": _ids_with(status, CULLED)}
+    culled_window = np.zeros((0, 3, 3))
+    if keep_culled and len(dropped["culled"]):
+        culled_window = _culled_windows(vout, tri, dropped["culled"], vp)
+    return Primitives(window=window, inv_w=inv_w, varyings=out_var, layout=layout, primitive_id=key,
+                      front_facing=front[key], clipped=clipped, dropped=dropped, input_count=n,
+                      culled_window=culled_window)
+
+
+def _culled_windows(vout, tri, culled, vp) -> np.ndarray:
+    """Window coordinates of culled triangles whose corners are all in front of the eye."""
+    corners = vout.position[tri[culled]]
+    corners = corners[(corners[:, :, 3] > W_MIN).all(axis=1)]
+    return _windows_of(corners.reshape(-1, 4), vp).reshape(-1, 3, 3)

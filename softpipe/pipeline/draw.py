@@ -1,0 +1,362 @@
+"""The pipeline: wires the stages together, and nothing else.
+
+One pipeline, two orders of the same stages (as early depth in Mesa's softpipe):
+
+    reference:  vertex → assembly → setup → raster → fragment → output
+    fast:       vertex → assembly → setup → visibility (raster + depth test) → fragment (visible samples only)
+
+(vertex.py, assembly.py, setup.py, raster.py, fragment.py, output.py;
+visibility.py for the fast order). :func:`softpipe.pipeline.visibility.choose_path` is the
+one function that picks the order; the draw records which it took and why
+(:attr:`DrawCall.path_taken`, :attr:`DrawCall.path_reason`).
+
+:func:`draw` is the entry point. :class:`DrawCall` holds one draw's inputs and
+runs it either all at once (:meth:`DrawCall.run`) or one stage at a time
+(:meth:`DrawCall.steps`, a generator of :class:`Stage`, on whichever path the
+draw takes), which is how a notebook steps through a draw;
+``draw(..., trace=True)`` keeps every stage's output in a
+:class:`~softpipe.pipeline.trace.Trace`.
+
+Triangles are rasterized, shaded and merged in batches of whole triangles
+holding at most :data:`MAX_FRAGMENTS_PER_BATCH` fragments (one triangle larger
+than that is a batch of its own), so memory stays bounded however much a draw
+covers; batches go in primitive order, so the result is the same as one batch.
+
+Set ``SOFTPIPE_DEBUG=vertex,assembly,raster,fragment,output`` (or ``all``) to
+print what passes through those stages, as Mesa's per-stage debug switches do.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+import types
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
+
+import numpy as np
+
+from softpipe.core.runtime import check_memory
+from softpipe.pipeline.assembly import assemble
+from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
+from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.output import MergeResult, MergeState, merge
+from softpipe.pipeline.raster import Fragments, count_fragments, rasterize
+from softpipe.pipeline.setup import SHADING_POSITIONS, apply_polygon_offset, pixel_rect, setup_triangles
+from softpipe.language.contract import make_uniforms
+from softpipe.pipeline.transforms import Viewport
+from softpipe.pipeline.vertex import run_vertex_stage
+from softpipe.pipeline.visibility import (FAST_PATH_MIN_SAMPLES, PATHS, DiscardOnFastPath, choose_path, shade_visible,  # noqa: F401
+                         shading_may_fail, visibility_pass)
+
+__all__ = ["draw", "DrawCall", "Stage", "MAX_FRAGMENTS_PER_BATCH", "STAGES"]
+
+MAX_FRAGMENTS_PER_BATCH = 1 << 22
+#: The stages :meth:`DrawCall.steps` yields: the reference path's, and the fast path's.
+STAGES = ("vertex", "assembly", "raster", "fragment", "output")
+FAST_STAGES = ("vertex", "assembly", "visibility", "fragment")
+#: Memory a draw takes per triangle in assembly and triangle setup, plus per float of
+#: varyings (three corners): 223 bytes measured with 3 varyings; checked before assembly.
+BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_VARYING = 160, 24
+#: Memory a trace takes per fragment: 106 bytes kept (Fragments, ShadedFragments, MergeResult
+#: with the colors after), twice while the batches are joined.
+BYTES_PER_TRACED_FRAGMENT = 212
+#: The keys of :attr:`DrawCall.timings`, the same on both paths.
+TIMED = ("vertex", "assembly", "setup", "raster", "fragment", "output")
+
+
+@dataclass
+class Stage:
+    """One stage's result while stepping through a draw.
+
+    ``name`` is one of :data:`STAGES` on the reference path, of
+    :data:`FAST_STAGES` on the fast path; ``output`` is that stage's data type
+    (VertexOut, Primitives, then Fragments, ShadedFragments, MergeResult on the
+    reference path, or Visibility, ShadedSamples on the fast path); ``batch``
+    counts the fragment batches (raster, fragment and output repeat per batch).
+    """
+
+    name: str
+    output: Any
+    batch: int = 0
+
+    def __repr__(self) -> str:
+        batch = f", batch {self.batch}" if isinstance(self.output, _BATCHED) else ""
+        return f"Stage({self.name!r}{batch}: {self.output!r})"
+
+
+_BATCHED = (Fragments, ShadedFragments, MergeResult)
+
+
+def _debug_stages() -> set:
+    value = os.environ.get("SOFTPIPE_DEBUG", "")
+    names = {s.strip() for s in value.split(",") if s.strip()}
+    return set(STAGES + FAST_STAGES) if "all" in names else names
+
+
+def _batches(counts: np.ndarray, limit: int):
+    """Split triangles into consecutive runs of at most ``limit`` fragments (at least one triangle)."""
+    first, total = 0, 0
+    for t, c in enumerate(counts):
+        if total and total + c > limit:
+            yield first, t
+            first, total = t, 0
+        total += int(c)
+    if first < len(counts):
+        yield first, len(counts)
+
+
+def _polygon_offset(value) -> Optional[Tuple[float, float]]:
+    """None, or (factor, units) as two finite floats."""
+    if value is None:
+        return None
+    try:
+        factor, units = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"polygon_offset must be (factor, units), two numbers, got {value!r}") from None
+    if not (np.isfinite(factor) and np.isfinite(units)):
+        raise ValueError(f"polygon_offset must be finite, got {value!r}")
+    return factor, units
+
+
+class DrawCall:
+    """One draw: its inputs, checked, and the stages that run it.
+
+    The parameters are those of :func:`draw`.
+    """
+
+    def __init__(self, framebuffer: Framebuffer, positions, indices=None,
+                 varyings: Optional[Mapping[str, Any]] = None, vertex_shader: Optional[Callable] = None,
+                 fragment_shader: Optional[Callable] = None, uniforms: Optional[Mapping[str, Any]] = None, *,
+                 attributes: Optional[Mapping[str, Any]] = None, topology: str = "triangles",
+                 interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
+                 depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
+                 front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
+                 path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None):
+        if not isinstance(framebuffer, Framebuffer):
+            raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
+        viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
+        if not isinstance(viewport, Viewport):
+            raise TypeError(f"viewport must be a softpipe.Viewport, got {type(viewport).__name__}")
+        self.framebuffer, self.viewport = framebuffer, viewport
+        self.positions, self.indices, self.varyings, self.attributes = positions, indices, varyings, attributes
+        for name, f in (("vertex_shader", vertex_shader), ("fragment_shader", fragment_shader)):
+            if f is not None and not isinstance(getattr(f, "py_func", f), types.FunctionType):
+                raise TypeError(f"{name} must be a function (def or lambda, or a numba.njit one), got "
+                                f"{type(f).__name__}; a shader's extra inputs are uniforms (a functools.partial "
+                                "or a callable object cannot be compiled)")
+        self.vertex_shader, self.fragment_shader = vertex_shader, fragment_shader
+        self.uniforms = make_uniforms(uniforms)
+        self.topology, self.interpolation, self.cull, self.front_face = topology, interpolation, cull, front_face
+        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend)
+        if sample_shading not in SHADING_POSITIONS:
+            raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {sample_shading!r}")
+        self.sample_shading = sample_shading
+        if path not in PATHS:
+            raise ValueError(f"path must be one of {PATHS}, got {path!r}")
+        self.path = path
+        self.polygon_offset = _polygon_offset(polygon_offset)
+        #: seconds spent in each stage by the last run, keyed by :data:`TIMED` on both paths (on
+        #: the fast path "raster" is the visibility pass, with its depth test, and "output" is 0:
+        #: shading writes the visible samples' color)
+        self.timings: dict = {}
+        #: the last run's assembled triangles (what reached the rasterizer), on either path
+        self.primitives = None
+        #: which path the last run took ("reference" or "fast"), and why
+        self.path_taken: Optional[str] = None
+        self.path_reason: Optional[str] = None
+
+    def choose_path(self, keep_fragments: bool = False) -> Tuple[str, str]:
+        """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
+        fb = self.framebuffer
+        return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
+                           keep_fragments)
+
+    def steps(self, record: bool = False) -> Iterator[Stage]:
+        """Run the draw one stage at a time, yielding each stage's result as it is made.
+
+        The stages are those of the path the draw takes (:meth:`choose_path`;
+        ``record`` asks for every fragment, so "auto" keeps to the reference
+        path). The framebuffer is updated by each "output" stage (the
+        "fragment" stage on the fast path); a draw stepped to the end leaves it
+        exactly as :meth:`run` would. ``record`` keeps each fragment's color
+        after merging (for pixel history).
+        """
+        self.path_taken, self.path_reason = self.choose_path(keep_fragments=record)
+        debug = _debug_stages()
+        clock = self._clock()
+        vout = self._vertex_stage()
+        clock("vertex")
+        yield self._emit(Stage("vertex", vout), debug)
+        clock(None)
+        fast = self.path_taken == "fast"
+        self._check_memory(vout)
+        prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
+                                           cull=self.cull, front_face=self.front_face, keep_culled=not fast)
+        clock("assembly")
+        yield self._emit(Stage("assembly", prims), debug)
+        clock(None)
+        fb = self.framebuffer
+        setup = setup_triangles(prims.window, pixel_rect(fb.width, fb.height, self.viewport), fb.pattern.offsets)
+        if self.polygon_offset is not None:
+            apply_polygon_offset(setup, prims.window, *self.polygon_offset)
+        clock("setup")
+        stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
+                                                                                               record)
+        for stage in stages:
+            yield self._emit(stage, debug)
+            clock(None)
+
+    def _check_memory(self, vout) -> None:
+        """Refuse, before assembly, a draw whose triangles cannot fit in memory (:data:`BYTES_PER_TRIANGLE`)."""
+        n = len(vout.position) if self.indices is None else np.size(self.indices)
+        triangles = n // 3 if self.topology == "triangles" else max(n - 2, 0)
+        per_triangle = BYTES_PER_TRIANGLE + BYTES_PER_TRIANGLE_VARYING * vout.layout.width
+        check_memory(f"drawing {triangles:,} triangles (assembly and triangle setup, {per_triangle} bytes each)",
+                     triangles * per_triangle)
+
+    def _reference_stages(self, prims, setup, clock, record: bool) -> Iterator[Stage]:
+        """Rasterize, shade every fragment and merge in order, in batches of whole triangles."""
+        fb = self.framebuffer
+        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, setup=setup)
+        if record:
+            total = int(counts.sum())
+            check_memory(f"tracing {total:,} fragments ({BYTES_PER_TRACED_FRAGMENT} bytes each, kept by the trace)",
+                         total * BYTES_PER_TRACED_FRAGMENT)
+        clock("raster")
+        batches = list(_batches(counts, MAX_FRAGMENTS_PER_BATCH))
+        # A shader that raises leaves the framebuffer as it was: with one batch nothing is merged
+        # before every fragment is shaded; with more (millions of fragments), a copy is kept.
+        saved = (fb.samples_color.copy(), fb.samples_depth.copy()) if len(batches) > 1 else None
+        for batch, (first, last) in enumerate(batches):
+            frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
+                              setup=setup)
+            clock("raster")
+            yield Stage("raster", frags, batch)
+            try:
+                shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
+            except BaseException:
+                if saved is not None:
+                    fb.samples_color[...], fb.samples_depth[...] = saved
+                raise
+            clock("fragment")
+            yield Stage("fragment", shaded, batch)
+            merged = merge(frags, shaded, self.state, fb, record=record)
+            clock("output")
+            yield Stage("output", merged, batch)
+
+    def _fast_stages(self, prims, setup, clock) -> Iterator[Stage]:
+        """Early depth: the visibility pass, then the shader on the visible samples only."""
+        fb = self.framebuffer
+        undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
+        visibility = visibility_pass(prims, setup, fb, self.state, undo=undo)
+        clock("raster")
+        yield Stage("visibility", visibility)
+        try:
+            shaded = shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
+        except DiscardOnFastPath as e:
+            # the depth is as it was before the draw: draw it again in the reference order (even with
+            # path="fast": only the reference path can draw what a discarded fragment lets show)
+            self.path_taken = "reference"
+            self.path_reason = (f"{e} on the fast path, which then drew it again on the reference path "
+                                "(a discarded fragment lets what is behind it show)")
+            clock("fragment")
+            yield from self._reference_stages(prims, setup, clock, record=False)
+            return
+        clock("fragment")
+        yield Stage("fragment", shaded)
+
+    def _clock(self):
+        """A stopwatch that adds the time since its last call to ``self.timings[name]`` (None: skip)."""
+        self.timings = dict.fromkeys(TIMED, 0.0)
+        last = [time.perf_counter()]
+
+        def lap(name):
+            now = time.perf_counter()
+            if name is not None:
+                self.timings[name] = self.timings.get(name, 0.0) + (now - last[0])
+            last[0] = now
+        return lap
+
+    def run(self, trace: bool = False):
+        """Run every stage; returns a :class:`~softpipe.pipeline.trace.Trace` if ``trace``, else None."""
+        if trace:
+            from softpipe.pipeline.trace import Trace
+            return Trace.record(self)
+        for _ in self.steps():
+            pass
+        return None
+
+    def _vertex_stage(self):
+        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
+        vout.layout = vout.layout.with_qualifiers(self.interpolation)
+        if self.fragment_shader is None:
+            default_fragment_shader(vout.layout)     # no 'color' varying: say so now, drawn or not
+        return vout
+
+    def uses_fast_path(self) -> bool:
+        """Does :meth:`run` (without a trace) take the fast path? See :mod:`softpipe.pipeline.visibility`."""
+        return self.choose_path()[0] == "fast"
+
+    @staticmethod
+    def _emit(stage: Stage, debug: set) -> Stage:
+        if stage.name in debug:
+            print(f"[softpipe {stage.name}] {stage.output!r}", file=sys.stderr)
+        return stage
+
+
+def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[Mapping[str, Any]] = None,
+         vertex_shader: Optional[Callable] = None, fragment_shader: Optional[Callable] = None,
+         uniforms: Optional[Mapping[str, Any]] = None, *, trace: bool = False, **state):
+    """Draw triangles into ``framebuffer``.
+
+    Parameters
+    ----------
+    framebuffer : Framebuffer
+    positions : array [N, 4]
+        Clip coordinates when there is no vertex shader; otherwise the vertex
+        shader's ``position`` attribute ([N, 2|3|4]).
+    indices : int array [M] or [M, 3], optional
+        Vertex indices; without them vertices are taken in order.
+    varyings : dict name → [N] or [N, k] array, optional
+        Per-vertex values to interpolate (no vertex shader).
+    vertex_shader, fragment_shader : functions, optional
+        See :mod:`softpipe.language.contract`. Without a fragment shader the color is the
+        interpolated varying ``color``.
+    uniforms : dict, optional
+        Values every shader invocation sees (:func:`softpipe.language.contract.make_uniforms`).
+    trace : bool
+        Keep every stage's output and return it as a :class:`~softpipe.pipeline.trace.Trace`.
+    attributes : dict name → [N, k] array, optional
+        Extra vertex-shader inputs.
+    topology : "triangles" | "triangle_strip" | "triangle_fan"
+    interpolation : dict varying name → "smooth" | "noperspective" | "flat"
+    depth_test : compare function (see :data:`softpipe.pipeline.output.DEPTH_FUNCS`) or None
+        (default "less")
+    depth_write : bool (default True)
+    blend : None, "alpha", "additive" or (src_factor, dst_factor) (default None)
+    cull : "none" | "back" | "front" (default "none")
+    front_face : "ccw" | "cw" (default "ccw")
+    viewport : Viewport, optional; the whole framebuffer by default
+    polygon_offset : (factor, units), optional
+        OpenGL's ``glPolygonOffset``: every triangle's depth is moved by
+        factor·DZ + units·r (:func:`softpipe.pipeline.setup.apply_polygon_offset`); a shadow
+        map's depth bias.
+    sample_shading : "sample" | "center" | "centroid"
+        With a multisample framebuffer: shade every sample (supersampling, the
+        default), or once per pixel and primitive at the pixel centre or at the
+        centroid of its covered samples (multisampling).
+    path : "auto" | "reference" | "fast"
+        "reference" rasterizes, shades and merges every fragment in order;
+        "fast" finds the visible samples first and shades only those
+        (:mod:`softpipe.pipeline.visibility`; not for blending or discard); "auto"
+        (default) takes the fast path when it can and the framebuffer has at
+        least FAST_PATH_MIN_SAMPLES samples, and the reference path for a
+        trace. Both give the same bytes; the DrawCall records which ran.
+
+    Returns
+    -------
+    None, or a Trace when ``trace=True``.
+    """
+    call = DrawCall(framebuffer, positions, indices, varyings, vertex_shader, fragment_shader, uniforms, **state)
+    return call.run(trace=trace)

@@ -1,0 +1,348 @@
+"""The framebuffer: float RGBA color and float depth, per sample.
+
+Row 0 is the top of the image, as pillow and numpy expect; the rasterizer
+flipped y once when it emitted the fragments. Colors are linear floats and
+unclamped until they become 8 bits in :meth:`Framebuffer.to_uint8`, the one
+place that conversion happens: ``round(clamp(c, 0, 1)·255)``, rounding half to
+even.
+"""
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+from typing import BinaryIO, Optional, Sequence, Union
+
+import numba
+import numpy as np
+
+from softpipe.core.parallel import in_bands
+from softpipe.core.colors import rgba
+from softpipe.pipeline.sampling import CENTER, SamplePattern
+
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format"]
+
+#: Largest width or height, in pixels.
+MAX_DIMENSION = 16384
+#: Largest width × height × samples (about 1.3 GB of color and depth).
+MAX_TOTAL_SAMPLES = 1 << 26
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill(lo, hi, color, rgba, depth, z):
+    """Clear samples lo:hi (run in parallel bands: numpy's fill is single-threaded, and a 1080p clear is ~10 ms)."""
+    for k in range(lo, hi):
+        depth[k] = z
+        for c in range(4):
+            color[k, c] = rgba[c]
+
+
+def _check_size(width, height, samples: int) -> None:
+    for name, v in (("width", width), ("height", height)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise TypeError(f"Framebuffer {name} must be an integer, got {type(v).__name__} {v!r}")
+        if v <= 0:
+            raise ValueError(f"Framebuffer {name} must be at least 1, got {v}")
+        if v > MAX_DIMENSION:
+            raise ValueError(f"Framebuffer {name} {v} exceeds the limit MAX_DIMENSION = {MAX_DIMENSION}")
+    width, height, samples = int(width), int(height), int(samples)   # no numpy int overflow in the product
+    if width * height * samples > MAX_TOTAL_SAMPLES:
+        raise ValueError(f"Framebuffer {width}×{height}×{samples} samples = {width * height * samples} exceeds "
+                         f"the limit MAX_TOTAL_SAMPLES = {MAX_TOTAL_SAMPLES}")
+
+
+def image_format(name: Optional[str], format: Optional[str] = None) -> str:
+    """The pillow format that writes ``name`` (by its extension) or ``format`` (a name or extension).
+
+    A ValueError names an extension or format pillow cannot write, or says that
+    neither was given (a file object with no name needs ``format=``).
+    """
+    from PIL import Image
+
+    Image.init()
+    extensions = Image.registered_extensions()
+    if format is not None:
+        if not isinstance(format, str):
+            raise TypeError(f"format must be a string such as 'png', got {type(format).__name__}")
+        key = format.strip().lower()
+        fmt = extensions.get(key if key.startswith(".") else "." + key)
+        if fmt is None and format.strip().upper() in Image.SAVE:
+            fmt = format.strip().upper()
+        if fmt is None or fmt not in Image.SAVE:
+            raise ValueError(f"cannot write images in format {format!r}; use png, jpeg, bmp, tiff, webp, ...")
+        return fmt
+    if name is None:
+        raise ValueError("saving to a file object needs format=, e.g. fb.save(f, format='png')")
+    ext = Path(name).suffix.lower()
+    if not ext:
+        raise ValueError(f"{name}: no extension to tell the image format; name it .png, .jpg, ... or give format=")
+    fmt = extensions.get(ext)
+    if fmt is None or fmt not in Image.SAVE:
+        raise ValueError(f"{name}: cannot write images with extension {ext!r}; use .png, .jpg, .bmp, .tif, ...")
+    return fmt
+
+
+class Framebuffer:
+    """Color (RGBA float32) and depth (float32) buffers, one value per sample.
+
+    Parameters
+    ----------
+    width, height : int
+        Size in pixels (limits: :data:`MAX_DIMENSION`, :data:`MAX_TOTAL_SAMPLES`).
+    pattern : SamplePattern
+        Where the samples of a pixel are; one centre sample by default.
+
+    Attributes
+    ----------
+    color : float32 [H, W, 4]
+        For one sample per pixel, the color buffer itself (writable).
+    depth : float32 [H, W]
+        For one sample per pixel, the depth buffer itself.
+    samples_color : float32 [S, H, W, 4], samples_depth : float32 [S, H, W]
+        Every sample: one image plane per sample, so that a row of one sample is
+        contiguous in memory (what the rasterizer's inner loop walks along).
+    width, height, pattern, samples, samples_color, samples_depth
+        Read-only: assigning them raises AttributeError, because the kernels index the
+        arrays without bounds checks. The arrays are written in place
+        (``fb.samples_color[...] = c``); each read hands out a checked view of them.
+
+    A new framebuffer is cleared to opaque black, (0, 0, 0, 1), and depth 1.0.
+
+    As a picture: ``np.asarray(fb)`` is 8-bit RGB [H, W, 3] (:meth:`__array__` says
+    why), so ``PIL.Image.fromarray(np.asarray(fb))``, ``plt.imshow(fb)`` and
+    ``imageio.imwrite("x.png", fb)`` take it as it is; :meth:`save` writes any format
+    pillow knows to a path or a binary file; in Jupyter ``fb`` shows the picture.
+    """
+
+    def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER):
+        if not isinstance(pattern, SamplePattern):
+            raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
+        _check_size(width, height, len(pattern))
+        s = len(pattern)
+        object.__setattr__(self, "_width", int(width))
+        object.__setattr__(self, "_height", int(height))
+        object.__setattr__(self, "_pattern", pattern)
+        object.__setattr__(self, "_count", s)
+        object.__setattr__(self, "_samples_color", np.empty((s, self._height, self._width, 4), dtype=np.float32))
+        object.__setattr__(self, "_samples_depth", np.empty((s, self._height, self._width), dtype=np.float32))
+        self.clear()
+
+    # The size, the pattern and the two arrays are read-only: the kernels write into the
+    # arrays by index without bounds checks, trusting that they are [S, H, W(, 4)] float32,
+    # C-contiguous, with S, H, W those of the pattern, height and width. Every read of
+    # ``samples_color`` / ``samples_depth`` checks that the framebuffer's own array still is
+    # so and hands out a new view of it: writing into it (``fb.samples_color[...] = c``)
+    # changes the framebuffer, while changing the view's shape, dtype or strides does not.
+
+    _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth")
+
+    def __setattr__(self, name, value):
+        if name in self._READ_ONLY or name.startswith("_"):
+            raise AttributeError(f"Framebuffer.{name} is read-only: the kernels rely on the size, sample pattern "
+                                 f"and arrays the framebuffer was made with; make a new Framebuffer("
+                                 f"width, height, pattern) instead, or write into the arrays in place "
+                                 f"(fb.samples_color[...] = ...)")
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name):
+        raise AttributeError(f"Framebuffer.{name} cannot be deleted")
+
+    @property
+    def width(self) -> int:
+        """Width in pixels (read-only)."""
+        return self._width
+
+    @property
+    def height(self) -> int:
+        """Height in pixels (read-only)."""
+        return self._height
+
+    @property
+    def pattern(self) -> SamplePattern:
+        """The sample pattern (read-only), checked to still have :attr:`samples` int64 offsets."""
+        p, s = self._pattern, self._count
+        offsets, positions = getattr(p, "offsets", None), getattr(p, "positions", None)
+        if not (isinstance(offsets, np.ndarray) and offsets.shape == (s, 2) and offsets.dtype == np.int64
+                and offsets.flags.c_contiguous and isinstance(positions, np.ndarray) and positions.shape == (s, 2)
+                and positions.dtype == np.float64 and positions.flags.c_contiguous):
+            raise RuntimeError(f"this framebuffer's sample pattern was changed after it was made (it had {s} "
+                               "sample(s)); the kernels cannot draw into it safely")
+        return p
+
+    @property
+    def samples(self) -> int:
+        """Samples per pixel (read-only)."""
+        return self._count
+
+    @property
+    def samples_color(self) -> np.ndarray:
+        """float32 [S, H, W, 4], C-contiguous: every sample's color (a view: write into it in place)."""
+        return self._checked(self._samples_color, (self._count, self._height, self._width, 4), "samples_color")
+
+    @property
+    def samples_depth(self) -> np.ndarray:
+        """float32 [S, H, W], C-contiguous: every sample's depth (a view: write into it in place)."""
+        return self._checked(self._samples_depth, (self._count, self._height, self._width), "samples_depth")
+
+    @staticmethod
+    def _checked(a: np.ndarray, shape, name: str) -> np.ndarray:
+        if not (a.shape == shape and a.dtype == np.float32 and a.flags.c_contiguous and a.flags.writeable):
+            raise RuntimeError(f"Framebuffer.{name} was changed in place (it is {a.dtype} {list(a.shape)}, "
+                               f"{'' if a.flags.c_contiguous else 'not '}C-contiguous, not float32 {list(shape)}); "
+                               "the kernels cannot draw into it safely")
+        return a.view()
+
+    def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0) -> "Framebuffer":
+        """Set every sample to ``color`` and ``depth``; returns the framebuffer.
+
+        ``color`` is anything :func:`softpipe.core.colors.parse_color` reads: 3 or 4 numbers
+        (RGB or RGBA, linear, unclamped), a CSS name (``"red"``), hex (``"#ff8000"``) or
+        ``"rgb(255, 128, 0)"``. Alpha is 1 when not given.
+        """
+        try:
+            c = np.asarray(rgba(color), dtype=np.float32)
+        except (TypeError, ValueError) as e:
+            if isinstance(color, str):
+                raise ValueError(f"clear color: {e}") from None
+            c = np.full(4, np.nan, np.float32)
+        if not np.all(np.isfinite(c)):
+            raise ValueError(f"clear color must be 3 or 4 finite numbers, a color name or '#rrggbb', got {color!r}")
+        if not 0.0 <= float(depth) <= 1.0:
+            raise ValueError(f"clear depth must be in [0, 1], got {depth!r}")
+        in_bands(_fill, self.samples_depth.size, self.samples_color.reshape(-1, 4), c, self.samples_depth.reshape(-1),
+                 np.float32(depth), grain=65536)
+        return self
+
+    @property
+    def color(self) -> np.ndarray:
+        """[H, W, 4]: the buffer itself for one sample, else the box-filtered resolve."""
+        if self.samples == 1:
+            return self.samples_color[0]
+        return self.resolve("box")
+
+    def resolve(self, filter: str = "box") -> np.ndarray:
+        """The samples resolved to one color per pixel, [H, W, 4] float32.
+
+        ``"box"``: the average of the pixel's samples (the notes' "sum divided
+        by s²", FORMULAS §24). ``"tent"``: every sample within one pixel of the
+        pixel's centre, weighted by (1 − |dx|)(1 − |dy|), so neighbouring
+        pixels' samples contribute too (a softer result).
+        """
+        if filter == "box":
+            return self.samples_color.mean(axis=0, dtype=np.float64).astype(np.float32)
+        if filter != "tent":
+            raise ValueError(f"resolve filter must be 'box' or 'tent', got {filter!r}")
+        pos = self.pattern.positions                       # y up within the pixel
+        acc = np.zeros((self.height, self.width, 4))
+        wsum = np.zeros((self.height, self.width, 1))
+        padded = np.pad(self.samples_color.astype(np.float64), ((0, 0), (1, 1), (1, 1), (0, 0)), mode="edge")
+        for di in (-1, 0, 1):          # neighbour column offset
+            for dj in (-1, 0, 1):      # neighbour row offset in the image (row down = window y − 1)
+                for s, (sx, sy) in enumerate(pos):
+                    dx = di + sx - 0.5
+                    dy = -dj + sy - 0.5
+                    w = max(0.0, 1 - abs(dx)) * max(0.0, 1 - abs(dy))
+                    if w == 0.0:
+                        continue
+                    acc += w * padded[s, 1 + dj:1 + dj + self.height, 1 + di:1 + di + self.width]
+                    wsum += w
+        return (acc / wsum).astype(np.float32)
+
+    @property
+    def depth(self) -> np.ndarray:
+        """[H, W]: the buffer itself for one sample, else the nearest sample's depth."""
+        if self.samples == 1:
+            return self.samples_depth[0]
+        return self.samples_depth.min(axis=0)
+
+    def to_uint8(self, alpha: bool = True) -> np.ndarray:
+        """The color as 8-bit [H, W, 4] (or [H, W, 3]): round(clamp(c, 0, 1)·255), half to even.
+
+        The one place softpipe turns colors into bytes (``np.asarray(fb)``, :meth:`save`,
+        the stage pictures, Jupyter), whichever path drew them. A NaN channel (a shader
+        that divided 0 by 0, say) becomes 0, +inf 255 and −inf 0, silently (no numpy
+        warning): NaN counts as no light.
+        """
+        c = np.nan_to_num(self.color[..., : 4 if alpha else 3].astype(np.float64), nan=0.0, posinf=1.0, neginf=0.0)
+        return np.rint(np.clip(c, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+    def to_image(self, alpha: bool = False):
+        """A pillow Image (RGB by default, RGBA with ``alpha=True``)."""
+        from PIL import Image
+        return Image.fromarray(self.to_uint8(alpha), "RGBA" if alpha else "RGB")
+
+    def save(self, file: Union[str, "os.PathLike[str]", BinaryIO], alpha: bool = False,
+             format: Optional[str] = None) -> Union[Path, BinaryIO]:
+        """Write the picture (8-bit RGB, or RGBA with ``alpha=True``) to a path or a binary file.
+
+        Parameters
+        ----------
+        file : str, path-like or binary file object
+            A path: its extension says the format (``.png``, ``.jpg``, ``.bmp``, ``.tif``,
+            ``.webp``, … any format pillow writes) and missing folders are made; the file is
+            written whole or not at all (:func:`softpipe.core.files.atomic_write`: a full disk or
+            Ctrl-C leaves the previous file of that name as it was). A file
+            object opened for writing bytes (``open(…, "wb")``, ``io.BytesIO()``): give
+            ``format=`` unless it has a ``name`` with an extension.
+        alpha : bool
+            Keep the alpha channel (a format without alpha, such as JPEG, refuses it).
+        format : str, optional
+            ``"png"``, ``"jpeg"``, ``"jpg"``, ``".bmp"``, … (any case); overrides the extension.
+
+        Returns
+        -------
+        Path or the file object
+            Where it was written.
+
+        Raises
+        ------
+        ValueError
+            An extension or format pillow cannot write (naming it), no extension and no
+            ``format=``, or ``alpha=True`` for a format without alpha.
+        TypeError
+            A file object opened in text mode, or something that is neither a path nor a file.
+        """
+        is_path = isinstance(file, (str, os.PathLike))
+        if not is_path and not callable(getattr(file, "write", None)):
+            raise TypeError(f"save() takes a path or a binary file object, got {type(file).__name__}")
+        if not is_path and isinstance(file, io.TextIOBase):
+            raise TypeError(f"save() needs a binary file (opened with 'wb'), got the text file "
+                            f"{getattr(file, 'name', file)!r}")
+        name = os.fspath(file) if is_path else getattr(file, "name", None)
+        fmt = image_format(name if isinstance(name, str) else None, format)
+        image = self.to_image(alpha)
+        if alpha and fmt in ("JPEG", "PCX", "EPS", "PPM", "MPO"):
+            raise ValueError(f"{fmt} images have no alpha channel; save with alpha=False or as .png")
+        if is_path:
+            from softpipe.core.files import atomic_write
+            path = Path(file)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write(path, lambda f: image.save(f, format=fmt))
+            return path
+        image.save(file, format=fmt)
+        return file
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        """``np.asarray(fb)``: the picture as 8-bit RGB, [H, W, 3] uint8 (what :meth:`save` writes).
+
+        uint8 RGB because that is what every image library takes as it is:
+        ``PIL.Image.fromarray(np.asarray(fb))`` makes an RGB image, ``plt.imshow(fb)``
+        shows 0..255 integers without rescaling or clipping warnings, and
+        ``imageio.imwrite("x.png", fb)`` writes it without a lossy-conversion warning.
+        The float RGBA color (linear, unclamped, with alpha) is :attr:`color`;
+        ``fb.to_uint8()`` gives RGBA bytes. The array is a new one each time: writing
+        to it does not change the framebuffer.
+        """
+        if copy is False:
+            raise ValueError("np.asarray(framebuffer) makes a new uint8 array; it cannot be had without a copy "
+                             "(fb.color is the float buffer itself)")
+        a = self.to_uint8(alpha=False)
+        return a if dtype is None else a.astype(dtype)
+
+    def _repr_png_(self) -> bytes:
+        buf = io.BytesIO()
+        self.to_image().save(buf, format="PNG")
+        return buf.getvalue()
+
+    def __repr__(self) -> str:
+        return f"Framebuffer({self.width}×{self.height}, {self.samples} sample{'s' if self.samples > 1 else ''})"

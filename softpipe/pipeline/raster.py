@@ -1,0 +1,212 @@
+"""Stage 3: the rasterizer — which samples each triangle covers, and where.
+
+It answers exactly three questions per covered sample: which pixel and sample,
+which triangle, and the barycentrics (and from them the depth). Shading is a
+later stage. The rules are OpenGL's, as Mesa implements them (DESIGN.md); each
+is one function of the triangle setup (``setup.py``), which this stage shares
+with the fast path and the shading loops:
+
+1. **Snapping** (:func:`~softpipe.pipeline.setup.snap`): fixed point with 8 subpixel
+   bits, ``X = round_half_even((x_w − ½)·256)``, so pixel i's centre is at ``256·i``.
+2. **Edge functions** ``E_k = A_k·x + B_k·y + C_k``, exact in 64-bit integers;
+   ``b_k = E_k / area`` are the barycentrics.
+3. **The fill rule** (:func:`~softpipe.pipeline.setup.owns_samples_on_edge`): a sample
+   strictly inside all three edges is covered; a sample exactly on an edge is
+   covered only if that edge owns it: left edges and bottom horizontal edges,
+   in OpenGL window coordinates (y up). Two triangles sharing an edge never
+   both cover, and never both miss, a sample on it.
+4. **Depth** (:func:`~softpipe.pipeline.setup.depth_at`), linear in window space:
+   ``z = z_0 + (E_1 (z_1 − z_0) + E_2 (z_2 − z_0)) / area``.
+
+The one y flip of softpipe happens here, when a fragment is emitted: window row
+``y`` (y up) becomes image row ``height − 1 − y`` (row 0 at the top).
+
+The kernels are plain loops compiled by numba; with ``NUMBA_DISABLE_JIT=1`` they
+run as Python and a debugger can step through :func:`_cover_triangle`, sample
+by sample (docs/07-debugging.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from softpipe.core.parallel import in_bands
+from softpipe.pipeline.assembly import Primitives
+from softpipe.pipeline.sampling import CENTER, SUBPIXEL, SamplePattern
+from softpipe.pipeline.setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, depth_at, edge_function, edge_values,
+                    owns_samples_on_edge, pixel_coverage, pixel_rect, setup_triangles, shading_point, snap)
+
+__all__ = ["Fragments", "rasterize", "count_fragments", "snap", "edge_function", "owns_samples_on_edge",
+           "SHADING_POSITIONS", "pixel_rect", "TriangleSetup", "setup_triangles"]
+
+
+@dataclass
+class Fragments:
+    """The rasterizer's output: one row per covered sample, in primitive order.
+
+    Attributes
+    ----------
+    x, y : int32 [F]
+        The pixel: column, and image row (row 0 at the top).
+    sample : int32 [F]
+        Index of the sample in the pattern.
+    depth : float64 [F]
+        Window-space depth at the sample.
+    bary : float64 [F, 3]
+        Window-space (linear) barycentrics, w.r.t. the triangle's corners, where
+        the fragment is shaded: at its sample, or (multisampling) at the pixel
+        centre or the centroid of the triangle's covered samples in the pixel.
+    frag_x, frag_y : float64 [F]
+        That position in window coordinates (``gl_FragCoord``: y up, pixel
+        centres at +½).
+    triangle : int32 [F]
+        Row in :class:`~softpipe.pipeline.assembly.Primitives`.
+    primitive_id : int64 [F]
+        The input primitive the triangle came from.
+    setup : TriangleSetup or None
+        The triangle setup the fragments came from (for derivatives).
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    sample: np.ndarray
+    depth: np.ndarray
+    bary: np.ndarray
+    triangle: np.ndarray
+    primitive_id: np.ndarray
+    frag_x: np.ndarray = None
+    frag_y: np.ndarray = None
+    setup: TriangleSetup = None
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    def __repr__(self) -> str:
+        return f"Fragments({len(self)} covered samples from {len(np.unique(self.triangle))} triangles)"
+
+    def take(self, rows: np.ndarray) -> "Fragments":
+        """The fragments at ``rows`` (same setup)."""
+        return Fragments(self.x[rows], self.y[rows], self.sample[rows], self.depth[rows], self.bary[rows],
+                         self.triangle[rows], self.primitive_id[rows], self.frag_x[rows], self.frag_y[rows],
+                         self.setup)
+
+
+@numba.njit(cache=True)
+def _cover_triangle(edges, bias, plane, box, t, height, offsets, positions, mode, out_x, out_y, out_s, out_depth,
+                    out_bary, out_pos, start, emit):
+    """Visit every covered sample of triangle t; write them from ``start`` if ``emit``. Returns the count.
+
+    Pixel by pixel over the triangle's box (window rows, bottom up), the
+    covered samples of a pixel first (:func:`~softpipe.pipeline.setup.pixel_coverage`),
+    then for each one its edge functions, depth and shading position.
+    """
+    n = 0
+    for j in range(box[t, 2], box[t, 3] + 1):
+        for i in range(box[t, 0], box[t, 1] + 1):
+            mask, first, count = pixel_coverage(edges, bias, t, i, j, offsets)
+            if count == 0 or not emit:
+                n += count
+                continue
+            for s in range(offsets.shape[0]):
+                if not (mask >> s) & 1:
+                    continue
+                px = i * SUBPIXEL + offsets[s, 0]
+                py = j * SUBPIXEL + offsets[s, 1]
+                e0, e1, e2 = edge_values(edges, t, px, py)
+                b0, b1, b2, fx, fy = shading_point(edges, plane, t, i, j, s, mask, count, offsets, positions, mode)
+                k = start + n
+                out_x[k] = i
+                out_y[k] = height - 1 - j   # the y flip: window row → image row
+                out_s[k] = s
+                out_depth[k] = depth_at(plane, t, e1, e2)
+                out_bary[k, 0] = b0
+                out_bary[k, 1] = b1
+                out_bary[k, 2] = b2
+                out_pos[0, k] = fx
+                out_pos[1, k] = fy
+                n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _count_kernel(lo, hi, edges, bias, plane, box, height, offsets, positions, counts):
+    """The covered samples of triangles lo:hi (run in bands by softpipe.core.parallel)."""
+    dummy_i = np.empty(0, np.int32)
+    dummy_f = np.empty(0, np.float64)
+    dummy_b = np.empty((0, 3), np.float64)
+    dummy_p = np.empty((2, 0), np.float64)
+    for t in range(lo, hi):
+        counts[t] = _cover_triangle(edges, bias, plane, box, t, height, offsets, positions, SHADE_SAMPLE,
+                                    dummy_i, dummy_i, dummy_i, dummy_f, dummy_b, dummy_p, 0, False)
+
+
+@numba.njit(cache=True, nogil=True)
+def _emit_kernel(lo, hi, edges, bias, plane, box, first, starts, height, offsets, positions, mode, out_x, out_y,
+                 out_s, out_depth, out_bary, out_pos, out_tri):
+    """The fragments of triangles first + lo : first + hi, each at its start (run in bands)."""
+    for t in range(first + lo, first + hi):
+        begin = starts[t]
+        n = _cover_triangle(edges, bias, plane, box, t, height, offsets, positions, mode, out_x, out_y, out_s,
+                            out_depth, out_bary, out_pos, begin, True)
+        for k in range(begin, begin + n):
+            out_tri[k] = t
+
+
+def _setup_for(prims: Primitives, width: int, height: int, pattern: SamplePattern, rect, setup):
+    if setup is not None:
+        return setup
+    rect = pixel_rect(width, height) if rect is None else rect
+    return setup_triangles(prims.window, rect, pattern.offsets)
+
+
+def count_fragments(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
+                    rect: np.ndarray | None = None, setup: TriangleSetup | None = None) -> np.ndarray:
+    """How many samples each triangle covers (int64 [P]); the rasterizer's first pass."""
+    setup = _setup_for(prims, width, height, pattern, rect, setup)
+    counts = np.zeros(len(prims), dtype=np.int64)
+    if len(prims):
+        in_bands(_count_kernel, len(prims), setup.edges, setup.bias, setup.plane, setup.box, height,
+                 pattern.offsets, pattern.positions, counts, grain=256)
+    return counts
+
+
+def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
+              first: int = 0, last: int | None = None, counts: np.ndarray | None = None,
+              shading: str = "sample", rect: np.ndarray | None = None,
+              setup: TriangleSetup | None = None) -> Fragments:
+    """The covered samples of triangles ``first:last`` (all by default), in primitive order.
+
+    Within a triangle, fragments come row by row from the bottom of the window
+    (y up), left to right, sample by sample, so the samples one triangle covers
+    in one pixel are consecutive. ``shading`` says where the barycentrics are
+    taken: at each "sample", the pixel "center", or the "centroid" of the
+    pixel's covered samples (see :data:`SHADING_POSITIONS`). ``setup`` (from
+    :func:`~softpipe.pipeline.setup.setup_triangles` with the same ``rect``) is made
+    here when not given.
+    """
+    if shading not in SHADING_POSITIONS:
+        raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {shading!r}")
+    mode = SHADING_POSITIONS.index(shading)
+    setup = _setup_for(prims, width, height, pattern, rect, setup)
+    last = len(prims) if last is None else last
+    if counts is None:
+        counts = count_fragments(prims, width, height, pattern, setup=setup)
+    starts = np.zeros(len(prims) + 1, dtype=np.int64)
+    np.cumsum(counts, out=starts[1:])
+    starts -= starts[first]
+    total = int(starts[last]) if len(prims) else 0
+    x = np.empty(total, np.int32)
+    y = np.empty(total, np.int32)
+    s = np.empty(total, np.int32)
+    depth = np.empty(total, np.float64)
+    bary = np.empty((total, 3), np.float64)
+    pos = np.empty((2, total), np.float64)
+    tri = np.empty(total, np.int32)
+    if total:
+        in_bands(_emit_kernel, last - first, setup.edges, setup.bias, setup.plane, setup.box, first, starts, height,
+                 pattern.offsets, pattern.positions, mode, x, y, s, depth, bary, pos, tri, grain=256)
+    return Fragments(x=x, y=y, sample=s, depth=depth, bary=bary, triangle=tri,
+                     primitive_id=prims.primitive_id[tri] if total else np.zeros(0, np.int64),
+                     frag_x=pos[0], frag_y=pos[1], setup=setup)

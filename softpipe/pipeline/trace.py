@@ -1,0 +1,349 @@
+"""A draw's trace: every stage's output kept, and questions asked of it.
+
+``trace = softpipe.draw(fb, ..., trace=True)`` runs the draw as usual (the same
+stages, the same pixels) and keeps:
+
+``vertex``      the vertex stage's :class:`~softpipe.pipeline.vertex.VertexOut`
+``primitives``  assembly's :class:`~softpipe.pipeline.assembly.Primitives` (with what was dropped and why)
+``fragments``   the rasterizer's :class:`~softpipe.pipeline.raster.Fragments`, all batches
+``shaded``      the fragment shader's :class:`~softpipe.pipeline.fragment.ShadedFragments`
+``merged``      the output merger's :class:`~softpipe.pipeline.output.MergeResult` (verdicts, color after each)
+``before``      a copy of the framebuffer's color and depth before the draw
+``path``        the path the draw took ("reference" or "fast") and ``path_reason`` why
+``visibility``  on the fast path, the visibility pass's :class:`~softpipe.pipeline.visibility.Visibility`
+
+A trace follows the path the draw takes: with ``path="auto"`` that is the
+reference path (only it makes every fragment); with ``path="fast"`` the trace
+holds the visibility stage, and its fragments are the ones the fast path
+shaded (one per visible sample: the fragments that lost the depth test were
+never made, so a pixel's history lists only the winner).
+
+and answers: :meth:`Trace.pixel_history` (every fragment that touched a pixel,
+in order), :meth:`Trace.fragment_inputs` and :meth:`Trace.debug_fragment`
+(re-run the fragment shader as plain Python on exactly one fragment's inputs,
+so a breakpoint in the shader stops there). :mod:`softpipe.views.pictures` draws it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, List, Optional
+
+import numpy as np
+
+from softpipe.language import kernels
+from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, derivative_gradients
+from softpipe.pipeline.output import VERDICTS, MergeResult
+from softpipe.pipeline.raster import Fragments
+from softpipe.language.contract import python_function
+
+__all__ = ["Trace", "PixelEvent", "PixelHistory"]
+
+
+def _plain(value):
+    """numpy scalars → Python floats, bools and ints (the same values, easier to read in pdb)."""
+    if isinstance(value, tuple):
+        items = [_plain(v) for v in value]
+        return type(value)(*items) if hasattr(value, "_fields") else tuple(items)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    return value
+
+
+def _concat(parts, cls, fields):
+    return cls(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in fields})
+
+
+@dataclass
+class PixelEvent:
+    """One fragment at one pixel: what it was and what the merger did with it."""
+
+    index: int                  # row in the trace's fragments
+    primitive_id: int
+    triangle: int
+    sample: int
+    depth: float
+    varyings: Any               # namedtuple, as the shader received them
+    color: tuple                # the shader's output (RGBA), NaN alpha = discarded
+    verdict: str                # "written", "depth-failed", "discarded"
+    color_after: tuple          # the sample's color after this fragment
+    shadow: tuple = ()          # V_j of each light at the fragment (RGB), when the draw has shadow maps
+
+
+class PixelHistory(list):
+    """The :class:`PixelEvent` list of one pixel; prints as a table (an HTML table in Jupyter)."""
+
+    def __init__(self, x: int, y: int, events: List[PixelEvent], before: tuple):
+        super().__init__(events)
+        self.x, self.y, self.before = x, y, before
+
+    @staticmethod
+    def _fmt(v) -> str:
+        if isinstance(v, tuple):
+            return "(" + ", ".join(f"{c:.4g}" for c in v) + ")"
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+    def _heading(self) -> str:
+        return (f"pixel ({self.x}, {self.y}): {len(self)} fragment(s); color before the draw "
+                f"{self._fmt(self.before)}")
+
+    def table(self):
+        """(column names, rows of cell strings): the table that ``str()`` and Jupyter show."""
+        if not self:
+            return [], []
+        fmt = self._fmt
+        names = list(self[0].varyings._fields)
+        shadow = ["shadow V_j"] if self[0].shadow else []
+        cols = ["#", "prim", "sample", "depth"] + names + shadow + ["shader output", "depth test", "color after"]
+        rows = [[str(e.index), str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
+                + [fmt(getattr(e.varyings, n)) for n in names]
+                + ([self._fmt_shadow(e.shadow)] if shadow else [])
+                + [fmt(e.color), str(e.verdict), fmt(e.color_after)] for e in self]
+        return cols, rows
+
+    @classmethod
+    def _fmt_shadow(cls, shadow) -> str:
+        """V_j per light: one number where it is gray, else the RGB triple."""
+        return " ".join(f"{c[0]:.3g}" if c[0] == c[1] == c[2] else cls._fmt(c) for c in shadow)
+
+    def __str__(self) -> str:
+        head = self._heading()
+        cols, rows = self.table()
+        if not rows:
+            return head
+        widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(cols)]
+        line = lambda r: "  ".join(v.ljust(w) for v, w in zip(r, widths))  # noqa: E731
+        return "\n".join([head, line(cols), line(["-" * w for w in widths])] + [line(r) for r in rows])
+
+    def _repr_pretty_(self, p, cycle):
+        p.text(str(self))
+
+    def _repr_html_(self) -> str:
+        """The table as HTML for Jupyter: every value escaped, a color swatch beside each RGBA."""
+        from html import escape
+
+        def swatch(value) -> str:
+            if not (isinstance(value, tuple) and len(value) == 4
+                    and all(isinstance(c, float) and np.isfinite(c) for c in value)):
+                return ""
+            r, g, b = (int(round(min(max(c, 0.0), 1.0) * 255)) for c in value[:3])
+            style = (f"display:inline-block;width:0.9em;height:0.9em;margin-right:0.3em;vertical-align:middle;"
+                     f"border:1px solid #888;background:rgb({r},{g},{b})")
+            return f'<span style="{escape(style)}"></span>'
+
+        cols, rows = self.table()
+        out = ['<div class="softpipe-pixel-history">', f"<p>{escape(self._heading())}</p>"]
+        if rows:
+            colored = {len(cols) - 3: "color", len(cols) - 1: "color_after"}
+            out.append('<table><thead><tr>' + "".join(f"<th>{escape(c)}</th>" for c in cols) + "</tr></thead><tbody>")
+            for event, row in zip(self, rows):
+                cells = []
+                for i, cell in enumerate(row):
+                    mark = swatch(getattr(event, colored[i])) if i in colored else ""
+                    cells.append(f"<td>{mark}{escape(cell)}</td>")
+                out.append("<tr>" + "".join(cells) + "</tr>")
+            out.append("</tbody></table>")
+        out.append("</div>")
+        return "\n".join(out)
+
+
+class Trace:
+    """Every stage's output of one draw; see the module docstring."""
+
+    def __init__(self, call, vertex, primitives, fragments: Fragments, shaded: ShadedFragments,
+                 merged: MergeResult, before_color: np.ndarray, before_depth: np.ndarray):
+        self.call = call
+        self.vertex, self.primitives = vertex, primitives
+        self.fragments, self.shaded, self.merged = fragments, shaded, merged
+        self.before_color, self.before_depth = before_color, before_depth
+        fb = call.framebuffer
+        self.width, self.height, self.pattern = fb.width, fb.height, fb.pattern
+        self.path, self.path_reason = call.path_taken, call.path_reason
+        self.visibility = None
+        self._grad = None
+
+    @classmethod
+    def record(cls, call) -> "Trace":
+        """Run ``call`` (a :class:`~softpipe.pipeline.draw.DrawCall`) and keep what every stage made."""
+        fb = call.framebuffer
+        before_color, before_depth = fb.samples_color.copy(), fb.samples_depth.copy()
+        out = {"raster": [], "fragment": [], "output": [], "visibility": []}
+        vertex = primitives = None
+        for stage in call.steps(record=True):
+            if stage.name == "vertex":
+                vertex = stage.output
+            elif stage.name == "assembly":
+                primitives = stage.output
+            else:
+                out[stage.name].append(stage.output)
+        if out["visibility"]:
+            return cls._fast(call, vertex, primitives, out["visibility"][0], out["fragment"][0], before_color,
+                             before_depth)
+        frag_fields = ("x", "y", "sample", "depth", "bary", "triangle", "primitive_id", "frag_x", "frag_y")
+        if out["raster"]:
+            fragments = _concat(out["raster"], Fragments, frag_fields)
+            fragments.setup = out["raster"][0].setup
+            shaded = _concat(out["fragment"], ShadedFragments, ("color", "discarded"))
+            shaded.invocations = sum(p.invocations for p in out["fragment"])
+            merged = _concat(out["output"], MergeResult, ("verdict", "color_after"))
+        else:
+            empty = np.zeros(0)
+            fragments = Fragments(empty.astype(np.int32), empty.astype(np.int32), empty.astype(np.int32),
+                                  empty, np.zeros((0, 3)), empty.astype(np.int32), empty.astype(np.int64),
+                                  empty, empty)
+            shaded = ShadedFragments(np.zeros((0, 4), np.float32), np.zeros(0, bool))
+            merged = MergeResult(np.zeros(0, np.int8), np.zeros((0, 4), np.float32))
+        return cls(call, vertex, primitives, fragments, shaded, merged, before_color, before_depth)
+
+    @classmethod
+    def _fast(cls, call, vertex, primitives, visibility, shaded_samples, before_color, before_depth) -> "Trace":
+        """A trace of the fast path: its fragments are those it shaded, each written."""
+        fb = call.framebuffer
+        fragments = visibility.fragments(primitives, fb.pattern, call.sample_shading)
+        color = fb.samples_color[fragments.sample, fragments.y, fragments.x]
+        shaded = ShadedFragments(color, np.zeros(len(fragments), bool), shaded_samples.invocations)
+        merged = MergeResult(np.zeros(len(fragments), np.int8), color.copy())
+        trace = cls(call, vertex, primitives, fragments, shaded, merged, before_color, before_depth)
+        trace.visibility = visibility
+        return trace
+
+    # ------------------------------------------------------------- questions
+
+    def __len__(self) -> int:
+        return len(self.fragments)
+
+    def __repr__(self) -> str:
+        if self.visibility is not None:
+            return (f"Trace(fast path: {self.vertex!r}; {self.primitives!r}; {self.visibility!r}; "
+                    f"{self.shaded!r})")
+        return (f"Trace({self.vertex!r}; {self.primitives!r}; {self.fragments!r}; {self.shaded!r}; "
+                f"{self.merged!r})")
+
+    @property
+    def verdicts(self) -> np.ndarray:
+        """Each fragment's verdict as a string array."""
+        return np.array(VERDICTS)[self.merged.verdict] if len(self) else np.array([], dtype=str)
+
+    def written(self) -> np.ndarray:
+        """Boolean [F]: fragments whose color was written."""
+        return self.merged.verdict == 0
+
+    def at(self, x: int, y: int) -> np.ndarray:
+        """Indices of the fragments at pixel (x, y) (image coordinates, row 0 at the top), in order."""
+        self._check_pixel(x, y)
+        return np.nonzero((self.fragments.x == x) & (self.fragments.y == y))[0]
+
+    def _check_pixel(self, x, y):
+        if not (0 <= x < self.width and 0 <= y < self.height):
+            raise ValueError(f"pixel ({x}, {y}) is outside the {self.width}×{self.height} framebuffer")
+
+    @property
+    def fragment_shader(self):
+        return self.call.fragment_shader or default_fragment_shader(self.primitives.layout)
+
+    def fragment_inputs(self, index: int):
+        """The shader's arguments for fragment ``index``: (varyings, uniforms, frag[, derivatives]),
+        exactly as the compiled shader received them.
+
+        Computed by the same generated interpolation code, run as plain Python.
+        """
+        module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        return self._inputs(module, index)
+
+    def _inputs(self, module, index: int):
+        f, p = self.fragments, self.primitives
+        if not 0 <= index < len(f):
+            raise IndexError(f"fragment index {index} out of range for {len(f)} fragments")
+        if self._grad is None:
+            self._grad = derivative_gradients(self.fragment_shader, f.setup)
+        out = module.fragment_inputs(index, f.triangle, f.frag_x, f.frag_y, f.depth, f.bary, p.inv_w, p.varyings,
+                                     p.front_facing, p.primitive_id, self._grad)
+        return (_plain(out[0]), self.call.uniforms) + tuple(_plain(o) for o in out[1:])
+
+    def debug_fragment(self, x: int, y: int, which: Optional[int] = None, sample: Optional[int] = None,
+                       index: Optional[int] = None):
+        """Re-run the fragment shader as plain Python on one fragment of pixel (x, y).
+
+        By default the fragment whose color the pixel shows: the last one
+        written (or the last one, if none was written). ``which`` picks among the
+        pixel's fragments in order instead; ``index`` names a fragment directly
+        (the ``#`` column of :meth:`pixel_history`). Put a breakpoint
+        (``breakpoint()``) in your shader: it stops here, on this fragment.
+        Returns the shader's RGBA, which equals what the compiled shader
+        produced for that fragment.
+        """
+        if index is None:
+            idx = self.at(x, y)
+            if sample is not None:
+                idx = idx[self.fragments.sample[idx] == sample]
+            if len(idx) == 0:
+                raise ValueError(f"no fragment reached pixel ({x}, {y})")
+            if which is None:
+                written = idx[self.merged.verdict[idx] == 0]
+                index = int(written[-1] if len(written) else idx[-1])
+            else:
+                index = int(idx[which])
+        return python_function(self.fragment_shader)(*self.fragment_inputs(index))
+
+    def pixel_history(self, x: int, y: int) -> PixelHistory:
+        """Every fragment that touched pixel (x, y), in order, with what happened to it."""
+        idx = self.at(x, y)
+        module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        f, s, m = self.fragments, self.shaded, self.merged
+        events = []
+        for k in idx:
+            varyings = self._inputs(module, int(k))[0]
+            events.append(PixelEvent(
+                index=int(k), primitive_id=int(f.primitive_id[k]), triangle=int(f.triangle[k]),
+                sample=int(f.sample[k]), depth=float(f.depth[k]), varyings=varyings,
+                color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
+                color_after=tuple(float(c) for c in m.color_after[k])))
+            events[-1].shadow = self._shadow_terms(varyings)
+        before = tuple(float(c) for c in self.before_color[0, y, x])
+        return PixelHistory(x, y, events, before)
+
+    def _shadow_terms(self, varyings) -> tuple:
+        """V_j of every light at the fragment's eye-space ``position`` varying (FORMULAS §21), as the lit
+        programs compute it, when the draw's ``lighting`` uniform carries shadow maps; else ()."""
+        lighting = getattr(self.call.uniforms, "lighting", None)
+        shadows = getattr(lighting, "shadows", None)
+        P = getattr(varyings, "position", None)
+        if shadows is None or not shadows.light_maps[:, 1:].any() or P is None or len(P) != 3:
+            return ()
+        from softpipe.light.lighting import light_visibility
+        return tuple(tuple(float(c) for c in light_visibility(lighting, j, tuple(float(v) for v in P)))
+                     for j in range(len(shadows.light_maps)))
+
+    # ------------------------------------------------------------- pictures
+
+    def pictures(self):
+        """Every stage as a picture: a dict of name → [H, W, 3] uint8 (see :mod:`softpipe.views.pictures`)."""
+        from softpipe.views.pictures import stage_pictures
+        return stage_pictures(self)
+
+    def _repr_png_(self) -> bytes:
+        """In Jupyter a trace shows as the labelled contact sheet of its stages."""
+        import io
+
+        from softpipe.views.pictures import contact_sheet, stage_pictures
+        buf = io.BytesIO()
+        contact_sheet(stage_pictures(self)).save(buf, format="PNG")
+        return buf.getvalue()
+
+    def to_html(self, path, **options):
+        """Write the pipeline explorer of this draw: one self-contained HTML page (:mod:`softpipe.views.explorer`).
+
+        Point at a pixel to see its history, the winning triangle outlined in every stage
+        picture and its vertices in object, clip and window coordinates. ``options`` are
+        :func:`softpipe.views.explorer.write_explorer`'s; returns its summary (path, size, what it holds).
+        """
+        from softpipe.views.explorer import write_explorer
+        return write_explorer(self, path, **options)
+
+    def save_pictures(self, directory) -> dict:
+        """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""
+        from softpipe.views.pictures import save_stage_pictures
+        return save_stage_pictures(self, directory)

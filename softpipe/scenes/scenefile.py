@@ -1,0 +1,821 @@
+"""Scene files: reading and checking the TOML that describes a scene.
+
+``load_scene(path)`` reads a scene file into a :class:`~softpipe.scenes.scene.Scene` (the
+scene model, :mod:`softpipe.scenes.scene`); :func:`softpipe.scenes.drawing.render_scene` draws it.
+This module only reads: the schema, its validation (every mistake is a
+:class:`SceneError` naming the file, table and key) and the conversion of values
+into the model's objects. ``examples/scene.toml`` is a full example with every key
+explained; in short::
+
+    ambient = [0.1, 0.1, 0.1]         # global ambient light (optional)
+
+    [camera]                          # optional; without it the camera frames every mesh
+    eye = [0, 1.5, 5]                 # or: frame = true, azimuth, elevation, fovy, margin, up
+    target = [0, 0.5, 0]
+    fovy = 40                         # also up, near, far
+
+    [render]                          # all optional
+    width = 640
+    height = 480
+    background = [0.08, 0.09, 0.12]   # RGB or RGBA, linear, 0..1
+    samples = "rgss4"                 # a sample pattern name (softpipe.pipeline.sampling.pattern_named)
+    sample_shading = "sample"         # "sample" (supersampling), "center"/"centroid" (MSAA)
+    program = "normals"               # the default shading program of every mesh
+    cull = "back"                     # "back", "front" or "none"
+    wireframe = false                 # draw the triangle edges over the image
+    wireframe_color = [1, 1, 1]
+    shadows = false                   # every light casts shadows (shadow maps)
+    ground = false                    # a floor under the meshes that receives shadows
+
+    [[lights]]                        # any number; without any, a key/fill/rim studio set
+    kind = "point"                    # "directional", "point" or "spot"
+    position = [2, 3, 2]              # and the other Light fields; color = diffuse and specular
+    shadows = true                    # or { resolution = 2048, pcf = 2, offset_factor = 3, offset_units = 16 }
+
+    [materials.gold]                  # Material fields by name; diffuse_texture = "file.png"
+    kd = [0.8, 0.6, 0.2]
+
+    [[meshes]]
+    obj = "model.obj"                 # relative to this file, or a bundled model: obj = "bunny"
+                                      # (or shape = "uv_sphere" + its parameters)
+    material = "gold"                 # a name from [materials], or an inline table
+    transform = [{ translate = [0, 1, 0] }, { rotate_y = 30 }, { scale = 0.5 }]
+    cast_shadows = true               # false: receives shadows, casts none
+
+Transforms
+----------
+``transform`` is a list of one-key tables, or one table whose keys are taken in the
+order written. The entries multiply left to right as :func:`softpipe.pipeline.transforms.compose`
+does: ``M = E1 · E2 · … · En``, so the **last** entry acts on the mesh first, and
+``translate, rotate, scale`` is the usual "scale, then rotate, then move". Entries:
+``translate = [x, y, z]``, ``scale = s`` or ``[sx, sy, sz]``, ``rotate = [degrees, ax, ay, az]``
+(about an axis), ``rotate_x``/``rotate_y``/``rotate_z = degrees``, and
+``matrix = [[...], [...], [...], [...]]`` (4×4, rows, affine). A mirroring transform
+(negative determinant) is drawn with clockwise front faces, so culling still removes
+the back faces.
+
+Errors
+------
+Every mistake raises :class:`SceneError` (a ``ValueError``) whose message starts with
+the file name and names the table and the key: an unknown key (with the keys that are
+allowed there), a value of the wrong type, a missing file, a TOML syntax error (with
+its line: ``scene.toml:7: TOML syntax error: …``), or a value the library rejects
+(``Camera``, ``Light``, ``Material``, a shape generator).
+
+Limits
+------
+The meshes of one scene may hold at most :data:`MAX_SCENE_TRIANGLES` triangles in all
+(a generated shape is counted before it is made); the image obeys the framebuffer's
+limits (``MAX_DIMENSION``, ``MAX_TOTAL_SAMPLES``).
+
+Models
+------
+``obj`` is a file name relative to the scene file, or the name of a model bundled with
+softpipe (:mod:`softpipe.scenes.models`: ``"bunny"``, ``"teapot"``, ``"suzanne"``, ``"spot"``,
+``"armadillo"``) when it is a bare word: no ``/`` and no ``.obj`` suffix. ``"spot"``
+comes with its texture.
+
+Drawing
+-------
+Each object is drawn by :func:`softpipe.scenes.drawing.draw_mesh` with the uniforms listed
+there; the lighting is the scene's :class:`~softpipe.light.material.Lighting` in eye space
+(the studio set of :func:`softpipe.scenes.scene.studio_lights` when there is no
+``[[lights]]``) and the texture the material's ``diffuse_texture``.
+"""
+from __future__ import annotations
+
+import difflib
+import inspect
+import math
+import os
+import re
+import warnings
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+try:  # Python 3.11+
+    import tomllib as _toml
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10 with the tomli backport
+    try:
+        import tomli as _toml
+    except ModuleNotFoundError:
+        _toml = None
+
+from softpipe.scenes import shapes
+from softpipe.pipeline.camera import Camera
+from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
+from softpipe.light.material import Light, Lighting, Material
+from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.models import MODELS, load_model, model_path, texture_path
+from softpipe.scenes.obj import OBJError, load_obj
+from softpipe.pipeline.sampling import pattern_named
+from softpipe.light.shadowmap import ShadowSettings
+# default_program, program_for and studio_lights are not used here: they lived here
+# once, and old ``scenefile.studio_lights`` callers keep working.
+from softpipe.scenes.scene import (FrameSpec, Scene, SceneObject, default_program, framed_camera, program_for,  # noqa: F401
+                    studio_lights)
+from softpipe.core.colors import parse_color
+from softpipe.core.files import PathPolicyError, check_regular_file, resolve_inside
+from softpipe.programs import PROGRAMS
+from softpipe.pipeline.transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
+
+__all__ = ["SceneError", "SceneWarning", "load_scene", "parse_scene", "MAX_SCENE_TRIANGLES", "SHAPES"]
+
+#: The most triangles all the meshes of one scene may hold together.
+MAX_SCENE_TRIANGLES = 4_000_000
+
+CULL_MODES = ("back", "front", "none")
+SAMPLE_SHADING = ("sample", "center", "centroid")
+NORMAL_MODES = ("auto", "area", "angle", "flat")
+
+
+class SceneError(ValueError):
+    """A mistake in a scene file; ``str(e)`` starts with the file name (and line, for syntax).
+
+    Attributes: ``file``, ``table`` (e.g. ``"[[lights]] #2"``), ``key``, ``line``
+    (TOML syntax errors only) and ``reason`` (the message without the file name).
+    """
+
+    def __init__(self, message: str, file: str = "<string>", table: Optional[str] = None,
+                 key: Optional[str] = None, line: Optional[int] = None) -> None:
+        self.file, self.table, self.key, self.line, self.reason = file, table, key, line, message
+        super().__init__(f"{file}:{line}: {message}" if line else f"{file}: {message}")
+
+
+class SceneWarning(UserWarning):
+    """Something a scene can do without (e.g. an OBJ's missing MTL file)."""
+
+
+# ---------------------------------------------------------------------------- reading values
+
+_MISSING = object()
+
+
+class _Bad(Exception):
+    """A value's problem, worded to follow "key 'k' in [table]"."""
+
+
+def _describe(v: Any) -> str:
+    if isinstance(v, bool):
+        return f"boolean {str(v).lower()}"
+    if isinstance(v, int):
+        text = str(v) if abs(v) < 10 ** 30 else f"{str(v)[:12]}… ({len(str(abs(v)))} digits)"
+        return f"integer {text}"
+    if isinstance(v, float):
+        return f"float {v!r}"
+    if isinstance(v, str):
+        text = v if len(v) <= 40 else v[:37] + "..."
+        return f"string {text!r}"
+    if isinstance(v, list):
+        return f"an array of {len(v)}"
+    if isinstance(v, dict):
+        return "a table"
+    return f"{type(v).__name__} {str(v)[:40]!r}"  # TOML dates and times
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _float(v: Any, what: str = "a number") -> float:
+    if not _is_number(v):
+        raise _Bad(f"must be {what}, got {_describe(v)}")
+    try:
+        x = float(v)
+    except OverflowError:
+        raise _Bad(f"must be {what}, got {_describe(v)} (too large)") from None
+    if not math.isfinite(x):
+        raise _Bad(f"must be a finite number, got {_describe(v)}")
+    return x
+
+
+def number(v: Any) -> float:
+    return _float(v)
+
+
+def positive(v: Any) -> float:
+    x = _float(v, "a positive number")
+    if x <= 0:
+        raise _Bad(f"must be a positive number, got {_describe(v)}")
+    return x
+
+
+def integer(v: Any) -> int:
+    if not isinstance(v, int) or isinstance(v, bool):
+        raise _Bad(f"must be an integer, got {_describe(v)}")
+    return v
+
+
+def boolean(v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise _Bad(f"must be true or false, got {_describe(v)}")
+    return v
+
+
+def string(v: Any) -> str:
+    if not isinstance(v, str):
+        raise _Bad(f"must be a string, got {_describe(v)}")
+    return v
+
+
+def choice(*options: str) -> Callable[[Any], str]:
+    def convert(v: Any) -> str:
+        if not isinstance(v, str) or v not in options:
+            raise _Bad(f"must be one of {', '.join(repr(o) for o in options)}, got {_describe(v)}")
+        return v
+    return convert
+
+
+def numbers(*counts: int, what: str = "numbers") -> Callable[[Any], Tuple[float, ...]]:
+    def convert(v: Any) -> Tuple[float, ...]:
+        n = " or ".join(str(c) for c in counts)
+        if not isinstance(v, list) or len(v) not in counts:
+            raise _Bad(f"must be an array of {n} {what}, got {_describe(v)}")
+        return tuple(_float(c, f"an array of {n} {what}") for c in v)
+    return convert
+
+
+vec3 = numbers(3)
+
+
+def color(v: Any) -> Any:
+    """A color: one number (gray), [r, g, b], or a name or hex string (:func:`softpipe.core.colors.parse_color`)."""
+    if _is_number(v):
+        return _float(v)
+    if isinstance(v, str):
+        try:
+            c = parse_color(v)
+        except ValueError as e:
+            raise _Bad(f"must be a color: {e}") from None
+        if len(c) != 3:
+            raise _Bad(f"must be an RGB color, got {_describe(v)} with an alpha")
+        return c
+    if not isinstance(v, list) or len(v) != 3:
+        raise _Bad(f"must be a number (gray), an array [r, g, b] or a color name such as \"red\", "
+                   f"got {_describe(v)}")
+    return tuple(_float(c, "a number (gray) or an array [r, g, b]") for c in v)
+
+
+def program_name(v: Any) -> str:
+    name = string(v)
+    if name not in PROGRAMS:
+        raise _Bad(f"names an unknown program {name!r}; registered programs: {', '.join(sorted(PROGRAMS))}")
+    return name
+
+
+def pattern_name(v: Any) -> str:
+    if isinstance(v, int) and not isinstance(v, bool):
+        v = str(v)
+    name = string(v)
+    try:
+        pattern_named(name)
+    except (ValueError, TypeError) as e:
+        raise _Bad(f"is not a sample pattern: {e}") from None
+    return name
+
+
+class _Table:
+    """One TOML table being read: checks its keys and converts values, naming itself in errors."""
+
+    def __init__(self, reader: "_Reader", data: Any, label: str, allowed: Sequence[str],
+                 what: str = "a table") -> None:
+        self.reader, self.label, self.allowed = reader, label, list(allowed)
+        if not isinstance(data, dict):
+            raise reader.error(f"{label} must be {what}, got {_describe(data)}", table=label)
+        self.data = data
+        for key in data:
+            if key not in self.allowed:
+                close = difflib.get_close_matches(key, self.allowed, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise reader.error(f"unknown key {key!r} in {label}{hint}; expected one of "
+                                   f"{', '.join(self.allowed)}", table=label, key=key)
+
+    def __contains__(self, key: str) -> bool:
+        return key in self.data
+
+    def error(self, message: str, key: Optional[str] = None) -> SceneError:
+        if key is None:
+            return self.reader.error(f"{self.label}: {message}", table=self.label)
+        return self.reader.error(f"key {key!r} in {self.label} {message}", table=self.label, key=key)
+
+    def get(self, key: str, convert: Callable[[Any], Any], default: Any = _MISSING) -> Any:
+        if key not in self.data:
+            if default is _MISSING:
+                raise self.reader.error(f"{self.label} needs key {key!r}", table=self.label, key=key)
+            return default
+        try:
+            return convert(self.data[key])
+        except _Bad as e:
+            raise self.error(str(e), key) from None
+
+    def library(self, key: Optional[str], make: Callable[[], Any]) -> Any:
+        """Call the library (Camera, Light, …); its ValueError/TypeError becomes a SceneError."""
+        try:
+            return make()
+        except (ValueError, TypeError) as e:
+            if isinstance(e, SceneError):
+                raise
+            raise (self.error(str(e)) if key is None else
+                   self.reader.error(f"key {key!r} in {self.label}: {e}", table=self.label, key=key)) from None
+
+
+# ---------------------------------------------------------------------------- the parts
+
+
+TOP_KEYS = ("ambient", "camera", "render", "lights", "materials", "meshes")
+CAMERA_KEYS = ("frame", "eye", "target", "up", "fovy", "near", "far", "azimuth", "elevation", "margin")
+RENDER_KEYS = ("width", "height", "background", "samples", "sample_shading", "program", "cull", "wireframe",
+               "wireframe_color", "shadows", "ground")
+LIGHT_KEYS = ("kind", "name", "color", "ambient", "diffuse", "specular", "position", "direction",
+              "attenuation", "spot_direction", "cutoff", "exponent", "shadows")
+SHADOW_KEYS = ("resolution", "pcf", "offset_factor", "offset_units")
+MATERIAL_KEYS = ("ke", "ka", "kd", "ks", "shininess", "kr", "kt", "transmission_shininess", "ior", "opacity",
+                 "roughness", "diffuse_texture", "transmittance", "falloff", "falloff_a")
+MESH_KEYS = ("name", "obj", "shape", "fit", "normals", "transform", "material", "program", "cull", "cast_shadows")
+TRANSFORM_KEYS = ("translate", "rotate", "rotate_x", "rotate_y", "rotate_z", "scale", "matrix")
+
+#: The generators ``shape =`` may name, from :mod:`softpipe.scenes.shapes`.
+SHAPES = {name: getattr(shapes, name) for name in
+          ("plane", "cube", "uv_sphere", "icosphere", "cylinder", "cone", "torus")}
+
+
+def _shape_params(name: str) -> Dict[str, Any]:
+    """A generator's parameters (but ``material``) and their defaults."""
+    sig = inspect.signature(SHAPES[name])
+    return {p.name: p.default for p in sig.parameters.values() if p.name != "material"}
+
+
+def _estimate_triangles(shape: str, p: Dict[str, Any]) -> int:
+    """An upper bound of the triangles a generator will make, computed before making them."""
+    g = lambda k: max(int(p[k]), 0)  # noqa: E731
+    if shape == "plane":
+        return 2 * g("subdivisions") ** 2
+    if shape == "cube":
+        return 12 * g("subdivisions") ** 2
+    if shape == "icosphere":
+        return 20 * 4 ** min(g("subdivisions"), 40)
+    if shape == "uv_sphere":
+        return 2 * g("segments") * g("rings")
+    if shape == "torus":
+        return 2 * g("segments") * g("tube_segments")
+    return 2 * g("segments") * (g("stacks") + 2)  # cylinder, cone (with caps)
+
+
+class _Reader:
+    """One load of one scene file."""
+
+    def __init__(self, file: str, base_dir: str, allow_outside: bool = False) -> None:
+        self.file, self.base_dir, self.allow_outside = file, base_dir, allow_outside
+        self.triangles = 0
+        self.warnings: List[str] = []
+        self._objs: Dict[str, Mesh] = {}
+        self._textures: Dict[str, Any] = {}
+
+    def error(self, message: str, table: Optional[str] = None, key: Optional[str] = None,
+              line: Optional[int] = None) -> SceneError:
+        return SceneError(message, file=self.file, table=table, key=key, line=line)
+
+    def path(self, table: _Table, key: str, hint: str = "") -> str:
+        """A file named by ``key``, relative to the scene file; it must exist (``hint`` follows
+        "file not found")."""
+        rel = table.get(key, string)
+        if not rel.strip() or "\0" in rel:
+            raise table.error(f"must name a file, got {_describe(rel)}", key)
+        try:
+            path = resolve_inside(self.base_dir, rel, allow_outside=self.allow_outside)
+        except PathPolicyError as e:
+            raise self.error(f"key {key!r} in {table.label}: {e}", table=table.label, key=key) from None
+        if not os.path.isfile(path):
+            problem = (f"is a directory, not a file: {path}" if os.path.isdir(path) else
+                       f"file not found: {path}{hint}")
+            raise self.error(f"key {key!r} in {table.label}: {problem}", table=table.label, key=key)
+        return path
+
+    # -- the whole file
+
+    def scene(self, doc: dict) -> Scene:
+        top = _Table(self, doc, "the top level", TOP_KEYS)
+        scene = Scene(path=self.file, warnings=self.warnings)
+        ambient = top.get("ambient", color, scene.ambient)
+        scene.ambient = (ambient,) * 3 if isinstance(ambient, float) else ambient
+        top.library("ambient", lambda: Lighting((), global_ambient=scene.ambient))
+        self.render(doc.get("render", {}), scene)
+        self.camera(doc.get("camera", {}), scene)
+        lights = doc.get("lights", _MISSING)
+        if lights is not _MISSING:
+            if not isinstance(lights, list):
+                raise self.error(f"'lights' must be an array of tables ([[lights]]), got {_describe(lights)}",
+                                 key="lights")
+            scene.lights = tuple(self.light(k + 1, t) for k, t in enumerate(lights))
+        materials = doc.get("materials", {})
+        if not isinstance(materials, dict):
+            raise self.error(f"'materials' must be a table of [materials.NAME] tables, got {_describe(materials)}",
+                             key="materials")
+        for name, data in materials.items():
+            scene.materials[name] = self.material(data, f"[materials.{name}]", name)
+        meshes = doc.get("meshes", [])
+        if not isinstance(meshes, list):
+            raise self.error(f"'meshes' must be an array of tables ([[meshes]]), got {_describe(meshes)}",
+                             key="meshes")
+        if not meshes:
+            raise self.error("the scene has no [[meshes]]; add at least one (obj = \"file.obj\" or "
+                             "shape = \"uv_sphere\")", table="[[meshes]]")
+        for k, data in enumerate(meshes):
+            scene.objects.extend(self.mesh(k + 1, data, scene))
+        if scene.camera is None:  # framed: check now that the framing works
+            _Table(self, {}, "[camera]", ()).library(None, scene.view_camera)
+        return scene
+
+    def render(self, data: Any, scene: Scene) -> None:
+        t = _Table(self, data, "[render]", RENDER_KEYS)
+        size = lambda v: _in_range(integer(v), 1, MAX_DIMENSION, "pixels")  # noqa: E731
+        scene.width = t.get("width", size, scene.width)
+        scene.height = t.get("height", size, scene.height)
+        bg = t.get("background", numbers(3, 4), scene.background)
+        scene.background = tuple(bg) + ((1.0,) if len(bg) == 3 else ())
+        scene.samples = t.get("samples", pattern_name, scene.samples)
+        count = len(pattern_named(scene.samples))
+        if scene.width * scene.height * count > MAX_TOTAL_SAMPLES:
+            raise t.error(f"{scene.width}×{scene.height} pixels × {count} samples exceeds the limit "
+                          f"MAX_TOTAL_SAMPLES = {MAX_TOTAL_SAMPLES}")
+        scene.sample_shading = t.get("sample_shading", choice(*SAMPLE_SHADING), scene.sample_shading)
+        scene.program = t.get("program", program_name, None)
+        scene.cull = t.get("cull", choice(*CULL_MODES), scene.cull)
+        scene.wireframe = t.get("wireframe", boolean, False)
+        wc = t.get("wireframe_color", color, scene.wireframe_color)
+        scene.wireframe_color = (wc,) * 3 if isinstance(wc, float) else wc
+        scene.shadows = t.get("shadows", boolean, False)
+        scene.ground = t.get("ground", boolean, False)
+
+    def camera(self, data: Any, scene: Scene) -> None:
+        t = _Table(self, data, "[camera]", CAMERA_KEYS)
+        framed = t.get("frame", boolean, "eye" not in t)
+        own, frame_only = ("eye", "target", "near", "far"), ("azimuth", "elevation", "margin")
+        for key in own if framed else frame_only:
+            if key in t:
+                why = ("frame = true places the camera to see every mesh" if framed else
+                       "it applies only to a framed camera (frame = true, no eye)")
+                raise t.error(f"cannot be used here: {why}", key)
+        up = t.get("up", vec3, (0.0, 1.0, 0.0))
+        if framed:
+            f = FrameSpec(azimuth=t.get("azimuth", number, 30.0), elevation=t.get("elevation", number, 20.0),
+                          fovy=t.get("fovy", number, 35.0), margin=t.get("margin", positive, 1.1), up=up)
+            t.library(None, lambda: framed_camera(((-1, -1, -1), (1, 1, 1)), f, f.azimuth, f.elevation, 1.0))
+            scene.frame, scene.camera = f, None
+        else:
+            eye = t.get("eye", vec3)
+            kw = dict(eye=eye, target=t.get("target", vec3, (0.0, 0.0, 0.0)), up=up,
+                      fovy=t.get("fovy", number, 40.0), near=t.get("near", positive, 0.1),
+                      far=t.get("far", positive, 100.0))
+            scene.camera = t.library(None, lambda: Camera(**kw))
+
+    def light(self, index: int, data: Any) -> Light:
+        label = f"[[lights]] #{index}"
+        t = _Table(self, data, label, LIGHT_KEYS)
+        if "kind" not in t:
+            raise t.error("needs key 'kind': 'directional', 'point' or 'spot'")
+        kind = t.get("kind", choice("directional", "point", "spot"))
+        kw: Dict[str, Any] = {"kind": kind, "name": t.get("name", string, f"light {index}")}
+        if "color" in t:
+            for k in ("diffuse", "specular"):
+                if k in t:
+                    raise t.error("cannot be given with 'color' (color sets both diffuse and specular)", k)
+            c = t.get("color", color)
+            kw["diffuse"] = kw["specular"] = c
+        for key in ("ambient", "diffuse", "specular"):
+            if key in t:
+                kw[key] = t.get(key, color)
+        for key in ("position", "direction", "spot_direction"):
+            if key in t:
+                kw[key] = t.get(key, vec3)
+        if "attenuation" in t:
+            kw["attenuation"] = t.get("attenuation", numbers(3))
+        for key in ("cutoff", "exponent"):
+            if key in t:
+                kw[key] = t.get(key, number)
+        if "shadows" in t:
+            kw["shadows"] = self.shadows(t)
+        return t.library(None, lambda: Light(**kw))
+
+    def shadows(self, light: _Table):
+        """A light's ``shadows``: true/false, or a table of ShadowSettings fields."""
+        value = light.data["shadows"]
+        if isinstance(value, bool):
+            return value
+        if not isinstance(value, dict):
+            raise light.error(f"must be true, false or a table of {', '.join(SHADOW_KEYS)}, got {_describe(value)}",
+                              "shadows")
+        t = _Table(self, value, f"{light.label} shadows", SHADOW_KEYS)
+        kw = {key: t.get(key, integer) for key in ("resolution", "pcf") if key in t}
+        kw.update({key: t.get(key, number) for key in ("offset_factor", "offset_units") if key in t})
+        return t.library(None, lambda: ShadowSettings(**kw))
+
+    def material(self, data: Any, label: str, name: str) -> Material:
+        t = _Table(self, data, label, MATERIAL_KEYS)
+        kw: Dict[str, Any] = {"name": name}
+        for key in ("ke", "ka", "kd", "ks", "kr", "kt"):
+            if key in t:
+                kw[key] = t.get(key, color)
+        for key in ("shininess", "transmission_shininess", "opacity", "roughness", "falloff_a"):
+            if key in t:
+                kw[key] = t.get(key, number)
+        if "ior" in t:          # a number, or a medium's name (softpipe.light.material.MEDIA: "water", "glass", …)
+            kw["ior"] = t.get("ior", lambda v: v if isinstance(v, str) else number(v))
+        if "transmittance" in t:
+            kw["transmittance"] = t.get("transmittance", color)
+        if "falloff" in t:
+            kw["falloff"] = t.get("falloff", string)
+        if "diffuse_texture" in t:
+            bundled = _bundled_texture(t.data["diffuse_texture"])
+            kw["diffuse_texture"] = bundled if bundled is not None else self.path(t, "diffuse_texture")
+        material = t.library(None, lambda: Material(**kw))
+        if material.diffuse_texture:
+            self.texture(material.diffuse_texture, t, "diffuse_texture")
+        return material
+
+    def texture(self, path: str, table: _Table, key: str):
+        if path not in self._textures:
+            from softpipe.light.texture import Texture2D
+            try:
+                self._textures[path] = Texture2D(path)
+            except (ValueError, TypeError, OSError) as e:
+                raise self.error(f"key {key!r} in {table.label}: {e}", table=table.label, key=key) from None
+        return self._textures[path]
+
+    # -- meshes
+
+    def mesh(self, index: int, data: Any, scene: Scene) -> List[SceneObject]:
+        label = f"[[meshes]] #{index}"
+        if isinstance(data, dict) and isinstance(data.get("name"), str):
+            label += f" ({data['name'][:40]!r})"
+        params: Dict[str, Any] = {}
+        if isinstance(data, dict) and "shape" in data:  # before the keys: they depend on the shape
+            try:
+                shape = choice(*SHAPES)(data["shape"])
+            except _Bad as e:
+                raise self.error(f"key 'shape' in {label} {e}", table=label, key="shape") from None
+            params = _shape_params(shape)
+        t = _Table(self, data, label, MESH_KEYS + tuple(params))
+        if ("obj" in t) == ("shape" in t):
+            raise t.error("needs either 'obj' (an OBJ file) or 'shape' (one of "
+                          f"{', '.join(SHAPES)}), {'not both' if 'obj' in t else 'and has neither'}")
+        if "shape" in t:
+            mesh = self.shape(t, shape, params)
+        else:
+            mesh = self.obj(t)
+        name = t.get("name", string, mesh.name or f"mesh {index}")
+        mesh = mesh.replace(name=name)
+        if "fit" in t:
+            size = t.get("fit", positive)
+            mesh = t.library("fit", lambda: mesh.normalized(size))
+        mode = t.get("normals", choice(*NORMAL_MODES), "auto")
+        if mode == "flat":
+            mesh = mesh.flat_shaded()
+        elif mode != "auto":
+            mesh = t.library("normals", lambda: mesh.with_normals(mode))
+        model = self.transform(t)
+        if "material" in t:
+            m = t.data["material"]
+            if isinstance(m, str):
+                if m not in scene.materials:
+                    known = ", ".join(scene.materials) or "none"
+                    raise t.error(f"names an undefined material {m!r}; [materials] defines: {known}", "material")
+                material = scene.materials[m]
+            elif isinstance(m, dict):
+                material = self.material(m, f"{label} material", f"{name} material")
+            else:
+                raise t.error(f"must be a material name or an inline table, got {_describe(m)}", "material")
+            mesh = mesh.replace(material=material, materials=(), material_ids=None)
+        program = t.get("program", program_name, None)
+        cull = t.get("cull", choice(*CULL_MODES), None)
+        cast_shadows = t.get("cast_shadows", boolean, True)
+        objects = []
+        parts = mesh.by_material()
+        for material, part in parts:
+            texture = self.texture(material.diffuse_texture, t, "material" if "material" in t else "obj") \
+                if material.diffuse_texture else None
+            part_name = name if len(parts) == 1 else part.name
+            objects.append(SceneObject(part_name, part.replace(name=part_name), model, program, cull, texture,
+                                       cast_shadows))
+        return objects
+
+    def count(self, t: _Table, key: str, triangles: int) -> None:
+        self.triangles += triangles
+        if self.triangles > MAX_SCENE_TRIANGLES:
+            raise t.error(f"makes the scene's meshes hold {self.triangles:,} triangles, more than the limit "
+                          f"MAX_SCENE_TRIANGLES = {MAX_SCENE_TRIANGLES:,}", key)
+
+    def shape(self, t: _Table, shape: str, params: Dict[str, Any]) -> Mesh:
+        kw = {}
+        for key, default in params.items():
+            if key not in t:
+                continue
+            if isinstance(default, bool):
+                kw[key] = t.get(key, boolean)
+            elif isinstance(default, int):
+                kw[key] = t.get(key, integer)
+            else:
+                kw[key] = t.get(key, number)
+        self.count(t, "shape", _estimate_triangles(shape, {**params, **kw}))
+        with np.errstate(all="ignore"):  # a huge size overflows; Mesh then names the bad array
+            return t.library("shape", lambda: SHAPES[shape](**kw))
+
+    def obj(self, t: _Table) -> Mesh:
+        bundled = _bundled_model(t.data["obj"])
+        if bundled is not None:
+            name, path = t.data["obj"], bundled
+        else:
+            rel = t.data["obj"]
+            hint = f" (nor is {rel!r} a bundled model: {', '.join(MODELS)})" \
+                if isinstance(rel, str) and _is_bare_word(rel) else ""
+            name, path = None, self.path(t, "obj", hint)
+        if path not in self._objs:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    # a bundled model by name: load_model also gives "spot" its texture
+                    mesh = load_obj(path, allow_outside=self.allow_outside) if name is None else load_model(name)
+                except OBJError as e:
+                    raise self.error(f"key 'obj' in {t.label}: {e}", table=t.label, key="obj") from None
+                except (OSError, UnicodeError) as e:
+                    raise self.error(f"key 'obj' in {t.label}: cannot read {path}: {e}", table=t.label,
+                                     key="obj") from None
+            self.warnings.extend(str(w.message) for w in caught)
+            if mesh.triangle_count == 0:
+                raise self.error(f"key 'obj' in {t.label}: {path} has no faces", table=t.label, key="obj")
+            self._objs[path] = mesh
+        mesh = self._objs[path]
+        self.count(t, "obj", mesh.triangle_count)
+        return mesh
+
+    def transform(self, t: _Table) -> np.ndarray:
+        if "transform" not in t:
+            return np.eye(4)
+        value = t.data["transform"]
+        if isinstance(value, dict):
+            entries = [{k: v} for k, v in value.items()]
+        elif isinstance(value, list):
+            entries = value
+        else:
+            raise t.error("must be an array of one-key tables or a table of translate/rotate/scale entries, "
+                          f"got {_describe(value)}", "transform")
+        matrices = []
+        for n, entry in enumerate(entries, 1):
+            where = f"entry {n} of key 'transform' in {t.label}"
+            if not isinstance(entry, dict) or len(entry) != 1:
+                raise self.error(f"{where} must be a table with one key ({', '.join(TRANSFORM_KEYS)}), "
+                                 f"got {_describe(entry)}" + (f" with {len(entry)} keys" if isinstance(entry, dict)
+                                                              else ""), table=t.label, key="transform")
+            (kind, v), = entry.items()
+            if kind not in TRANSFORM_KEYS:
+                close = difflib.get_close_matches(kind, TRANSFORM_KEYS, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise self.error(f"unknown transform {kind!r} in {where}{hint}; expected one of "
+                                 f"{', '.join(TRANSFORM_KEYS)}", table=t.label, key="transform")
+            try:
+                matrices.append(_transform_entry(kind, v))
+            except (_Bad, ValueError, TypeError) as e:
+                raise self.error(f"{kind!r} in {where} {e}", table=t.label, key="transform") from None
+        model = compose(*matrices) if matrices else np.eye(4)
+        det = float(np.linalg.det(model[:3, :3]))
+        if not np.all(np.isfinite(model)) or not math.isfinite(det) or abs(det) < 1e-12:
+            raise t.error("is singular or not finite (a scale of 0 flattens the mesh)", "transform")
+        return model
+
+
+def _is_bare_word(text: str) -> bool:
+    """No folder and no ``.obj`` suffix: what a bundled model's name looks like."""
+    return "/" not in text and "\\" not in text and not text.lower().endswith(".obj")
+
+
+def _bundled_texture(value: Any) -> Optional[str]:
+    """The bundled texture ``diffuse_texture = value`` names (``"spot"``: the texture of the
+    model "spot"), or None for a file name."""
+    if not isinstance(value, str) or _bundled_model(value) is None:
+        return None
+    found = texture_path(value)
+    return None if found is None else os.fspath(found)
+
+
+def _bundled_model(value: Any) -> Optional[str]:
+    """The bundled model file ``obj = value`` names (``"bunny"``), or None for a file name.
+
+    Only a bare word is looked up, so ``"models/bunny"`` or ``"bunny.obj"`` stay files
+    relative to the scene; :func:`softpipe.scenes.models.model_path` decides whether the word
+    is a model's name (it leaves anything else as it was, or refuses it: then the word
+    is a file name here, relative to the scene file, not to the current folder).
+    """
+    if not isinstance(value, str) or not value.strip() or "\0" in value or not _is_bare_word(value):
+        return None
+    try:
+        path = model_path(value)
+    except (ValueError, TypeError):
+        return None
+    return os.fspath(path) if os.fspath(path) != value else None
+
+
+def _in_range(v: int, low: int, high: int, unit: str) -> int:
+    if not low <= v <= high:
+        raise _Bad(f"must be between {low} and {high} {unit}, got {v}")
+    return v
+
+
+def _transform_entry(kind: str, v: Any) -> np.ndarray:
+    if kind == "translate":
+        return translate(*vec3(v))
+    if kind == "scale":
+        if _is_number(v):
+            s = _float(v)
+            return scale(s, s, s)
+        s = numbers(1, 3, what="numbers (s or [sx, sy, sz])")(v)
+        return scale(*(s * 3 if len(s) == 1 else s))
+    if kind == "rotate":
+        angle, *axis = numbers(4, what="numbers [degrees, ax, ay, az]")(v)
+        if not any(axis):
+            raise _Bad("needs a nonzero axis [degrees, ax, ay, az]")
+        return rotate(angle, axis)
+    if kind in ("rotate_x", "rotate_y", "rotate_z"):
+        angle = _float(v, "an angle in degrees")
+        return {"rotate_x": rotate_x, "rotate_y": rotate_y, "rotate_z": rotate_z}[kind](angle)
+    # matrix
+    if not isinstance(v, list) or len(v) != 4:
+        raise _Bad(f"must be 4 rows of 4 numbers, got {_describe(v)}")
+    m = np.array([numbers(4)(row) for row in v], dtype=np.float64)
+    if not np.array_equal(m[3], [0.0, 0.0, 0.0, 1.0]):
+        raise _Bad(f"must be affine: its last row must be [0, 0, 0, 1], got {m[3].tolist()}")
+    return m
+
+
+# ---------------------------------------------------------------------------- loading
+
+_LINE = re.compile(r"\(at line (\d+), column (\d+)\)")
+
+
+def parse_scene(text: str, name: str = "<string>", base_dir: Optional[str] = None, *,
+                allow_outside: bool = False) -> Scene:
+    """A scene from TOML text; ``name`` labels errors, ``base_dir`` resolves file names
+    (the current directory by default).
+
+    The files it names must lie in ``base_dir`` or below (:func:`softpipe.core.files.resolve_inside`);
+    ``allow_outside=True`` lifts that for a scene you trust.
+    """
+    reader = _Reader(name, os.fspath(base_dir) if base_dir is not None else "", allow_outside)
+    if _toml is None:  # pragma: no cover
+        raise reader.error("reading scene files needs Python 3.11 (tomllib) or the 'tomli' package")
+    if not isinstance(text, str):
+        raise TypeError(f"parse_scene: text must be a str, got {type(text).__name__}")
+    try:
+        doc = _toml.loads(text)
+    except RecursionError:
+        raise reader.error("TOML error: arrays or tables nested too deeply") from None
+    except ValueError as e:  # TOMLDecodeError, and int() of a number with too many digits
+        message = str(e)
+        found = _LINE.search(message)
+        if found:
+            line = int(found.group(1))
+        elif "end of document" in message:
+            line = text.count("\n") + (0 if text.endswith("\n") else 1)
+        else:
+            line = None
+        message = _LINE.sub("", message).replace(" (at end of document)", " (at the end of the file)").strip()
+        if "integer string conversion" in message:  # int() refuses more than sys.get_int_max_str_digits()
+            message = "an integer has too many digits"
+        kind = "TOML syntax error" if isinstance(e, getattr(_toml, "TOMLDecodeError", ())) else "TOML error"
+        raise reader.error(f"{kind}: {message}", line=max(line, 1) if line is not None else None) from None
+    try:
+        return reader.scene(doc)
+    except RecursionError:  # pragma: no cover - nothing here recurses on the input
+        raise reader.error("the scene is nested too deeply") from None
+
+
+def load_scene(path, *, allow_outside: bool = False) -> Scene:
+    """Read a scene file (TOML); file names in it are relative to its folder, and must lie in
+    it or below unless ``allow_outside=True`` (:func:`softpipe.core.files.resolve_inside`).
+
+    Every problem raises :class:`SceneError` naming the file, table and key. Warnings
+    (e.g. an OBJ's missing MTL file) are kept in ``Scene.warnings`` and issued as
+    :class:`SceneWarning`.
+    """
+    path = os.fspath(path)
+    try:
+        check_regular_file(path)
+        with open(path, "rb") as f:
+            raw = f.read()
+    except PathPolicyError as e:
+        raise SceneError(str(e), file=path) from None
+    except FileNotFoundError:
+        raise SceneError("scene file not found", file=path) from None
+    except IsADirectoryError:
+        raise SceneError("is a directory, not a scene file", file=path) from None
+    except OSError as e:
+        raise SceneError(f"cannot read the scene file: {e.strerror or e}", file=path) from None
+    try:
+        text = raw.decode("utf-8-sig")  # a byte-order mark is skipped
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise SceneError(f"not UTF-8 text (byte {e.start})", file=path, line=line) from None
+    scene = parse_scene(text, path, os.path.dirname(os.path.abspath(path)), allow_outside=allow_outside)
+    for message in scene.warnings:
+        warnings.warn(message, SceneWarning, stacklevel=2)
+    return scene

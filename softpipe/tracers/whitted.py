@@ -1,0 +1,536 @@
+"""A Whitted ray tracer of the same scene the rasterizer draws (FORMULAS §11, §16–§19, §21–§23).
+
+The rasterizer asks, per triangle, which pixels it covers; a ray tracer asks, per
+pixel, which triangle its ray meets first. Given the same :class:`~softpipe.scenes.scene.Scene`
+— objects, camera, materials, lights — :func:`raytrace_scene` makes the picture the
+second way, so that the two can be put side by side and any pixel asked why.
+
+Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − (y + ½)/h):
+
+1. **Primary ray** from the camera's near plane through the pixel, to its far plane —
+   the rasterizer clips at both, so both see the same surfaces.
+2. **Local color** at the nearest hit P: the object's program's lighting equation,
+   the *same* functions of :mod:`softpipe.light.lighting` the rasterizer's shaders call
+   (§10 for ``phong`` and its kin, §13's local terms for ``hall``, §26 for
+   ``cook_torrance``, §11's two-sided form for ``two_sided``), with every light's
+   V_j from a **shadow ray** (§21,
+   :func:`softpipe.rays.queries.ray_visibility`: ε off the surface, through transparent
+   objects, meeting only the objects whose ``cast_shadows`` is true, as the shadow maps). N is the interpolated vertex normal, reversed on a back face (by the
+   triangle's winding, as the rasterizer's ``gl_FrontFacing``); V = −d. A primary ray
+   passes through the faces its object culls, as the rasterizer never drew them.
+3. **The ray tree** (§22): a material with reflection ``kr`` spawns the mirror ray
+   R = reflect(d, N) (§16) with weight w·kr; one with transmission ``kt`` the refracted
+   ray T (§17, §18; η = 1/ior entering an object, ior leaving it, the outside being
+   air, n = 1) with weight w·kt, or — beyond the critical angle, §19 — a reflected
+   ray carrying that weight too (total internal reflection sends everything to R).
+   An object drawn with ``glass`` splits by Fresnel instead, as that program does:
+   F_R to R and (1 − F_R)·kt to T (§20, from the side the ray comes from), all to R
+   on total internal reflection; one drawn with ``mirror`` sends kr to R and refracts
+   nothing.
+   The pixel is Σ weight × local color over the tree: §11's
+   c = local + k_r·trace(p, R) + k_t·trace(p, T), unrolled. A branch stops at
+   ``max_depth`` or when its weight falls below ``min_weight`` in every channel;
+   secondary rays start ε along their direction.
+4. **Falloff in a medium** (§13's T_r^{d_r}, T_t^{d_t}; §15): a secondary ray that
+   travels d to its hit has its weight multiplied by the falloff of the medium it
+   crossed — the object's (``Material.transmittance`` T, as T^d, or Glassner's
+   1/(1 + a·d) with ``Material.falloff="glassner"``) when it ends on a back face of
+   that object (it travelled inside it: refracted in, or reflected inside), air's
+   otherwise (``air_transmittance``, T = 1 by default: "T ≈ 1 for air in small
+   scenes", §15). So a Hall object's global terms are k_r·I_r·T_r^{d_r} and
+   k_t·I_t·T_t^{d_t}, with ``kr`` = k_r·F_s and ``kt`` = k_t·F_t (RGB). Objects are
+   taken as closed and not nested. The primary ray has no falloff (the pixel is
+   the first surface's I, as in Hall's recursion), nor has a ray that meets nothing.
+5. A ray that meets nothing brings the background.
+
+:func:`ray_tree` records one pixel's tree as data — every ray with its kind, origin,
+direction, hit, local color and weight — and prints it, the ray tracer's pixel history.
+
+:class:`RayTracer` is all of it as one uniform, so that a rasterized fragment can be a
+tree's root: :func:`trace_ray` brings back what a ray from a shader sees, and the
+programs ``mirror``, ``glass`` and ``hall`` call it for their reflected and refracted
+rays when a draw has the uniform ``tracer`` (:func:`tracer_uniform`;
+:func:`softpipe.scenes.environment_pass.render_with_environments` with ``"rays"``) — GPUs' ray queries
+from a fragment shader. Such a pixel is the ray tracer's except where the two see
+different surfaces (a silhouette's edge pixels).
+
+Not here yet: textures (a ``textured`` object is lit with its material's kd), area lights.
+"""
+from __future__ import annotations
+
+import time
+from collections import namedtuple
+from dataclasses import dataclass
+from typing import List, Optional
+
+import numpy as np
+from numba import njit
+
+from softpipe.core.parallel import in_bands
+from softpipe.pipeline.camera import Camera
+from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.language.glsl import dot, reflect, refract, scale
+from softpipe.light.lighting import (BLINN_PHONG, PHONG, cook_torrance_lighting, fresnel_directions, hall_local, opengl_lighting,
+                       two_sided_lighting)
+from softpipe.light.material import LightingUniform, MaterialUniform, pack_lights
+from softpipe.rays.queries import RayScene, _direction_to_world, _point_to_world, hit_normal, medium_falloff
+from softpipe.rays.bvh import closest_hit
+from softpipe.light.shadowmap import SHADOW_RAY, ShadowUniform
+
+__all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "tracer_uniform", "trace_ray", "RayTracer", "RayTree",
+           "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
+
+#: How each program's local color is computed in the ray tracer (the others: as "phong", with a note).
+PROGRAM_CODES = {"phong": 0, "gouraud": 0, "flat": 0, "textured": 0, "phong_phong_specular": 1,
+                 "gouraud_phong_specular": 1, "flat_phong_specular": 1, "hall": 2, "cook_torrance": 3,
+                 "two_sided": 4, "mirror": 5, "glass": 6}
+#: The kinds of ray in a tree.
+RAY_KINDS = ("primary", "reflected", "refracted", "total internal reflection")
+#: The deepest tree allowed (2^(depth+1) rays at most per pixel).
+MAX_DEPTH_LIMIT = 12
+_MATERIAL_COLUMNS = 28          # MaterialUniform's 23 numbers, then T (RGB), Glassner's form (0/1) and its a
+_RECORD_COLUMNS = 21
+
+
+def _pack_material(m) -> np.ndarray:
+    return np.array([*m.ke, *m.ka, *m.kd, *m.ks, m.shininess, *m.kr, *m.kt, m.transmission_shininess,
+                     m.ior, m.opacity, m.roughness, *m.transmittance, float(m.falloff == "glassner"),
+                     m.falloff_a], np.float64)
+
+
+@njit(cache=True, inline="always")
+def _falloff(rows, k, d):
+    """The falloff over distance d inside object k's material (§15): T^d, or Glassner's 1/(1 + a·d)."""
+    r = rows[k]
+    return medium_falloff((r[23], r[24], r[25]), r[26] != 0.0, r[27], d)
+
+
+@njit(cache=True, inline="always")
+def _material(rows, k):
+    r = rows[k]
+    return MaterialUniform((r[0], r[1], r[2]), (r[3], r[4], r[5]), (r[6], r[7], r[8]), (r[9], r[10], r[11]), r[12],
+                           (r[13], r[14], r[15]), (r[16], r[17], r[18]), r[19], r[20], r[21], r[22])
+
+
+@njit(cache=True)
+def _local_color(code, P, N, V, material, lighting):
+    """The object's program's lighting at P (§10, §13, §26), every light's V_j from a shadow ray."""
+    if code == 2:
+        return hall_local(P, N, V, material, lighting, material.ior)
+    if code == 3:
+        return cook_torrance_lighting(P, N, V, material, lighting)
+    if code == 4:
+        return two_sided_lighting(P, N, V, material, lighting)
+    # 0, mirror (5) and glass (6): Blinn-Phong; 1: Phong's (R·V)ⁿ. One call: opengl_lighting is inlined, and
+    # numba's pedantic check warned about two inlined copies of its shadow lookups in one function
+    return opengl_lighting(P, N, V, material, lighting, PHONG if code == 1 else BLINN_PHONG)
+
+
+@njit(cache=True)
+def _unit(v):
+    n = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return v[0] / n, v[1] / n, v[2] / n
+
+
+@njit(cache=True)
+def _branches(code, m, N, V, d, entering):
+    """The two rays a hit spawns: (R, kind, weight factor), (T, kind, weight factor); §16–§20, §13.
+
+    ``glass`` (6): Fresnel (§20) splits the light, F_R to R and (1 − F_R)·kt to T,
+    between air (n = 1) and the material, as the rasterized ``glass`` program; on
+    total internal reflection (§19) all of it goes to R. ``mirror`` (5): kr to R,
+    nothing refracted, as the ``mirror`` program. Every other program: Hall's kr
+    to R and kt to T (§13), T's weight going to R on total internal reflection.
+    """
+    R = reflect(d, N)                                              # §16
+    if code == 6:
+        n1, n2 = (1.0, m.ior) if entering else (m.ior, 1.0)
+        _, T, F = fresnel_directions(N, V, n1, n2)                 # §18, §19, §20
+        if T[0] == 0.0 and T[1] == 0.0 and T[2] == 0.0:
+            return R, 3, (1.0, 1.0, 1.0), T, 2, (0.0, 0.0, 0.0)
+        return R, 1, (F, F, F), T, 2, scale(m.kt, 1.0 - F)
+    if code == 5:
+        return R, 1, m.kr, R, 2, (0.0, 0.0, 0.0)
+    eta = 1.0 / m.ior if entering else m.ior                       # η = η_i/η_t, air outside
+    T = refract(d, N, eta)                                         # §17, §18
+    if T[0] == 0.0 and T[1] == 0.0 and T[2] == 0.0:                # §19: all of it reflected
+        return R, 1, m.kr, R, 3, m.kt
+    return R, 1, m.kr, T, 2, m.kt
+
+
+@njit(cache=True)
+def _trace_tree(tracer, origin, direction, depth0, kind0, weight, far, record):
+    """Σ weight × local over the tree of one ray (world space), walked with an explicit stack.
+
+    ``depth0`` 0 is a primary ray (it passes the faces its object culls, to ``far``);
+    a shader's ray starts at depth 1. The tree goes into ``record`` if it has rows.
+    """
+    scene, materials, programs = tracer.scene, tracer.materials, tracer.programs
+    air, lighting, max_depth = tracer.air, tracer.lighting, tracer.max_depth
+    cap = 1 << (max_depth + 1)
+    so = np.empty((cap, 3))
+    sd = np.empty((cap, 3))
+    sw = np.empty((cap, 3))
+    s_depth = np.empty(cap, np.int64)
+    s_kind = np.empty(cap, np.int64)
+    s_parent = np.empty(cap, np.int64)
+    so[0, 0], so[0, 1], so[0, 2] = origin[0], origin[1], origin[2]
+    sd[0, 0], sd[0, 1], sd[0, 2] = direction[0], direction[1], direction[2]
+    sw[0, 0], sw[0, 1], sw[0, 2] = weight[0], weight[1], weight[2]
+    s_depth[0], s_kind[0], s_parent[0] = depth0, kind0, -1
+    top = 1
+    red, green, blue = 0.0, 0.0, 0.0
+    eps = scene.epsilon
+    n_recorded = 0
+    while top > 0:
+        top -= 1
+        o = (so[top, 0], so[top, 1], so[top, 2])
+        d = (sd[top, 0], sd[top, 1], sd[top, 2])
+        w = (sw[top, 0], sw[top, 1], sw[top, 2])
+        depth, kind, parent = s_depth[top], s_kind[top], s_parent[top]
+        if depth == 0:
+            tri, t, b1, b2 = _primary_hit(scene, tracer.cull, o, d, far)
+        else:
+            tri, t, b1, b2 = closest_hit(scene.bvh, o, d, eps, np.inf)
+        falloff = (1.0, 1.0, 1.0)
+        if tri < 0:
+            local = (tracer.background[0], tracer.background[1], tracer.background[2])
+        else:
+            obj = scene.triangle_object[tri]
+            P = (o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2])
+            N = hit_normal(scene, tri, b1, b2)
+            # front or back by the triangle's winding, as the rasterizer's gl_FrontFacing: a back face is
+            # lit with its normal reversed (facing_normal), and a ray meeting a front face enters the object
+            n = scene.face_normals[tri]
+            entering = n[0] * d[0] + n[1] * d[1] + n[2] * d[2] < 0.0
+            if not entering:
+                N = scale(N, -1.0)
+            if depth > 0:          # §13's T^d, §15: inside the object it leaves here, else through air
+                if entering:
+                    falloff = medium_falloff((air[0], air[1], air[2]), False, 0.0, t)
+                else:
+                    falloff = _falloff(materials, obj, t)
+                w = (w[0] * falloff[0], w[1] * falloff[1], w[2] * falloff[2])
+            V = (-d[0], -d[1], -d[2])
+            m = _material(materials, obj)
+            code = programs[obj]
+            local = _local_color(code, P, N, V, m, lighting)
+        red += w[0] * local[0]
+        green += w[1] * local[1]
+        blue += w[2] * local[2]
+        me = n_recorded
+        if n_recorded < record.shape[0]:
+            row = record[n_recorded]
+            row[0], row[1], row[2] = parent, kind, depth
+            row[3], row[4], row[5], row[6], row[7], row[8] = o[0], o[1], o[2], d[0], d[1], d[2]
+            row[9] = t if tri >= 0 else np.inf
+            row[10] = tri
+            row[11] = scene.triangle_object[tri] if tri >= 0 else -1
+            row[12], row[13], row[14] = local[0], local[1], local[2]
+            row[15], row[16], row[17] = w[0], w[1], w[2]
+            row[18], row[19], row[20] = falloff[0], falloff[1], falloff[2]
+            n_recorded += 1
+        if tri < 0 or depth >= max_depth:
+            continue
+        R, r_kind, kr, T, t_kind, kt = _branches(code, m, N, V, d, entering)
+        for branch in range(2):
+            nd, nk, k = (R, r_kind, kr) if branch == 0 else (T, t_kind, kt)
+            nw = (w[0] * k[0], w[1] * k[1], w[2] * k[2])
+            strongest = max(nw[0], nw[1], nw[2])
+            if strongest <= 0.0 or strongest < tracer.min_weight or top >= cap:     # a ray that counts for nothing
+                continue
+            nd = _unit(nd)
+            so[top, 0], so[top, 1], so[top, 2] = P[0], P[1], P[2]
+            sd[top, 0], sd[top, 1], sd[top, 2] = nd[0], nd[1], nd[2]
+            sw[top, 0], sw[top, 1], sw[top, 2] = nw[0], nw[1], nw[2]
+            s_depth[top], s_kind[top], s_parent[top] = depth + 1, nk, me
+            top += 1
+    return red, green, blue, n_recorded
+
+
+@njit(cache=True)
+def trace_ray(tracer, origin, direction, weight):
+    """What a ray from a shader brings back: Σ weight × local over its tree, RGB (:class:`RayTracer`).
+
+    The ray starts at ``origin`` (eye space, on a surface) along ``direction`` (eye
+    space), ε off the surface, as the ray tracer's secondary rays (depth 1: its
+    reflections and refractions go on to the tracer's ``max_depth``); ``weight`` (RGB)
+    is what it counts for in the pixel — the ray tracer's k_r, F_R, (1 − F_R)·k_t —
+    so its branches stop at the same ``min_weight``. The rasterized fragment is the
+    tree's root, so a pixel of a mirror drawn with a tracer is the ray tracer's pixel.
+    """
+    if max(weight[0], weight[1], weight[2]) < tracer.min_weight or tracer.max_depth < 1:
+        return 0.0, 0.0, 0.0
+    o = _point_to_world(tracer.to_world, origin)
+    d = _unit(_direction_to_world(tracer.to_world, direction))
+    r, g, b, _ = _trace_tree(tracer, o, d, 1, 1, weight, np.inf, np.empty((0, _RECORD_COLUMNS)))
+    return r, g, b
+
+
+@njit(cache=True)
+def _primary_hit(scene, cull, o, d, far):
+    """The primary ray's nearest hit within the view volume that the rasterizer would have drawn: a face its
+    object culls (``cull``: 1 back faces, 2 front faces) is passed through, as culling removed it."""
+    normals = scene.face_normals
+    t_min = 0.0
+    for _ in range(64):
+        tri, t, b1, b2 = closest_hit(scene.bvh, o, d, t_min, far)
+        if tri < 0:
+            return tri, t, b1, b2
+        mode = cull[scene.triangle_object[tri]]
+        front = dot((normals[tri, 0], normals[tri, 1], normals[tri, 2]), d) < 0.0
+        if mode == 0 or (mode == 1 and front) or (mode == 2 and not front):
+            return tri, t, b1, b2
+        t_min = t                     # the open interval skips this face, and nothing else at t
+    return -1, far, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True)
+def _trace_rows(lo, hi, width, height, unproject, tracer, out):
+    no_record = np.empty((0, _RECORD_COLUMNS))
+    for j in range(lo, hi):                 # image rows, top first
+        for i in range(width):
+            origin, direction, far = _primary_ray(unproject, i, j, width, height)
+            r, g, b, _ = _trace_tree(tracer, origin, direction, 0, 0, (1.0, 1.0, 1.0), far, no_record)
+            out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = r, g, b, 1.0
+
+
+@njit(cache=True)
+def _primary_ray(unproject, i, j, width, height):
+    """The ray through the centre of pixel (i, image row j): (origin on the near plane, unit direction, the
+    distance to the far plane) — the rasterizer's view volume, so both see the same surfaces (§23)."""
+    x = 2.0 * (i + 0.5) / width - 1.0
+    y = 1.0 - 2.0 * (j + 0.5) / height
+    near = _unproject(unproject, x, y, -1.0)
+    far = _unproject(unproject, x, y, 1.0)
+    d = (far[0] - near[0], far[1] - near[1], far[2] - near[2])
+    return near, _unit(d), np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+
+
+@njit(cache=True)
+def _unproject(M, x, y, z):
+    v = np.empty(4)
+    for r in range(4):
+        v[r] = M[r, 0] * x + M[r, 1] * y + M[r, 2] * z + M[r, 3]
+    return v[0] / v[3], v[1] / v[3], v[2] / v[3]
+
+
+RayTracer = namedtuple("RayTracer", ["scene", "lighting", "materials", "programs", "cull", "background", "air",
+                                     "max_depth", "min_weight", "to_world"])
+RayTracer.__doc__ = """The ray tracer as a uniform: everything a ray needs to bring back a color (:func:`tracer_uniform`).
+
+``scene`` (:class:`~softpipe.rays.queries.RaySceneUniform`, world space), ``lighting``
+(:class:`~softpipe.light.material.LightingUniform` in world space, every light with shadow
+rays), ``materials`` float64 [objects, 28] (MaterialUniform's numbers, then the
+medium's T, Glassner's flag and a), ``programs`` int64 [objects] (:data:`PROGRAM_CODES`),
+``cull`` int64 [objects] (0 none, 1 back, 2 front), ``background`` float64 [3], ``air``
+float64 [3] (T of air, §15), ``max_depth``, ``min_weight`` (§22), ``to_world`` [4, 4]:
+the eye space of the shaders that launch rays (:func:`trace_ray`) → world."""
+
+
+@dataclass
+class _Prepared:
+    scene: RayScene
+    tracer: RayTracer
+    unproject: np.ndarray
+    notes: List[str]
+
+
+def _prepare(scene, camera: Optional[Camera], max_depth: int = 5, min_weight: float = 1e-3,
+             air_transmittance=1.0) -> _Prepared:
+    _check_limits(max_depth, min_weight)
+    camera = camera or scene.view_camera()
+    objects = scene.drawn_objects(camera)
+    rays = RayScene(objects)
+    notes = []
+    programs = []
+    for obj in objects:
+        name = scene.program_of(obj)
+        if name not in PROGRAM_CODES:
+            notes.append(f"{obj.name}: program {name!r} has no lighting equation for rays; lit as 'phong'")
+        elif name == "textured":
+            notes.append(f"{obj.name}: textures are not sampled by the ray tracer yet; lit with the material's kd")
+        programs.append(PROGRAM_CODES.get(name, 0))
+    lights = scene.lighting_for(camera)
+    packed = pack_lights(lights.lights, np.eye(4))          # world space: the ray tracer's "eye" space
+    n = len(lights.lights)
+    light_maps = np.zeros((n, 3), np.int64)
+    light_maps[:, 2] = SHADOW_RAY                           # every light: shadow rays (§21)
+    uniform = rays.uniform()
+    # shadow rays meet the shadow casters only (an object with cast_shadows false casts none, as with maps)
+    casters = [o for o in objects if getattr(o, "cast_shadows", True)]
+    shadow_rays = uniform if len(casters) == len(objects) else RayScene(casters).uniform()
+    shadows = ShadowUniform(light_maps, None, None, None, None, None, shadow_rays)     # rays only: no map code
+    lighting = LightingUniform(lights.global_ambient, packed, shadows)
+    materials = np.array([_pack_material(o.mesh.material) for o in objects], np.float64).reshape(-1, _MATERIAL_COLUMNS)
+    cull = np.array([{"none": 0, "back": 1, "front": 2}[obj.cull or scene.cull] for obj in objects], np.int64)
+    tracer = RayTracer(uniform, lighting, materials, np.array(programs, np.int64), cull,
+                       np.asarray(scene.background[:3], np.float64), _air(air_transmittance), int(max_depth),
+                       float(min_weight), np.linalg.inv(camera.view))
+    aspect = scene.width / scene.height
+    unproject = np.linalg.inv(camera.projection(aspect) @ camera.view)
+    return _Prepared(rays, tracer, unproject, notes)
+
+
+def tracer_uniform(scene, camera: Optional[Camera] = None, *, max_depth: int = 5, min_weight: float = 1e-3,
+                   air_transmittance=1.0, notes: Optional[list] = None) -> RayTracer:
+    """The scene's ray tracer as a uniform for rasterized draws: ``uniforms={"tracer": ...}``.
+
+    Shaders launch rays into it with :func:`trace_ray` (eye space of ``camera``, the
+    scene's view camera by default); the programs ``mirror``, ``glass`` and ``hall``
+    do so for their reflected and refracted rays when the draw has it
+    (:func:`softpipe.scenes.environment_pass.render_with_environments` with ``"rays"``). Parameters
+    as :func:`raytrace_scene`'s.
+    """
+    p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
+    if notes is not None:
+        notes.extend(p.notes)
+    return p.tracer
+
+
+def _check_limits(max_depth, min_weight) -> None:
+    if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or \
+            not 0 <= max_depth <= MAX_DEPTH_LIMIT:
+        raise ValueError(f"max_depth must be an integer in 0…{MAX_DEPTH_LIMIT}, got {max_depth!r}")
+    if not (isinstance(min_weight, (int, float)) and 0.0 <= min_weight < 1.0):
+        raise ValueError(f"min_weight must be a number in [0, 1), got {min_weight!r}")
+
+
+def _air(air_transmittance) -> np.ndarray:
+    """Air's T per unit distance (§15) as RGB in [0, 1]; a number means gray."""
+    from softpipe.light.material import _rgb
+    rgb = _rgb("air_transmittance", air_transmittance, owner="raytrace_scene")
+    if max(rgb) > 1.0:
+        raise ValueError(f"air_transmittance is a share per unit distance, in [0, 1], got {air_transmittance!r}")
+    return np.array(rgb, np.float64)
+
+
+def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5, min_weight: float = 1e-3,
+                   notes: Optional[list] = None, timings: Optional[dict] = None,
+                   air_transmittance=1.0) -> Framebuffer:
+    """Ray trace ``scene`` (Whitted; see the module docstring) into a new one-sample framebuffer.
+
+    Parameters
+    ----------
+    scene : Scene
+        As :func:`softpipe.render_scene` takes it; its ground, lights, programs and
+        background are used the same way. Every light casts shadows (shadow rays).
+    camera : Camera, optional
+        Instead of the scene's (or its framing).
+    max_depth : int
+        The deepest reflected/refracted ray (0: primary rays only).
+    min_weight : float
+        A branch whose weight is below this in every channel is not traced (§22).
+    air_transmittance : float or RGB
+        T per unit distance outside the objects (§15), in [0, 1]: a secondary ray
+        that travels d through air keeps T^d. 1 (the default): air is clear.
+    notes : list, optional
+        Receives a line for each thing the ray tracer does differently from the rasterizer.
+    timings : dict, optional
+        Receives "build" (the BVH) and "trace" seconds.
+    """
+    start = time.perf_counter()
+    p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
+    built = time.perf_counter()
+    out = np.zeros((scene.height, scene.width, 4), np.float32)
+    in_bands(_trace_rows, scene.height, scene.width, scene.height, p.unproject, p.tracer, out, grain=8)
+    fb = Framebuffer(scene.width, scene.height)
+    fb.color[...] = out
+    if notes is not None:
+        notes.extend(p.notes)
+    if timings is not None:
+        timings.update(build=built - start, trace=time.perf_counter() - built)
+    return fb
+
+
+@njit(cache=True, nogil=True)
+def _primary_rows(lo, hi, width, height, unproject, scene, cull, triangle, b):
+    for j in range(lo, hi):
+        for i in range(width):
+            origin, direction, far = _primary_ray(unproject, i, j, width, height)
+            tri, _, b1, b2 = _primary_hit(scene, cull, origin, direction, far)
+            triangle[j, i] = tri
+            b[j, i, 0], b[j, i, 1] = b1, b2
+
+
+def primary_visibility(scene, *, camera: Optional[Camera] = None):
+    """What each pixel's primary ray meets: (object int64 [H, W], triangle int64 [H, W], barycentrics [H, W, 2]).
+
+    ``object`` indexes ``scene.drawn_objects(camera)`` (−1: nothing), ``triangle`` is
+    the triangle's index in that object's mesh — the rasterizer's ``primitive_id`` of
+    the fragment a pixel shows — and (b1, b2) the hit's barycentrics in it.
+    """
+    p = _prepare(scene, camera)
+    h, w = scene.height, scene.width
+    triangle = np.empty((h, w), np.int64)
+    b = np.empty((h, w, 2))
+    in_bands(_primary_rows, h, w, h, p.unproject, p.tracer.scene, p.tracer.cull, triangle, b, grain=8)
+    hit = triangle >= 0
+    obj = np.where(hit, p.scene.triangle_object[np.where(hit, triangle, 0)], -1)
+    local = np.where(hit, p.scene.triangle_local[np.where(hit, triangle, 0)], -1)
+    return obj, local, b
+
+
+@dataclass
+class RayNode:
+    """One ray of a pixel's tree."""
+
+    index: int
+    parent: int                 # −1 for the primary ray
+    kind: str                   # one of RAY_KINDS
+    depth: int
+    origin: tuple
+    direction: tuple
+    t: float                    # inf: it met nothing
+    triangle: int               # −1: nothing
+    object: str                 # the object's name, or "" for a miss
+    local: tuple                # the local color at the hit (the background for a miss)
+    weight: tuple               # what the ray's color counts for in the pixel (its falloff included)
+    falloff: tuple = (1.0, 1.0, 1.0)   # T^d (or 1/(1 + a·d)) over this ray's path to its hit (§13, §15)
+
+
+class RayTree(list):
+    """A pixel's rays (:class:`RayNode`), in the order traced; prints as an indented tree."""
+
+    def __init__(self, x: int, y: int, nodes: List[RayNode], color: tuple):
+        super().__init__(nodes)
+        self.x, self.y, self.color = x, y, color
+
+    def __str__(self) -> str:
+        f = lambda v: "(" + ", ".join(f"{c:.4g}" for c in v) + ")"  # noqa: E731
+        lines = [f"pixel ({self.x}, {self.y}): color {f(self.color)} = Σ weight × local over {len(self)} ray(s)"]
+        for node in self:
+            hit = (f"hits {node.object} (triangle {node.triangle}) at t = {node.t:.4g}" if node.triangle >= 0
+                   else "meets nothing: background")
+            fall = f" (falloff T^d {f(node.falloff)})" if node.falloff != (1.0, 1.0, 1.0) else ""
+            lines.append(f"{'    ' * node.depth}#{node.index} {node.kind}: {hit}; local {f(node.local)}, "
+                         f"weight {f(node.weight)}{fall}")
+        return "\n".join(lines)
+
+    def _repr_pretty_(self, p, cycle):
+        p.text(str(self))
+
+
+def ray_tree(scene, x: int, y: int, *, camera: Optional[Camera] = None, max_depth: int = 5,
+             min_weight: float = 1e-3, air_transmittance=1.0) -> RayTree:
+    """The ray tree of pixel (x, image row y) as :func:`raytrace_scene` traces it: every ray, as data.
+
+    The sum of weight × local over the nodes is the pixel's color (the same float
+    operations in the same order, so it equals the framebuffer's value). A node's weight
+    is its parent's times k_r or k_t times its own ``falloff`` (§13's T^d, §15).
+    """
+    _check_limits(max_depth, min_weight)
+    if not (0 <= x < scene.width and 0 <= y < scene.height):
+        raise ValueError(f"pixel ({x}, {y}) is outside the {scene.width}×{scene.height} image")
+    p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
+    origin, direction, far = _primary_ray(p.unproject, x, y, scene.width, scene.height)
+    record = np.zeros((1 << (max_depth + 1), _RECORD_COLUMNS))
+    r, g, b, n = _trace_tree(p.tracer, origin, direction, 0, 0, (1.0, 1.0, 1.0), far, record)
+    names = [o.name for o in p.scene.objects]
+    nodes = []
+    for k, row in enumerate(record[:n]):
+        obj = int(row[11])
+        nodes.append(RayNode(k, int(row[0]), RAY_KINDS[int(row[1])], int(row[2]), tuple(row[3:6]), tuple(row[6:9]),
+                             float(row[9]), int(row[10]), names[obj] if obj >= 0 else "", tuple(row[12:15]),
+                             tuple(row[15:18]), tuple(row[18:21])))
+    return RayTree(x, y, nodes, (float(np.float32(r)), float(np.float32(g)), float(np.float32(b))))

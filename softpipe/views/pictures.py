@@ -1,0 +1,337 @@
+"""Pictures of every stage of a traced draw, and a labelled contact sheet.
+
+Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
+
+``vertices``    every vertex with w > 0 as a dot at its window position
+``primitives``  wireframe of the triangles that reach the rasterizer (white);
+                pieces made by clipping (cyan) over the outline of the triangle
+                they were cut from (orange); triangles culled for facing (red,
+                drawn first, so the others show over them)
+``coverage``    each pixel colored by the primitive id of the last fragment written there
+``depth``       the depth buffer after the draw (near = white, cleared = black)
+``overdraw``    how many times the pixel was covered: the samples the draw's fragments
+                cover there ÷ the samples per pixel, as a heat map (black 0, blue 1,
+                green 2, yellow 3, red 4, white 6 or more; in between, a mix). One
+                triangle over a whole pixel is 1 with one sample or with ``rgss4``
+                alike; at an edge it covers half of, 0.5 (and two triangles sharing the
+                edge, 1)
+``final``       the color buffer after the draw
+``shadow map k``  when the draw's ``lighting`` uniform carries shadow maps, each map's
+                depth as the light saw it (near dark, far light, no caster white;
+                :mod:`softpipe.scenes.shadow_pass`), scaled to the framebuffer's height; named
+                ``shadow map k, light j`` or ``…, light j, face +x`` for a cube map
+                (its file: ``07-shadow-map-k-light-j.png``)
+
+The pictures are for looking, not for the pipeline: the wireframes use a
+simple line drawer here, not the rasterizer.
+
+:func:`draw_wireframe` draws such a picture over a rendered image: the edges of the
+triangles a draw kept, hidden where the surface covers them (``softpipe render
+--wireframe`` and a scene's ``wireframe = true``).
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any, Dict, Sequence, Tuple
+
+import numpy as np
+
+__all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "overdraw", "PICTURES",
+           "HEAT_STOPS", "OVERDRAW_DEFINITION"]
+
+PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
+
+WHITE = (235, 235, 235)
+CYAN = (60, 200, 230)
+ORANGE = (250, 150, 40)
+RED = (230, 50, 50)
+YELLOW = (250, 230, 80)
+
+
+def _to_image_xy(window_xy: np.ndarray, height: int) -> np.ndarray:
+    """Window (y up) → image (row 0 at the top) continuous coordinates."""
+    out = np.array(window_xy, dtype=np.float64)
+    out[..., 1] = height - out[..., 1]
+    return out
+
+
+def draw_segments(img: np.ndarray, a: np.ndarray, b: np.ndarray, color) -> None:
+    """Draw line segments a[k]→b[k] (image coordinates, [K, 2]) into ``img``, vectorized DDA."""
+    h, w = img.shape[:2]
+    if len(a) == 0:
+        return
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    a, b = np.clip(a[ok], -4 * max(w, h), 4 * max(w, h)), np.clip(b[ok], -4 * max(w, h), 4 * max(w, h))
+    steps = np.ceil(np.abs(b - a).max(axis=1)).astype(np.int64) + 1
+    seg = np.repeat(np.arange(len(a)), steps)
+    start = np.repeat(np.cumsum(steps) - steps, steps)
+    t = (np.arange(len(seg)) - start) / np.maximum(np.repeat(steps, steps) - 1, 1)
+    p = a[seg] + (b[seg] - a[seg]) * t[:, None]
+    x, y = np.floor(p[:, 0]).astype(np.int64), np.floor(p[:, 1]).astype(np.int64)
+    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    img[y[inside], x[inside]] = color
+
+
+def _wire(img, window_tris: np.ndarray, height: int, color) -> None:
+    if len(window_tris) == 0:
+        return
+    p = _to_image_xy(window_tris[:, :, :2], height)
+    for k in range(3):
+        draw_segments(img, p[:, k], p[:, (k + 1) % 3], color)
+
+
+def _id_colors(ids: np.ndarray) -> np.ndarray:
+    """A stable, well-spread color per integer id (golden-ratio hues)."""
+    hue = (ids.astype(np.float64) * 0.6180339887498949) % 1.0
+    k = (np.array([5.0, 3.0, 1.0])[None, :] + hue[:, None] * 6.0) % 6.0
+    rgb = 1.0 - np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0) * 0.75
+    return (rgb * 255).astype(np.uint8)
+
+
+#: The overdraw picture's colors at 0, 1, 2, … 6 (and more) coverings of a pixel.
+HEAT_STOPS = np.array([[0, 0, 0], [40, 60, 220], [40, 200, 80], [240, 220, 40], [230, 50, 40], [255, 140, 140],
+                       [255, 255, 255]], dtype=np.float64)
+
+#: What the overdraw picture counts, as its key on a contact sheet says it.
+OVERDRAW_DEFINITION = "overdraw = covered samples / samples per pixel"
+
+
+def _heat(counts: np.ndarray) -> np.ndarray:
+    """Black → blue → green → yellow → red → white for 0, 1, 2, 3, 4, ≥ 6 (linear in between)."""
+    stops = HEAT_STOPS
+    c = np.clip(counts.astype(np.float64), 0, len(stops) - 1)
+    lo = np.floor(c).astype(int)
+    hi = np.minimum(lo + 1, len(stops) - 1)
+    f = (c - lo)[..., None]
+    return (stops[lo] * (1 - f) + stops[hi] * f).astype(np.uint8)
+
+
+def stage_pictures(trace) -> Dict[str, np.ndarray]:
+    """The pictures listed in the module docstring, for a :class:`~softpipe.pipeline.trace.Trace`."""
+    h, w = trace.height, trace.width
+    f, prims = trace.fragments, trace.primitives
+    fb = trace.call.framebuffer
+    pics: Dict[str, np.ndarray] = {}
+
+    img = np.zeros((h, w, 3), np.uint8)
+    pos = trace.vertex.position
+    vis = pos[:, 3] > 0
+    if vis.any():
+        ndc = pos[vis, :3] / pos[vis, 3:4]
+        win = trace.call.viewport.apply(ndc)
+        p = np.floor(_to_image_xy(win[:, :2], h)).astype(np.int64)
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                x, y = p[:, 0] + dx, p[:, 1] + dy
+                ok = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+                img[y[ok], x[ok]] = YELLOW
+    pics["vertices"] = img
+
+    img = np.zeros((h, w, 3), np.uint8)
+    _wire(img, prims.culled_window, h, RED)          # under the rest: the back of a closed mesh
+    _wire(img, _cut_outlines(trace), h, ORANGE)
+    _wire(img, prims.window[~prims.clipped], h, WHITE)
+    _wire(img, prims.window[prims.clipped], h, CYAN)
+    pics["primitives"] = img
+
+    img = np.zeros((h, w, 3), np.uint8)
+    written = trace.written()
+    if written.any():                                  # fancy assignment: the last written fragment wins
+        img[f.y[written], f.x[written]] = _id_colors(f.primitive_id[written])
+    pics["coverage"] = img
+
+    depth = fb.depth
+    g = np.where(depth < 1.0, 1.0 - depth, 0.0)
+    if (depth < 1.0).any():                            # stretch the used range for contrast
+        lo, hi = depth[depth < 1.0].min(), depth[depth < 1.0].max()
+        g = np.where(depth < 1.0, 0.25 + 0.75 * (hi - depth) / max(hi - lo, 1e-12), 0.0)
+    pics["depth"] = np.repeat((g * 255).astype(np.uint8)[..., None], 3, axis=2)
+
+    pics["overdraw"] = _heat(overdraw(trace))
+
+    pics["final"] = fb.to_uint8(alpha=False)
+    pics.update(shadow_map_pictures(trace.call.uniforms, h, w))
+    return pics
+
+
+def shadow_map_pictures(uniforms, height: int, width: int) -> Dict[str, np.ndarray]:
+    """The shadow maps a draw's ``lighting`` uniform carries, each as a [height, width, 3] picture."""
+    shadows = getattr(getattr(uniforms, "lighting", None), "shadows", None)
+    if shadows is None or shadows.maps is None or not len(shadows.maps):     # None: shadows from rays only
+        return {}
+    from softpipe.light.shadowmap import CUBE_FACE_NAMES
+    owner = {}
+    for j, (first, count, _) in enumerate(shadows.light_maps):
+        for k in range(first, first + count):
+            owner[k] = f"light {j}" + (f", face {CUBE_FACE_NAMES[k - first]}" if count == 6 else "")
+    pics = {}
+    for k, (offset, w, h, _, _) in enumerate(shadows.maps):
+        depth = shadows.depth[offset:offset + w * h].reshape(h, w)[::-1]      # window rows → image rows
+        covered = depth < 1.0
+        g = np.full(depth.shape, 255, np.uint8)
+        if covered.any():
+            lo, hi = depth[covered].min(), depth[covered].max()
+            g[covered] = np.round(20 + 200 * (depth[covered] - lo) / max(hi - lo, 1e-12)).astype(np.uint8)
+        side = min(height, width)                     # nearest-neighbour scaling into a square, centred
+        rows = (np.arange(side) * h // side)
+        cols = (np.arange(side) * w // side)
+        img = np.full((height, width, 3), 24, np.uint8)
+        x0, y0 = (width - side) // 2, (height - side) // 2
+        img[y0:y0 + side, x0:x0 + side] = g[rows[:, None], cols[None, :], None]
+        pics[f"shadow map {k}, {owner.get(k, 'no light')}"] = img
+    return pics
+
+
+def overdraw(trace) -> np.ndarray:
+    """How many times each pixel was covered, float64 [H, W]: covered samples ÷ samples per pixel.
+
+    Each fragment is one covered sample, so with one sample per pixel this is the
+    number of fragments at the pixel. With multisampling (``rgss4``) a triangle that
+    covers the whole pixel still counts 1 (not its 4 samples), one that covers 2 of
+    its 4 samples counts 0.5, and the picture reads on the same key (0, 1, 2, …) as a
+    single-sampled one. Depth-failed fragments count: it is the rasterizer's work.
+    """
+    counts = np.zeros((trace.height, trace.width), np.float64)
+    f = trace.fragments
+    if len(f):
+        np.add.at(counts, (f.y, f.x), 1.0)
+    return counts / max(int(getattr(trace.call.framebuffer, "samples", 1)), 1)
+
+
+def _cut_outlines(trace) -> np.ndarray:
+    """Window coordinates of the input triangles that clipping cut, where all corners have w > 0."""
+    prims = trace.primitives
+    ids = np.unique(prims.primitive_id[prims.clipped])
+    if len(ids) == 0:
+        return np.zeros((0, 3, 3))
+    from softpipe.pipeline.assembly import triangle_indices
+    tri = triangle_indices(trace.call.topology, trace.call.indices, len(trace.vertex.position))[ids]
+    pos = trace.vertex.position[tri]
+    ok = (pos[:, :, 3] > 0).all(axis=1)
+    pos = pos[ok]
+    ndc = pos[:, :, :3] / pos[:, :, 3:4]
+    return trace.call.viewport.apply(ndc.reshape(-1, 3)).reshape(-1, 3, 3)
+
+
+def contact_sheet(pictures: Dict[str, np.ndarray], columns: int = 3, label_height: int = 18,
+                  background=(24, 24, 28)):
+    """One labelled pillow Image with every picture, in order, ``columns`` per row.
+
+    When one of the pictures is ``overdraw``, a row under them is its key: what it
+    counts (:data:`OVERDRAW_DEFINITION`, when the sheet is wide enough) and the colors
+    of 0, 1, … 6+.
+    """
+    from PIL import Image, ImageDraw
+    names = list(pictures)
+    h, w = next(iter(pictures.values())).shape[:2]
+    rows = -(-len(names) // columns)
+    gap = 4
+    key = label_height if "overdraw" in pictures else 0
+    width, height = columns * (w + gap) + gap, rows * (h + label_height + gap) + gap
+    sheet = Image.new("RGB", (width, height + key), background)
+    draw = ImageDraw.Draw(sheet)
+    for k, name in enumerate(names):
+        r, c = divmod(k, columns)
+        x0, y0 = gap + c * (w + gap), gap + r * (h + label_height + gap)
+        draw.text((x0 + 2, y0 + 3), name, fill=(230, 230, 230))
+        sheet.paste(Image.fromarray(pictures[name]), (x0, y0 + label_height))
+    if key:
+        _overdraw_key(draw, gap + 2, height, width - gap - 2, key)
+    return sheet
+
+
+def _overdraw_key(draw, x: int, y: int, right: int, height: int) -> None:
+    """The overdraw picture's key in the row at y: its definition, then a swatch per count."""
+    labels = [str(k) for k in range(len(HEAT_STOPS) - 1)] + [f"{len(HEAT_STOPS) - 1}+"]
+    swatch = 16
+    room = right - x - swatch * len(labels)
+    text = next((t for t in (OVERDRAW_DEFINITION + ":", "overdraw:") if draw.textlength(t) + 6 <= room), "")
+    draw.text((x, y + 2), text, fill=(230, 230, 230))
+    x += int(draw.textlength(text)) + 6 if text else 0
+    for k, label in enumerate(labels):
+        color = tuple(int(c) for c in HEAT_STOPS[k])
+        draw.rectangle([x, y + 1, x + swatch - 2, y + height - 4], fill=color)
+        ink = (0, 0, 0) if sum(color) > 380 else (235, 235, 235)
+        draw.text((x + 2, y + 2), label, fill=ink)
+        x += swatch
+
+
+def save_stage_pictures(trace, directory) -> Dict[str, Path]:
+    """Write each stage picture as ``NN-name.png`` and ``contact-sheet.png`` into ``directory``.
+
+    Each file is written whole or not at all (:func:`softpipe.core.files.atomic_write`).
+    """
+    from PIL import Image
+    from softpipe.core.files import atomic_write
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    pics = stage_pictures(trace)
+    paths = {}
+
+    def save(image, path: Path) -> None:
+        atomic_write(path, lambda f: image.save(f, format="PNG"))
+
+    for k, (name, img) in enumerate(pics.items()):
+        path = directory / f"{k + 1:02d}-{re.sub(r'[^A-Za-z0-9+-]+', '-', name).strip('-')}.png"
+        save(Image.fromarray(img), path)
+        paths[name] = path
+    paths["contact-sheet"] = directory / "contact-sheet.png"
+    save(contact_sheet(pics), paths["contact-sheet"])
+    return paths
+
+
+# ---------------------------------------------------------------------------- a wireframe over an image
+
+
+def draw_wireframe(fb, primitives: Sequence[Any], color=(0.95, 0.95, 0.95)) -> None:
+    """Draw the edges of post-clip triangles over ``fb``, hiding those behind the surface.
+
+    Parameters
+    ----------
+    fb : Framebuffer
+        Already drawn: its depth buffer decides which edge pixels show.
+    primitives : sequence of Primitives (or None)
+        Each draw's post-clip triangles (:attr:`softpipe.scenes.drawing.DrawResult.primitives`).
+    color : RGB in 0..1, linear
+
+    Notes
+    -----
+    An edge pixel is drawn when its window depth (linear along the edge, as depth is in
+    window space) is no farther than the farthest depth in the 3×3 pixels around it,
+    so edges on the visible surface and on silhouettes show and edges behind it do not.
+    Every sample of the pixel gets the color. The edges are stepped one pixel at a
+    time along their longer axis (a DDA), not rasterized: a picture, not a primitive.
+    """
+    rgba = np.array(tuple(color)[:3] + (1.0,), dtype=np.float32)
+    h, w = fb.height, fb.width
+    depth = fb.depth
+    padded = np.pad(depth, 1, mode="edge")
+    # the farthest depth in each 3×3 neighbourhood: an edge one pixel off a silhouette still shows
+    far = np.max([padded[dy:dy + h, dx:dx + w] for dy in range(3) for dx in range(3)], axis=0)
+    for prims in primitives:
+        if prims is None or len(prims.window) == 0:
+            continue
+        tri = prims.window
+        for k in range(3):
+            x, y, z = _segment_pixels(tri[:, k], tri[:, (k + 1) % 3], w, h)
+            keep = z <= far[y, x] + 1e-6  # 1e-6: the edge's own surface passes despite rounding
+            fb.samples_color[:, y[keep], x[keep]] = rgba  # every sample plane [S, H, W, 4]
+
+
+def _segment_pixels(a: np.ndarray, b: np.ndarray, w: int, h: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixels (column, row, window depth) along window-space segments a→b, one step per pixel."""
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    a, b = a[ok], b[ok]
+    if len(a) == 0:
+        empty = np.zeros(0, np.int64)
+        return empty, empty, np.zeros(0)
+    steps = np.ceil(np.abs(b[:, :2] - a[:, :2]).max(axis=1)).astype(np.int64) + 1
+    seg = np.repeat(np.arange(len(a)), steps)
+    start = np.repeat(np.cumsum(steps) - steps, steps)
+    t = (np.arange(len(seg)) - start) / np.maximum(np.repeat(steps, steps) - 1, 1)
+    p = a[seg] + (b[seg] - a[seg]) * t[:, None]
+    x = np.floor(p[:, 0]).astype(np.int64)
+    y = np.floor(h - p[:, 1]).astype(np.int64)  # window y up → image row down
+    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    return x[inside], y[inside], p[inside, 2]
