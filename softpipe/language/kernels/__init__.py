@@ -7,6 +7,8 @@ bottom to top:
 
 - :mod:`.snapshot`: what a shader is compiled with (the globals it reads are part
   of a loop's key; its plain Python helpers are compiled with it).
+- :mod:`.template`, ``templates/``: the fixed parts of the loops, as Python files a
+  linter reads; :mod:`.template` takes a function out of one and fills it in.
 - :mod:`.cache`: where generated modules are kept, in memory and on disk.
 - :mod:`.generate`: the code generator (vertex loop, fragment loops, the fast
   path's visible loops).

@@ -7,9 +7,9 @@
 - **On disk**: softpipe's own shaders (:func:`importable_shader`) get their generated
   module written to ``$SOFTPIPE_CACHE_DIR`` (default ``~/.cache/softpipe/kernels``)
   so numba's on-disk cache can find it in the next process. The file's name
-  (:func:`cached_file_name`) hashes its source, softpipe's sources
-  (:func:`package_hash`: a kernel inlines them), numba's version and the shader's
-  global values. A user's shader is compiled once per process and set of global
+  (:func:`cached_file_name`) hashes its source, softpipe's sources and loop
+  templates (:func:`package_hash`: a kernel inlines the ones and is written from
+  the others), numba's version and the shader's global values. A user's shader is compiled once per process and set of global
   values instead: numba cannot see when a user's file changes.
 - **One compile at a time** (:data:`COMPILE_LOCK`): two threads asking for the same
   loop build it once, and a fork waits until no thread is compiling.
@@ -24,17 +24,19 @@ import importlib.util
 import os
 import sys
 import threading
+import types
 from pathlib import Path
-from typing import Any, Callable, Dict, Tuple
+from typing import Any, Callable, Dict, List, Tuple
 
 import numba
 
 from softpipe.core.files import atomic_write
 from softpipe.language.contract import python_function
 from softpipe.language.kernels.snapshot import key_text, shader_globals_key
+from softpipe.language.kernels.template import template_files
 
 __all__ = ["cached_module", "load_cached", "cached_file_name", "importable_shader", "package_hash",
-           "COMPILE_LOCK"]
+           "hashed_sources", "COMPILE_LOCK"]
 
 _KERNELS: Dict[Any, Any] = {}
 
@@ -59,16 +61,23 @@ if _cache_dir().is_dir():       # so even a first cache lookup can import what i
     _importable_cache(_cache_dir())
 
 
+#: softpipe/ (this file is softpipe/language/kernels/cache.py)
+PACKAGE_DIR = Path(__file__).resolve().parents[2]
 _PACKAGE_HASH: list = []
 
 
+def hashed_sources() -> List[Path]:
+    """The files :func:`package_hash` hashes: softpipe's ``.py`` sources (a generated kernel
+    inlines them) and every loop template (a kernel is written from them), whatever its suffix."""
+    return sorted(set(PACKAGE_DIR.rglob("*.py")) | set(template_files()))
+
+
 def package_hash() -> str:
-    """A hash of softpipe's own sources: a generated kernel inlines them, so it depends on them."""
+    """A hash of softpipe's own sources and templates (:func:`hashed_sources`): a generated kernel depends on them."""
     if not _PACKAGE_HASH:
         h = hashlib.sha256()
-        pkg = Path(__file__).resolve().parents[2]          # softpipe/ (this is softpipe/language/kernels/)
-        for f in sorted(pkg.rglob("*.py")):
-            h.update(str(f.relative_to(pkg)).encode())
+        for f in hashed_sources():
+            h.update(str(f.relative_to(PACKAGE_DIR)).encode())
             h.update(f.read_bytes())
         _PACKAGE_HASH.append(h.hexdigest()[:16])
     return _PACKAGE_HASH[0]
@@ -152,7 +161,7 @@ def cached_file_name(source: str, kind: str, globals_key: tuple) -> str:
     return f"softpipe_{kind}_{digest}"
 
 
-def load_cached(source: str, module_name: str):
+def load_cached(source: str, module_name: str) -> types.ModuleType:
     """The generated module ``source``, written to the cache directory as ``module_name``.py and imported.
 
     The file is written only when it is missing or differs, through a temporary file

@@ -90,7 +90,7 @@ def _numba_type_text(ty) -> str:
     return f"a value of type {ty}"
 
 
-def rgba(color):
+def rgba(color: Any) -> tuple:
     """The color a fragment shader returned, checked: a tuple of 4 numbers (DISCARD is one).
 
     numba checks it once, when it compiles the loop (see the overload below); as
@@ -120,6 +120,7 @@ def _return_lines(f) -> list:
 
 
 def return_error(kind: str, shader: Callable, e: BadReturn) -> ShaderError:
+    """The ShaderError for a shader whose color is not 4 numbers (``e`` says what it is), at its first return."""
     f = python_function(shader)
     lines = _return_lines(f)
     site = {"file": f.__code__.co_filename, "line": lines[0]} if lines else def_site(shader)
@@ -161,6 +162,7 @@ def _user_functions(shader: Callable) -> list:
 
 
 def def_site(shader: Callable) -> dict:
+    """``{"file": …, "line": …}`` of the shader's ``def`` (empty for what has no code of its own)."""
     f = python_function(shader)
     code = getattr(f, "__code__", None)
     if code is None:
@@ -381,7 +383,9 @@ def _raise_site(exc: BaseException, shader: Callable) -> dict | None:
 
 
 def raised_error(kind: str, shader: Callable, exc: BaseException, where: str | None,
-                  python_exc: BaseException | None) -> ShaderError:
+                 python_exc: BaseException | None) -> ShaderError:
+    """The ShaderError for an exception ``exc`` the shader raised, on the invocation ``where`` (in words),
+    at the line of the user's code ``python_exc`` (the same exception, raised as plain Python) passed."""
     lines = [f"{kind} shader {shader_name(shader)} raised {type(exc).__name__}: {exc}"]
     if where:
         lines[0] += f", on {where}"
