@@ -11,7 +11,7 @@ this one counts, medians of ``--runs``:
 ``README stripes shader, first draw``
     README's example shader (``stripes``: ``frag.x``, ``mix``, a uniform), its
     first ``softpipe.draw`` in a process: user shaders are compiled once per
-    process (never cached on disk, kernels.py says why), the library's own
+    process (never cached on disk, softpipe/language/kernels/cache.py says why), the library's own
     kernels are in the cache (the script's untimed part, run once before,
     fills it; each timed process starts from a copy of that cache).
 ``new lit user program, first draw``

@@ -1,6 +1,6 @@
 """Compiling is safe across threads and fork (issue #13).
 
-- ``kernels._load_cached`` writes a generated module through a temporary file of
+- ``kernels.cache.load_cached`` writes a generated module through a temporary file of
   its own (``tempfile.mkstemp`` in the cache folder, then ``os.replace``), under a
   lock: threads writing the same module never share a temporary file (they did,
   named by the pid alone, and one thread's rename left another with no file, or
@@ -17,7 +17,7 @@ import threading
 
 import pytest
 
-from softpipe.language import kernels
+from softpipe.language.kernels import cache
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -34,7 +34,7 @@ def test_threads_writing_the_same_module_share_no_temporary_file(tmp_path, monke
         def load():
             try:
                 barrier.wait()
-                got.append(kernels._load_cached(source, name).loop())
+                got.append(cache.load_cached(source, name).loop())
             except Exception as e:          # noqa: BLE001  (collected, asserted below)
                 errors.append(e)
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.language import kernels
+from softpipe.language.kernels import cache
 from softpipe.scenes import shapes
 from softpipe.pipeline.camera import Camera
 from softpipe.scenes.drawing import draw_mesh
@@ -45,7 +45,7 @@ def test_programs_whose_other_uniforms_differ_share_one_vertex_loop():
 
 def _vertex_loop_signatures() -> int:
     """How many argument types standard_vertex's loops (one per attribute set) are compiled for, in all."""
-    return sum(len(module.vertex_loop.signatures) for key, module in kernels._KERNELS.items()
+    return sum(len(module.vertex_loop.signatures) for key, module in cache._KERNELS.items()
                if key[0] == "vertex" and key[1] is standard_vertex)
 
 

@@ -21,7 +21,7 @@ import pytest
 
 import softpipe as sp
 from softpipe import ShaderError
-from softpipe.language import kernels
+from softpipe.language.kernels import generate
 
 import shader_python_helpers as other_module
 
@@ -93,13 +93,13 @@ def test_globals_of_helpers_tuples_bools_and_arrays_are_read_at_each_draw(path):
 def test_a_draw_with_unchanged_globals_compiles_nothing(monkeypatch):
     global GAIN
     compiled = []
-    original = kernels._compile_module
+    original = generate._compile_module
 
     def counting(*args, **kw):
         compiled.append(args[-1])
         return original(*args, **kw)
 
-    monkeypatch.setattr(kernels, "_compile_module", counting)
+    monkeypatch.setattr(generate, "_compile_module", counting)
     try:
         GAIN = 0.375
         for path in PATHS:

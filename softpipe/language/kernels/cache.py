@@ -1,0 +1,192 @@
+"""Where generated kernel modules are kept: in memory for a process, on disk across processes.
+
+- **In memory** (:func:`cached_module`): one module per (loop, shader, layout) and set
+  of global values the shader reads (:func:`~.snapshot.shader_globals_key`); the last
+  few versions of a shader are kept, so a global animated per frame does not keep
+  every loop it ever compiled.
+- **On disk**: softpipe's own shaders (:func:`importable_shader`) get their generated
+  module written to ``$SOFTPIPE_CACHE_DIR`` (default ``~/.cache/softpipe/kernels``)
+  so numba's on-disk cache can find it in the next process. The file's name
+  (:func:`cached_file_name`) hashes its source, softpipe's sources and loop
+  templates (:func:`package_hash`: a kernel inlines the ones and is written from
+  the others), numba's version and the shader's global values. A user's shader is compiled once per process and set of global
+  values instead: numba cannot see when a user's file changes.
+- **One compile at a time** (:data:`COMPILE_LOCK`): two threads asking for the same
+  loop build it once, and a fork waits until no thread is compiling.
+
+More: docs/08-fast-path.md (what is compiled when), docs/batch.md (the cache on a cluster).
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import os
+import sys
+import threading
+import types
+from pathlib import Path
+from typing import Any, Callable, Dict, List, Tuple
+
+import numba
+
+from softpipe.core.files import atomic_write
+from softpipe.language.contract import python_function
+from softpipe.language.kernels.snapshot import key_text, shader_globals_key
+from softpipe.language.kernels.template import template_files
+
+__all__ = ["cached_module", "load_cached", "cached_file_name", "importable_shader", "package_hash",
+           "hashed_sources", "COMPILE_LOCK"]
+
+_KERNELS: Dict[Any, Any] = {}
+
+
+def _cache_dir() -> Path:
+    """Where generated kernel modules (and numba's cache of them) live."""
+    root = os.environ.get("SOFTPIPE_CACHE_DIR")
+    if root:
+        return Path(root)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "softpipe" / "kernels"
+
+
+def _importable_cache(directory: Path) -> None:
+    """Put the kernel directory on sys.path: numba's cache may name a generated module's
+    types, and unpickling them imports that module by name."""
+    if str(directory) not in sys.path:
+        sys.path.append(str(directory))
+
+
+if _cache_dir().is_dir():       # so even a first cache lookup can import what it names
+    _importable_cache(_cache_dir())
+
+
+#: softpipe/ (this file is softpipe/language/kernels/cache.py)
+PACKAGE_DIR = Path(__file__).resolve().parents[2]
+_PACKAGE_HASH: list = []
+
+
+def hashed_sources() -> List[Path]:
+    """The files :func:`package_hash` hashes: softpipe's ``.py`` sources (a generated kernel
+    inlines them) and every loop template (a kernel is written from them), whatever its suffix."""
+    return sorted(set(PACKAGE_DIR.rglob("*.py")) | set(template_files()))
+
+
+def package_hash() -> str:
+    """A hash of softpipe's own sources and templates (:func:`hashed_sources`): a generated kernel depends on them."""
+    if not _PACKAGE_HASH:
+        h = hashlib.sha256()
+        for f in hashed_sources():
+            h.update(str(f.relative_to(PACKAGE_DIR)).encode())
+            h.update(f.read_bytes())
+        _PACKAGE_HASH.append(h.hexdigest()[:16])
+    return _PACKAGE_HASH[0]
+
+
+def importable_shader(shader: Callable) -> Tuple[str, str] | None:
+    """(module, name) if the shader is one of softpipe's own module-level functions.
+
+    Only these are cached on disk: numba cannot see when a user's shader (or a
+    function it calls in another file) changes, so user shaders are compiled
+    once per process instead of risking a stale kernel.
+    """
+    f = python_function(shader)
+    mod, name = getattr(f, "__module__", None) or "", getattr(f, "__qualname__", None) or ""
+    if not mod.startswith("softpipe.") or "." in name or "<" in name:
+        return None
+    try:
+        if python_function(getattr(importlib.import_module(mod), name)) is not f:
+            return None
+    except (ImportError, AttributeError):
+        return None
+    return mod, name
+
+
+#: How many compiled versions (sets of global values) of one shader and layout are kept.
+_VERSIONS_KEPT = 8
+_VERSIONS: Dict[Any, list] = {}
+
+
+#: Held while a kernel module is built, written to the cache or loaded, and while numba
+#: compiles a generated loop (:func:`~.diagnostics.run_compiled`): two threads asking for the same loop
+#: build it once, and a fork waits for it (:func:`_before_fork`).
+COMPILE_LOCK = threading.RLock()
+
+
+def _before_fork() -> None:
+    """Before ``os.fork``: wait until no thread builds a kernel or compiles with numba, and hold both
+    locks across the fork, so the child does not inherit a lock held by a thread it does not have."""
+    COMPILE_LOCK.acquire()
+    numba.core.compiler_lock.global_compiler_lock.acquire()
+
+
+def _after_fork() -> None:
+    numba.core.compiler_lock.global_compiler_lock.release()
+    COMPILE_LOCK.release()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(before=_before_fork, after_in_parent=_after_fork, after_in_child=_after_fork)
+
+
+def cached_module(base: tuple, shader: Callable, build: Callable[[tuple], Any]) -> Any:
+    """The module kept for ``base`` and the shader's globals today, built (compiled) when there is none."""
+    globals_key = shader_globals_key(shader)
+    key = base + (globals_key,)
+    module = _KERNELS.get(key)
+    if module is not None:
+        return module
+    with COMPILE_LOCK:
+        module = _KERNELS.get(key)          # another thread may have built it meanwhile
+        if module is not None:
+            return module
+        module = build(globals_key)
+        _KERNELS[key] = module
+        versions = _VERSIONS.setdefault(base, [])
+        versions.append(key)
+        while len(versions) > _VERSIONS_KEPT:      # a global animated per frame must not keep every loop
+            _KERNELS.pop(versions.pop(0), None)
+    return module
+
+
+def cached_file_name(source: str, kind: str, globals_key: tuple) -> str:
+    """The name of the cached module file for a generated ``source`` of softpipe's own shader.
+
+    It hashes the source, softpipe's sources (:func:`package_hash`), numba's
+    version and the values of the shader's globals (``globals_key``: numba reads
+    them as they are when it compiles, so a changed value is a new file).
+    """
+    digest = hashlib.sha256((source + package_hash() + numba.__version__ + key_text(globals_key)).encode()
+                            ).hexdigest()[:20]
+    return f"softpipe_{kind}_{digest}"
+
+
+def load_cached(source: str, module_name: str) -> types.ModuleType:
+    """The generated module ``source``, written to the cache directory as ``module_name``.py and imported.
+
+    The file is written only when it is missing or differs, through a temporary file
+    and an atomic rename; the module goes into ``sys.modules`` so that numba's cache
+    can find its namedtuple classes by name.
+    """
+    directory = _cache_dir()
+    directory.mkdir(parents=True, exist_ok=True)
+    _importable_cache(directory)
+    path = directory / f"{module_name}.py"
+    with COMPILE_LOCK:                 # one thread of this process at a time
+        loaded = sys.modules.get(module_name)
+        if loaded is not None and getattr(loaded, "__softpipe_source__", None) == source:
+            return loaded
+        if not path.exists() or path.read_text() != source:
+            # a temporary file of our own (unique across processes and threads), then an atomic
+            # rename: a concurrent writer never sees, nor truncates, half a file
+            atomic_write(path, lambda f: f.write(source.encode()))
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            sys.modules.pop(module_name, None)
+            raise
+        module.__softpipe_source__ = source
+        return module

@@ -1,0 +1,526 @@
+"""What goes wrong in a shader, said plainly: compile errors, exceptions at run time, bad colors.
+
+- **Running a loop** (:func:`run_compiled`): numba's errors become a
+  :class:`~softpipe.language.contract.ShaderError` that says in a few lines what is
+  wrong and names the user's file and line (numba's own text is on
+  ``err.numba_message``, and in the message with ``SOFTPIPE_SHADER_DEBUG=1``).
+- **An exception the shader raises while it runs** is reported with the invocation
+  it happened on (the fragment's pixel, sample and primitive, or the vertex):
+  the compiled loop is re-run on halves of the batch to find it, then that one
+  invocation runs as plain Python for the exception and its line
+  (:func:`vertex_site`, :func:`fragment_site`, :func:`visible_site` say how).
+- **The color a fragment shader returns** goes through :func:`rgba`, which refuses
+  anything but 4 numbers: once, when numba types the loop (its overload), or on
+  every call as plain Python.
+
+The places named are found in the shader's and its helpers' bytecode (the
+helpers: those compiled with it, :func:`~.snapshot.helper_kind`). More: docs/shaders.md
+(errors a shader author meets), docs/07-debugging.md.
+"""
+from __future__ import annotations
+
+import difflib
+import dis
+import linecache
+import os
+import re
+import sys
+import types
+from typing import Any, Callable, Dict, Tuple
+
+import numba
+import numpy as np
+from numba.extending import overload
+
+from softpipe.language.contract import ShaderError, _names_from_class_name, python_function, shader_name
+from softpipe.language.kernels.cache import COMPILE_LOCK
+from softpipe.language.kernels.generate import exec_module
+from softpipe.language.kernels.snapshot import helper_kind, nested_codes, reads
+
+__all__ = ["run_compiled", "vertex_site", "fragment_site", "visible_site", "rgba", "BadReturn", "return_error",
+           "raised_error", "from_shader", "def_site"]
+
+
+# ------------------------------------------------------------------ return values
+
+class BadReturn(Exception):
+    """A fragment shader's color is not 4 numbers; the message says what it is."""
+
+
+_NUMBERS = (int, float, np.integer, np.floating, bool, np.bool_)
+
+
+def _python_value_text(value) -> str:
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, tuple):
+        if all(isinstance(c, float) for c in value):
+            return f"a tuple of {len(value)} floats"
+        return f"a tuple of {len(value)} values"
+    if value is None:
+        return "None"
+    if isinstance(value, np.ndarray):
+        return "a numpy array"
+    if isinstance(value, _NUMBERS):
+        return "a single number"
+    return f"a {type(value).__name__}"
+
+
+def _numba_type_text(ty) -> str:
+    nt = numba.core.types
+    if isinstance(ty, (nt.UnicodeType, nt.UnicodeCharSeq, nt.CharSeq)):
+        return "a string"
+    if isinstance(ty, (nt.List, nt.ListType)):
+        return "a list"
+    if isinstance(ty, nt.Optional):
+        return f"{_numba_type_text(ty.type)} or None (a path without a return?)"
+    if isinstance(ty, nt.NoneType):
+        return "None (no return statement?)"
+    if isinstance(ty, nt.BaseTuple):
+        parts = list(ty)
+        if all(isinstance(t, nt.Float) for t in parts):
+            return f"a tuple of {len(parts)} floats"
+        return f"a tuple of {len(parts)} values"
+    if isinstance(ty, nt.Array):
+        return "a numpy array"
+    if isinstance(ty, (nt.Number, nt.Boolean)):
+        return "a single number"
+    return f"a value of type {ty}"
+
+
+def rgba(color: Any) -> tuple:
+    """The color a fragment shader returned, checked: a tuple of 4 numbers (DISCARD is one).
+
+    numba checks it once, when it compiles the loop (see the overload below); as
+    plain Python (``NUMBA_DISABLE_JIT=1``) it is checked on every call.
+    """
+    if not (isinstance(color, tuple) and len(color) == 4 and all(isinstance(c, _NUMBERS) for c in color)):
+        raise BadReturn(_python_value_text(color))
+    return color
+
+
+@overload(rgba)
+def _rgba_typed(color):
+    nt = numba.core.types
+    if isinstance(color, nt.BaseTuple) and len(list(color)) == 4 and all(
+            isinstance(t, (nt.Number, nt.Boolean)) for t in color):
+        return lambda color: color
+    raise BadReturn(_numba_type_text(color))     # not a NumbaError: numba lets it through as it is
+
+
+def _return_lines(f) -> list:
+    """Line numbers of a function's return statements (not of nested functions)."""
+    code = getattr(f, "__code__", None)
+    if code is None:
+        return []
+    return sorted({line for inst, line in _instructions(code) if inst.opname in ("RETURN_VALUE", "RETURN_CONST")
+                   and line is not None})
+
+
+def return_error(kind: str, shader: Callable, e: BadReturn) -> ShaderError:
+    """The ShaderError for a shader whose color is not 4 numbers (``e`` says what it is), at its first return."""
+    f = python_function(shader)
+    lines = _return_lines(f)
+    site = {"file": f.__code__.co_filename, "line": lines[0]} if lines else def_site(shader)
+    message = (f"{kind} shader {shader_name(shader)} must return an RGBA tuple of 4 floats (or DISCARD), "
+               f"got {e}\n{_frame_text(site['file'], site['line'], f.__name__)}")
+    return ShaderError(message, numba_message=f"rgba(): the shader's return type is {e}", **site)
+
+
+# ------------------------------------------------------------------ where in the user's code
+
+def _instructions(code):
+    """(instruction, line number) of a code object's bytecode."""
+    line = None
+    for inst in dis.get_instructions(code):
+        positions = getattr(inst, "positions", None)
+        if positions is not None and positions.lineno is not None:
+            line = positions.lineno
+        elif inst.starts_line:
+            line = inst.starts_line
+        yield inst, line
+
+
+def _user_functions(shader: Callable) -> list:
+    """The shader and the helpers compiled with it (those that are not numba's or softpipe's), in call order."""
+    out, seen = [], set()
+
+    def walk(f):
+        f = python_function(f)
+        if not isinstance(f, types.FunctionType) or id(f) in seen:
+            return
+        seen.add(id(f))
+        out.append(f)
+        for _, value in reads(f):
+            if helper_kind(value) is not None:
+                walk(value)
+
+    walk(shader)
+    return out
+
+
+def def_site(shader: Callable) -> dict:
+    """``{"file": …, "line": …}`` of the shader's ``def`` (empty for what has no code of its own)."""
+    f = python_function(shader)
+    code = getattr(f, "__code__", None)
+    if code is None:
+        return {}
+    return {"file": code.co_filename, "line": code.co_firstlineno}
+
+
+def _frame_text(file: str | None, line: int | None, name: str) -> str:
+    """A traceback's two lines for file:line: ``File "…", line N, in name`` and the source line."""
+    if file is None:
+        return ""
+    text = f'  File "{file}", line {line}, in {name}'
+    source = linecache.getline(file, line).strip() if line else ""
+    return text + (f"\n    {source}" if source else "")
+
+
+_LOCATION = re.compile(r'File "(?P<f1>[^"]+)", line (?P<l1>\d+)|\bat (?P<f2>[^\s<][^\n]*?) \((?P<l2>\d+)\)')
+
+
+def _same_file(numba_path: str, filename: str) -> bool:
+    return (numba_path == filename or filename.endswith(os.sep + numba_path)
+            or os.path.abspath(numba_path) == os.path.abspath(filename))
+
+
+def _numba_site(text: str, functions: list) -> dict | None:
+    """The first place numba's text names that is in the shader or one of its helpers."""
+    for m in _LOCATION.finditer(text):
+        path, line = (m.group("f1"), m.group("l1")) if m.group("f1") else (m.group("f2"), m.group("l2"))
+        line = int(line)
+        for f in functions:
+            code = f.__code__
+            if not _same_file(path, code.co_filename):
+                continue
+            lines = {n for c in nested_codes(code) for _, _, n in c.co_lines() if n is not None}
+            if line in lines:
+                return {"file": code.co_filename, "line": line, "function": f.__name__}
+    return None
+
+
+def _name_site(functions: list, name: str, ops: Tuple[str, ...]) -> dict | None:
+    """Where the shader or a helper loads ``name`` (a global, or an attribute), first found."""
+    for f in functions:
+        for code in nested_codes(f.__code__):
+            for inst, line in _instructions(code):
+                if inst.opname in ops and inst.argval == name and line is not None:
+                    return {"file": code.co_filename, "line": line, "function": f.__name__}
+    return None
+
+
+# ------------------------------------------------------------------ compile errors
+
+_GLOBAL_OPS = ("LOAD_GLOBAL", "LOAD_NAME")
+_ATTR_OPS = ("LOAD_ATTR", "LOAD_METHOD")
+_OPERATORS = {"add": "+", "sub": "-", "mul": "*", "truediv": "/", "floordiv": "//", "mod": "%", "pow": "**",
+              "neg": "unary -", "iadd": "+=", "isub": "-=", "imul": "*=", "itruediv": "/=", "lt": "<", "gt": ">",
+              "le": "<=", "ge": ">=", "eq": "==", "ne": "!="}
+_GLOBALS_HINT = "a shader may read globals that are numbers, bools, tuples, numpy arrays or functions"
+_VECTOR_HINT = ("vectors are tuples: use the GLSL functions of softpipe.shading (add, sub, scale, mul, dot, "
+                "length, normalize, …) rather than operators or numpy")
+
+
+def _plain_types(text: str) -> str:
+    """numba's type names in words: ``UniTuple(float64 x 3)`` → ``tuple of 3 float64``."""
+    text = re.sub(r"_[0-9a-f]{12}\b", "", text)
+    text = re.sub(r"Literal\[\w+\]\(([^()]*)\)", r"\1", text)
+    text = re.sub(r"UniTuple\((\w+) x (\d+)\)", r"tuple of \2 \1", text)
+    text = re.sub(r"(reflected )?list\((\w+)\)(<iv=[^>]*>)?", r"list of \2", text)
+    text = re.sub(r"array\((\w+), (\d)d, \w\)", r"\2-D array of \1", text)
+    return text.replace("unicode_type", "str")
+
+
+def _namedtuple_fields(typename: str, kernel) -> Tuple[str, Tuple[str, ...] | None]:
+    """(what a shader calls it, its fields) for a namedtuple type numba names in an error."""
+    if typename.startswith("Uniforms_"):
+        return "uniforms", tuple(_names_from_class_name(typename))
+    owners = {"Varyings": "varyings", "Attributes": "attributes", "FragInfo": "frag", "Derivatives": "derivatives"}
+    owner = owners.get(re.sub(r"_[0-9a-f]{12}$", "", typename), typename)
+    places = [getattr(getattr(kernel, "py_func", kernel), "__globals__", {})]
+    places += [vars(m) for n, m in list(sys.modules.items()) if n.startswith("softpipe") and m is not None]
+    for place in places:
+        for value in list(place.values()):
+            if isinstance(value, type) and value.__name__ == typename and hasattr(value, "_fields"):
+                return owner, tuple(value._fields)
+    return owner, None
+
+
+def _what_numba_says(text: str) -> str:
+    """numba's first line that says something (not "Failed in nopython mode pipeline")."""
+    for line in text.splitlines():
+        line = line.strip()
+        if line and not line.startswith(("Failed in", "During:", "File ")) and "- Resolution failure" not in line:
+            return line
+    return text.strip().splitlines()[0] if text.strip() else "(no message)"
+
+
+def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dict | None, str]:
+    """(what is wrong, where, a hint) from numba's message."""
+    m = re.search(r"Unknown attribute '(\w+)' of type ([\w.]+)", text)
+    if m:
+        attr, typename = m.groups()
+        site = _numba_site(text, functions) or _name_site(functions, attr, _ATTR_OPS)
+        if typename in ("UniTuple", "Tuple"):
+            return f"a tuple has no attribute {attr!r}", site, _VECTOR_HINT + " (v[0], not v.x)"
+        owner, fields = _namedtuple_fields(typename, kernel)
+        what = f"{owner} has no field {attr!r}"
+        if fields:
+            close = difflib.get_close_matches(attr, fields, n=1)
+            if close:
+                what += f" (did you mean {close[0]!r}?)"
+            what += f"; its fields are: {', '.join(fields)}"
+        elif fields is not None:
+            what += f"; there are no {owner}"
+        return what, site, ""
+    m = re.search(r"NameError: name '(\w+)' is not defined", text)
+    if m:
+        name = m.group(1)
+        site = _name_site(functions, name, _GLOBAL_OPS)
+        owner = next((f for f in functions if site and f.__name__ == site["function"]), None)
+        if owner is not None and name in owner.__globals__:
+            # numba says so of a global it has no type for, inlined into the loop
+            return (f"the global {name!r} (a {type(owner.__globals__[name]).__name__}) cannot be used in "
+                    "compiled code", site, _GLOBALS_HINT)
+        return (f"name {name!r} is not defined", site,
+                "define it (a plain Python function is compiled with the shader) or import it in the shader's module")
+    if "linalg" in text or "scipy" in text:
+        site = _name_site(functions, "linalg", _ATTR_OPS)
+        return ("numpy.linalg cannot be used in a shader (compiled, it needs scipy; and vectors are tuples)", site,
+                "for a vector's length use softpipe.shading.length(v); dot, normalize, cross, distance are there too")
+    m = re.search(r"Untyped global name '(\w+)'(?:: Cannot determine Numba type of <class '([\w.]+)'>)?", text)
+    if m:
+        name, kind = m.groups()
+        return (f"the global {name!r}{f' (a {kind})' if kind else ''} cannot be used in compiled code",
+                _numba_site(text, functions) or _name_site(functions, name, _GLOBAL_OPS),
+                _GLOBALS_HINT)
+    m = re.search(r"Can't unify return type from the following types: ([^\n]*)", text)
+    if m:
+        return (f"its return statements return different types ({_plain_types(m.group(1))})",
+                _numba_site(text, functions), "return the same kind of value everywhere: floats, 1.0 not 1")
+    m = re.search(r"Cannot unify (.*?) for '(\w+)'", text)
+    if m:
+        return (f"the variable {m.group(2)!r} holds different types ({_plain_types(m.group(1))})",
+                _numba_site(text, functions), "give it one type on every path: floats, 1.0 not 1")
+    m = re.search(r"No implementation of function Function\(<(?:built-in )?function (\w+)[^>]*>\) found for "
+                  r"signature:\s*>>> \w+\(([^\n]*)\)", text)
+    if m:
+        fn, args = m.group(1), _plain_types(m.group(2))
+        site = _numba_site(text, functions)
+        if fn in _OPERATORS:
+            return f"cannot compute {_OPERATORS[fn]} of ({args})", site, _VECTOR_HINT
+        return f"{fn}() cannot be called with ({args})", site, _VECTOR_HINT if "tuple" in args else ""
+    return _plain_types(_what_numba_says(text)), _numba_site(text, functions), ""
+
+
+def _describe_compile_error(kind: str, shader: Callable, err: Exception, kernel=None) -> ShaderError:
+    """One short paragraph: what is wrong, the user's file and line, a hint; numba's text on the side."""
+    text = str(err) or type(err).__name__
+    if not isinstance(err, numba.core.errors.NumbaError):
+        text = f"{type(err).__name__}: {text}"
+    functions = _user_functions(shader)
+    try:
+        what, site, hint = _explain_compile_error(text, kernel, functions)
+    except Exception:           # never hide the error behind a bug in explaining it
+        what, site, hint = _what_numba_says(text), None, ""
+    f = python_function(shader)
+    if site is None:
+        site = dict(def_site(shader), function=getattr(f, "__name__", "?"))
+    lines = [f"{kind} shader {shader_name(shader)} cannot be compiled: {what}"]
+    frame = _frame_text(site.get("file"), site.get("line"), site.get("function", "?"))
+    if frame:
+        lines.append(frame)
+    if hint:
+        lines.append(f"  ({hint})")
+    lines.append("  (the compiler's full text is err.numba_message; SOFTPIPE_SHADER_DEBUG=1 adds it here)")
+    message = "\n".join(lines)
+    if os.environ.get("SOFTPIPE_SHADER_DEBUG", "") not in ("", "0"):
+        message += "\n--- numba's message ---\n" + text
+    return ShaderError(message, file=site.get("file"), line=site.get("line"), numba_message=text)
+
+
+_NUMBA_DIR = os.path.dirname(numba.__file__) + os.sep
+
+
+def _while_compiling(err: Exception) -> bool:
+    """Was ``err`` raised by numba compiling the loop (not by the compiled loop running)?"""
+    if isinstance(err, numba.core.errors.NumbaError):
+        return True
+    tb = err.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code.co_filename.startswith(_NUMBA_DIR):
+            return True
+        tb = tb.tb_next
+    return False
+
+
+# ------------------------------------------------------------------ run-time errors
+
+def from_shader(exc: BaseException, shader: Callable) -> BaseException:
+    """``exc`` with its traceback starting at the shader's frame (softpipe's own frames left out)."""
+    code = getattr(python_function(shader), "__code__", None)
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_frame.f_code is not code:
+        tb = tb.tb_next
+    if tb is not None:
+        exc.__traceback__ = tb
+    return exc
+
+
+def _raise_site(exc: BaseException, shader: Callable) -> dict | None:
+    """The deepest frame of the exception's traceback in the shader or one of its helpers."""
+    codes = {c for f in _user_functions(shader) for c in nested_codes(f.__code__)}
+    site, tb = None, exc.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code in codes:
+            site = {"file": tb.tb_frame.f_code.co_filename, "line": tb.tb_lineno,
+                    "function": tb.tb_frame.f_code.co_name}
+        tb = tb.tb_next
+    return site
+
+
+def raised_error(kind: str, shader: Callable, exc: BaseException, where: str | None,
+                 python_exc: BaseException | None) -> ShaderError:
+    """The ShaderError for an exception ``exc`` the shader raised, on the invocation ``where`` (in words),
+    at the line of the user's code ``python_exc`` (the same exception, raised as plain Python) passed."""
+    lines = [f"{kind} shader {shader_name(shader)} raised {type(exc).__name__}: {exc}"]
+    if where:
+        lines[0] += f", on {where}"
+    site = _raise_site(python_exc, shader) if python_exc is not None else None
+    if site:
+        lines.append(_frame_text(site["file"], site["line"], site["function"]))
+    site = site or {}
+    return ShaderError("\n".join(lines), file=site.get("file"), line=site.get("line"), invocation=where)
+
+
+def _bisect(run: Callable, count: int) -> int | None:
+    """An index in [0, count) on which ``run(lo, hi)`` raises, found by halving the range (None: none does)."""
+    lo, hi = 0, count
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        try:
+            run(lo, mid)
+        except Exception:
+            hi = mid
+            continue
+        lo = mid
+    if hi <= lo:
+        return None
+    try:
+        run(lo, hi)
+    except Exception:
+        return lo
+    return None
+
+
+def _plain(value):
+    """numpy scalars (as the Python loop reads them from arrays) as Python's: 1.0 / 0.0 raises, as compiled."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, tuple):
+        items = [_plain(v) for v in value]
+        return type(value)(*items) if hasattr(value, "_fields") else tuple(items)
+    return value
+
+
+def _locate(kind: str, shader: Callable, kernel, count: int, run: Callable, describe: Callable):
+    """(the invocation in words, the exception it raises as plain Python) for a loop that raised.
+
+    The compiled loop is run on halves of the batch until one invocation (or, for
+    the fast path, one image row) is left; that one runs again as plain Python,
+    through the generated module executed as Python, the shader wrapped to note
+    its arguments and the loop's variables when it raises.
+    """
+    index = _bisect(lambda lo, hi: run(kernel, lo, hi), count)
+    if index is None:
+        return None, None
+    func = getattr(kernel, "py_func", kernel)
+    twin = exec_module(func.__globals__["__softpipe_source__"], shader, kind, python=True)
+    noted: Dict[str, Any] = {}
+    user = python_function(shader)
+
+    def noting(*args):
+        try:
+            return user(*(_plain(a) for a in args))
+        except Exception as e:
+            noted.update(exc=e, args=args, locals=dict(sys._getframe(1).f_locals))
+            raise
+
+    twin.shader = noting
+    try:
+        run(getattr(twin, func.__name__), index, index + 1)
+    except Exception:
+        pass
+    return describe(index, noted), noted.get("exc")
+
+
+def vertex_site(shader: Callable, kernel, count: int, args: tuple) -> Callable:
+    """For :func:`run_compiled`: how to find the vertex a ``vertex_loop(lo, hi, *args)`` raised on."""
+    return lambda: _locate("vertex", shader, kernel, count, lambda k, lo, hi: k(lo, hi, *args),
+                           lambda i, noted: f"vertex {i}")
+
+
+def fragment_site(shader: Callable, kernel, args: tuple, x, y, sample) -> Callable:
+    """For :func:`run_compiled`: how to find the fragment a reference ``fragment_loop(*args)`` raised on;
+    ``x``, ``y``, ``sample``: the fragments' pixels (image coordinates) and samples."""
+    def run(k, lo, hi):
+        k(*(a[lo:hi] for a in args[:5]), *args[5:-1], args[-1][lo:hi])
+
+    def describe(i, noted):
+        return (f"the fragment at pixel ({int(x[i])}, {int(y[i])}), sample {int(sample[i])}, "
+                f"primitive {int(args[8][args[0][i]])} (fragment #{i})")
+
+    return lambda: _locate("fragment", shader, kernel, len(args[0]), run, describe)
+
+
+def visible_site(shader: Callable, kernel, rows: int, args: tuple) -> Callable:
+    """For :func:`run_compiled`: how to find the sample a fast-path ``visible_loop(lo, hi, *args)`` raised on."""
+    def describe(row, noted):
+        v = noted.get("locals", {})
+        if not {"i", "s", "row"} <= set(v):
+            return f"a fragment in image row {row}"
+        frag = noted["args"][2]
+        return f"the fragment at pixel ({int(v['i'])}, {int(v['row'])}), sample {int(v['s'])}, " \
+               f"primitive {int(frag.primitive_id)}"
+
+    return lambda: _locate("fragment", shader, kernel, rows, lambda k, lo, hi: k(lo, hi, *args), describe)
+
+
+def _needs_compiling(kernel) -> bool:
+    """Is ``kernel`` a numba dispatcher with nothing compiled yet (its first call compiles)?"""
+    return isinstance(kernel, numba.core.registry.CPUDispatcher) and not kernel.overloads
+
+
+def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Callable | None = None) -> None:
+    """Call a generated loop; turn what goes wrong into a ShaderError naming the shader and the user's line.
+
+    A compile error (numba's, or a color that is not 4 numbers) is described in a
+    few lines, numba's text kept on ``numba_message``. An exception the shader
+    raised while it ran is reported with the invocation it happened on, which
+    ``site`` (:func:`fragment_site`, :func:`visible_site`, :func:`vertex_site`) finds.
+    """
+    try:
+        if _needs_compiling(kernel):
+            with COMPILE_LOCK:         # one compile at a time; a fork waits for it
+                kernel(*args)
+        else:
+            kernel(*args)
+    except BadReturn as e:
+        raise return_error(kind, shader, e) from None
+    except ShaderError:
+        raise
+    except Exception as e:
+        if _while_compiling(e):
+            raise _describe_compile_error(kind, shader, e, kernel) from None
+        where, python_exc = None, None
+        if site is not None:
+            try:
+                where, python_exc = site()
+            except Exception:         # finding the invocation must not hide the error itself
+                pass
+        shown = python_exc if python_exc is not None else e
+        cause = from_shader(python_exc, shader) if python_exc is not None else e
+        raise raised_error(kind, shader, shown, where, python_exc) from cause
