@@ -1,4 +1,5 @@
-"""Foundations that every other folder may use and that import nothing of softpipe's:
+"""Foundations that every other folder may use and that import nothing of softpipe's above core:
 the thread bands (:mod:`.parallel`), process settings and memory checks (:mod:`.runtime`),
-confined, atomic file access (:mod:`.files`), color names (:mod:`.colors`).
+confined, atomic file access (:mod:`.files`), color names (:mod:`.colors`), and the checking
+of values someone wrote, in a file or to the Python API (:mod:`.validation`).
 """

@@ -79,13 +79,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
+from softpipe.core.validation import (BadValue, Table, boolean, choice, color, describe, integer, number, numbers,
+                                      positive, string)
 from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 from softpipe.light.material import Light
 from softpipe.scenes.mesh import Mesh
 from softpipe.pipeline.sampling import pattern_named
-from softpipe.scenes.scenefile import (MATERIAL_KEYS, SHAPES, SceneError, _bundled_model, _describe, _is_bare_word,
-                        _Bad, _Reader, _shape_params, _Table, _toml, boolean, choice, color, integer,
-                        number, numbers, pattern_name, positive, program_name, string)
+from softpipe.scenes.scenefile import (MATERIAL_KEYS, SHAPES, SceneError, SceneReader, bundled_model, is_bare_word,
+                                       pattern_name, program_name, shape_params)
 
 __all__ = ["Frame", "Job", "JobError", "LightSet", "BatchProgress", "BatchResult", "FrameRecord", "load_job",
            "parse_job", "job_from_dict", "batch", "render_frame", "read_manifest", "VIEWS", "MANIFEST",
@@ -262,29 +263,28 @@ class Job:
 # ---------------------------------------------------------------------------- reading a job
 
 
-class _JobReader(_Reader):
+class _JobReader(SceneReader):
     """The scene-file reader's tables and values, for a job (its errors are JobErrors)."""
 
-    def error(self, message: str, table: Optional[str] = None, key: Optional[str] = None,
-              line: Optional[int] = None) -> JobError:
-        return JobError(message, file=self.file, table=table, key=key, line=line)
+    kind = "job file"
+    error_class = JobError
 
     def job(self, doc: Mapping[str, Any]) -> Job:
-        top = _Table(self, dict(doc), "the top level", TOP_KEYS)
+        top = Table(self, dict(doc), "the top level", TOP_KEYS)
         job = Job(path=self.file, base_dir=self.base_dir)
-        settings = _Table(self, top.data.get("job", {}), "[job]", JOB_KEYS)
+        settings = Table(self, top.data.get("job", {}), "[job]", JOB_KEYS)
         bg = settings.get("background", numbers(3, 4), job.background)
         job.background = tuple(bg) + ((1.0,) if len(bg) == 3 else ())
         job.fovy = settings.get("fovy", _fovy, job.fovy)
         elevation = settings.get("elevation", number, DEFAULT_ELEVATION)
         models = top.data.get("models", {})
         if not isinstance(models, dict):
-            raise self.error(f"'models' must be a table of models by name, got {_describe(models)}", key="models")
+            raise self.error(f"'models' must be a table of models by name, got {describe(models)}", key="models")
         job.models = {name: self.model_spec(name, value) for name, value in models.items()}
         self.known_models = job.models
         materials = top.data.get("materials", {})
         if not isinstance(materials, dict):
-            raise self.error(f"'materials' must be a table of [materials.NAME] tables, got {_describe(materials)}",
+            raise self.error(f"'materials' must be a table of [materials.NAME] tables, got {describe(materials)}",
                              key="materials")
         for name, data in materials.items():
             if name == "default":
@@ -293,7 +293,7 @@ class _JobReader(_Reader):
             job.materials[name] = self.material_fields(data, f"[materials.{name}]")
         lights = top.data.get("lights", {})
         if not isinstance(lights, dict):
-            raise self.error(f"'lights' must be a table of [lights.NAME] tables, got {_describe(lights)}",
+            raise self.error(f"'lights' must be a table of [lights.NAME] tables, got {describe(lights)}",
                              key="lights")
         for name, data in lights.items():
             if name in BUILTIN_LIGHTS:
@@ -306,7 +306,7 @@ class _JobReader(_Reader):
         for key, value in (("sweep", sweeps), ("frames", frames)):
             if not isinstance(value, list):
                 raise self.error(f"'{key}' must be {'a table' if key == 'sweep' else 'an array of tables'} "
-                                 f"([{key}] or [[{key}]]), got {_describe(value)}", key=key)
+                                 f"([{key}] or [[{key}]]), got {describe(value)}", key=key)
         found: List[Frame] = []
         for k, data in enumerate(sweeps, 1):
             found.extend(self.sweep(data, "[sweep]" if len(sweeps) == 1 else f"[[sweep]] #{k}", job, elevation))
@@ -328,17 +328,17 @@ class _JobReader(_Reader):
         if isinstance(value, Mesh) or (hasattr(value, "vertices") and hasattr(value, "faces")):
             return value
         if isinstance(value, str):
-            return self.model_source(value, _Table(self, {"obj": value}, label, ("obj",)))
+            return self.model_source(value, Table(self, {"obj": value}, label, ("obj",)))
         if not isinstance(value, dict):
             raise self.error(f"{label} must be a model's name, an OBJ file or a table (obj = …, or shape = …), "
-                             f"got {_describe(value)}", table="[models]", key=name)
+                             f"got {describe(value)}", table="[models]", key=name)
         params: Dict[str, Any] = {}
         if "shape" in value:
             try:
-                params = _shape_params(choice(*SHAPES)(value["shape"]))
-            except _Bad as e:
+                params = shape_params(choice(*SHAPES)(value["shape"]))
+            except BadValue as e:
                 raise self.error(f"key 'shape' in {label} {e}", table=label, key="shape") from None
-        t = _Table(self, value, label, ("obj", "shape", "fit") + tuple(params))
+        t = Table(self, value, label, ("obj", "shape", "fit") + tuple(params))
         if ("obj" in t) == ("shape" in t):
             raise t.error(f"needs either 'obj' (an OBJ file or a bundled model) or 'shape' (one of "
                           f"{', '.join(SHAPES)}), {'not both' if 'obj' in t else 'and has neither'}")
@@ -353,12 +353,12 @@ class _JobReader(_Reader):
                       else number)
         return spec
 
-    def model_source(self, value: str, t: _Table) -> str:
+    def model_source(self, value: str, t: Table) -> str:
         """A bundled model's name as it is; a file name resolved against the job's folder (it must exist)."""
-        if _bundled_model(value) is not None:
+        if bundled_model(value) is not None:
             return value
         hint = ""
-        if _is_bare_word(value):
+        if is_bare_word(value):
             from softpipe.scenes.models import MODELS
             hint = f" (nor is {value!r} a bundled model: {', '.join(MODELS)})"
         return self.path(t, "obj", hint)
@@ -372,17 +372,17 @@ class _JobReader(_Reader):
         data = {"obj": spec} if isinstance(spec, str) else spec
         if "shape" in data:
             shape = data["shape"]
-            t = _Table(self, data, label, ("shape", "fit") + tuple(_shape_params(shape)))
-            mesh = self.shape(t, shape, _shape_params(shape)).replace(name=name)
+            t = Table(self, data, label, ("shape", "fit") + tuple(shape_params(shape)))
+            mesh = self.shape(t, shape, shape_params(shape)).replace(name=name)
         else:
-            t = _Table(self, data, label, ("obj", "fit"))
-            mesh = self.obj(t) if _bundled_model(data["obj"]) is not None else self.obj_file(t, data["obj"])
+            t = Table(self, data, label, ("obj", "fit"))
+            mesh = self.obj(t) if bundled_model(data["obj"]) is not None else self.obj_file(t, data["obj"])
         if "fit" in t:
             size = t.get("fit", positive)
             mesh = t.library("fit", lambda: mesh.normalized(size))
         return mesh
 
-    def obj_file(self, t: _Table, path: str) -> Mesh:
+    def obj_file(self, t: Table, path: str) -> Mesh:
         from softpipe.scenes.obj import OBJError, load_obj
         try:
             with warnings.catch_warnings():
@@ -397,24 +397,23 @@ class _JobReader(_Reader):
     def material_fields(self, data: Any, label: str) -> Dict[str, Any]:
         """A material's fields, checked by making the Material they describe."""
         keys = tuple(k for k in MATERIAL_KEYS if k != "diffuse_texture")
-        t = _Table(self, data, label, keys)
+        t = Table(self, data, label, keys)
         material = self.material(data, label, label)
         return {k: getattr(material, k) for k in keys if k in t}
 
     def light_set(self, data: Any, label: str) -> LightSet:
-        t = _Table(self, data, label, LIGHTSET_KEYS)
+        t = Table(self, data, label, LIGHTSET_KEYS)
         lights = t.get("light", lambda v: v, None)
         if lights is not None:
             if not isinstance(lights, list) or not lights:
-                raise t.error(f"must be one or more [[{label[1:-1]}.light]] tables, got {_describe(lights)}",
+                raise t.error(f"must be one or more [[{label[1:-1]}.light]] tables, got {describe(lights)}",
                               "light")
             lights = tuple(self.light(k + 1, d) for k, d in enumerate(lights))
         ambient = t.get("ambient", color, (0.2, 0.2, 0.2))
-        ambient = (ambient,) * 3 if isinstance(ambient, float) else tuple(ambient)
         return LightSet(lights, t.get("shadows", boolean, False), ambient)
 
     def sweep(self, data: Any, label: str, job: Job, elevation: float) -> List[Frame]:
-        t = _Table(self, data, label, SWEEP_KEYS)
+        t = Table(self, data, label, SWEEP_KEYS)
         models = self.axis(t, "models", lambda v: self.model_name(v, t, "models"), None)
         if models is None:
             raise t.error("needs key 'models' (bundled models' names, OBJ files or names from [models])")
@@ -435,7 +434,7 @@ class _JobReader(_Reader):
                 itertools.product(models, programs, materials, lights, sizes, samples, cameras + orbit)]
 
     def frame(self, data: Any, label: str, job: Job, elevation: float) -> Frame:
-        t = _Table(self, data, label, FRAME_KEYS)
+        t = Table(self, data, label, FRAME_KEYS)
         if "model" not in t:
             raise t.error("needs key 'model'")
         kw: Dict[str, Any] = {"model": self.model_name(t.data["model"], t, "model")}
@@ -463,7 +462,7 @@ class _JobReader(_Reader):
 
     # -- values
 
-    def axis(self, t: _Table, key: str, convert: Callable[[Any], Any], default: Any) -> Any:
+    def axis(self, t: Table, key: str, convert: Callable[[Any], Any], default: Any) -> Any:
         """A sweep's list of values (one value alone counts as a list of one), each converted."""
         if key not in t:
             return default
@@ -475,19 +474,19 @@ class _JobReader(_Reader):
         for n, v in enumerate(values, 1):
             try:
                 out.append(convert(v))
-            except _Bad as e:
+            except BadValue as e:
                 raise self.error(f"entry {n} of key {key!r} in {t.label} {e}", table=t.label, key=key) from None
         return list(dict.fromkeys(out)) if all(isinstance(v, (str, tuple, type(None))) for v in out) else out
 
-    def model_name(self, value: Any, t: _Table, key: str) -> str:
+    def model_name(self, value: Any, t: Table, key: str) -> str:
         """A frame's model: a [models] name, or a bundled model / OBJ file named directly (added to the job's models)."""
         if not isinstance(value, str):
-            raise _Bad(f"must be a model's name or an OBJ file, got {_describe(value)}") \
-                if key != "model" else t.error(f"must be a model's name or an OBJ file, got {_describe(value)}", key)
+            raise BadValue(f"must be a model's name or an OBJ file, got {describe(value)}") \
+                if key != "model" else t.error(f"must be a model's name or an OBJ file, got {describe(value)}", key)
         if value in self.known_models:
             return value
         try:
-            source = self.model_source(value, _Table(self, {"obj": value}, t.label, ("obj",)))
+            source = self.model_source(value, Table(self, {"obj": value}, t.label, ("obj",)))
         except JobError as e:
             raise self.error(f"key {key!r} in {t.label}: {value!r} is not in [models], a bundled model or a file "
                              f"({e.reason.split(': ', 1)[-1]})", table=t.label, key=key) from None
@@ -499,23 +498,23 @@ class _JobReader(_Reader):
         self.known_models[name] = source
         return name
 
-    def camera(self, value: Any, t: _Table, elevation: float, key: str = "cameras") -> Dict[str, Any]:
+    def camera(self, value: Any, t: Table, elevation: float, key: str = "cameras") -> Dict[str, Any]:
         """A camera: an azimuth in degrees, a view's name (:data:`VIEWS`) or ``{azimuth, elevation}``."""
         if isinstance(value, str):
             if value not in VIEWS:
-                raise _Bad(f"names an unknown view {value!r}; the views are {', '.join(VIEWS)}") \
+                raise BadValue(f"names an unknown view {value!r}; the views are {', '.join(VIEWS)}") \
                     if key == "cameras" else t.error(f"names an unknown view {value!r}; the views are "
                                                      f"{', '.join(VIEWS)}", key)
             az, el = VIEWS[value]
             return dict(azimuth=az, elevation=el, view=value)
         if isinstance(value, dict):
-            c = _Table(self, value, f"a camera of key {key!r} in {t.label}", CAMERA_KEYS)
+            c = Table(self, value, f"a camera of key {key!r} in {t.label}", CAMERA_KEYS)
             return dict(azimuth=c.get("azimuth", number, DEFAULT_AZIMUTH), elevation=c.get("elevation", number,
                                                                                             elevation))
         return dict(azimuth=_float_angle(value), elevation=elevation)
 
-    def orbit(self, t: _Table, elevation: float) -> List[Dict[str, Any]]:
-        o = _Table(self, t.data["orbit"], f"key 'orbit' in {t.label}", ORBIT_KEYS)
+    def orbit(self, t: Table, elevation: float) -> List[Dict[str, Any]]:
+        o = Table(self, t.data["orbit"], f"key 'orbit' in {t.label}", ORBIT_KEYS)
         count = o.get("frames", integer, 36)
         if not 1 <= count <= 3600:
             raise o.error(f"must be 1 to 3600 frames, got {count}", "frames")
@@ -523,14 +522,14 @@ class _JobReader(_Reader):
         start = o.get("start", number, 0.0)
         return [dict(azimuth=start + 360.0 * i / count, elevation=el, orbit=True) for i in range(count)]
 
-    def known(self, value: Any, t: _Table, key: str, names: Mapping[str, Any], extra: Sequence[str]) -> str:
+    def known(self, value: Any, t: Table, key: str, names: Mapping[str, Any], extra: Sequence[str]) -> str:
         if not isinstance(value, str):
-            raise _Bad(f"must be a name, got {_describe(value)}")
+            raise BadValue(f"must be a name, got {describe(value)}")
         if value not in names and value not in extra:
-            raise _Bad(f"names an undefined {key.rstrip('s')} {value!r}; known: {', '.join((*extra, *names))}")
+            raise BadValue(f"names an undefined {key.rstrip('s')} {value!r}; known: {', '.join((*extra, *names))}")
         return value
 
-    def check_samples(self, t: _Table, key: str, w: int, h: int, samples: str) -> None:
+    def check_samples(self, t: Table, key: str, w: int, h: int, samples: str) -> None:
         count = len(pattern_named(samples))
         if w * h * count > MAX_TOTAL_SAMPLES:
             raise t.error(f"{w}×{h} pixels × {count} samples exceeds the limit MAX_TOTAL_SAMPLES = "
@@ -544,14 +543,14 @@ def _float_angle(v: Any) -> float:
 def _fovy(v: Any) -> float:
     x = number(v)
     if not 0.0 < x < 180.0:
-        raise _Bad(f"must be in (0, 180) degrees, got {_describe(v)}")
+        raise BadValue(f"must be in (0, 180) degrees, got {describe(v)}")
     return x
 
 
 def _side(v: Any) -> int:
     x = integer(v)
     if not 1 <= x <= MAX_DIMENSION:
-        raise _Bad(f"must be 1 to {MAX_DIMENSION} pixels, got {x}")
+        raise BadValue(f"must be 1 to {MAX_DIMENSION} pixels, got {x}")
     return x
 
 
@@ -560,11 +559,11 @@ def _size(v: Any) -> Tuple[int, int]:
     if isinstance(v, str):
         m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", v)
         if not m:
-            raise _Bad(f"must be WIDTHxHEIGHT such as \"640x480\", got {_describe(v)}")
+            raise BadValue(f"must be WIDTHxHEIGHT such as \"640x480\", got {describe(v)}")
         return _side(int(m.group(1))), _side(int(m.group(2)))
     if isinstance(v, (list, tuple)) and len(v) == 2:
         return _side(v[0]), _side(v[1])
-    raise _Bad(f"must be WIDTHxHEIGHT such as \"640x480\" or [640, 480], got {_describe(v)}")
+    raise BadValue(f"must be WIDTHxHEIGHT such as \"640x480\" or [640, 480], got {describe(v)}")
 
 
 def _unique(frames: Iterable[Frame]) -> List[Frame]:
@@ -584,18 +583,7 @@ def _check_names(frames: Sequence[Frame], reader: _JobReader) -> None:
 def parse_job(text: str, name: str = "<string>", base_dir: Optional[str] = None) -> Job:
     """A job from TOML text; ``name`` labels errors and ``base_dir`` resolves file names."""
     reader = _JobReader(name, os.fspath(base_dir) if base_dir is not None else "")
-    if _toml is None:  # pragma: no cover
-        raise reader.error("reading job files needs Python 3.11 (tomllib) or the 'tomli' package")
-    try:
-        doc = _toml.loads(text)
-    except ValueError as e:
-        from softpipe.scenes.scenefile import _LINE
-        message, found = str(e), _LINE.search(str(e))
-        line = int(found.group(1)) if found else \
-            text.count("\n") + (not text.endswith("\n")) if "end of document" in message else None
-        message = _LINE.sub("", message).replace(" (at end of document)", " (at the end of the file)").strip()
-        raise reader.error(f"TOML syntax error: {message}", line=max(line, 1) if line is not None else None) from None
-    return reader.job(doc)
+    return reader.job(reader.parse_toml(text))
 
 
 def job_from_dict(doc: Mapping[str, Any], name: str = "<job>", base_dir: Optional[str] = None) -> Job:
@@ -609,18 +597,7 @@ def job_from_dict(doc: Mapping[str, Any], name: str = "<job>", base_dir: Optiona
 def load_job(path: Union[str, os.PathLike]) -> Job:
     """Read a job file (TOML); file names in it are relative to its folder."""
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            text = f.read().decode("utf-8-sig")
-    except FileNotFoundError:
-        raise JobError("job file not found", file=path) from None
-    except IsADirectoryError:
-        raise JobError("is a directory, not a job file", file=path) from None
-    except UnicodeDecodeError as e:
-        raise JobError(f"not UTF-8 text (byte {e.start})", file=path) from None
-    except OSError as e:
-        raise JobError(f"cannot read the job file: {e.strerror or e}", file=path) from None
-    return parse_job(text, path, os.path.dirname(os.path.abspath(path)))
+    return parse_job(_JobReader(path).read_file(), path, os.path.dirname(os.path.abspath(path)))
 
 
 def _as_job(job: Any) -> Job:
