@@ -206,7 +206,7 @@ class SceneReader(Reader):
     """One load of one scene file: the scene's parts read from their tables (and the files
     they name, each loaded once), every mistake a :class:`SceneError`.
 
-    The batch tool's job files (:mod:`softpipe.tools.batch`) read their models, materials
+    The batch tool's job files (:mod:`softpipe.tools.batch.job`) read their models, materials
     and lights with these methods too.
     """
 
