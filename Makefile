@@ -36,7 +36,7 @@ bench-peers: $(STAMP)
 # softpipe batch's frames/s on LocalClusters of 1 and 2 workers: a 36-frame bunny turntable
 # at 640x480, the clusters alternated, medians (docs/batch.md, "Scaling").
 bench-batch: $(STAMP)
-	$(PY) -m softpipe.tools.batch --model bunny --frames 36 --size 640x480 --workers 1,2
+	$(PY) -m benchmarks.batch --model bunny --frames 36 --size 640x480 --workers 1,2
 
 # BVH build times and million rays/s (primary, shadow, secondary at 1024², 1 and 2 threads) for
 # the bunny and the armadillo, alternated with Intel Embree (embreex, pip-installed here when

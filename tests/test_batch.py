@@ -157,6 +157,24 @@ def test_job_file_syntax_and_emptiness(tmp_path, capsys):
     assert err.startswith("softpipe batch: error: ") and str(path) in err and len(err.splitlines()) == 1
 
 
+def test_a_job_file_is_read_as_a_scene_file_is(tmp_path):
+    """The reading a scene file has (softpipe.core.validation.Reader): the line of a byte that is not UTF-8,
+    a FIFO refused before it is opened, TOML nested too deeply: each a JobError naming the file."""
+    path = tmp_path / "jobs.toml"
+    path.write_bytes(b'[sweep]\nmodels = ["caf\xe9"]\n')
+    with pytest.raises(JobError, match=r"jobs\.toml:2: not UTF-8 text \(byte 22\)$") as e:
+        load_job(path)
+    assert e.value.line == 2
+    with pytest.raises(JobError, match=r"^<string>: TOML error: arrays or tables nested too deeply$"):
+        parse_job("a = " + "[" * 3000)
+    with pytest.raises(JobError, match=r"jobs\.toml: job file not found$"):
+        load_job(tmp_path / "nope" / "jobs.toml")
+    if hasattr(os, "mkfifo"):
+        os.mkfifo(tmp_path / "pipe.toml")
+        with pytest.raises(JobError, match=r"pipe\.toml' is a FIFO, not a regular file$"):
+            load_job(tmp_path / "pipe.toml")
+
+
 # ---------------------------------------------------------------------------- serial: resume, faults, the CLI
 
 

@@ -39,17 +39,20 @@ def test_material_loader_keywords_still_work():
 
 
 @pytest.mark.parametrize("kwargs,error,message", [
-    (dict(kd=(-0.1, 0, 0)), ValueError, "Material.kd must be finite and non-negative"),
-    (dict(ks=(math.inf, 0, 0)), ValueError, "Material.ks must be finite and non-negative"),
-    (dict(ka=(1, 2)), ValueError, "Material.ka must have 3 components"),
-    (dict(ke=[None, 0, 0]), TypeError, "Material.ke must be an RGB triple"),
-    (dict(ke="reed"), ValueError, "Material.ke: unknown color 'reed'"),  # a name is a color (softpipe.core.colors)
-    (dict(shininess=-1), ValueError, "Material.shininess must be finite and >= 0"),
-    (dict(shininess=math.nan), ValueError, "Material.shininess must be finite"),
-    (dict(ior=0), ValueError, "Material.ior must be > 0"),
+    (dict(kd=(-0.1, 0, 0)), ValueError, r"^Material\.kd must hold numbers >= 0, got float -0\.1 in a tuple of 3$"),
+    (dict(ks=(math.inf, 0, 0)), ValueError, r"^Material\.ks must hold finite numbers, got float inf in a tuple of 3$"),
+    (dict(ka=(1, 2)), ValueError, r"^Material\.ka must be a number \(gray\), an array \[r, g, b\] or a color name "
+                                  r"such as \"red\", got a tuple of 2$"),
+    (dict(ke=[None, 0, 0]), TypeError, r"^Material\.ke must be an array \[r, g, b\] of numbers, got None in an "
+                                       r"array of 3$"),
+    (dict(kd=np.array([1.0, 2.0])), ValueError, r"Material\.kd must be a number \(gray\).*got an array of shape \(2,\)"),
+    (dict(ke="reed"), ValueError, "^Material.ke must be a color: unknown color 'reed'"),  # softpipe.core.colors
+    (dict(shininess=-1), ValueError, "^Material.shininess must be a number >= 0, got integer -1$"),
+    (dict(shininess=math.nan), ValueError, "^Material.shininess must be a finite number, got float nan$"),
+    (dict(ior=0), ValueError, "^Material.ior must be a positive number, got integer 0$"),
     (dict(opacity=1.5), ValueError, r"Material.opacity must be in \[0, 1\]"),
-    (dict(roughness=0.0), ValueError, "Material.roughness must be > 0"),
-    (dict(roughness="rough"), TypeError, "Material.roughness must be a number"),
+    (dict(roughness=0.0), ValueError, "^Material.roughness must be a positive number, got float 0.0$"),
+    (dict(roughness="rough"), TypeError, "^Material.roughness must be a positive number, got string 'rough'$"),
 ])
 def test_material_validation_names_the_field(kwargs, error, message):
     with pytest.raises(error, match=message):
@@ -74,21 +77,30 @@ def test_material_uniform_is_numba_friendly_and_one_type():
     (lambda: Light.spot((0, 0, 0), (0, 0, -1), cutoff=-5), ValueError, "Light.cutoff must be in"),
     (lambda: Light.spot((0, 0, 0), (0, 0, -1), cutoff=math.nan), ValueError, "Light.cutoff must be in"),
     (lambda: Light.spot((0, 0, 0), (0, 0, -1), cutoff=30, exponent=-1), ValueError,
-     "Light.exponent must be finite and >= 0"),
+     "^Light.exponent must be a number >= 0, got integer -1$"),
     (lambda: Light.spot((0, 0, 0), (0, 0, 0), cutoff=30), ValueError,
      "Light.spot_direction must not be the zero vector"),
     (lambda: Light("spot", position=(0, 0, 0), cutoff=30), ValueError, "Light.spot_direction is required"),
     (lambda: Light.directional((0, 0, 0)), ValueError, "Light.direction must not be the zero vector"),
-    (lambda: Light.directional((0, math.nan, 1)), ValueError, "Light.direction must be finite"),
+    (lambda: Light.directional((0, math.nan, 1)), ValueError,
+     "^Light.direction must hold finite numbers, got float nan in a tuple of 3$"),
     (lambda: Light.point((0, 0, 0), diffuse=(1, -1, 1)), ValueError,
-     "Light.diffuse must be finite and non-negative"),
-    (lambda: Light.point((0, 0, 0), specular=math.inf), ValueError, "Light.specular must be finite"),
-    (lambda: Light.point((0, 0, 0), ambient=(1, 1)), ValueError, "Light.ambient must have 3 components"),
-    (lambda: Light.point((0, 0, math.inf)), ValueError, "Light.position must be finite"),
+     "^Light.diffuse must hold numbers >= 0, got integer -1 in a tuple of 3$"),
+    (lambda: Light.point((0, 0, 0), specular=math.inf), ValueError,
+     "^Light.specular must be a finite number, got float inf$"),
+    (lambda: Light.point((0, 0, 0), ambient=(1, 1)), ValueError,
+     r"^Light.ambient must be a number \(gray\), an array \[r, g, b\] or a color name .* got a tuple of 2$"),
+    (lambda: Light.point((0, 0, math.inf)), ValueError,
+     "^Light.position must hold finite numbers, got float inf in a tuple of 3$"),
+    (lambda: Light.point([0, 0]), ValueError, r"^Light.position must be an array of 3 numbers, got an array of 2$"),
+    (lambda: Light.point("origin"), TypeError, r"^Light.position must be an array of 3 numbers, got string 'origin'$"),
     (lambda: Light.point((0, 0, 0), attenuation=(1, -0.1, 0)), ValueError,
-     "Light.attenuation must be finite and >= 0"),
+     r"^Light.attenuation must hold numbers >= 0, got float -0.1 in a tuple of 3$"),
     (lambda: Light.point((0, 0, 0), attenuation=(0, 0, 0)), ValueError, "Light.attenuation must not be all zero"),
-    (lambda: Light.point((0, 0, 0), attenuation=(1, 0)), ValueError, r"Light.attenuation must be \(a, b, c\)"),
+    (lambda: Light.point((0, 0, 0), attenuation=(1, 0)), ValueError,
+     r"^Light.attenuation must be an array of 3 numbers \(a, b, c\), got a tuple of 2$"),
+    (lambda: Light.point((0, 0, 0), attenuation=1), TypeError,
+     r"^Light.attenuation must be an array of 3 numbers \(a, b, c\), got integer 1$"),
     (lambda: Light.directional((0, -1, 0), attenuation=(1, 0, 1)), ValueError,
      "Light.attenuation does not apply to directional lights"),
     (lambda: Light("area", position=(0, 0, 0)), ValueError,
@@ -207,5 +219,5 @@ def test_lighting_container():
 def test_lighting_validation():
     with pytest.raises(TypeError, match=r"Lighting.lights\[0\] must be a Light"):
         Lighting([(0, 0, 0)])
-    with pytest.raises(ValueError, match="Lighting.global_ambient must be finite and non-negative"):
+    with pytest.raises(ValueError, match="^Lighting.global_ambient must be a number >= 0, got integer -1$"):
         Lighting(global_ambient=-1)

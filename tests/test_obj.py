@@ -323,7 +323,8 @@ def test_obj_errors_name_file_line_and_expectation(text, message):
         ("newmtl a\nKd 1 x 0\n", "bad.mtl:2: expected 3 numbers after 'Kd', got 'Kd 1 x 0'"),
         ("newmtl a\nNs\n", "bad.mtl:2: expected 1 number after 'Ns', got 'Ns'"),
         ("newmtl a\n\nd 1.5\n", "bad.mtl:3: material 'a': Material.opacity must be in [0, 1]"),
-        ("newmtl a\nKd -1 0 0\n", "bad.mtl:2: material 'a': Material.kd must be finite and non-negative"),
+        ("newmtl a\nKd -1 0 0\n", "bad.mtl:2: material 'a': Material.kd must hold numbers >= 0, got float -1.0 in an "
+                                   "array of 3"),
         ("newmtl\n", "bad.mtl:1: expected a material name after 'newmtl'"),
     ],
 )

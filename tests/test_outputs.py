@@ -207,9 +207,10 @@ def test_materials_and_lights_take_named_colors():
     m = sp.Material(kd="orange", ks="#ffffff")
     assert m.kd == pytest.approx((1.0, 165 / 255, 0.0)) and m.ks == (1.0, 1.0, 1.0)
     assert sp.Light.directional((0, 0, -1), diffuse="white").diffuse == (1.0, 1.0, 1.0)
-    with pytest.raises(ValueError, match=r"^Material\.kd: unknown color 'oragne' \(did you mean 'orange'\?\)"):
+    with pytest.raises(ValueError, match=r"^Material\.kd must be a color: unknown color 'oragne' \(did you mean "
+                                         r"'orange'\?\)"):
         sp.Material(kd="oragne")
-    with pytest.raises(ValueError, match=r"^Material\.kd is an RGB color and takes no alpha, got '#ff000080'$"):
+    with pytest.raises(ValueError, match=r"^Material\.kd must be an RGB color \(no alpha\), got string '#ff000080'$"):
         sp.Material(kd="#ff000080")
 
 

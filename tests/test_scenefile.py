@@ -229,6 +229,15 @@ def test_wireframe_draws_edges_over_the_image():
     assert (wired[changed][:, :3] == (255, 0, 255)).all()
 
 
+def test_the_wireframe_color_is_a_framebuffer_color_and_may_be_negative():
+    """Unlike a light's or a material's color (>= 0), it is written to the framebuffer, which is unclamped."""
+    assert parse('[render]\nwireframe_color = [-0.5, 0, 2]\n[[meshes]]\nshape = "cube"\n').wireframe_color == \
+        (-0.5, 0.0, 2.0)
+    assert parse('[render]\nwireframe_color = 0.5\n[[meshes]]\nshape = "cube"\n').wireframe_color == (0.5,) * 3
+    with pytest.raises(SceneError, match=r"key 'ambient' in the top level must be a number >= 0, got float -0\.5"):
+        parse('ambient = -0.5\n[[meshes]]\nshape = "cube"\n')
+
+
 def test_a_mirroring_transform_keeps_front_faces():
     def coverage(transform):
         scene = parse(SMALL + f'[camera]\neye = [0, 0, 5]\n[[meshes]]\nshape = "cube"\ntransform = {transform}\n')
@@ -278,7 +287,8 @@ def test_unknown_keys(text, expected):
     ('[render]\nwidth = 2.5\n', "key 'width' in [render] must be an integer, got float 2.5"),
     ('[render]\nheight = 0\n', "key 'height' in [render] must be between 1 and 16384 pixels, got 0"),
     ('[render]\nbackground = [1, 0]\n', "key 'background' in [render] must be an array of 3 or 4 numbers"),
-    ('[render]\nbackground = [inf, 0, 0]\n', "key 'background' in [render] must be a finite number, got float inf"),
+    ('[render]\nbackground = [inf, 0, 0]\n',
+     "key 'background' in [render] must hold finite numbers, got float inf in an array of 3"),
     ('[render]\nwireframe = "yes"\n', "key 'wireframe' in [render] must be true or false, got string 'yes'"),
     ('[render]\ncull = "sideways"\n', "key 'cull' in [render] must be one of 'back', 'front', 'none'"),
     ('[render]\nsamples = "grid5"\n', "key 'samples' in [render] is not a sample pattern"),
@@ -302,7 +312,11 @@ def test_unknown_keys(text, expected):
     ('lights = 3\n', "'lights' must be an array of tables ([[lights]]), got integer 3"),
     ('[materials.gold]\nkd = [1, 2]\n', "key 'kd' in [materials.gold] must be a number (gray), an array [r, g, b] or "
                                        "a color name"),
-    ('[materials.gold]\nkd = -1\n', "[materials.gold]: Material.kd must be finite and non-negative"),
+    ('[materials.gold]\nkd = -1\n', "key 'kd' in [materials.gold] must be a number >= 0, got integer -1"),
+    ('[materials.gold]\nkd = [1, -1, 1]\n', "key 'kd' in [materials.gold] must hold numbers >= 0, got integer -1 in "
+                                             "an array of 3"),
+    ('[materials.gold]\nkd = "#ff000080"\n', "key 'kd' in [materials.gold] must be an RGB color (no alpha), got "
+                                               "string '#ff000080'"),
     ('materials = 3\n', "'materials' must be a table of [materials.NAME] tables, got integer 3"),
     ('[materials]\ngold = 3\n', "[materials.gold] must be a table, got integer 3"),
 ])
@@ -459,7 +473,7 @@ def test_a_material_names_its_medium_and_its_falloff():
     ('ior = "glas"', "unknown medium 'glas'; the named media (FORMULAS §17) are vacuum 1.0"),
     ('falloff = "linear"', "Material.falloff must be 'power' (T^d) or 'glassner'"),
     ("transmittance = 2", "Material.transmittance is a share per unit distance, in [0, 1]"),
-    ("falloff_a = -1", "Material.falloff_a must be finite and >= 0.0"),
+    ("falloff_a = -1", "[materials.g]: Material.falloff_a must be a number >= 0, got float -1.0"),
     ("transmitance = 0.5", "unknown key 'transmitance' in [materials.g] (did you mean 'transmittance'?)"),
 ])
 def test_medium_mistakes_name_the_table_and_the_value(extra, message):

@@ -29,7 +29,9 @@ falloff_a   Glassner's a ≥ 0 (per unit distance); 0 means no falloff
 they are not in :class:`MaterialUniform` (a shader has no such distance).
 
 Colors are linear RGB triples of floats; each must be finite and non-negative.
-A single number means gray.
+A single number means gray, a string a color's name or hex (``"orange"``, ``"#ff8000"``).
+The fields are checked by :mod:`softpipe.core.validation`, which scene and job files
+share, so a mistake is worded alike: ``Material.kd must hold numbers >= 0, got …``.
 
 Lights (FORMULAS §7–§10)
 ------------------------
@@ -72,14 +74,14 @@ column  name                   meaning (eye space)
 from __future__ import annotations
 
 import math
-import numbers
 from collections import namedtuple
 from dataclasses import dataclass, field, fields
 from typing import Iterable, Optional, Sequence, Tuple
 
 import numpy as np
 
-from softpipe.core.colors import parse_color
+from softpipe.core.validation import (checked, color, is_number, nonnegative, nonzero_vec3, numbers, positive,
+                                      vec3)
 from softpipe.light.shadowmap import ShadowSettings
 
 RGB = Tuple[float, float, float]
@@ -91,62 +93,6 @@ __all__ = [
     "LIGHT_POSITION", "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF",
     "LIGHT_SPOT_EXPONENT", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
 ]
-
-
-# --------------------------------------------------------------------------
-# Validation helpers (the owner names the class in messages: "Light.cutoff …")
-# --------------------------------------------------------------------------
-
-def _is_number(value) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
-def _rgb(name: str, value, owner: str = "Material") -> RGB:
-    """Validate one RGB color field; a single number means gray, a string a named color ("red", "#ff8000")."""
-    if _is_number(value):
-        value = (value, value, value)
-    elif isinstance(value, str):  # the parser the command line and the framebuffer share
-        try:
-            rgb = parse_color(value)
-        except ValueError as e:
-            raise ValueError(f"{owner}.{name}: {e}") from None
-        if len(rgb) != 3:
-            raise ValueError(f"{owner}.{name} is an RGB color and takes no alpha, got {value!r}")
-        value = rgb
-    try:
-        triple = tuple(float(c) for c in value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{owner}.{name} must be an RGB triple of numbers, got {value!r}") from None
-    if len(triple) != 3:
-        raise ValueError(f"{owner}.{name} must have 3 components (RGB), got {len(triple)}: {value!r}")
-    for c in triple:
-        if not math.isfinite(c) or c < 0.0:
-            raise ValueError(f"{owner}.{name} must be finite and non-negative, got {value!r}")
-    return triple
-
-
-def _scalar(name: str, value, low: float = 0.0, owner: str = "Material") -> float:
-    if not _is_number(value):
-        raise TypeError(f"{owner}.{name} must be a number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x) or x < low:
-        raise ValueError(f"{owner}.{name} must be finite and >= {low}, got {value!r}")
-    return x
-
-
-def _vec3(name: str, value, owner: str, nonzero: bool = False) -> Vec3:
-    """Validate a 3-vector (a position or a direction)."""
-    try:
-        triple = tuple(float(c) for c in value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{owner}.{name} must be a 3-vector of numbers, got {value!r}") from None
-    if len(triple) != 3:
-        raise ValueError(f"{owner}.{name} must have 3 components, got {len(triple)}: {value!r}")
-    if not all(math.isfinite(c) for c in triple):
-        raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
-    if nonzero and not any(triple):
-        raise ValueError(f"{owner}.{name} must not be the zero vector")
-    return triple
 
 
 # --------------------------------------------------------------------------
@@ -171,10 +117,7 @@ def _ior(value) -> float:
             known = ", ".join(f"{name} {n}" for name, n in MEDIA.items())
             raise ValueError(f"Material.ior: unknown medium {value!r}; the named media (FORMULAS §17) are {known}")
         return MEDIA[key]
-    ior = _scalar("ior", value)
-    if ior <= 0.0:
-        raise ValueError(f"Material.ior must be > 0, got {value!r}")
-    return ior
+    return checked("Material.ior", positive, value)
 
 
 def falloff_factor(material: "Material", d: float) -> RGB:
@@ -226,21 +169,16 @@ class Material:
 
     def __post_init__(self) -> None:
         for f in _COLOR_FIELDS:
-            object.__setattr__(self, f, _rgb(f, getattr(self, f)))
-        object.__setattr__(self, "shininess", _scalar("shininess", self.shininess))
-        object.__setattr__(
-            self, "transmission_shininess", _scalar("transmission_shininess", self.transmission_shininess)
-        )
+            object.__setattr__(self, f, checked(f"Material.{f}", color, getattr(self, f)))
+        for f in ("shininess", "transmission_shininess"):
+            object.__setattr__(self, f, checked(f"Material.{f}", nonnegative, getattr(self, f)))
         object.__setattr__(self, "ior", _ior(self.ior))
-        opacity = _scalar("opacity", self.opacity)
+        opacity = checked("Material.opacity", nonnegative, self.opacity)
         if opacity > 1.0:
             raise ValueError(f"Material.opacity must be in [0, 1], got {self.opacity!r}")
         object.__setattr__(self, "opacity", opacity)
-        roughness = _scalar("roughness", self.roughness)
-        if roughness <= 0.0:
-            raise ValueError(f"Material.roughness must be > 0 (Beckmann m), got {self.roughness!r}")
-        object.__setattr__(self, "roughness", roughness)
-        transmittance = _rgb("transmittance", self.transmittance)
+        object.__setattr__(self, "roughness", checked("Material.roughness", positive, self.roughness))  # Beckmann m
+        transmittance = checked("Material.transmittance", color, self.transmittance)
         if max(transmittance) > 1.0:
             raise ValueError(f"Material.transmittance is a share per unit distance, in [0, 1] per channel, "
                              f"got {self.transmittance!r}")
@@ -248,7 +186,7 @@ class Material:
         if self.falloff not in FALLOFFS:
             raise ValueError(f"Material.falloff must be 'power' (T^d) or 'glassner' (1/(1 + a·d)), "
                              f"got {self.falloff!r}")
-        object.__setattr__(self, "falloff_a", _scalar("falloff_a", self.falloff_a))
+        object.__setattr__(self, "falloff_a", checked("Material.falloff_a", nonnegative, self.falloff_a))
 
     def replace(self, **changes) -> "Material":
         """A copy with some fields changed (validated like the constructor)."""
@@ -287,6 +225,9 @@ LIGHT_SPOT_DIRECTION = 17
 LIGHT_SPOT_COS_CUTOFF = 20
 LIGHT_SPOT_EXPONENT = 21
 LIGHT_COLUMNS = 22
+
+#: Light.attenuation's reader: (a, b, c), each finite and >= 0 (FORMULAS §7).
+_ATTENUATION = numbers(3, what="numbers (a, b, c)", allow_negative=False)
 
 
 @dataclass(frozen=True)
@@ -347,7 +288,7 @@ class Light:
         if self.kind not in _KIND_CODES:
             raise ValueError(f"Light.kind must be one of 'directional', 'point', 'spot', got {self.kind!r}")
         for f in ("ambient", "diffuse", "specular"):
-            object.__setattr__(self, f, _rgb(f, getattr(self, f), owner="Light"))
+            object.__setattr__(self, f, checked(f"Light.{f}", color, getattr(self, f)))
         self._validate_geometry()
         self._validate_attenuation()
         self._validate_spot()
@@ -358,23 +299,17 @@ class Light:
                 raise ValueError("Light.position does not apply to a directional light (give direction)")
             if self.direction is None:
                 raise ValueError("Light.direction is required for a directional light")
-            object.__setattr__(self, "direction", _vec3("direction", self.direction, "Light", nonzero=True))
+            object.__setattr__(self, "direction", checked("Light.direction", nonzero_vec3, self.direction))
         else:
             if self.direction is not None:
                 raise ValueError(f"Light.direction applies only to directional lights, not to a {self.kind} light "
                                  "(a spot light's axis is spot_direction)")
             if self.position is None:
                 raise ValueError(f"Light.position is required for a {self.kind} light")
-            object.__setattr__(self, "position", _vec3("position", self.position, "Light"))
+            object.__setattr__(self, "position", checked("Light.position", vec3, self.position))
 
     def _validate_attenuation(self) -> None:
-        try:
-            abc = tuple(self.attenuation)
-        except TypeError:
-            raise TypeError(f"Light.attenuation must be (a, b, c), got {self.attenuation!r}") from None
-        if len(abc) != 3:
-            raise ValueError(f"Light.attenuation must be (a, b, c), got {self.attenuation!r}")
-        abc = tuple(_scalar("attenuation", c, owner="Light") for c in abc)
+        abc = checked("Light.attenuation", _ATTENUATION, self.attenuation)
         if not any(abc):
             raise ValueError("Light.attenuation must not be all zero (f_att = 1/(a + b·r + c·r²))")
         if self.kind == "directional" and abc != (1.0, 0.0, 0.0):
@@ -382,18 +317,18 @@ class Light:
         object.__setattr__(self, "attenuation", abc)
 
     def _validate_spot(self) -> None:
-        if not _is_number(self.cutoff):
+        if not is_number(self.cutoff):
             raise TypeError(f"Light.cutoff must be a number of degrees, got {self.cutoff!r}")
         cutoff = float(self.cutoff)
         if not (0.0 <= cutoff <= 90.0 or cutoff == 180.0):  # also rejects NaN
             raise ValueError(f"Light.cutoff must be in [0, 90] degrees or exactly 180, got {self.cutoff!r}")
         object.__setattr__(self, "cutoff", cutoff)
-        object.__setattr__(self, "exponent", _scalar("exponent", self.exponent, owner="Light"))
+        object.__setattr__(self, "exponent", checked("Light.exponent", nonnegative, self.exponent))
         if self.kind == "spot":
             if self.spot_direction is None:
                 raise ValueError("Light.spot_direction is required for a spot light")
             object.__setattr__(self, "spot_direction",
-                               _vec3("spot_direction", self.spot_direction, "Light", nonzero=True))
+                               checked("Light.spot_direction", nonzero_vec3, self.spot_direction))
             return
         if self.spot_direction is not None or self.cutoff != 180.0 or self.exponent != 0.0:
             raise ValueError(f"Light.spot_direction, cutoff and exponent apply only to spot lights, "
@@ -517,7 +452,7 @@ class Lighting:
             if not isinstance(light, Light):
                 raise TypeError(f"Lighting.lights[{j}] must be a Light, got {type(light).__name__}")
         object.__setattr__(self, "lights", lights)
-        object.__setattr__(self, "global_ambient", _rgb("global_ambient", self.global_ambient, owner="Lighting"))
+        object.__setattr__(self, "global_ambient", checked("Lighting.global_ambient", color, self.global_ambient))
 
     def uniform(self, view_matrix: np.ndarray) -> LightingUniform:
         """The lights in eye space for this camera, as a :class:`LightingUniform`, without shadow maps.

@@ -88,19 +88,10 @@ import difflib
 import inspect
 import math
 import os
-import re
 import warnings
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional
 
 import numpy as np
-
-try:  # Python 3.11+
-    import tomllib as _toml
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10 with the tomli backport
-    try:
-        import tomli as _toml
-    except ModuleNotFoundError:
-        _toml = None
 
 from softpipe.scenes import shapes
 from softpipe.pipeline.camera import Camera
@@ -115,12 +106,14 @@ from softpipe.light.shadowmap import ShadowSettings
 # once, and old ``scenefile.studio_lights`` callers keep working.
 from softpipe.scenes.scene import (FrameSpec, Scene, SceneObject, default_program, framed_camera, program_for,  # noqa: F401
                     studio_lights)
-from softpipe.core.colors import parse_color
-from softpipe.core.files import PathPolicyError, check_regular_file, resolve_inside
+from softpipe.core.validation import (BadValue, InputError, Reader, Table, boolean, choice, color, describe, integer,
+                                      is_number, number, numbers, positive, string, vec3)
 from softpipe.programs import PROGRAMS
 from softpipe.pipeline.transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
 
-__all__ = ["SceneError", "SceneWarning", "load_scene", "parse_scene", "MAX_SCENE_TRIANGLES", "SHAPES"]
+__all__ = ["SceneError", "SceneWarning", "load_scene", "parse_scene", "MAX_SCENE_TRIANGLES", "SHAPES",
+           # for the readers of other files that name scenes' parts (softpipe.tools.batch's jobs)
+           "SceneReader", "program_name", "pattern_name", "shape_params", "bundled_model", "is_bare_word"]
 
 #: The most triangles all the meshes of one scene may hold together.
 MAX_SCENE_TRIANGLES = 4_000_000
@@ -130,17 +123,12 @@ SAMPLE_SHADING = ("sample", "center", "centroid")
 NORMAL_MODES = ("auto", "area", "angle", "flat")
 
 
-class SceneError(ValueError):
+class SceneError(InputError):
     """A mistake in a scene file; ``str(e)`` starts with the file name (and line, for syntax).
 
     Attributes: ``file``, ``table`` (e.g. ``"[[lights]] #2"``), ``key``, ``line``
     (TOML syntax errors only) and ``reason`` (the message without the file name).
     """
-
-    def __init__(self, message: str, file: str = "<string>", table: Optional[str] = None,
-                 key: Optional[str] = None, line: Optional[int] = None) -> None:
-        self.file, self.table, self.key, self.line, self.reason = file, table, key, line, message
-        super().__init__(f"{file}:{line}: {message}" if line else f"{file}: {message}")
 
 
 class SceneWarning(UserWarning):
@@ -148,176 +136,28 @@ class SceneWarning(UserWarning):
 
 
 # ---------------------------------------------------------------------------- reading values
-
-_MISSING = object()
-
-
-class _Bad(Exception):
-    """A value's problem, worded to follow "key 'k' in [table]"."""
-
-
-def _describe(v: Any) -> str:
-    if isinstance(v, bool):
-        return f"boolean {str(v).lower()}"
-    if isinstance(v, int):
-        text = str(v) if abs(v) < 10 ** 30 else f"{str(v)[:12]}… ({len(str(abs(v)))} digits)"
-        return f"integer {text}"
-    if isinstance(v, float):
-        return f"float {v!r}"
-    if isinstance(v, str):
-        text = v if len(v) <= 40 else v[:37] + "..."
-        return f"string {text!r}"
-    if isinstance(v, list):
-        return f"an array of {len(v)}"
-    if isinstance(v, dict):
-        return "a table"
-    return f"{type(v).__name__} {str(v)[:40]!r}"  # TOML dates and times
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _float(v: Any, what: str = "a number") -> float:
-    if not _is_number(v):
-        raise _Bad(f"must be {what}, got {_describe(v)}")
-    try:
-        x = float(v)
-    except OverflowError:
-        raise _Bad(f"must be {what}, got {_describe(v)} (too large)") from None
-    if not math.isfinite(x):
-        raise _Bad(f"must be a finite number, got {_describe(v)}")
-    return x
-
-
-def number(v: Any) -> float:
-    return _float(v)
-
-
-def positive(v: Any) -> float:
-    x = _float(v, "a positive number")
-    if x <= 0:
-        raise _Bad(f"must be a positive number, got {_describe(v)}")
-    return x
-
-
-def integer(v: Any) -> int:
-    if not isinstance(v, int) or isinstance(v, bool):
-        raise _Bad(f"must be an integer, got {_describe(v)}")
-    return v
-
-
-def boolean(v: Any) -> bool:
-    if not isinstance(v, bool):
-        raise _Bad(f"must be true or false, got {_describe(v)}")
-    return v
-
-
-def string(v: Any) -> str:
-    if not isinstance(v, str):
-        raise _Bad(f"must be a string, got {_describe(v)}")
-    return v
-
-
-def choice(*options: str) -> Callable[[Any], str]:
-    def convert(v: Any) -> str:
-        if not isinstance(v, str) or v not in options:
-            raise _Bad(f"must be one of {', '.join(repr(o) for o in options)}, got {_describe(v)}")
-        return v
-    return convert
-
-
-def numbers(*counts: int, what: str = "numbers") -> Callable[[Any], Tuple[float, ...]]:
-    def convert(v: Any) -> Tuple[float, ...]:
-        n = " or ".join(str(c) for c in counts)
-        if not isinstance(v, list) or len(v) not in counts:
-            raise _Bad(f"must be an array of {n} {what}, got {_describe(v)}")
-        return tuple(_float(c, f"an array of {n} {what}") for c in v)
-    return convert
-
-
-vec3 = numbers(3)
-
-
-def color(v: Any) -> Any:
-    """A color: one number (gray), [r, g, b], or a name or hex string (:func:`softpipe.core.colors.parse_color`)."""
-    if _is_number(v):
-        return _float(v)
-    if isinstance(v, str):
-        try:
-            c = parse_color(v)
-        except ValueError as e:
-            raise _Bad(f"must be a color: {e}") from None
-        if len(c) != 3:
-            raise _Bad(f"must be an RGB color, got {_describe(v)} with an alpha")
-        return c
-    if not isinstance(v, list) or len(v) != 3:
-        raise _Bad(f"must be a number (gray), an array [r, g, b] or a color name such as \"red\", "
-                   f"got {_describe(v)}")
-    return tuple(_float(c, "a number (gray) or an array [r, g, b]") for c in v)
+# The generic readers (numbers, colors, vectors, choices) are softpipe.core.validation's;
+# these know the scene's own names.
 
 
 def program_name(v: Any) -> str:
+    """A registered program's name (:data:`softpipe.programs.PROGRAMS`)."""
     name = string(v)
     if name not in PROGRAMS:
-        raise _Bad(f"names an unknown program {name!r}; registered programs: {', '.join(sorted(PROGRAMS))}")
+        raise BadValue(f"names an unknown program {name!r}; registered programs: {', '.join(sorted(PROGRAMS))}")
     return name
 
 
 def pattern_name(v: Any) -> str:
+    """A sample pattern's name (:func:`softpipe.pipeline.sampling.pattern_named`); a number is its name too."""
     if isinstance(v, int) and not isinstance(v, bool):
         v = str(v)
     name = string(v)
     try:
         pattern_named(name)
     except (ValueError, TypeError) as e:
-        raise _Bad(f"is not a sample pattern: {e}") from None
+        raise BadValue(f"is not a sample pattern: {e}") from None
     return name
-
-
-class _Table:
-    """One TOML table being read: checks its keys and converts values, naming itself in errors."""
-
-    def __init__(self, reader: "_Reader", data: Any, label: str, allowed: Sequence[str],
-                 what: str = "a table") -> None:
-        self.reader, self.label, self.allowed = reader, label, list(allowed)
-        if not isinstance(data, dict):
-            raise reader.error(f"{label} must be {what}, got {_describe(data)}", table=label)
-        self.data = data
-        for key in data:
-            if key not in self.allowed:
-                close = difflib.get_close_matches(key, self.allowed, n=1)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                raise reader.error(f"unknown key {key!r} in {label}{hint}; expected one of "
-                                   f"{', '.join(self.allowed)}", table=label, key=key)
-
-    def __contains__(self, key: str) -> bool:
-        return key in self.data
-
-    def error(self, message: str, key: Optional[str] = None) -> SceneError:
-        if key is None:
-            return self.reader.error(f"{self.label}: {message}", table=self.label)
-        return self.reader.error(f"key {key!r} in {self.label} {message}", table=self.label, key=key)
-
-    def get(self, key: str, convert: Callable[[Any], Any], default: Any = _MISSING) -> Any:
-        if key not in self.data:
-            if default is _MISSING:
-                raise self.reader.error(f"{self.label} needs key {key!r}", table=self.label, key=key)
-            return default
-        try:
-            return convert(self.data[key])
-        except _Bad as e:
-            raise self.error(str(e), key) from None
-
-    def library(self, key: Optional[str], make: Callable[[], Any]) -> Any:
-        """Call the library (Camera, Light, …); its ValueError/TypeError becomes a SceneError."""
-        try:
-            return make()
-        except (ValueError, TypeError) as e:
-            if isinstance(e, SceneError):
-                raise
-            raise (self.error(str(e)) if key is None else
-                   self.reader.error(f"key {key!r} in {self.label}: {e}", table=self.label, key=key)) from None
 
 
 # ---------------------------------------------------------------------------- the parts
@@ -340,8 +180,8 @@ SHAPES = {name: getattr(shapes, name) for name in
           ("plane", "cube", "uv_sphere", "icosphere", "cylinder", "cone", "torus")}
 
 
-def _shape_params(name: str) -> Dict[str, Any]:
-    """A generator's parameters (but ``material``) and their defaults."""
+def shape_params(name: str) -> Dict[str, Any]:
+    """A generator's parameters (but ``material``) and their defaults: the keys ``shape = name`` allows."""
     sig = inspect.signature(SHAPES[name])
     return {p.name: p.default for p in sig.parameters.values() if p.name != "material"}
 
@@ -362,61 +202,49 @@ def _estimate_triangles(shape: str, p: Dict[str, Any]) -> int:
     return 2 * g("segments") * (g("stacks") + 2)  # cylinder, cone (with caps)
 
 
-class _Reader:
-    """One load of one scene file."""
+class SceneReader(Reader):
+    """One load of one scene file: the scene's parts read from their tables (and the files
+    they name, each loaded once), every mistake a :class:`SceneError`.
 
-    def __init__(self, file: str, base_dir: str, allow_outside: bool = False) -> None:
-        self.file, self.base_dir, self.allow_outside = file, base_dir, allow_outside
+    The batch tool's job files (:mod:`softpipe.tools.batch.job`) read their models, materials
+    and lights with these methods too.
+    """
+
+    kind = "scene file"
+    error_class = SceneError
+
+    def __init__(self, file: str = "<string>", base_dir: str = "", allow_outside: bool = False) -> None:
+        super().__init__(file, base_dir, allow_outside)
         self.triangles = 0
         self.warnings: List[str] = []
         self._objs: Dict[str, Mesh] = {}
         self._textures: Dict[str, Any] = {}
 
-    def error(self, message: str, table: Optional[str] = None, key: Optional[str] = None,
-              line: Optional[int] = None) -> SceneError:
-        return SceneError(message, file=self.file, table=table, key=key, line=line)
-
-    def path(self, table: _Table, key: str, hint: str = "") -> str:
-        """A file named by ``key``, relative to the scene file; it must exist (``hint`` follows
-        "file not found")."""
-        rel = table.get(key, string)
-        if not rel.strip() or "\0" in rel:
-            raise table.error(f"must name a file, got {_describe(rel)}", key)
-        try:
-            path = resolve_inside(self.base_dir, rel, allow_outside=self.allow_outside)
-        except PathPolicyError as e:
-            raise self.error(f"key {key!r} in {table.label}: {e}", table=table.label, key=key) from None
-        if not os.path.isfile(path):
-            problem = (f"is a directory, not a file: {path}" if os.path.isdir(path) else
-                       f"file not found: {path}{hint}")
-            raise self.error(f"key {key!r} in {table.label}: {problem}", table=table.label, key=key)
-        return path
-
     # -- the whole file
 
     def scene(self, doc: dict) -> Scene:
-        top = _Table(self, doc, "the top level", TOP_KEYS)
+        """The scene a whole document describes."""
+        top = Table(self, doc, "the top level", TOP_KEYS)
         scene = Scene(path=self.file, warnings=self.warnings)
-        ambient = top.get("ambient", color, scene.ambient)
-        scene.ambient = (ambient,) * 3 if isinstance(ambient, float) else ambient
+        scene.ambient = top.get("ambient", color, scene.ambient)
         top.library("ambient", lambda: Lighting((), global_ambient=scene.ambient))
         self.render(doc.get("render", {}), scene)
         self.camera(doc.get("camera", {}), scene)
-        lights = doc.get("lights", _MISSING)
-        if lights is not _MISSING:
+        if "lights" in doc:
+            lights = doc["lights"]
             if not isinstance(lights, list):
-                raise self.error(f"'lights' must be an array of tables ([[lights]]), got {_describe(lights)}",
+                raise self.error(f"'lights' must be an array of tables ([[lights]]), got {describe(lights)}",
                                  key="lights")
             scene.lights = tuple(self.light(k + 1, t) for k, t in enumerate(lights))
         materials = doc.get("materials", {})
         if not isinstance(materials, dict):
-            raise self.error(f"'materials' must be a table of [materials.NAME] tables, got {_describe(materials)}",
+            raise self.error(f"'materials' must be a table of [materials.NAME] tables, got {describe(materials)}",
                              key="materials")
         for name, data in materials.items():
             scene.materials[name] = self.material(data, f"[materials.{name}]", name)
         meshes = doc.get("meshes", [])
         if not isinstance(meshes, list):
-            raise self.error(f"'meshes' must be an array of tables ([[meshes]]), got {_describe(meshes)}",
+            raise self.error(f"'meshes' must be an array of tables ([[meshes]]), got {describe(meshes)}",
                              key="meshes")
         if not meshes:
             raise self.error("the scene has no [[meshes]]; add at least one (obj = \"file.obj\" or "
@@ -424,11 +252,11 @@ class _Reader:
         for k, data in enumerate(meshes):
             scene.objects.extend(self.mesh(k + 1, data, scene))
         if scene.camera is None:  # framed: check now that the framing works
-            _Table(self, {}, "[camera]", ()).library(None, scene.view_camera)
+            Table(self, {}, "[camera]", ()).library(None, scene.view_camera)
         return scene
 
     def render(self, data: Any, scene: Scene) -> None:
-        t = _Table(self, data, "[render]", RENDER_KEYS)
+        t = Table(self, data, "[render]", RENDER_KEYS)
         size = lambda v: _in_range(integer(v), 1, MAX_DIMENSION, "pixels")  # noqa: E731
         scene.width = t.get("width", size, scene.width)
         scene.height = t.get("height", size, scene.height)
@@ -443,13 +271,14 @@ class _Reader:
         scene.program = t.get("program", program_name, None)
         scene.cull = t.get("cull", choice(*CULL_MODES), scene.cull)
         scene.wireframe = t.get("wireframe", boolean, False)
-        wc = t.get("wireframe_color", color, scene.wireframe_color)
-        scene.wireframe_color = (wc,) * 3 if isinstance(wc, float) else wc
+        # a color drawn into the framebuffer, which is unclamped: any finite numbers
+        scene.wireframe_color = t.get("wireframe_color", lambda v: color(v, allow_negative=True),
+                                      scene.wireframe_color)
         scene.shadows = t.get("shadows", boolean, False)
         scene.ground = t.get("ground", boolean, False)
 
     def camera(self, data: Any, scene: Scene) -> None:
-        t = _Table(self, data, "[camera]", CAMERA_KEYS)
+        t = Table(self, data, "[camera]", CAMERA_KEYS)
         framed = t.get("frame", boolean, "eye" not in t)
         own, frame_only = ("eye", "target", "near", "far"), ("azimuth", "elevation", "margin")
         for key in own if framed else frame_only:
@@ -472,7 +301,7 @@ class _Reader:
 
     def light(self, index: int, data: Any) -> Light:
         label = f"[[lights]] #{index}"
-        t = _Table(self, data, label, LIGHT_KEYS)
+        t = Table(self, data, label, LIGHT_KEYS)
         if "kind" not in t:
             raise t.error("needs key 'kind': 'directional', 'point' or 'spot'")
         kind = t.get("kind", choice("directional", "point", "spot"))
@@ -481,8 +310,7 @@ class _Reader:
             for k in ("diffuse", "specular"):
                 if k in t:
                     raise t.error("cannot be given with 'color' (color sets both diffuse and specular)", k)
-            c = t.get("color", color)
-            kw["diffuse"] = kw["specular"] = c
+            kw["diffuse"] = kw["specular"] = t.get("color", color)
         for key in ("ambient", "diffuse", "specular"):
             if key in t:
                 kw[key] = t.get(key, color)
@@ -498,21 +326,21 @@ class _Reader:
             kw["shadows"] = self.shadows(t)
         return t.library(None, lambda: Light(**kw))
 
-    def shadows(self, light: _Table):
+    def shadows(self, light: Table):
         """A light's ``shadows``: true/false, or a table of ShadowSettings fields."""
         value = light.data["shadows"]
         if isinstance(value, bool):
             return value
         if not isinstance(value, dict):
-            raise light.error(f"must be true, false or a table of {', '.join(SHADOW_KEYS)}, got {_describe(value)}",
+            raise light.error(f"must be true, false or a table of {', '.join(SHADOW_KEYS)}, got {describe(value)}",
                               "shadows")
-        t = _Table(self, value, f"{light.label} shadows", SHADOW_KEYS)
+        t = Table(self, value, f"{light.label} shadows", SHADOW_KEYS)
         kw = {key: t.get(key, integer) for key in ("resolution", "pcf") if key in t}
         kw.update({key: t.get(key, number) for key in ("offset_factor", "offset_units") if key in t})
         return t.library(None, lambda: ShadowSettings(**kw))
 
     def material(self, data: Any, label: str, name: str) -> Material:
-        t = _Table(self, data, label, MATERIAL_KEYS)
+        t = Table(self, data, label, MATERIAL_KEYS)
         kw: Dict[str, Any] = {"name": name}
         for key in ("ke", "ka", "kd", "ks", "kr", "kt"):
             if key in t:
@@ -534,7 +362,7 @@ class _Reader:
             self.texture(material.diffuse_texture, t, "diffuse_texture")
         return material
 
-    def texture(self, path: str, table: _Table, key: str):
+    def texture(self, path: str, table: Table, key: str):
         if path not in self._textures:
             from softpipe.light.texture import Texture2D
             try:
@@ -553,10 +381,10 @@ class _Reader:
         if isinstance(data, dict) and "shape" in data:  # before the keys: they depend on the shape
             try:
                 shape = choice(*SHAPES)(data["shape"])
-            except _Bad as e:
+            except BadValue as e:
                 raise self.error(f"key 'shape' in {label} {e}", table=label, key="shape") from None
-            params = _shape_params(shape)
-        t = _Table(self, data, label, MESH_KEYS + tuple(params))
+            params = shape_params(shape)
+        t = Table(self, data, label, MESH_KEYS + tuple(params))
         if ("obj" in t) == ("shape" in t):
             raise t.error("needs either 'obj' (an OBJ file) or 'shape' (one of "
                           f"{', '.join(SHAPES)}), {'not both' if 'obj' in t else 'and has neither'}")
@@ -585,7 +413,7 @@ class _Reader:
             elif isinstance(m, dict):
                 material = self.material(m, f"{label} material", f"{name} material")
             else:
-                raise t.error(f"must be a material name or an inline table, got {_describe(m)}", "material")
+                raise t.error(f"must be a material name or an inline table, got {describe(m)}", "material")
             mesh = mesh.replace(material=material, materials=(), material_ids=None)
         program = t.get("program", program_name, None)
         cull = t.get("cull", choice(*CULL_MODES), None)
@@ -600,13 +428,13 @@ class _Reader:
                                        cast_shadows))
         return objects
 
-    def count(self, t: _Table, key: str, triangles: int) -> None:
+    def count(self, t: Table, key: str, triangles: int) -> None:
         self.triangles += triangles
         if self.triangles > MAX_SCENE_TRIANGLES:
             raise t.error(f"makes the scene's meshes hold {self.triangles:,} triangles, more than the limit "
                           f"MAX_SCENE_TRIANGLES = {MAX_SCENE_TRIANGLES:,}", key)
 
-    def shape(self, t: _Table, shape: str, params: Dict[str, Any]) -> Mesh:
+    def shape(self, t: Table, shape: str, params: Dict[str, Any]) -> Mesh:
         kw = {}
         for key, default in params.items():
             if key not in t:
@@ -621,14 +449,14 @@ class _Reader:
         with np.errstate(all="ignore"):  # a huge size overflows; Mesh then names the bad array
             return t.library("shape", lambda: SHAPES[shape](**kw))
 
-    def obj(self, t: _Table) -> Mesh:
-        bundled = _bundled_model(t.data["obj"])
+    def obj(self, t: Table) -> Mesh:
+        bundled = bundled_model(t.data["obj"])
         if bundled is not None:
             name, path = t.data["obj"], bundled
         else:
             rel = t.data["obj"]
             hint = f" (nor is {rel!r} a bundled model: {', '.join(MODELS)})" \
-                if isinstance(rel, str) and _is_bare_word(rel) else ""
+                if isinstance(rel, str) and is_bare_word(rel) else ""
             name, path = None, self.path(t, "obj", hint)
         if path not in self._objs:
             with warnings.catch_warnings(record=True) as caught:
@@ -649,7 +477,7 @@ class _Reader:
         self.count(t, "obj", mesh.triangle_count)
         return mesh
 
-    def transform(self, t: _Table) -> np.ndarray:
+    def transform(self, t: Table) -> np.ndarray:
         if "transform" not in t:
             return np.eye(4)
         value = t.data["transform"]
@@ -659,13 +487,13 @@ class _Reader:
             entries = value
         else:
             raise t.error("must be an array of one-key tables or a table of translate/rotate/scale entries, "
-                          f"got {_describe(value)}", "transform")
+                          f"got {describe(value)}", "transform")
         matrices = []
         for n, entry in enumerate(entries, 1):
             where = f"entry {n} of key 'transform' in {t.label}"
             if not isinstance(entry, dict) or len(entry) != 1:
                 raise self.error(f"{where} must be a table with one key ({', '.join(TRANSFORM_KEYS)}), "
-                                 f"got {_describe(entry)}" + (f" with {len(entry)} keys" if isinstance(entry, dict)
+                                 f"got {describe(entry)}" + (f" with {len(entry)} keys" if isinstance(entry, dict)
                                                               else ""), table=t.label, key="transform")
             (kind, v), = entry.items()
             if kind not in TRANSFORM_KEYS:
@@ -675,7 +503,7 @@ class _Reader:
                                  f"{', '.join(TRANSFORM_KEYS)}", table=t.label, key="transform")
             try:
                 matrices.append(_transform_entry(kind, v))
-            except (_Bad, ValueError, TypeError) as e:
+            except (ValueError, TypeError) as e:      # BadValue, and the transforms' own checks
                 raise self.error(f"{kind!r} in {where} {e}", table=t.label, key="transform") from None
         model = compose(*matrices) if matrices else np.eye(4)
         det = float(np.linalg.det(model[:3, :3]))
@@ -684,7 +512,7 @@ class _Reader:
         return model
 
 
-def _is_bare_word(text: str) -> bool:
+def is_bare_word(text: str) -> bool:
     """No folder and no ``.obj`` suffix: what a bundled model's name looks like."""
     return "/" not in text and "\\" not in text and not text.lower().endswith(".obj")
 
@@ -692,13 +520,13 @@ def _is_bare_word(text: str) -> bool:
 def _bundled_texture(value: Any) -> Optional[str]:
     """The bundled texture ``diffuse_texture = value`` names (``"spot"``: the texture of the
     model "spot"), or None for a file name."""
-    if not isinstance(value, str) or _bundled_model(value) is None:
+    if not isinstance(value, str) or bundled_model(value) is None:
         return None
     found = texture_path(value)
     return None if found is None else os.fspath(found)
 
 
-def _bundled_model(value: Any) -> Optional[str]:
+def bundled_model(value: Any) -> Optional[str]:
     """The bundled model file ``obj = value`` names (``"bunny"``), or None for a file name.
 
     Only a bare word is looked up, so ``"models/bunny"`` or ``"bunny.obj"`` stay files
@@ -706,7 +534,7 @@ def _bundled_model(value: Any) -> Optional[str]:
     is a model's name (it leaves anything else as it was, or refuses it: then the word
     is a file name here, relative to the scene file, not to the current folder).
     """
-    if not isinstance(value, str) or not value.strip() or "\0" in value or not _is_bare_word(value):
+    if not isinstance(value, str) or not value.strip() or "\0" in value or not is_bare_word(value):
         return None
     try:
         path = model_path(value)
@@ -717,7 +545,7 @@ def _bundled_model(value: Any) -> Optional[str]:
 
 def _in_range(v: int, low: int, high: int, unit: str) -> int:
     if not low <= v <= high:
-        raise _Bad(f"must be between {low} and {high} {unit}, got {v}")
+        raise BadValue(f"must be between {low} and {high} {unit}, got {v}")
     return v
 
 
@@ -725,31 +553,29 @@ def _transform_entry(kind: str, v: Any) -> np.ndarray:
     if kind == "translate":
         return translate(*vec3(v))
     if kind == "scale":
-        if _is_number(v):
-            s = _float(v)
+        if is_number(v):
+            s = number(v)
             return scale(s, s, s)
         s = numbers(1, 3, what="numbers (s or [sx, sy, sz])")(v)
         return scale(*(s * 3 if len(s) == 1 else s))
     if kind == "rotate":
         angle, *axis = numbers(4, what="numbers [degrees, ax, ay, az]")(v)
         if not any(axis):
-            raise _Bad("needs a nonzero axis [degrees, ax, ay, az]")
+            raise BadValue("needs a nonzero axis [degrees, ax, ay, az]")
         return rotate(angle, axis)
     if kind in ("rotate_x", "rotate_y", "rotate_z"):
-        angle = _float(v, "an angle in degrees")
+        angle = number(v, "an angle in degrees")
         return {"rotate_x": rotate_x, "rotate_y": rotate_y, "rotate_z": rotate_z}[kind](angle)
     # matrix
     if not isinstance(v, list) or len(v) != 4:
-        raise _Bad(f"must be 4 rows of 4 numbers, got {_describe(v)}")
+        raise BadValue(f"must be 4 rows of 4 numbers, got {describe(v)}")
     m = np.array([numbers(4)(row) for row in v], dtype=np.float64)
     if not np.array_equal(m[3], [0.0, 0.0, 0.0, 1.0]):
-        raise _Bad(f"must be affine: its last row must be [0, 0, 0, 1], got {m[3].tolist()}")
+        raise BadValue(f"must be affine: its last row must be [0, 0, 0, 1], got {m[3].tolist()}")
     return m
 
 
 # ---------------------------------------------------------------------------- loading
-
-_LINE = re.compile(r"\(at line (\d+), column (\d+)\)")
 
 
 def parse_scene(text: str, name: str = "<string>", base_dir: Optional[str] = None, *,
@@ -760,29 +586,10 @@ def parse_scene(text: str, name: str = "<string>", base_dir: Optional[str] = Non
     The files it names must lie in ``base_dir`` or below (:func:`softpipe.core.files.resolve_inside`);
     ``allow_outside=True`` lifts that for a scene you trust.
     """
-    reader = _Reader(name, os.fspath(base_dir) if base_dir is not None else "", allow_outside)
-    if _toml is None:  # pragma: no cover
-        raise reader.error("reading scene files needs Python 3.11 (tomllib) or the 'tomli' package")
     if not isinstance(text, str):
         raise TypeError(f"parse_scene: text must be a str, got {type(text).__name__}")
-    try:
-        doc = _toml.loads(text)
-    except RecursionError:
-        raise reader.error("TOML error: arrays or tables nested too deeply") from None
-    except ValueError as e:  # TOMLDecodeError, and int() of a number with too many digits
-        message = str(e)
-        found = _LINE.search(message)
-        if found:
-            line = int(found.group(1))
-        elif "end of document" in message:
-            line = text.count("\n") + (0 if text.endswith("\n") else 1)
-        else:
-            line = None
-        message = _LINE.sub("", message).replace(" (at end of document)", " (at the end of the file)").strip()
-        if "integer string conversion" in message:  # int() refuses more than sys.get_int_max_str_digits()
-            message = "an integer has too many digits"
-        kind = "TOML syntax error" if isinstance(e, getattr(_toml, "TOMLDecodeError", ())) else "TOML error"
-        raise reader.error(f"{kind}: {message}", line=max(line, 1) if line is not None else None) from None
+    reader = SceneReader(name, os.fspath(base_dir) if base_dir is not None else "", allow_outside)
+    doc = reader.parse_toml(text)
     try:
         return reader.scene(doc)
     except RecursionError:  # pragma: no cover - nothing here recurses on the input
@@ -798,23 +605,7 @@ def load_scene(path, *, allow_outside: bool = False) -> Scene:
     :class:`SceneWarning`.
     """
     path = os.fspath(path)
-    try:
-        check_regular_file(path)
-        with open(path, "rb") as f:
-            raw = f.read()
-    except PathPolicyError as e:
-        raise SceneError(str(e), file=path) from None
-    except FileNotFoundError:
-        raise SceneError("scene file not found", file=path) from None
-    except IsADirectoryError:
-        raise SceneError("is a directory, not a scene file", file=path) from None
-    except OSError as e:
-        raise SceneError(f"cannot read the scene file: {e.strerror or e}", file=path) from None
-    try:
-        text = raw.decode("utf-8-sig")  # a byte-order mark is skipped
-    except UnicodeDecodeError as e:
-        line = raw[:e.start].count(b"\n") + 1
-        raise SceneError(f"not UTF-8 text (byte {e.start})", file=path, line=line) from None
+    text = SceneReader(path).read_file()
     scene = parse_scene(text, path, os.path.dirname(os.path.abspath(path)), allow_outside=allow_outside)
     for message in scene.warnings:
         warnings.warn(message, SceneWarning, stacklevel=2)

@@ -67,6 +67,7 @@ import numpy as np
 from numba import njit
 
 from softpipe.core.parallel import in_bands
+from softpipe.core.validation import checked, color
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.language.glsl import dot, reflect, refract, scale
@@ -398,8 +399,7 @@ def _check_limits(max_depth, min_weight) -> None:
 
 def _air(air_transmittance) -> np.ndarray:
     """Air's T per unit distance (§15) as RGB in [0, 1]; a number means gray."""
-    from softpipe.light.material import _rgb
-    rgb = _rgb("air_transmittance", air_transmittance, owner="raytrace_scene")
+    rgb = checked("raytrace_scene.air_transmittance", color, air_transmittance)
     if max(rgb) > 1.0:
         raise ValueError(f"air_transmittance is a share per unit distance, in [0, 1], got {air_transmittance!r}")
     return np.array(rgb, np.float64)

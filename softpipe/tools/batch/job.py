@@ -1,0 +1,585 @@
+"""The job format: a job file read and checked, its sweeps expanded into frames.
+
+A **job** lists frames as a product of models × cameras × programs × materials ×
+lights × sizes × sample patterns (``[sweep]``), and/or one by one (``[[frames]]``).
+:func:`load_job` reads it from a TOML file, :func:`parse_job` from text and
+:func:`job_from_dict` from Python dicts of the same shape; every mistake is a
+:class:`JobError` (a :class:`~softpipe.scenes.scenefile.SceneError`) naming the file, the
+table and the key. ``examples/sweep.toml`` explains every key; in short::
+
+    [job]                               # optional: what every frame shares
+    background = [0.08, 0.09, 0.12]
+    fovy = 35
+    elevation = 20                      # of the cameras given by azimuth alone
+
+    [models]                            # optional: models beyond the bundled ones
+    ball = { shape = "uv_sphere", segments = 48, rings = 24 }
+    mine = { obj = "meshes/mine.obj" }  # relative to the job file
+
+    [materials.glossy]                  # fields replacing the model's own material's
+    ks = [0.9, 0.9, 0.9]
+    shininess = 64
+
+    [lights.sun]                        # a named light set; "studio" and "shadows" are built in
+    shadows = true
+    [[lights.sun.light]]
+    kind = "directional"
+    direction = [-1, -2, -1]
+
+    [sweep]                             # the product (or [[sweep]], several)
+    models = ["ball", "bunny"]
+    cameras = [0, 90, "front", { azimuth = 45, elevation = 60 }]
+    orbit = { frames = 36, elevation = 20 }   # a turntable's cameras (one distance for all)
+    programs = ["phong", "gouraud"]
+    materials = ["default", "glossy"]
+    lights = ["studio", "shadows", "sun"]
+    sizes = ["160x120"]
+    samples = ["1", "rgss4"]
+
+    [[frames]]                          # and single frames
+    model = "teapot"
+    azimuth = 45
+    program = "normals"
+    size = "320x240"
+
+Each frame has a stable, readable, file-system-safe **name** made from its
+parameters (:attr:`Frame.name`: ``bunny-phong-glossy-az030-640x480``; defaults are
+left out, and a short hash of the parameters is added when a value had to be
+changed to be safe in a file name), and is written to ``NAME.png``.
+
+The tables are read as a scene file's are: the job's reader is the scene file's
+(:class:`~softpipe.scenes.scenefile.SceneReader`: models, materials, lights) on the shared
+tables and values of :mod:`softpipe.core.validation`. Nothing here renders;
+:mod:`softpipe.tools.batch.run` does. docs/batch.md is the guide.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import os
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
+
+from softpipe.core.validation import (BadValue, Table, boolean, choice, color, describe, integer, number, numbers,
+                                      positive, string)
+from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
+from softpipe.light.material import Light
+from softpipe.scenes.mesh import Mesh
+from softpipe.pipeline.sampling import pattern_named
+from softpipe.scenes.scenefile import (MATERIAL_KEYS, SHAPES, SceneError, SceneReader, bundled_model, is_bare_word,
+                                       pattern_name, program_name, shape_params)
+
+__all__ = ["Frame", "Job", "JobError", "LightSet", "load_job", "parse_job", "job_from_dict", "as_job", "VIEWS",
+           "BUILTIN_LIGHTS", "MAX_JOB_FRAMES"]
+
+#: Named views: (azimuth, elevation) in degrees, as :class:`~softpipe.scenes.scene.FrameSpec` has them.
+VIEWS: Dict[str, Tuple[float, float]] = {
+    "front": (0.0, 0.0), "back": (180.0, 0.0), "left": (-90.0, 0.0), "right": (90.0, 0.0),
+    "top": (0.0, 90.0), "bottom": (0.0, -90.0), "three-quarter": (30.0, 20.0),
+}
+#: The most frames one job may hold.
+MAX_JOB_FRAMES = 100_000
+
+DEFAULT_AZIMUTH, DEFAULT_ELEVATION, DEFAULT_FOVY = 30.0, 20.0, 35.0
+DEFAULT_SIZE = (640, 480)
+DEFAULT_BACKGROUND = (0.08, 0.09, 0.12, 1.0)
+
+TOP_KEYS = ("job", "models", "materials", "lights", "sweep", "frames")
+JOB_KEYS = ("background", "fovy", "elevation")
+SWEEP_KEYS = ("models", "cameras", "orbit", "programs", "materials", "lights", "sizes", "samples")
+ORBIT_KEYS = ("frames", "elevation", "start")
+CAMERA_KEYS = ("azimuth", "elevation")
+FRAME_KEYS = ("model", "view", "azimuth", "elevation", "orbit", "program", "material", "lights", "size",
+              "width", "height", "samples")
+LIGHTSET_KEYS = ("light", "shadows", "ambient")
+
+
+class JobError(SceneError):
+    """A mistake in a job (file or dicts); ``str(e)`` starts with the file name and names the table and key."""
+
+
+# ---------------------------------------------------------------------------- the job
+
+
+@dataclass(frozen=True)
+class LightSet:
+    """The lights of a frame: ``lights`` None is the studio set (:func:`softpipe.scenes.scene.studio_lights`,
+    following the camera); ``shadows`` makes every light cast shadows (a model alone is stood on a
+    floor); ``ambient`` is the global ambient."""
+
+    lights: Optional[Tuple[Light, ...]] = None
+    shadows: bool = False
+    ambient: Tuple[float, float, float] = (0.2, 0.2, 0.2)
+
+
+#: The light sets every job knows.
+BUILTIN_LIGHTS: Dict[str, LightSet] = {"studio": LightSet(), "shadows": LightSet(shadows=True)}
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One picture of a job: a model seen from a camera, shaded, lit, at a size.
+
+    Attributes
+    ----------
+    model : str
+        A name from the job's models (a bundled model's name, a ``[models]`` key, an OBJ's stem).
+    azimuth, elevation : float
+        The framed camera's angles in degrees (:class:`~softpipe.scenes.scene.FrameSpec`).
+    view : str or None
+        The named view (:data:`VIEWS`) the angles came from, which names the frame.
+    orbit : bool
+        Frame the model as seen from every azimuth (a turntable: one distance for all frames).
+    program : str or None
+        A registered program; None: the default (``textured`` for a textured model, else ``phong``).
+    material : str
+        ``"default"`` (the model's own) or a name from the job's materials.
+    lights : str
+        ``"studio"``, ``"shadows"`` or a name from the job's light sets.
+    width, height : int
+    samples : str
+        A sample pattern's name (:func:`softpipe.pipeline.sampling.pattern_named`).
+    """
+
+    model: str
+    azimuth: float = DEFAULT_AZIMUTH
+    elevation: float = DEFAULT_ELEVATION
+    view: Optional[str] = None
+    orbit: bool = False
+    program: Optional[str] = None
+    material: str = "default"
+    lights: str = "studio"
+    width: int = DEFAULT_SIZE[0]
+    height: int = DEFAULT_SIZE[1]
+    samples: str = "1"
+
+    def params(self) -> Dict[str, Any]:
+        """The parameters as JSON values (the manifest's ``params``)."""
+        return dataclasses.asdict(self)
+
+    def digest(self) -> str:
+        """SHA-256 of the canonical JSON of :meth:`params`, in hex."""
+        text = json.dumps(self.params(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    @property
+    def name(self) -> str:
+        """``model-program-material-lights-camera-WxH-samples``, the defaults left out.
+
+        The camera is ``az030`` (and ``el45`` when the elevation is not 20°), ``orbit030``
+        for a turntable's, or the view's name. A part that had to be changed to be safe
+        in a file name (only ``A-Z a-z 0-9 . _`` are kept in the names given by a job)
+        adds ``-`` and 6 hex digits of :meth:`digest`, so names stay unique.
+        """
+        lossless = True
+
+        def word(text: str) -> str:
+            nonlocal lossless
+            safe = re.sub(r"[^A-Za-z0-9._]+", "_", text).strip("._") or "x"
+            lossless &= safe == text
+            return safe
+
+        parts = [word(self.model)]
+        if self.program is not None:
+            parts.append(word(self.program))
+        if self.material != "default":
+            parts.append(word(self.material))
+        if self.lights != "studio":
+            parts.append(word(self.lights))
+        if self.view is not None:
+            parts.append(word(self.view))
+        else:
+            parts.append(("orbit" if self.orbit else "az") + _number(self.azimuth, 3))
+            if self.elevation != DEFAULT_ELEVATION:
+                parts.append("el" + _number(self.elevation, 0))
+        parts.append(f"{self.width}x{self.height}")
+        if self.samples != "1":
+            parts.append(word(self.samples))
+        name = "-".join(parts)
+        return name if lossless else f"{name}-{self.digest()[:6]}"
+
+
+def _number(x: float, digits: int) -> str:
+    """An angle as a name shows it: whole degrees zero-padded (``030``, ``-045``), else every digit."""
+    if float(x) == int(x):
+        return f"{int(x):0{digits + (x < 0)}d}"
+    return repr(float(x))
+
+
+@dataclass
+class Job:
+    """Frames to render and what they name: models, materials, light sets, shared settings.
+
+    ``models`` maps a name to a bundled model's name, an OBJ path, a ``{"shape": …}`` table
+    or a :class:`~softpipe.scenes.mesh.Mesh`; :meth:`load_models` makes the meshes. ``path``
+    names the job in errors and ``base_dir`` resolves its file names.
+    """
+
+    frames: List[Frame] = field(default_factory=list)
+    models: Dict[str, Any] = field(default_factory=dict)
+    materials: Dict[str, Dict[str, Any]] = field(default_factory=dict)
+    lights: Dict[str, LightSet] = field(default_factory=lambda: dict(BUILTIN_LIGHTS))
+    background: Tuple[float, ...] = DEFAULT_BACKGROUND
+    fovy: float = DEFAULT_FOVY
+    path: str = "<job>"
+    base_dir: str = ""
+
+    def load_models(self) -> Dict[str, Mesh]:
+        """The mesh of every model the frames use, each loaded once (JobError names a bad one)."""
+        reader = _JobReader(self.path, self.base_dir)
+        used = dict.fromkeys(f.model for f in self.frames)
+        return {name: reader.model_mesh(name, self.models[name]) for name in used}
+
+
+# ---------------------------------------------------------------------------- reading a job
+
+
+class _JobReader(SceneReader):
+    """The scene-file reader's tables and values, for a job (its errors are JobErrors)."""
+
+    kind = "job file"
+    error_class = JobError
+
+    def job(self, doc: Mapping[str, Any]) -> Job:
+        top = Table(self, dict(doc), "the top level", TOP_KEYS)
+        job = Job(path=self.file, base_dir=self.base_dir)
+        settings = Table(self, top.data.get("job", {}), "[job]", JOB_KEYS)
+        bg = settings.get("background", numbers(3, 4), job.background)
+        job.background = tuple(bg) + ((1.0,) if len(bg) == 3 else ())
+        job.fovy = settings.get("fovy", _fovy, job.fovy)
+        elevation = settings.get("elevation", number, DEFAULT_ELEVATION)
+        models = top.data.get("models", {})
+        if not isinstance(models, dict):
+            raise self.error(f"'models' must be a table of models by name, got {describe(models)}", key="models")
+        job.models = {name: self.model_spec(name, value) for name, value in models.items()}
+        self.known_models = job.models
+        materials = top.data.get("materials", {})
+        if not isinstance(materials, dict):
+            raise self.error(f"'materials' must be a table of [materials.NAME] tables, got {describe(materials)}",
+                             key="materials")
+        for name, data in materials.items():
+            if name == "default":
+                raise self.error("[materials.default] is the model's own material; give yours another name",
+                                 table="[materials.default]")
+            job.materials[name] = self.material_fields(data, f"[materials.{name}]")
+        lights = top.data.get("lights", {})
+        if not isinstance(lights, dict):
+            raise self.error(f"'lights' must be a table of [lights.NAME] tables, got {describe(lights)}",
+                             key="lights")
+        for name, data in lights.items():
+            if name in BUILTIN_LIGHTS:
+                raise self.error(f"[lights.{name}]: {name!r} is a built-in light set; give yours another name",
+                                 table=f"[lights.{name}]")
+            job.lights[name] = self.light_set(data, f"[lights.{name}]")
+        sweeps = top.data.get("sweep", [])
+        sweeps = [sweeps] if isinstance(sweeps, dict) else sweeps
+        frames = top.data.get("frames", [])
+        for key, value in (("sweep", sweeps), ("frames", frames)):
+            if not isinstance(value, list):
+                raise self.error(f"'{key}' must be {'a table' if key == 'sweep' else 'an array of tables'} "
+                                 f"([{key}] or [[{key}]]), got {describe(value)}", key=key)
+        found: List[Frame] = []
+        for k, data in enumerate(sweeps, 1):
+            found.extend(self.sweep(data, "[sweep]" if len(sweeps) == 1 else f"[[sweep]] #{k}", job, elevation))
+            if len(found) > MAX_JOB_FRAMES:
+                raise self.error(f"the job makes more than {MAX_JOB_FRAMES:,} frames (MAX_JOB_FRAMES)")
+        for k, data in enumerate(frames, 1):
+            found.append(self.frame(data, f"[[frames]] #{k}", job, elevation))
+        if not found:
+            raise self.error("the job has no frames; add a [sweep] or [[frames]]", table="[sweep]")
+        job.frames = _unique(found)
+        _check_names(job.frames, self)
+        return job
+
+    # -- the parts
+
+    def model_spec(self, name: str, value: Any) -> Any:
+        """A ``[models]`` entry: a bundled name or OBJ path (a string), a table (obj/shape), or a Mesh."""
+        label = f"[models] {name!r}"
+        if isinstance(value, Mesh) or (hasattr(value, "vertices") and hasattr(value, "faces")):
+            return value
+        if isinstance(value, str):
+            return self.model_source(value, Table(self, {"obj": value}, label, ("obj",)))
+        if not isinstance(value, dict):
+            raise self.error(f"{label} must be a model's name, an OBJ file or a table (obj = …, or shape = …), "
+                             f"got {describe(value)}", table="[models]", key=name)
+        params: Dict[str, Any] = {}
+        if "shape" in value:
+            try:
+                params = shape_params(choice(*SHAPES)(value["shape"]))
+            except BadValue as e:
+                raise self.error(f"key 'shape' in {label} {e}", table=label, key="shape") from None
+        t = Table(self, value, label, ("obj", "shape", "fit") + tuple(params))
+        if ("obj" in t) == ("shape" in t):
+            raise t.error(f"needs either 'obj' (an OBJ file or a bundled model) or 'shape' (one of "
+                          f"{', '.join(SHAPES)}), {'not both' if 'obj' in t else 'and has neither'}")
+        spec = dict(value)
+        if "obj" in t:
+            spec["obj"] = self.model_source(t.get("obj", string), t)
+        if "fit" in t:
+            t.get("fit", positive)
+        for key, default in params.items():     # checked now; made in load_models
+            if key in t:
+                t.get(key, boolean if isinstance(default, bool) else integer if isinstance(default, int)
+                      else number)
+        return spec
+
+    def model_source(self, value: str, t: Table) -> str:
+        """A bundled model's name as it is; a file name resolved against the job's folder (it must exist)."""
+        if bundled_model(value) is not None:
+            return value
+        hint = ""
+        if is_bare_word(value):
+            from softpipe.scenes.models import MODELS
+            hint = f" (nor is {value!r} a bundled model: {', '.join(MODELS)})"
+        return self.path(t, "obj", hint)
+
+    def model_mesh(self, name: str, spec: Any) -> Mesh:
+        """The mesh of a model spec (a name, a path, a table, a Mesh)."""
+        from softpipe.scenes.drawing import as_mesh
+        label = f"[models] {name!r}"
+        if not isinstance(spec, (str, dict)):
+            return as_mesh(spec)
+        data = {"obj": spec} if isinstance(spec, str) else spec
+        if "shape" in data:
+            shape = data["shape"]
+            t = Table(self, data, label, ("shape", "fit") + tuple(shape_params(shape)))
+            mesh = self.shape(t, shape, shape_params(shape)).replace(name=name)
+        else:
+            t = Table(self, data, label, ("obj", "fit"))
+            mesh = self.obj(t) if bundled_model(data["obj"]) is not None else self.obj_file(t, data["obj"])
+        if "fit" in t:
+            size = t.get("fit", positive)
+            mesh = t.library("fit", lambda: mesh.normalized(size))
+        return mesh
+
+    def obj_file(self, t: Table, path: str) -> Mesh:
+        from softpipe.scenes.obj import OBJError, load_obj
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                mesh = load_obj(path)
+        except (OBJError, OSError, UnicodeError) as e:
+            raise self.error(f"key 'obj' in {t.label}: {e}", table=t.label, key="obj") from None
+        if mesh.triangle_count == 0:
+            raise self.error(f"key 'obj' in {t.label}: {path} has no faces", table=t.label, key="obj")
+        return mesh
+
+    def material_fields(self, data: Any, label: str) -> Dict[str, Any]:
+        """A material's fields, checked by making the Material they describe."""
+        keys = tuple(k for k in MATERIAL_KEYS if k != "diffuse_texture")
+        t = Table(self, data, label, keys)
+        material = self.material(data, label, label)
+        return {k: getattr(material, k) for k in keys if k in t}
+
+    def light_set(self, data: Any, label: str) -> LightSet:
+        t = Table(self, data, label, LIGHTSET_KEYS)
+        lights = t.get("light", lambda v: v, None)
+        if lights is not None:
+            if not isinstance(lights, list) or not lights:
+                raise t.error(f"must be one or more [[{label[1:-1]}.light]] tables, got {describe(lights)}",
+                              "light")
+            lights = tuple(self.light(k + 1, d) for k, d in enumerate(lights))
+        ambient = t.get("ambient", color, (0.2, 0.2, 0.2))
+        return LightSet(lights, t.get("shadows", boolean, False), ambient)
+
+    def sweep(self, data: Any, label: str, job: Job, elevation: float) -> List[Frame]:
+        t = Table(self, data, label, SWEEP_KEYS)
+        models = self.axis(t, "models", lambda v: self.model_name(v, t, "models"), None)
+        if models is None:
+            raise t.error("needs key 'models' (bundled models' names, OBJ files or names from [models])")
+        cameras = self.axis(t, "cameras", lambda v: self.camera(v, t, elevation), None)
+        orbit = self.orbit(t, elevation) if "orbit" in t else []
+        if cameras is None:
+            cameras = [] if orbit else [dict(azimuth=DEFAULT_AZIMUTH, elevation=elevation)]
+        programs = self.axis(t, "programs", program_name, [None])
+        materials = self.axis(t, "materials", lambda v: self.known(v, t, "materials", job.materials, ("default",)),
+                              ["default"])
+        lights = self.axis(t, "lights", lambda v: self.known(v, t, "lights", job.lights, ()), ["studio"])
+        samples = self.axis(t, "samples", pattern_name, ["1"])
+        sizes = self.axis(t, "sizes", _size, [DEFAULT_SIZE])
+        for (w, h), s in itertools.product(sizes, samples):
+            self.check_samples(t, "sizes", w, h, s)
+        return [Frame(model=m, program=p, material=mat, lights=li, width=w, height=h, samples=s, **camera)
+                for m, p, mat, li, (w, h), s, camera in
+                itertools.product(models, programs, materials, lights, sizes, samples, cameras + orbit)]
+
+    def frame(self, data: Any, label: str, job: Job, elevation: float) -> Frame:
+        t = Table(self, data, label, FRAME_KEYS)
+        if "model" not in t:
+            raise t.error("needs key 'model'")
+        kw: Dict[str, Any] = {"model": self.model_name(t.data["model"], t, "model")}
+        if "view" in t:
+            for key in ("azimuth", "elevation", "orbit"):
+                if key in t:
+                    raise t.error("cannot be given with 'view' (a view sets the angles)", key)
+            kw.update(self.camera(t.get("view", string), t, elevation, key="view"))
+        else:
+            kw["azimuth"] = t.get("azimuth", number, DEFAULT_AZIMUTH)
+            kw["elevation"] = t.get("elevation", number, elevation)
+            kw["orbit"] = t.get("orbit", boolean, False)
+        kw["program"] = t.get("program", program_name, None)
+        kw["material"] = t.get("material", lambda v: self.known(v, t, "material", job.materials, ("default",)),
+                               "default")
+        kw["lights"] = t.get("lights", lambda v: self.known(v, t, "lights", job.lights, ()), "studio")
+        if "size" in t and ("width" in t or "height" in t):
+            raise t.error("cannot be given with 'width'/'height'", "size")
+        w, h = t.get("size", _size, DEFAULT_SIZE)
+        kw["width"] = t.get("width", _side, w)
+        kw["height"] = t.get("height", _side, h)
+        kw["samples"] = t.get("samples", pattern_name, "1")
+        self.check_samples(t, "size", kw["width"], kw["height"], kw["samples"])
+        return Frame(**kw)
+
+    # -- values
+
+    def axis(self, t: Table, key: str, convert: Callable[[Any], Any], default: Any) -> Any:
+        """A sweep's list of values (one value alone counts as a list of one), each converted."""
+        if key not in t:
+            return default
+        values = t.data[key]
+        values = values if isinstance(values, list) else [values]
+        if not values:
+            raise t.error("must list at least one value (leave the key out for the default)", key)
+        out = []
+        for n, v in enumerate(values, 1):
+            try:
+                out.append(convert(v))
+            except BadValue as e:
+                raise self.error(f"entry {n} of key {key!r} in {t.label} {e}", table=t.label, key=key) from None
+        return list(dict.fromkeys(out)) if all(isinstance(v, (str, tuple, type(None))) for v in out) else out
+
+    def model_name(self, value: Any, t: Table, key: str) -> str:
+        """A frame's model: a [models] name, or a bundled model / OBJ file named directly (added to the job's models)."""
+        if not isinstance(value, str):
+            raise BadValue(f"must be a model's name or an OBJ file, got {describe(value)}") \
+                if key != "model" else t.error(f"must be a model's name or an OBJ file, got {describe(value)}", key)
+        if value in self.known_models:
+            return value
+        try:
+            source = self.model_source(value, Table(self, {"obj": value}, t.label, ("obj",)))
+        except JobError as e:
+            raise self.error(f"key {key!r} in {t.label}: {value!r} is not in [models], a bundled model or a file "
+                             f"({e.reason.split(': ', 1)[-1]})", table=t.label, key=key) from None
+        name = value if source == value else Path(source).stem
+        known = self.known_models.get(name, source)
+        if not (isinstance(known, str) and known == source):
+            raise self.error(f"key {key!r} in {t.label}: two models would be named {name!r}; name them in "
+                             "[models]", table=t.label, key=key)
+        self.known_models[name] = source
+        return name
+
+    def camera(self, value: Any, t: Table, elevation: float, key: str = "cameras") -> Dict[str, Any]:
+        """A camera: an azimuth in degrees, a view's name (:data:`VIEWS`) or ``{azimuth, elevation}``."""
+        if isinstance(value, str):
+            if value not in VIEWS:
+                raise BadValue(f"names an unknown view {value!r}; the views are {', '.join(VIEWS)}") \
+                    if key == "cameras" else t.error(f"names an unknown view {value!r}; the views are "
+                                                     f"{', '.join(VIEWS)}", key)
+            az, el = VIEWS[value]
+            return dict(azimuth=az, elevation=el, view=value)
+        if isinstance(value, dict):
+            c = Table(self, value, f"a camera of key {key!r} in {t.label}", CAMERA_KEYS)
+            return dict(azimuth=c.get("azimuth", number, DEFAULT_AZIMUTH), elevation=c.get("elevation", number,
+                                                                                            elevation))
+        return dict(azimuth=_float_angle(value), elevation=elevation)
+
+    def orbit(self, t: Table, elevation: float) -> List[Dict[str, Any]]:
+        o = Table(self, t.data["orbit"], f"key 'orbit' in {t.label}", ORBIT_KEYS)
+        count = o.get("frames", integer, 36)
+        if not 1 <= count <= 3600:
+            raise o.error(f"must be 1 to 3600 frames, got {count}", "frames")
+        el = o.get("elevation", number, elevation)
+        start = o.get("start", number, 0.0)
+        return [dict(azimuth=start + 360.0 * i / count, elevation=el, orbit=True) for i in range(count)]
+
+    def known(self, value: Any, t: Table, key: str, names: Mapping[str, Any], extra: Sequence[str]) -> str:
+        if not isinstance(value, str):
+            raise BadValue(f"must be a name, got {describe(value)}")
+        if value not in names and value not in extra:
+            raise BadValue(f"names an undefined {key.rstrip('s')} {value!r}; known: {', '.join((*extra, *names))}")
+        return value
+
+    def check_samples(self, t: Table, key: str, w: int, h: int, samples: str) -> None:
+        count = len(pattern_named(samples))
+        if w * h * count > MAX_TOTAL_SAMPLES:
+            raise t.error(f"{w}×{h} pixels × {count} samples exceeds the limit MAX_TOTAL_SAMPLES = "
+                          f"{MAX_TOTAL_SAMPLES}", key)
+
+
+def _float_angle(v: Any) -> float:
+    return number(v)
+
+
+def _fovy(v: Any) -> float:
+    x = number(v)
+    if not 0.0 < x < 180.0:
+        raise BadValue(f"must be in (0, 180) degrees, got {describe(v)}")
+    return x
+
+
+def _side(v: Any) -> int:
+    x = integer(v)
+    if not 1 <= x <= MAX_DIMENSION:
+        raise BadValue(f"must be 1 to {MAX_DIMENSION} pixels, got {x}")
+    return x
+
+
+def _size(v: Any) -> Tuple[int, int]:
+    """``"640x480"`` or ``[640, 480]``."""
+    if isinstance(v, str):
+        m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", v)
+        if not m:
+            raise BadValue(f"must be WIDTHxHEIGHT such as \"640x480\", got {describe(v)}")
+        return _side(int(m.group(1))), _side(int(m.group(2)))
+    if isinstance(v, (list, tuple)) and len(v) == 2:
+        return _side(v[0]), _side(v[1])
+    raise BadValue(f"must be WIDTHxHEIGHT such as \"640x480\" or [640, 480], got {describe(v)}")
+
+
+def _unique(frames: Iterable[Frame]) -> List[Frame]:
+    """The frames in order, a frame listed twice (a sweep and a [[frames]] entry) kept once."""
+    return list(dict.fromkeys(frames))
+
+
+def _check_names(frames: Sequence[Frame], reader: _JobReader) -> None:
+    seen: Dict[str, Frame] = {}
+    for f in frames:
+        other = seen.setdefault(f.name, f)
+        if other is not f:  # pragma: no cover - only names given to look like a camera or size can meet
+            raise reader.error(f"two different frames are both named {f.name!r}; rename a model, material or "
+                               "light set")
+
+
+def parse_job(text: str, name: str = "<string>", base_dir: Optional[str] = None) -> Job:
+    """A job from TOML text; ``name`` labels errors and ``base_dir`` resolves file names."""
+    reader = _JobReader(name, os.fspath(base_dir) if base_dir is not None else "")
+    return reader.job(reader.parse_toml(text))
+
+
+def job_from_dict(doc: Mapping[str, Any], name: str = "<job>", base_dir: Optional[str] = None) -> Job:
+    """A job from Python dicts shaped as the TOML file (``{"sweep": {...}, "frames": [...]}``);
+    ``[models]`` values may also be :class:`~softpipe.scenes.mesh.Mesh` objects."""
+    if not isinstance(doc, Mapping):
+        raise TypeError(f"a job is a dict, a Job or a .toml path, got {type(doc).__name__}")
+    return _JobReader(name, os.fspath(base_dir) if base_dir is not None else "").job(doc)
+
+
+def load_job(path: Union[str, os.PathLike]) -> Job:
+    """Read a job file (TOML); file names in it are relative to its folder."""
+    path = os.fspath(path)
+    return parse_job(_JobReader(path).read_file(), path, os.path.dirname(os.path.abspath(path)))
+
+
+def as_job(job: Any) -> Job:
+    """A :class:`Job` as it is; a path: :func:`load_job`; dicts: :func:`job_from_dict`."""
+    if isinstance(job, Job):
+        return job
+    if isinstance(job, (str, os.PathLike)):
+        return load_job(job)
+    return job_from_dict(job)
