@@ -683,6 +683,8 @@ def _render_task(frame: Frame, mesh: Mesh, material, lights: LightSet, backgroun
 def _cluster_task(*args: Any) -> Tuple[Optional[bytes], str, float, float]:
     """:func:`_render_task` on a worker; a frame's error comes back as its line (``None, line, 0, 0``),
     so that the worker logs nothing and Dask does not take it for a lost worker."""
+    from softpipe.core.runtime import keep_freed_memory
+    keep_freed_memory()         # a worker process renders frames only: keep their memory (core/runtime.py)
     try:
         return _render_task(*args)
     except Exception as e:  # noqa: BLE001 - the client reports it with the frame's name
