@@ -16,8 +16,13 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(PY) -m softpipe demo
 
+# The suite on every core (pytest-xdist): one worker process per core, each taking whole test files
+# (--dist loadfile: a file's module fixtures are made once, and the kernels its tests compile are
+# mostly compiled once). Workers share numba's on-disk cache (tests/numba_cache_lock.py) and
+# softpipe's kernel cache. TEST_WORKERS=1 (or 0: no workers) for one process.
+TEST_WORKERS ?= auto
 test: $(STAMP) test-deps
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # What the suite needs outside Python: Debian's chromium, which tests/test_explore.py drives headless
 # through Playwright (the test installs nothing: where chromium is absent it skips with the reason).

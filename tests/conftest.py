@@ -1,4 +1,5 @@
-"""What several test files share: scenes and shapes built by hand, and the fixtures and helpers they use.
+"""What several test files share: scenes and shapes built by hand, and the fixtures and helpers they use;
+and, for every test process, the lock on numba's cache index (numba_cache_lock.py).
 
 Helpers are plain functions, imported by name (``from conftest import window_to_clip``: this folder is on
 ``sys.path``); fixtures are found by pytest. A helper that one file alone uses stays in that file.
@@ -14,8 +15,13 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
 
+import numba_cache_lock  # noqa: E402
 from softpipe.pipeline.assembly import Primitives  # noqa: E402
 from softpipe.language.contract import VaryingLayout  # noqa: E402
+
+# make test runs the suite in two processes that share numba's on-disk cache: its index is locked
+# (numba_cache_lock.py says why).
+numba_cache_lock.install()
 
 
 def window_prims(tris, z=0.5):
