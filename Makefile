@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench bench-cold bench-peers bench-batch bench-rays fuzz clean clean-cache
+.PHONY: demo test test-deps bench bench-cold bench-peers bench-batch bench-rays fuzz clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,8 +16,31 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(PY) -m softpipe demo
 
-test: $(STAMP)
-	$(PY) -m pytest -q
+# The suite on every core (pytest-xdist): one worker process per core, each taking whole test files
+# (--dist loadfile: a file's module fixtures are made once, and the kernels its tests compile are
+# mostly compiled once). Workers share numba's on-disk cache (tests/numba_cache_lock.py) and
+# softpipe's kernel cache. TEST_WORKERS=1 (or 0: no workers) for one process.
+TEST_WORKERS ?= auto
+test: $(STAMP) test-deps
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
+# What the suite needs outside Python: Debian's chromium, which tests/test_explore.py drives headless
+# through Playwright (the test installs nothing: where chromium is absent it skips with the reason).
+# Installed with apt-get when missing and run as root; where it cannot be, this says so and goes on.
+test-deps:
+	@if command -v chromium >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then \
+	  echo "chromium is missing and cannot be installed here ($$( [ "$$(id -u)" != 0 ] && echo 'not root' || echo 'no apt-get')):" \
+	       "the browser test of tests/test_explore.py will skip (as root: apt-get install -y chromium)"; \
+	else \
+	  echo "installing chromium (apt-get) for the browser test of tests/test_explore.py ..."; \
+	  log=$$(mktemp); export DEBIAN_FRONTEND=noninteractive; \
+	  apt-get install -y -q chromium >$$log 2>&1 \
+	    || { apt-get update -q >>$$log 2>&1; apt-get install -y -q chromium >>$$log 2>&1; } \
+	    || { echo "chromium could not be installed (apt-get install -y chromium failed; the browser test will skip):"; \
+	         tail -n 3 $$log; }; \
+	  rm -f $$log; \
+	fi
 
 bench: $(STAMP)
 	$(PY) -m benchmarks.run

@@ -58,6 +58,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
+from softpipe.core.runtime import keep_freed_memory  # noqa: E402
 from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
 from softpipe.light.material import LIGHT_COLUMNS, Light, Lighting  # noqa: E402
 
@@ -722,6 +723,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             parser.error(f"--threads must be between 1 and {numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS)")
         numba.set_num_threads(args.threads)
         os.environ.setdefault("LP_NUM_THREADS", str(args.threads))   # read when llvmpipe starts its threads
+    keep_freed_memory()     # a program of softpipe's own, as the softpipe command is (softpipe/core/runtime.py)
     problems = install_peer() if args.install else []
     report = run(args.scenes, frames=args.frames, scale=args.scale, keep_images=args.save_images is not None)
     if report["skipped"]:

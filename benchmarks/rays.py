@@ -81,6 +81,7 @@ from typing import Callable, Dict, List, Optional, Sequence  # noqa: E402
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
+from softpipe.core.runtime import keep_freed_memory  # noqa: E402
 from softpipe.rays.bvh import BVH  # noqa: E402
 from softpipe.scenes.models import load_model  # noqa: E402
 from softpipe.scenes.scene import Scene  # noqa: E402
@@ -540,6 +541,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         parser.error("--repeats must be at least 1")
     if args.size < 1:
         parser.error("--size must be at least 1")
+    keep_freed_memory()     # a program of softpipe's own, as the softpipe command is (softpipe/core/runtime.py)
     report = run(args.models or DEFAULT_MODELS, size=args.size, threads=args.threads, repeats=args.repeats,
                  embree=args.embree, install=args.install)
     print()

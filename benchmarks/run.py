@@ -62,7 +62,7 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 import softpipe.pipeline.draw as _pipeline  # noqa: E402
-from softpipe.core.runtime import release_memory  # noqa: E402
+from softpipe.core.runtime import keep_freed_memory, release_memory  # noqa: E402
 from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
 from softpipe.pipeline.draw import DrawCall  # noqa: E402
 from softpipe.pipeline.raster import count_fragments  # noqa: E402
@@ -557,6 +557,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     bad = [n for n in args.scenes if n not in SCENES]
     if bad:
         parser.error(f"unknown scene(s) {', '.join(bad)}; the scenes are: {', '.join(SCENES)}")
+    keep_freed_memory()     # a program of softpipe's own, as the softpipe command is (softpipe/core/runtime.py)
     try:
         report = run(args.scenes, frames=args.frames, scale=args.scale, threads=args.threads,
                      budget=args.budget or None, keep_images=args.save_images is not None)

@@ -30,6 +30,7 @@ import time
 
 import numba
 
+from softpipe.core.runtime import keep_freed_memory
 from softpipe.language import kernels
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.draw import DrawCall
@@ -112,6 +113,7 @@ def main(argv=None) -> int:
         if name not in LIT_SCENES:
             parser.error(f"scene {name!r} cannot be split into loop, interpolation and lighting; "
                          f"choose from {', '.join(LIT_SCENES)}")
+    keep_freed_memory()     # a program of softpipe's own, as the softpipe command is (softpipe/core/runtime.py)
     print(f"one thread (of numba's {numba.get_num_threads()}), median of {args.runs} runs per draw and shader")
     for name in args.scenes or LIT_SCENES:
         print(report(measure(name, args.runs, args.scale)))

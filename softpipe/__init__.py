@@ -7,7 +7,6 @@ Stages (one module each): :mod:`~softpipe.pipeline.transforms` → :mod:`~softpi
 :mod:`~softpipe.language.glsl`, :mod:`~softpipe.light.lighting`); built-in programs live in
 :mod:`softpipe.programs`.
 """
-from softpipe.core import runtime as _runtime  # noqa: F401  (first: process settings, see its docstring)
 from softpipe import shading
 from softpipe.language import glsl
 from softpipe.light import lighting
@@ -15,6 +14,7 @@ from softpipe.scenes import shapes
 from softpipe.pipeline.assembly import Primitives, assemble
 from softpipe.pipeline.camera import Camera
 from softpipe.core.colors import parse_color
+from softpipe.core.runtime import keep_freed_memory
 from softpipe.pipeline.fragment import ShadedFragments
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform, pack_lights

@@ -13,34 +13,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from conftest import run_cli
 import softpipe as sp
 from softpipe.tools.cli import main
 
-TETRA = """v 0 0 0
-v 1.2 0 0.1
-v 0.2 0.9 0.3
-v 0.3 0.2 1.4
-f 1 3 2
-f 1 2 4
-f 1 4 3
-f 2 3 4
-"""
-
 TRIANGLE = np.array([[-0.8, -0.8, 0.0, 1.0], [0.8, -0.8, 0.0, 1.0], [0.0, 0.8, 0.0, 1.0]])
 COLORS = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
-
-
-@pytest.fixture
-def obj(tmp_path) -> Path:
-    path = tmp_path / "tetra.obj"
-    path.write_text(TETRA)
-    return path
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 # ---------------------------------------------------------------------------- the framebuffer's fields
@@ -219,18 +197,16 @@ WRITERS = {
 @pytest.mark.parametrize("exception", [KeyboardInterrupt(), OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))],
                          ids=["ctrl-c", "disk-full"])
 @pytest.mark.parametrize("writer", list(WRITERS))
-def test_a_broken_save_leaves_the_previous_file_and_no_temporary_file(writer, exception, tmp_path, monkeypatch,
-                                                                       capsys):
+def test_a_broken_save_leaves_the_previous_file_and_no_temporary_file(writer, exception, tmp_path, tetra_obj,
+                                                                       monkeypatch, capsys):
     write, name = WRITERS[writer]
     folder = tmp_path / "outputs"
     folder.mkdir()
-    obj = tmp_path / "tetra.obj"
-    obj.write_text(TETRA)
     previous = b"the previous good file"
     (folder / name).write_bytes(previous)
     monkeypatch.setattr(Image.Image, "save", breaking_save(exception))
     try:
-        write(folder, obj, capsys)
+        write(folder, tetra_obj, capsys)
     except (KeyboardInterrupt, OSError) as e:
         assert e is exception
     else:
@@ -261,11 +237,11 @@ def test_after_a_failed_save_a_good_one_writes_the_usual_bytes_and_mode(tmp_path
 # ---------------------------------------------------------------------------- the command line's -o
 
 
-def test_dash_o_dash_writes_the_picture_to_stdout(capsysbinary, obj, tmp_path):
+def test_dash_o_dash_writes_the_picture_to_stdout(capsysbinary, tetra_obj, tmp_path):
     for argv, expected in [
-        (["render", str(obj), "-o", "-", "--size", "16x12"], "PNG"),
+        (["render", str(tetra_obj), "-o", "-", "--size", "16x12"], "PNG"),
         (["demo", "-o", "-", "--width", "16", "--height", "12"], "PNG"),
-        (["turntable", str(obj), "-o", "-", "--size", "16x12", "--frames", "2", "-q"], "GIF"),
+        (["turntable", str(tetra_obj), "-o", "-", "--size", "16x12", "--frames", "2", "-q"], "GIF"),
     ]:
         assert main(argv) == 0
         out, err = capsysbinary.readouterr()
@@ -273,12 +249,12 @@ def test_dash_o_dash_writes_the_picture_to_stdout(capsysbinary, obj, tmp_path):
             assert im.format == expected and im.size == (16, 12)
         assert f"softpipe {argv[0]}: wrote {expected} to stdout (".encode() in err
         assert not (tmp_path / "-").exists() and not Path("-").exists()
-    main(["render", str(obj), "-o", "-", "--size", "16x12"])
+    main(["render", str(tetra_obj), "-o", "-", "--size", "16x12"])
     out, _ = capsysbinary.readouterr()
-    assert out == sp.render(obj, width=16, height=12)._repr_png_()          # the same bytes fb.save writes
-    main(["turntable", str(obj), "-o", "-", "--size", "16x12", "--frames", "2", "-q"])
+    assert out == sp.render(tetra_obj, width=16, height=12)._repr_png_()          # the same bytes fb.save writes
+    main(["turntable", str(tetra_obj), "-o", "-", "--size", "16x12", "--frames", "2", "-q"])
     out, _ = capsysbinary.readouterr()
-    sp.turntable(obj, tmp_path / "spin.gif", frames=2, width=16, height=12)
+    sp.turntable(tetra_obj, tmp_path / "spin.gif", frames=2, width=16, height=12)
     assert out == (tmp_path / "spin.gif").read_bytes()
 
 
@@ -292,12 +268,12 @@ def no_rendering(monkeypatch):
 
 
 def test_demo_writes_a_real_jpeg_or_refuses_the_extension_before_rendering(capsys, tmp_path, monkeypatch):
-    code, out, err = run(capsys, "demo", "-o", tmp_path / "x.jpg", "--width", "16", "--height", "12")
+    code, out, err = run_cli(capsys, "demo", "-o", tmp_path / "x.jpg", "--width", "16", "--height", "12")
     assert code == 0, err
     with Image.open(tmp_path / "x.jpg") as im:
         assert im.format == "JPEG" and im.size == (16, 12)
     monkeypatch.setattr("softpipe.tools.demo.render_demo", lambda *a: pytest.fail("rendered before the check"))
-    code, _, err = run(capsys, "demo", "-o", tmp_path / "x.foo")
+    code, _, err = run_cli(capsys, "demo", "-o", tmp_path / "x.foo")
     assert code == 2
     assert err.strip() == ("softpipe demo: error: " + str(tmp_path / "x.foo") +
                            ": cannot write images with extension '.foo'; use .png, .jpg, .bmp, .tif, ...")
@@ -305,21 +281,21 @@ def test_demo_writes_a_real_jpeg_or_refuses_the_extension_before_rendering(capsy
 
 
 @pytest.mark.parametrize("command", ["render", "turntable", "demo"])
-def test_a_bad_output_folder_is_refused_before_rendering(command, capsys, obj, tmp_path, no_rendering):
+def test_a_bad_output_folder_is_refused_before_rendering(command, capsys, tetra_obj, tmp_path, no_rendering):
     (tmp_path / "a-file").write_text("not a folder")
     (tmp_path / "a-folder.png").mkdir()
     (tmp_path / "a-folder.gif").mkdir()
     ext = ".gif" if command == "turntable" else ".png"
-    model = [] if command == "demo" else [obj]
+    model = [] if command == "demo" else [tetra_obj]
     for output, message in [(tmp_path / "a-file" / "missing" / f"x{ext}", f"{tmp_path / 'a-file'} is a file, "
                                                                            "not a folder"),
                             (tmp_path / f"a-folder{ext}", "it is a folder")]:
-        code, out, err = run(capsys, command, *model, "-o", output)
+        code, out, err = run_cli(capsys, command, *model, "-o", output)
         assert code == 2 and out == ""
         assert err.strip() == f"softpipe {command}: error: -o: cannot write {output}: {message}"
 
 
-def test_turntable_in_python_checks_its_folder_before_drawing(tmp_path, obj, no_rendering):
+def test_turntable_in_python_checks_its_folder_before_drawing(tmp_path, tetra_obj, no_rendering):
     (tmp_path / "a-file").write_text("not a folder")
     with pytest.raises(OSError):
-        sp.turntable(obj, tmp_path / "a-file" / "spin.gif", frames=2, width=16, height=12)
+        sp.turntable(tetra_obj, tmp_path / "a-file" / "spin.gif", frames=2, width=16, height=12)

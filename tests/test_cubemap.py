@@ -23,6 +23,8 @@ import math
 import numpy as np
 import pytest
 
+from conftest import env_function
+
 import softpipe as sp
 from softpipe.scenes import shapes
 from softpipe.pipeline.camera import Camera
@@ -287,15 +289,6 @@ def test_the_named_media_are_the_notes_indices():
 SIZE = 64
 EXTENT = 1.25
 CAMERA = Camera(eye=(3.0, 2.0, 4.0), target=(0.0, 0.0, 0.0))      # turned: the world → eye rotation matters
-
-
-def env_function(d):
-    return 0.5 + 0.45 * d
-
-
-@pytest.fixture(scope="module")
-def environment():
-    return CubeMap.from_function(env_function, 64)
 
 
 def draw_sphere(program, material, environment, **uniforms):

@@ -12,6 +12,8 @@ import numba
 import numpy as np
 import pytest
 
+from conftest import tilt, unit
+
 from softpipe.light.material import LightingUniform
 from softpipe.light.shadowmap import no_shadows
 from softpipe.light.lighting import (
@@ -27,17 +29,6 @@ NO_LIGHTS = np.zeros((0, 22))
 BLACK = (0.0, 0.0, 0.0)
 KS, IS = (0.5, 0.6, 0.7), (1.0, 0.9, 0.8)
 KD, ID = (0.8, 0.4, 0.2), (0.9, 1.0, 0.7)
-
-
-def tilt(theta_deg, phi_deg=0.0):
-    """The unit vector at angle theta from +z, turned by phi about z (degrees)."""
-    t, p = math.radians(theta_deg), math.radians(phi_deg)
-    return (math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t))
-
-
-def unit(v):
-    v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
 
 
 def uniform(**kw):

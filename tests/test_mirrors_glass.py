@@ -14,7 +14,6 @@ import pytest
 
 import softpipe as sp
 from softpipe.scenes import shapes
-from softpipe.light.cubemap import CubeMap
 from softpipe.scenes.drawing import draw_mesh
 from softpipe.scenes.environment_pass import render_with_environments
 from softpipe.light.material import MEDIA, Light, Lighting, Material
@@ -168,15 +167,6 @@ def test_render_with_environments_names_what_it_takes():
 # ------------------------------------------------------------------ Hall's global terms from an environment
 
 SIZE = 16
-
-
-def env_function(d):
-    return 0.5 + 0.45 * d
-
-
-@pytest.fixture(scope="module")
-def environment():
-    return CubeMap.from_function(env_function, 64)
 
 
 TILT = rotate(35.0, (1.0, 0.3, 0.0)) @ rotate(90.0, (1.0, 0.0, 0.0))        # a plane turned toward the camera

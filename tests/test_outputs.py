@@ -9,24 +9,14 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from conftest import run_cli
 import softpipe as sp
 from softpipe.pipeline.camera import Camera
-from softpipe.tools.cli import main
 from softpipe.core.colors import color_names, parse_color
 from softpipe.scenes.drawing import as_mesh, draw_mesh, gif_frame, prepare_scene
 from softpipe.light.material import Lighting
 from softpipe.scenes.scene import Scene, studio_lights
 from softpipe.pipeline.trace import PixelEvent, PixelHistory
-
-TETRA = """v 0 0 0
-v 1.2 0 0.1
-v 0.2 0.9 0.3
-v 0.3 0.2 1.4
-f 1 3 2
-f 1 2 4
-f 1 4 3
-f 2 3 4
-"""
 
 
 class TinyMesh:
@@ -40,19 +30,6 @@ class TinyMesh:
 def tetra_mesh() -> sp.Mesh:
     positions = np.array([[0, 0, 0], [1.2, 0, 0.1], [0.2, 0.9, 0.3], [0.3, 0.2, 1.4]], dtype=np.float64)
     return sp.Mesh(positions, np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), name="tetra")
-
-
-@pytest.fixture
-def obj(tmp_path):
-    path = tmp_path / "tetra.obj"
-    path.write_text(TETRA)
-    return path
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def drawn() -> sp.Framebuffer:
@@ -290,53 +267,55 @@ def test_draw_mesh_lights_like_the_command_line_by_default():
 
 def test_render_is_the_command_line_byte_for_byte(capsys, tmp_path):
     cli = tmp_path / "cli.png"
-    code, out, err = run(capsys, "render", "teapot", "-o", cli, "--size", "64x48", "-q")
+    code, out, err = run_cli(capsys, "render", "teapot", "-o", cli, "--size", "64x48", "-q")
     assert code == 0, err
     api = sp.render("teapot", width=64, height=48).save(tmp_path / "api.png")
     assert cli.read_bytes() == api.read_bytes()
     # the defaults: 640×480, framed, studio lights, phong
     fb = sp.render("teapot")
     assert (fb.width, fb.height) == (640, 480)
-    code, _, err = run(capsys, "render", "teapot", "-o", tmp_path / "full.png", "-q")
+    code, _, err = run_cli(capsys, "render", "teapot", "-o", tmp_path / "full.png", "-q")
     assert code == 0, err
     assert (tmp_path / "full.png").read_bytes() == fb.save(tmp_path / "api-full.png").read_bytes()
 
 
-def test_render_options_are_the_command_line_options(capsys, obj, tmp_path):
+def test_render_options_are_the_command_line_options(capsys, tetra_obj, tmp_path):
     argv = ["--size", "48x36", "--azimuth", "120", "--elevation", "-10", "--fovy", "50", "--background", "white",
             "--program", "gooch", "--cull", "none", "--wireframe", "--wire-color", "red", "--samples", "grid4"]
-    code, _, err = run(capsys, "render", obj, "-o", tmp_path / "cli.png", "-q", *argv)
+    code, _, err = run_cli(capsys, "render", tetra_obj, "-o", tmp_path / "cli.png", "-q", *argv)
     assert code == 0, err
-    fb = sp.render(obj, width=48, height=36, azimuth=120, elevation=-10, fovy=50, background="white",
+    fb = sp.render(tetra_obj, width=48, height=36, azimuth=120, elevation=-10, fovy=50, background="white",
                    program="gooch", cull="none", wireframe=True, wire_color="red", samples="grid4")
     assert (tmp_path / "cli.png").read_bytes() == fb.save(tmp_path / "api.png").read_bytes()
     assert tuple(np.asarray(fb)[0, 0]) == (255, 255, 255)
 
 
-def test_render_takes_every_kind_of_model(obj, tmp_path):
-    reference = np.asarray(sp.render(obj, width=32, height=24))
+def test_render_takes_every_kind_of_model(tetra_obj, tmp_path):
+    reference = np.asarray(sp.render(tetra_obj, width=32, height=24))
     assert (reference != reference[0, 0]).any(axis=2).sum() > 30
     mesh = tetra_mesh()
-    for model in (str(obj), mesh, TinyMesh(mesh.positions, mesh.indices), Scene.from_model(obj, width=32, height=24)):
+    for model in (str(tetra_obj), mesh, TinyMesh(mesh.positions, mesh.indices),
+                  Scene.from_model(tetra_obj, width=32, height=24)):
         assert np.array_equal(np.asarray(sp.render(model, width=32, height=24)), reference), type(model)
     scene = tmp_path / "s.toml"
     scene.write_text('[render]\nwidth = 32\nheight = 24\n[[meshes]]\nobj = "tetra.obj"\n')
     assert np.array_equal(np.asarray(sp.render(scene)), reference)
 
 
-def test_render_leaves_a_given_scene_alone(obj):
-    scene = Scene.from_model(obj, width=16, height=12)
+def test_render_leaves_a_given_scene_alone(tetra_obj):
+    scene = Scene.from_model(tetra_obj, width=16, height=12)
     sp.render(scene, program="normals", cull="none", width=8)
     assert scene.objects[0].program is None and scene.width == 16
     assert prepare_scene(scene, program="normals").program == "normals"
 
 
-def test_render_with_stages_writes_the_pictures(obj, tmp_path, capsys):
+def test_render_with_stages_writes_the_pictures(tetra_obj, tmp_path, capsys):
     results = []
-    sp.render(obj, width=24, height=18, stages=tmp_path / "api", results=results)
+    sp.render(tetra_obj, width=24, height=18, stages=tmp_path / "api", results=results)
     assert sorted(results[0].pictures) == ["contact-sheet", "coverage", "depth", "final", "overdraw", "primitives",
                                            "vertices"]
-    code, _, _ = run(capsys, "render", obj, "-o", tmp_path / "x.png", "--size", "24x18", "--stages", tmp_path / "cli")
+    code, _, _ = run_cli(capsys, "render", tetra_obj, "-o", tmp_path / "x.png", "--size", "24x18",
+                         "--stages", tmp_path / "cli")
     assert code == 0
     for name in ("06-final.png", "contact-sheet.png"):
         assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
@@ -362,13 +341,14 @@ def test_render_errors_are_one_line(model, kwargs, error, message):
     assert "\n" not in str(e.value)
 
 
-def test_turntable_is_the_command_line_byte_for_byte(capsys, obj, tmp_path):
+def test_turntable_is_the_command_line_byte_for_byte(capsys, tetra_obj, tmp_path):
     for name in ("cli.gif", "cli.png"):
-        code, _, err = run(capsys, "turntable", obj, "-o", tmp_path / name, "--frames", "3", "--fps", "10", "-q")
+        code, _, err = run_cli(capsys, "turntable", tetra_obj, "-o", tmp_path / name, "--frames", "3", "--fps", "10",
+                               "-q")
         assert code == 0, err
     steps = []
-    gif = sp.turntable(obj, tmp_path / "api.gif", frames=3, fps=10, progress=lambda i, n: steps.append((i, n)))
-    apng = sp.turntable(obj, tmp_path / "api.png", frames=3, fps=10)
+    gif = sp.turntable(tetra_obj, tmp_path / "api.gif", frames=3, fps=10, progress=lambda i, n: steps.append((i, n)))
+    apng = sp.turntable(tetra_obj, tmp_path / "api.png", frames=3, fps=10)
     assert steps == [(1, 3), (2, 3), (3, 3)]
     assert gif.read_bytes() == (tmp_path / "cli.gif").read_bytes()
     assert apng.read_bytes() == (tmp_path / "cli.png").read_bytes()

@@ -1,5 +1,5 @@
-"""Process-wide behaviour: the allocator setting softpipe applies on import (softpipe/core/runtime.py) and the
-way out of it, and its threads in a forked child (softpipe/core/parallel.py)."""
+"""Process-wide behaviour: the allocator setting softpipe's own programs ask for (softpipe/core/runtime.py), which
+importing softpipe does not, and softpipe's threads in a forked child (softpipe/core/parallel.py)."""
 import json
 import os
 import subprocess
@@ -7,23 +7,75 @@ import sys
 
 import pytest
 
-PROBE = ("import json, softpipe.core.runtime as r; r.release_memory(); "
-         "print(json.dumps({'tuned': r.malloc_tuned}))")
+import softpipe as sp
+from softpipe.core import runtime
+
+# In a fresh process: does a freed 64 MiB block stay in the process (the allocator keeps freed memory), after
+# importing softpipe, and again after sp.keep_freed_memory() when "call" is given? glibc maps a block that size
+# on its own and unmaps it when freed (its mmap threshold never rises above 32 MiB), unless told otherwise.
+PROBE = """
+import json, os, sys
+import numpy as np
+import softpipe as sp
+
+def kept():
+    def rss():
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    before = rss()
+    block = np.ones(64 << 20, np.uint8)         # every page touched
+    del block
+    return rss() - before > (32 << 20)
+
+out = {"after_import": kept(), "tuned_after_import": sp.core.runtime.freed_memory_kept()}
+if "call" in sys.argv:
+    out["returned"] = sp.keep_freed_memory()
+    out["after_call"] = kept()
+    out["again"] = sp.keep_freed_memory()
+    sp.core.runtime.release_memory()
+print(json.dumps(out))
+"""
 
 
-def probe(**env):
+def probe(*argv, **env):
     full = {k: v for k, v in os.environ.items() if k != "SOFTPIPE_SYSTEM_MALLOC"}
     full.update(env)
-    out = subprocess.run([sys.executable, "-c", PROBE], env=full, capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", PROBE, *argv], env=full, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
     return json.loads(out.stdout)
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="mallopt is glibc's")
-def test_the_allocator_is_tuned_unless_asked_not_to():
-    assert probe() == {"tuned": True}
-    assert probe(SOFTPIPE_SYSTEM_MALLOC="1")["tuned"] is False
-    assert probe(SOFTPIPE_SYSTEM_MALLOC="0")["tuned"] is True
+glibc_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="mallopt is glibc's")
 
+
+@glibc_only
+def test_importing_softpipe_leaves_the_allocator_alone():
+    assert probe() == {"after_import": False, "tuned_after_import": False}
+
+
+@glibc_only
+def test_keep_freed_memory_tunes_the_allocator_once_called():
+    assert probe("call") == {"after_import": False, "tuned_after_import": False,
+                             "returned": True, "after_call": True, "again": True}
+
+
+@glibc_only
+@pytest.mark.parametrize("value, tuned", [("1", False), ("yes", False), ("0", True)])
+def test_softpipe_system_malloc_makes_the_call_leave_the_allocator_alone(value, tuned):
+    got = probe("call", SOFTPIPE_SYSTEM_MALLOC=value)
+    assert got == {"after_import": False, "tuned_after_import": False,
+                   "returned": tuned, "after_call": tuned, "again": tuned}
+
+
+def test_the_command_line_asks_for_it_and_sp_exports_it(monkeypatch, capsys):
+    from softpipe.tools.cli import main
+    assert sp.keep_freed_memory is runtime.keep_freed_memory
+    calls = []
+    monkeypatch.setattr(runtime, "keep_freed_memory", lambda: calls.append(1) or True)
+    assert main(["programs"]) == 0
+    assert calls == [1]
+    assert main(["--version"]) == 0 and calls == [1]     # nothing to draw: not asked for
 
 
 FORK_SCRIPT = r'''

@@ -11,6 +11,8 @@ import math
 import numpy as np
 import pytest
 
+from conftest import tilt
+
 import softpipe as sp
 from softpipe.scenes import shapes
 from softpipe.pipeline.camera import Camera
@@ -135,12 +137,6 @@ def opengl_reference(P, N, V, m, lights, global_ambient=BLACK, specular="blinn",
 
 
 UP = np.array([0.0, 0.0, 1.0])   # the plane's N, and V under the orthographic camera
-
-
-def tilt(theta_deg, phi_deg=0.0):
-    """The direction at theta from +z, turned by phi about z."""
-    t, p = math.radians(theta_deg), math.radians(phi_deg)
-    return np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
 
 
 def sun(toward_light, **kw):
@@ -419,7 +415,7 @@ def test_hall_transmission_of_a_light_behind_the_surface(theta):
     # A light behind the plane shines through it (kt, n′) and not by diffuse or reflection (B = 0).
     kt, nt, eta = (0.4, 0.5, 0.6), 8.0, 1.5
     m = Material(ka=0, kd=0.9, ks=0.9, kt=kt, transmission_shininess=nt, ior=eta)
-    L = -tilt(theta, 0.0)                                       # toward the light: below the plane
+    L = -np.array(tilt(theta, 0.0))                                    # toward the light: below the plane
     img, _ = plane_pixels([sun(L, specular=(1.0, 0.8, 0.6))], m, "hall")
     # H′ is the facet normal that refracts the light's ray (travelling −L, in the medium η) into V (air):
     # Snell's law says it is parallel to η·L + V (Walter et al. 2007), oriented to the light's side.
@@ -445,7 +441,7 @@ def _fresnel(cos_i, n1, n2):
 def test_cook_torrance_on_the_plane(theta, roughness):
     kd, ks, ior = (0.3, 0.2, 0.1), (0.9, 0.8, 0.7), 1.8
     m = Material(ke=(0.01, 0, 0), ka=0.1, kd=kd, ks=ks, ior=ior, roughness=roughness)
-    L = tilt(theta, 45.0)
+    L = np.array(tilt(theta, 45.0))
     img, _ = plane_pixels([sun(L, ambient=0.2)], m, "cook_torrance", global_ambient=(0.1, 0.1, 0.1))
     N = V = UP
     H = unit(L + V)
@@ -467,7 +463,7 @@ def test_cook_torrance_on_the_plane(theta, roughness):
 def test_gooch_on_the_plane(theta):
     kd = (0.6, 0.2, 0.4)
     m = Material(kd=kd)
-    L = tilt(theta, 30.0)
+    L = np.array(tilt(theta, 30.0))
     img, _ = plane_pixels([sun(L)], m, "gooch")
     t = (1 + UP @ L) / 2                                         # FORMULAS §26, paper's constants
     k_cool = np.array((0, 0, 0.4)) + 0.2 * np.asarray(kd)

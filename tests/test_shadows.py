@@ -22,6 +22,8 @@ import math
 import numpy as np
 import pytest
 
+from conftest import unit
+
 from softpipe import Camera, DrawCall, Framebuffer, draw_mesh, render_shadow_maps
 from softpipe.scenes import shapes
 from softpipe.light.material import Light, Lighting, Material
@@ -38,11 +40,6 @@ MATTE = Material(ka=(1.0, 1.0, 1.0), kd=(KD, KD, KD), ks=(0.0, 0.0, 0.0))
 
 
 # ------------------------------------------------------------------ analytic geometry (numpy only)
-
-def unit(v):
-    v = np.asarray(v, np.float64)
-    return v / np.linalg.norm(v)
-
 
 def convex_hull(points):
     """The convex hull of 2-D points, counter-clockwise (Andrew's monotone chain)."""

@@ -644,6 +644,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     from softpipe.scenes.obj import OBJError
     from softpipe.scenes.scenefile import SceneError
     from softpipe.language.contract import ShaderError
+    from softpipe.core.runtime import keep_freed_memory
 
     try:
         parser = build_parser()
@@ -660,6 +661,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print("softpipe: error: a command is required: render, turntable, batch, explore, demo or programs "
               "(see 'softpipe --help')", file=sys.stderr)
         return 2
+    keep_freed_memory()     # a program of softpipe's own: frames' large arrays reuse memory (core/runtime.py)
     try:
         return args.run(args)
     except KeyboardInterrupt:

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
+from softpipe.core.runtime import keep_freed_memory
 from softpipe.scenes.mesh import Mesh
 from softpipe.tools.batch.job import Frame, Job, LightSet, as_job
 
@@ -98,6 +99,7 @@ def _render_task(frame: Frame, mesh: Mesh, material, lights: LightSet, backgroun
 def _cluster_task(*args: Any) -> Tuple[Optional[bytes], str, float, float]:
     """:func:`_render_task` on a worker; a frame's error comes back as its line (``None, line, 0, 0``),
     so that the worker logs nothing and Dask does not take it for a lost worker."""
+    keep_freed_memory()         # a worker process renders frames only: keep their memory (core/runtime.py)
     try:
         return _render_task(*args)
     except Exception as e:  # noqa: BLE001 - the client reports it with the frame's name
