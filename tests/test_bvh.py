@@ -1,4 +1,4 @@
-"""softpipe.rays.bvh against brute force (issue #16).
+"""softpipe.rays.bvh (and its build, traversal and triangle test) against brute force (issue #16).
 
 The oracle is written here, independently of the module: Möller-Trumbore
 (1997) over *every* triangle for every ray, vectorized over blocks of rays in a
@@ -39,8 +39,10 @@ import pytest
 
 from softpipe.scenes import shapes
 from softpipe.pipeline import transforms
-from softpipe.rays import bvh as bvh_module
-from softpipe.rays.bvh import MAX_DEPTH, BVH, BVHUniform, any_hit, closest_hit, intersect_triangle, scene_bvh
+from softpipe.rays import layout, traverse, triangle
+from softpipe.rays.bvh import BVH, BVHUniform, any_hit, closest_hit, scene_bvh
+from softpipe.rays.layout import MAX_DEPTH
+from softpipe.rays.triangle import intersect_triangle
 from softpipe.scenes.models import load_model
 from softpipe.scenes.scene import SceneObject
 from softpipe.core.parallel import in_bands
@@ -382,7 +384,7 @@ def _check_wide(bvh):
     """The traversal's arrays against the binary tree: every binary leaf and every wide node is some
     wide node's child exactly once; each child's float32 box holds its binary node's float64 box and is
     at most one float32 step larger; the blocks hold each leaf's triangles (NaN and id −1 padding)."""
-    W, B = bvh_module.WIDTH, bvh_module.BLOCK
+    W, B = layout.WIDTH, layout.BLOCK
     M = len(bvh.links)
     assert bvh.boxes.shape == (M, 6, W) and bvh.boxes.dtype == np.float32 and bvh.links.dtype == np.int64
     leaves = np.flatnonzero(bvh.count > 0)
@@ -681,12 +683,12 @@ def test_plain_python_gives_the_same_bits():
 
 @numba.njit
 def _compiled_lane_entries(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1):
-    return bvh_module._lane_entries(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1)
+    return traverse._lane_entries(boxes, i, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1)
 
 
 @numba.njit
 def _compiled_block_candidates(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t0, t1):
-    return bvh_module._block_candidates(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t0, t1)
+    return traverse._block_candidates(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t0, t1)
 
 
 def _inverse(d):
@@ -712,7 +714,7 @@ def test_the_vector_box_test_gives_the_scalar_tests_bits():
         t0, t1 = float(rng.choice([0.0, 0.5])), float(rng.choice([math.inf, 4.0]))
         got = _compiled_lane_entries(boxes, i, *n, *o, *inv, t0, t1)
         with np.errstate(invalid="ignore"):
-            want = tuple(bvh_module._lane_entry(boxes, i, j, *n, *o, *inv, t0, t1) for j in range(4))
+            want = tuple(traverse._lane_entry(boxes, i, j, *n, *o, *inv, t0, t1) for j in range(4))
         assert got == want, (trial, got, want)
 
 
@@ -735,14 +737,14 @@ def test_the_vector_triangle_filter_keeps_every_hit():
         else:
             target = rng.normal(size=3)
         d = target - o
-        kx, ky, kz, sx, sy, sz = bvh_module._ray_space(*d)
+        kx, ky, kz, sx, sy, sz = triangle.ray_space(*d)
         okx, oky, okz = o[kx], o[ky], o[kz]
         mask = _compiled_block_candidates(blocks, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, 0.0, math.inf)
         for j in range(4):
             c = blocks[b, :, j]
-            hit = bvh_module._hit_sheared(c[kx] - okx, c[ky] - oky, c[kz] - okz, c[3 + kx] - okx, c[3 + ky] - oky,
-                                          c[3 + kz] - okz, c[6 + kx] - okx, c[6 + ky] - oky, c[6 + kz] - okz,
-                                          kx, ky, kz, sx, sy, sz, 0.0, math.inf)[0]
+            hit = triangle.hit_sheared(c[kx] - okx, c[ky] - oky, c[kz] - okz, c[3 + kx] - okx, c[3 + ky] - oky,
+                                       c[3 + kz] - okz, c[6 + kx] - okx, c[6 + ky] - oky, c[6 + kz] - okz,
+                                       kx, ky, kz, sx, sy, sz, 0.0, math.inf)[0]
             hits += hit
             candidates += (mask >> j) & 1
             assert not hit or (mask >> j) & 1, (trial, j)
