@@ -37,7 +37,7 @@ LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.e
                ("pipeline.trace", "light.lighting"), ("", "tools.batch")}
 #: softpipe/pipeline/ in pipeline order; each may import only those before it.
 STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "raster",
-          "fragment", "output", "visibility", "trace", "draw"]
+          "fragment", "output", "tiles", "visibility", "trace", "draw"]
 
 
 def _module_name(path: Path) -> str:
@@ -103,8 +103,9 @@ def _layer(module: str) -> int:
 def test_the_import_graph_sees_the_imports_it_should():
     graph = _graph()
     assert {"pipeline.assembly", "pipeline.setup", "pipeline.sampling"} <= graph["pipeline.raster"]
-    assert {"pipeline.raster", "pipeline.setup", "pipeline.output", "pipeline.fragment",
+    assert {"pipeline.raster", "pipeline.setup", "pipeline.output", "pipeline.fragment", "pipeline.tiles",
             "language.kernels"} <= graph["pipeline.visibility"]
+    assert {"pipeline.setup", "pipeline.output", "pipeline.sampling"} <= graph["pipeline.tiles"]
     assert "language.kernels" in graph["pipeline.vertex"]
     assert "scenes.drawing" in graph["tools.cli"]
 
