@@ -157,6 +157,22 @@ def test_no_stage_imports_a_later_stage():
         assert not reached, f"pipeline/{stage}.py reaches the later stage(s) {sorted(reached)}"
 
 
+def test_the_fill_rule_is_stated_once_in_the_triangle_setup():
+    """No pipeline module but setup.py reads a fill-rule bias: the reference rasterizer and the fast
+    path's tile walk hand it to setup's rule (inside_edge, inside, covers, pixel_coverage) instead of
+    restating E_k + bias_k ≥ 0, so the two back ends cannot disagree on a sample on an edge."""
+    for path in sorted((PACKAGE / "pipeline").glob("*.py")):
+        if path.stem == "setup":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) and node.value.id == "bias":
+                raise AssertionError(f"softpipe/pipeline/{path.name}, line {node.lineno}, reads bias[...] itself: "
+                                     "ask the triangle setup's fill rule (setup.inside_edge, inside, covers)")
+    from softpipe.pipeline import setup, tiles
+    for name in ("inside_edge", "inside", "covers"):       # the tile walk calls the very same functions
+        assert getattr(tiles, name) is getattr(setup, name), name
+
+
 def test_generated_modules_import_only_the_contract_their_generator_and_the_setup():
     def shader(varyings, uniforms, frag):
         return (varyings.c, 0.0, 0.0, 1.0)

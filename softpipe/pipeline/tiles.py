@@ -28,7 +28,7 @@ import numpy as np
 from softpipe.core.parallel import in_bands, threads
 from softpipe.pipeline.output import depth_passes
 from softpipe.pipeline.sampling import SUBPIXEL
-from softpipe.pipeline.setup import covers, depth_at, edge_values, offset_bounds, plane_depth
+from softpipe.pipeline.setup import covers, depth_at, edge_values, inside, inside_edge, offset_bounds, plane_depth
 
 __all__ = ["TILE_W", "TILE_H", "NARROW", "bin_triangles", "raster_tiles"]
 
@@ -120,32 +120,33 @@ def _bin_fill(band_lo, band_hi, bounds, box, tiles_x, fill, items):
 
 @numba.njit(cache=True)
 def _span(edges, bias, t, px0, py, i_lo, i_hi):
-    """The pixels i in [i_lo, i_hi] whose sample (256·i + px0, py) every edge covers.
+    """The pixels i in [i_lo, i_hi] whose sample (256·i + px0, py) triangle t covers: (first, last).
 
-    E_k = A·(256 i + px0) + B·py + C + bias ≥ 0 is linear in i; each edge bounds i
-    from one side. The bound is estimated in floating point (a division is far
-    cheaper there than in 64-bit integers) and then made exact by testing the
-    integer inequality itself, so the span is exactly the covered pixels.
+    Along the row E_k = r + a·i (a = 256·A_k) is linear in i, so each edge's fill
+    rule (:func:`~softpipe.pipeline.setup.inside_edge`) bounds i from one side. The
+    bound is estimated in floating point (a division is far cheaper there than in
+    64-bit integers) and then made exact by asking the rule itself at the bound and
+    next to it, so the span is exactly the covered pixels. (1, 0) when none is.
     """
     for k in range(3):
         a = edges[t, k, 0] * SUBPIXEL
-        r = edges[t, k, 0] * px0 + edges[t, k, 1] * py + edges[t, k, 2] + bias[t, k]   # E at i = 0
-        if a > 0:                      # first i with r + a·i ≥ 0
-            i = np.int64(np.ceil(-r / a))
-            while r + a * i < 0:
-                i += 1
-            while r + a * (i - 1) >= 0:
-                i -= 1
-            i_lo = max(i_lo, i)
-        elif a < 0:                    # last i with r + a·i ≥ 0
-            i = np.int64(np.floor(r / -a))
-            while r + a * i < 0:
-                i -= 1
-            while r + a * (i + 1) >= 0:
-                i += 1
-            i_hi = min(i_hi, i)
-        elif r < 0:
-            return 1, 0
+        # E_k at i = 0, edge by edge: edge_values' three at once before the loop made this 14–20 % slower
+        r = edges[t, k, 0] * px0 + edges[t, k, 1] * py + edges[t, k, 2]
+        if a == 0:
+            if not inside_edge(r, bias, t, k):
+                return 1, 0
+            continue
+        # one call of the rule per loop, either way along the row (each inlined call costs compile time)
+        inward = 1 if a > 0 else -1          # the direction in which E_k grows
+        i = np.int64(np.ceil(-r / a)) if a > 0 else np.int64(np.floor(r / -a))
+        while not inside_edge(r + a * i, bias, t, k):
+            i += inward
+        while inside_edge(r + a * (i - inward), bias, t, k):
+            i -= inward
+        if a > 0:
+            i_lo = max(i_lo, i)      # the first i inside edge k
+        else:
+            i_hi = min(i_hi, i)      # the last
         if i_lo > i_hi:
             return 1, 0
     return i_lo, i_hi
@@ -213,10 +214,13 @@ NARROW = 16
 
 @numba.njit(cache=True)
 def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, write, depth, vis):
-    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample's edges.
+    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample.
 
-    Along a row the edge values step by A_k·256 (exact integers); depth is
+    Along a row the edge values step by A_k·256 (exact integers), and the triangle
+    setup's fill rule decides on them (:func:`~softpipe.pipeline.setup.inside`); depth is
     :func:`~softpipe.pipeline.setup.plane_depth` of the sample's exact edge values.
+    (Calling :func:`~softpipe.pipeline.setup.covers` at each sample instead, which
+    evaluates the edges there, made ``sphere200k``'s tile pass 15 % slower.)
     """
     z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
     step0, step1, step2 = edges[t, 0, 0] * SUBPIXEL, edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
@@ -228,7 +232,7 @@ def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, w
             row = height - 1 - j
             e0, e1, e2 = edge_values(edges, t, px, py)
             for i in range(i0, i1 + 1):
-                if e0 + bias[t, 0] >= 0 and e1 + bias[t, 1] >= 0 and e2 + bias[t, 2] >= 0:
+                if inside(e0, e1, e2, bias, t):
                     zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1, e2))
                     if depth_passes(func, zf, depth[s, row, i]):
                         if write:
