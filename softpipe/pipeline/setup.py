@@ -1,8 +1,8 @@
 """Triangle setup: the numbers every later step computes a triangle's samples from.
 
 One setup serves everything after assembly, as ``sp_setup.c`` does in Mesa's
-softpipe: the reference rasterizer (``raster.py``), the fast path's visibility
-pass and the shading of visible samples (``visibility.py``), the generated
+softpipe: the reference rasterizer (``raster.py``), the fast path's tile walk
+(``tiles.py``) and shading of visible samples (``visibility.py``), the generated
 shading loops (``kernels.py``) and the screen-space derivatives. The rules are
 OpenGL's, as Mesa implements them (DESIGN.md):
 

@@ -2,22 +2,25 @@
 
 The second back end's rasterizer, beside the reference one (``raster.py``, which
 emits every covered sample as a fragment for the output merger). It shares the
-triangle setup and its rules with it (``setup.py``: snapping, edge functions, the
-fill rule, the depth plane) and the depth test (``output.depth_passes``), and walks
-coverage its own way, keeping only a visibility buffer: the last triangle that
-passed the depth test at each sample.
+triangle setup with it and asks setup's rules rather than restating them
+(``setup.py``: the fill rule :func:`~softpipe.pipeline.setup.inside_edge`, the
+depth plane :func:`~softpipe.pipeline.setup.plane_depth`), and the depth compare
+(``output.depth_passes``); it walks coverage its own way and keeps only a
+visibility buffer, the last triangle that passed the depth test at each sample:
 
 1. **Binning** (:func:`bin_triangles`): each TILE_W × TILE_H tile gets the list of
    triangles whose box touches it, in primitive order.
 2. **Tiles** (:func:`raster_tiles`): bands of tiles in parallel; inside a tile, its
-   triangles in order, and a hierarchical depth bound that skips the triangles
+   triangles in order (so every sample sees them in the reference's order, on
+   any thread count), and a hierarchical depth bound that skips the triangles
    lying behind everything there.
 3. **Rows**: a triangle at least :data:`NARROW` pixels wide in the tile has each
-   row's covered span solved from the three edge inequalities, and the depth test
-   runs along the span in a loop the compiler vectorizes; a narrower one has each
-   sample's edges tested.
+   row's covered span solved from the three edge inequalities (made exact by the
+   fill rule itself), and the depth test runs along the span in a loop the
+   compiler vectorizes; a narrower one has each sample tested, on edge values
+   stepped along the row (:func:`~softpipe.pipeline.setup.inside`).
 
-``softpipe.pipeline.visibility`` chooses the path and shades what this pass left
+``visibility.py`` chooses the path, runs this pass and shades what it left
 visible; docs/08-fast-path.md walks through both.
 """
 from __future__ import annotations

@@ -1,36 +1,40 @@
-"""The fast path: early depth, then shading of the visible samples only — the same stages in another order.
+"""The fast path: a second back end for opaque draws — find the visible samples first, then shade only those.
 
-For a draw whose result depends only on which fragment is written last at
-each sample (no blending, no discard), the pipeline can skip shading every
-fragment. As in Mesa's softpipe, where early depth is the same quad stages in
-another order chosen by one function, this is a configuration of the one
-pipeline, not a second one: the same assembly, the same triangle setup
-(``setup.py``), the same depth test (``output.depth_passes``), the same
-generated shading code (``kernels.py``). :func:`choose_path` is the one place
-that decides which order a draw takes.
+For a draw whose result depends only on which fragment is written last at each
+sample (no blending, no discard), the hidden fragments need not be shaded. The
+reference back end (``raster.py`` → ``fragment.py`` → ``output.py``) makes,
+shades and merges every fragment in primitive order; this one does not reorder
+those stages but replaces them below the triangle setup:
 
-1. **Setup** (:func:`~softpipe.pipeline.setup.setup_triangles`): the triangle setup
-   the reference rasterizer uses too.
-2. **Binning** (:func:`~softpipe.pipeline.tiles.bin_triangles`): each 128×32 tile gets the list of
-   triangles whose box touches it, in primitive order.
-3. **Visibility** (:func:`visibility_pass`, the tile walk of ``tiles.py``): bands of tiles run in parallel;
-   inside a tile, triangles in order; each row's covered span comes from
-   solving the three edge inequalities exactly in integers (a triangle less
-   than ``NARROW`` pixels wide in the tile has each sample's edges tested
-   instead: cheaper for small triangles), then the depth test runs per sample
-   and the visibility buffer keeps the last triangle that passed. Output:
-   :class:`Visibility`.
-4. **Shading** (:func:`shade_visible`, the generated ``visible_loop`` of
-   ``kernels.py``): the fragment shader runs once per sample whose visibility
-   entry is set (with multisampling, once per pixel and triangle there), with
-   the barycentrics, depth and window position of the triangle setup's
-   functions, as the reference rasterizer computes them. Output:
-   :class:`ShadedSamples` (the colors are in the framebuffer).
+- **shared** with the reference: assembly, the triangle setup and its rules
+  (``setup.py``: snapping, edge functions, the fill rule, the depth plane), the
+  depth compare (``output.depth_passes``), and the shader inputs (barycentrics,
+  depth and window position from setup's functions, interpolated by the same
+  generated code of ``kernels.py``);
+- **its own**: the coverage walk of ``tiles.py`` (tiles in parallel, exact row
+  spans, hierarchical depth), which keeps only a visibility buffer; a shading
+  loop over that buffer; and no output merger (the depth test ran in the walk).
 
-The result is the same bytes as the reference path (rasterize every fragment,
-shade it, merge in order), because there the final color of a sample is the
-shader's output for the last fragment that passed the depth test. Tests hold
-the two paths to identical color and depth.
+Here:
+
+1. **The choice** (:func:`choose_path`, :func:`fast_path_blocker`): the one place
+   that decides which back end a draw takes, and why.
+2. **The visibility pass** (:func:`visibility_pass`): ``tiles.py``'s binning and
+   walk over the draw's triangle setup. Output: :class:`Visibility`, the last
+   triangle that passed the depth test at each sample.
+3. **Shading** (:func:`shade_visible`, the generated ``visible_loop``): the fragment
+   shader runs once per sample whose visibility entry is set (with multisampling,
+   once per pixel and triangle there). Output: :class:`ShadedSamples` (the colors
+   are in the framebuffer). A shader that raises, or returns a NaN alpha
+   (:class:`DiscardOnFastPath`: the draw is then done on the reference path), has
+   the draw undone.
+
+The bytes are the reference's: there, without blending or discard, a sample's
+final color is the shader's output for the last fragment that passed the depth
+test, and this path finds that fragment by the same coverage, depth and order
+and gives the shader the same inputs. Tests hold the two back ends to the same
+bytes (tests/test_fast_path.py, test_fast_path_sound.py, test_properties.py);
+docs/08-fast-path.md walks through it.
 """
 from __future__ import annotations
 
