@@ -37,7 +37,7 @@ LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.e
                ("pipeline.trace", "light.lighting"), ("", "tools.batch")}
 #: softpipe/pipeline/ in pipeline order; each may import only those before it.
 STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "raster",
-          "fragment", "output", "visibility", "trace", "draw"]
+          "fragment", "output", "tiles", "visibility", "trace", "draw"]
 
 
 def _module_name(path: Path) -> str:
@@ -103,8 +103,9 @@ def _layer(module: str) -> int:
 def test_the_import_graph_sees_the_imports_it_should():
     graph = _graph()
     assert {"pipeline.assembly", "pipeline.setup", "pipeline.sampling"} <= graph["pipeline.raster"]
-    assert {"pipeline.raster", "pipeline.setup", "pipeline.output", "pipeline.fragment",
+    assert {"pipeline.raster", "pipeline.setup", "pipeline.output", "pipeline.fragment", "pipeline.tiles",
             "language.kernels"} <= graph["pipeline.visibility"]
+    assert {"pipeline.setup", "pipeline.output", "pipeline.sampling"} <= graph["pipeline.tiles"]
     assert "language.kernels" in graph["pipeline.vertex"]
     assert "scenes.drawing" in graph["tools.cli"]
 
@@ -154,6 +155,22 @@ def test_no_stage_imports_a_later_stage():
         if stage == "trace":     # the trace's views (LATE_UPWARD) reach the draw only at call time
             reached -= {"pipeline.draw"}
         assert not reached, f"pipeline/{stage}.py reaches the later stage(s) {sorted(reached)}"
+
+
+def test_the_fill_rule_is_stated_once_in_the_triangle_setup():
+    """No pipeline module but setup.py reads a fill-rule bias: the reference rasterizer and the fast
+    path's tile walk hand it to setup's rule (inside_edge, inside, covers, pixel_coverage) instead of
+    restating E_k + bias_k ≥ 0, so the two back ends cannot disagree on a sample on an edge."""
+    for path in sorted((PACKAGE / "pipeline").glob("*.py")):
+        if path.stem == "setup":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) and node.value.id == "bias":
+                raise AssertionError(f"softpipe/pipeline/{path.name}, line {node.lineno}, reads bias[...] itself: "
+                                     "ask the triangle setup's fill rule (setup.inside_edge, inside, covers)")
+    from softpipe.pipeline import setup, tiles
+    for name in ("inside_edge", "inside", "covers"):       # the tile walk calls the very same functions
+        assert getattr(tiles, name) is getattr(setup, name), name
 
 
 def test_generated_modules_import_only_the_contract_their_generator_and_the_setup():

@@ -150,7 +150,7 @@ def test_fast_path_is_refused_when_it_cannot_give_the_same_bytes():
 def test_narrow_and_wide_triangles_across_tile_edges(pattern, func):
     """Boxes just under, at and over NARROW pixels wide (sample by sample vs row spans), 1-pixel
     triangles and slivers, placed across the 128×32 tile edges, overlapping at random depths."""
-    from softpipe.pipeline.visibility import NARROW, TILE_H, TILE_W
+    from softpipe.pipeline.tiles import NARROW, TILE_H, TILE_W
     rng = np.random.default_rng(11)
     w, h = 2 * TILE_W + 20, 3 * TILE_H + 7
     tris = []

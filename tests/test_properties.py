@@ -48,12 +48,12 @@ from hypothesis import strategies as st
 
 import reference
 import softpipe
-import softpipe.pipeline.visibility
 from conftest import window_prims, window_to_clip
 from softpipe.pipeline.assembly import GUARD_PIXELS, W_MIN
 from softpipe.pipeline.output import DEPTH_FUNCS
 from softpipe.pipeline.raster import rasterize
 from softpipe.pipeline.sampling import CENTER, grid, rotated_grid_4x
+from softpipe.pipeline.tiles import TILE_H, TILE_W
 
 # ------------------------------------------------------------ hypothesis profiles
 
@@ -532,11 +532,6 @@ def test_multisampled_fast_path_gives_the_bytes_of_the_reference_path(scene, sha
     note(describe(scene) + f"; sample_shading={shading}")
     assert_same_bytes(render(scene, "reference", sample_shading=shading),
                       render(scene, "fast", sample_shading=shading), f"fast vs reference, {shading}")
-
-
-#: the fast path's tile (a compile-time constant of its numba kernels): 64×64 once, now wide tiles
-TILE_W = getattr(softpipe.pipeline.visibility, "TILE_W", getattr(softpipe.pipeline.visibility, "TILE", 64))
-TILE_H = getattr(softpipe.pipeline.visibility, "TILE_H", getattr(softpipe.pipeline.visibility, "TILE", 64))
 
 
 def around_tiles(tile: int) -> st.SearchStrategy:

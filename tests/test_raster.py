@@ -184,6 +184,31 @@ def test_random_triangles_match_the_exact_reference(rng):
         assert mine == want, f"triangle {t} {tri}:\n" + diff_picture(mine, want, size, size)
 
 
+def test_the_fill_rule_answers_alike_at_a_sample_on_edge_values_and_edge_by_edge(rng):
+    """setup's one fill rule in its three forms: ``covers`` at a position (the reference rasterizer),
+    ``inside`` on a sample's edge values (the fast path's narrow walker, which steps them) and
+    ``inside_edge`` edge by edge (its row spans): the same answer at every pixel centre, many on
+    edges and corners, and the exact reference's."""
+    from softpipe.pipeline.sampling import CENTER
+    from softpipe.pipeline.setup import covers, edge_values, inside, inside_edge, pixel_rect, setup_triangles
+    size = 12
+    tris = [random_triangle(rng, size) for _ in range(80)]
+    setup = setup_triangles(window_prims(tris).window, pixel_rect(size, size), CENTER.offsets)
+    edges, bias = setup.edges, setup.bias
+    on_an_edge = 0
+    for t, tri in enumerate(tris):
+        want = {(i, j) for i, j, _ in reference.covered(tri, size, size)}
+        for j in range(size):
+            for i in range(size):
+                px, py = 256 * i, 256 * j
+                e = edge_values(edges, t, px, py)
+                by_edge = all(inside_edge(e[k], bias, t, k) for k in range(3))
+                got = {covers(edges, bias, t, px, py), inside(*e, bias, t), by_edge}
+                assert got == {(i, j) in want}, (t, tri, i, j, e, bias[t])
+                on_an_edge += setup.area[t] != 0 and 0 in e
+    assert on_an_edge > 10          # the ties the bias decides are among them (34 to 152 over 40 seeds)
+
+
 # ----------------------------------------------------------------- watertight
 
 def test_grid_of_quads_covers_every_pixel_exactly_once(rng):

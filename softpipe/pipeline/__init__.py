@@ -8,7 +8,9 @@
 4. :mod:`.fragment`: interpolation and the fragment shader → ``ShadedFragments``
 5. :mod:`.output`: the output merger, into the :mod:`.framebuffer`
 
-:mod:`.visibility` is the fast path's second back end over the same setup; :mod:`.draw`
+The fast path is a second back end over the same setup, with its own coverage walk
+(:mod:`.tiles`: tiles, row spans, hierarchical depth) and no output merger;
+:mod:`.visibility` chooses between the two and shades the visible samples. :mod:`.draw`
 wires the stages into a draw call; :mod:`.trace` keeps what each stage made.
 :mod:`.sampling` holds the sample patterns the rasterizer and framebuffer share.
 A stage imports only stages before it (tests/test_architecture.py checks it).

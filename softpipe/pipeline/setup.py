@@ -1,8 +1,8 @@
 """Triangle setup: the numbers every later step computes a triangle's samples from.
 
 One setup serves everything after assembly, as ``sp_setup.c`` does in Mesa's
-softpipe: the reference rasterizer (``raster.py``), the fast path's visibility
-pass and the shading of visible samples (``visibility.py``), the generated
+softpipe: the reference rasterizer (``raster.py``), the fast path's tile walk
+(``tiles.py``) and shading of visible samples (``visibility.py``), the generated
 shading loops (``kernels.py``) and the screen-space derivatives. The rules are
 OpenGL's, as Mesa implements them (DESIGN.md):
 
@@ -19,7 +19,8 @@ OpenGL's, as Mesa implements them (DESIGN.md):
 3. **The fill rule** (:func:`owns_samples_on_edge`): a sample strictly inside all
    three edges is covered; one exactly on an edge is covered only if that edge
    owns it — left edges and bottom horizontal edges, in window coordinates
-   (y up). The bias ``−1`` on the other edges makes the test ``E_k + bias_k ≥ 0``.
+   (y up). The bias ``−1`` on the other edges makes the test ``E_k + bias_k ≥ 0``
+   (:func:`inside_edge`; :func:`covers` at a sample).
 4. **Depth** is linear in window space, ``z = b_0 z_0 + b_1 z_1 + b_2 z_2``,
    evaluated as ``z_0 + (E_1 (z_1 − z_0) + E_2 (z_2 − z_0)) / area``
    (:func:`depth_at`: the one expression both paths use, so their depth buffers
@@ -45,7 +46,8 @@ from softpipe.core.parallel import in_bands
 from softpipe.pipeline.sampling import SUBPIXEL
 
 __all__ = ["TriangleSetup", "setup_triangles", "snap", "edge_function", "owns_samples_on_edge", "edge_values",
-           "covers", "plane_depth", "depth_at", "apply_polygon_offset", "pixel_coverage", "shading_point", "SHADING_POSITIONS", "pixel_rect"]
+           "inside_edge", "inside", "covers", "plane_depth", "depth_at", "apply_polygon_offset", "pixel_coverage",
+           "shading_point", "SHADING_POSITIONS", "pixel_rect"]
 
 #: Where a fragment's barycentrics (its shading inputs) are taken: every sample on
 #: its own (ordinary and supersampled rendering), or once per pixel at its centre
@@ -255,10 +257,34 @@ def edge_values(edges, t, px, py):
 
 
 @numba.njit(cache=True, inline="always")
+def inside_edge(e, bias, t, k):
+    """The fill rule at one edge: is a sample where E_k of triangle t is ``e`` on its inner side, E_k + bias_k ≥ 0?
+
+    The one statement of the rule; :func:`inside` and :func:`covers` apply it at all three
+    edges, the fast path's row spans (``tiles.py``) edge by edge.
+    """
+    return e + bias[t, k] >= 0
+
+
+@numba.njit(cache=True, inline="always")
+def inside(e0, e1, e2, bias, t):
+    """Does triangle t cover a sample whose edge values are (e0, e1, e2)? The fill rule at each edge.
+
+    For loops that step the edge values from sample to sample (exact integers) instead
+    of evaluating them at each one (:func:`covers`).
+    """
+    return inside_edge(e0, bias, t, 0) and inside_edge(e1, bias, t, 1) and inside_edge(e2, bias, t, 2)
+
+
+@numba.njit(cache=True, inline="always")
 def covers(edges, bias, t, px, py):
-    """Does triangle t cover the sample at (px, py)? The fill rule: every E_k + bias_k ≥ 0."""
+    """Does triangle t cover the sample at (px, py)? The fill rule (:func:`inside_edge`) at every edge.
+
+    Edge by edge, stopping at the first it fails: evaluating the three edges first (as
+    :func:`inside` takes them) made the reference rasterizer's counting pass 18 % slower.
+    """
     for k in range(3):
-        if edges[t, k, 0] * px + edges[t, k, 1] * py + edges[t, k, 2] + bias[t, k] < 0:
+        if not inside_edge(edges[t, k, 0] * px + edges[t, k, 1] * py + edges[t, k, 2], bias, t, k):
             return False
     return True
 

@@ -1,36 +1,40 @@
-"""The fast path: early depth, then shading of the visible samples only — the same stages in another order.
+"""The fast path: a second back end for opaque draws — find the visible samples first, then shade only those.
 
-For a draw whose result depends only on which fragment is written last at
-each sample (no blending, no discard), the pipeline can skip shading every
-fragment. As in Mesa's softpipe, where early depth is the same quad stages in
-another order chosen by one function, this is a configuration of the one
-pipeline, not a second one: the same assembly, the same triangle setup
-(``setup.py``), the same depth test (``output.depth_passes``), the same
-generated shading code (``kernels.py``). :func:`choose_path` is the one place
-that decides which order a draw takes.
+For a draw whose result depends only on which fragment is written last at each
+sample (no blending, no discard), the hidden fragments need not be shaded. The
+reference back end (``raster.py`` → ``fragment.py`` → ``output.py``) makes,
+shades and merges every fragment in primitive order; this one does not reorder
+those stages but replaces them below the triangle setup:
 
-1. **Setup** (:func:`~softpipe.pipeline.setup.setup_triangles`): the triangle setup
-   the reference rasterizer uses too.
-2. **Binning** (:func:`bin_triangles`): each 128×32 tile gets the list of
-   triangles whose box touches it, in primitive order.
-3. **Visibility** (:func:`visibility_pass`): bands of tiles run in parallel;
-   inside a tile, triangles in order; each row's covered span comes from
-   solving the three edge inequalities exactly in integers (a triangle less
-   than :data:`NARROW` pixels wide in the tile has each sample's edges tested
-   instead: cheaper for small triangles), then the depth test runs per sample
-   and the visibility buffer keeps the last triangle that passed. Output:
-   :class:`Visibility`.
-4. **Shading** (:func:`shade_visible`, the generated ``visible_loop`` of
-   ``kernels.py``): the fragment shader runs once per sample whose visibility
-   entry is set (with multisampling, once per pixel and triangle there), with
-   the barycentrics, depth and window position of the triangle setup's
-   functions, as the reference rasterizer computes them. Output:
-   :class:`ShadedSamples` (the colors are in the framebuffer).
+- **shared** with the reference: assembly, the triangle setup and its rules
+  (``setup.py``: snapping, edge functions, the fill rule, the depth plane), the
+  depth compare (``output.depth_passes``), and the shader inputs (barycentrics,
+  depth and window position from setup's functions, interpolated by the same
+  generated code of ``kernels.py``);
+- **its own**: the coverage walk of ``tiles.py`` (tiles in parallel, exact row
+  spans, hierarchical depth), which keeps only a visibility buffer; a shading
+  loop over that buffer; and no output merger (the depth test ran in the walk).
 
-The result is the same bytes as the reference path (rasterize every fragment,
-shade it, merge in order), because there the final color of a sample is the
-shader's output for the last fragment that passed the depth test. Tests hold
-the two paths to identical color and depth.
+Here:
+
+1. **The choice** (:func:`choose_path`, :func:`fast_path_blocker`): the one place
+   that decides which back end a draw takes, and why.
+2. **The visibility pass** (:func:`visibility_pass`): ``tiles.py``'s binning and
+   walk over the draw's triangle setup. Output: :class:`Visibility`, the last
+   triangle that passed the depth test at each sample.
+3. **Shading** (:func:`shade_visible`, the generated ``visible_loop``): the fragment
+   shader runs once per sample whose visibility entry is set (with multisampling,
+   once per pixel and triangle there). Output: :class:`ShadedSamples` (the colors
+   are in the framebuffer). A shader that raises, or returns a NaN alpha
+   (:class:`DiscardOnFastPath`: the draw is then done on the reference path), has
+   the draw undone.
+
+The bytes are the reference's: there, without blending or discard, a sample's
+final color is the shader's output for the last fragment that passed the depth
+test, and this path finds that fragment by the same coverage, depth and order
+and gives the shader the same inputs. Tests hold the two back ends to the same
+bytes (tests/test_fast_path.py, test_fast_path_sound.py, test_properties.py);
+docs/08-fast-path.md walks through it.
 """
 from __future__ import annotations
 
@@ -41,23 +45,17 @@ import numba
 import numpy as np
 
 from softpipe.language import kernels
-from softpipe.core.parallel import in_bands, threads
+from softpipe.core.parallel import in_bands
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients
-from softpipe.pipeline.output import DEPTH_FUNCS, MergeState, depth_passes
+from softpipe.pipeline.output import DEPTH_FUNCS, MergeState
 from softpipe.pipeline.raster import Fragments
-from softpipe.pipeline.sampling import SUBPIXEL
-from softpipe.pipeline.setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, covers, depth_at, edge_values, offset_bounds,
-                    pixel_coverage, plane_depth, sample_depth, shading_point)
+from softpipe.pipeline.setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, pixel_coverage, sample_depth,
+                                     shading_point)
+from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
 
-__all__ = ["TILE_W", "TILE_H", "NARROW", "Visibility", "ShadedSamples", "bin_triangles", "visibility_pass",
-           "shade_visible", "choose_path", "fast_path_blocker", "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath",
-           "shading_may_fail"]
-
-#: Tiles are wide and short: rows inside a tile are long enough for the compiler's
-#: vectorized loop to pay off, and a tile's depth and visibility (128×32×8 bytes)
-#: stay in the core's cache while every triangle binned to it is drawn.
-TILE_W, TILE_H = 128, 32
+__all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
+           "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -110,293 +108,6 @@ def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable
 
 
 # --------------------------------------------------------------- the visibility pass
-
-#: Binning runs in bands of at least this many triangles (each counted, then filled, on its own),
-#: two per thread at most. Handing bands to the helper threads costs about 0.3 ms a phase, more
-#: than binning the sphere's 68k triangles in the calling thread (0.45 ms for both phases).
-BIN_BAND_MIN = 131072
-
-
-def bin_triangles(box, tiles_x, tiles_y):
-    """Triangles per tile, in primitive order: (starts [tiles + 1], items).
-
-    In bands of triangles, in parallel: each band counts its triangles per tile, a prefix
-    sum over (tile, band) gives every band its place in each tile's list, and each band
-    fills its places. Band b's triangles come before band b + 1's in every tile, so the
-    lists are in primitive order, the same for any thread count.
-    """
-    n_tiles = tiles_x * tiles_y
-    bands = max(1, min(2 * threads(), box.shape[0] // BIN_BAND_MIN))
-    bounds = np.linspace(0, box.shape[0], bands + 1).astype(np.int64)
-    counts = np.zeros((bands, n_tiles), np.int64)
-    in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
-    starts, fill = _bin_places(counts)
-    items = np.empty(starts[-1], np.int32)
-    in_bands(_bin_fill, bands, bounds, box, tiles_x, fill, items)
-    return starts, items
-
-
-@numba.njit(cache=True, nogil=True)
-def _bin_count(band_lo, band_hi, bounds, box, tiles_x, counts):
-    for band in range(band_lo, band_hi):
-        for t in range(bounds[band], bounds[band + 1]):
-            if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
-                continue
-            for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
-                for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
-                    counts[band, ty * tiles_x + tx] += 1
-
-
-def _bin_places(counts):
-    """(starts [tiles + 1], fill [bands, tiles]): where each tile's list begins, and each band's place in it.
-
-    A prefix sum over (tile, band) in that order; numpy's (the arrays are a few hundred
-    entries: a compiled loop would cost its compile at a cold start and save nothing).
-    """
-    bands, n_tiles = counts.shape
-    running = np.zeros(n_tiles * bands + 1, np.int64)
-    np.cumsum(counts.T.ravel(), out=running[1:])
-    fill = running[:-1].reshape(n_tiles, bands).T.copy()     # (copies: _bin_fill counts fill up in place)
-    return running[::bands].copy(), fill
-
-
-@numba.njit(cache=True, nogil=True)
-def _bin_fill(band_lo, band_hi, bounds, box, tiles_x, fill, items):
-    for band in range(band_lo, band_hi):
-        for t in range(bounds[band], bounds[band + 1]):
-            if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
-                continue
-            for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
-                for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
-                    tile = ty * tiles_x + tx
-                    items[fill[band, tile]] = t
-                    fill[band, tile] += 1
-
-
-@numba.njit(cache=True)
-def _span(edges, bias, t, px0, py, i_lo, i_hi):
-    """The pixels i in [i_lo, i_hi] whose sample (256·i + px0, py) every edge covers.
-
-    E_k = A·(256 i + px0) + B·py + C + bias ≥ 0 is linear in i; each edge bounds i
-    from one side. The bound is estimated in floating point (a division is far
-    cheaper there than in 64-bit integers) and then made exact by testing the
-    integer inequality itself, so the span is exactly the covered pixels.
-    """
-    for k in range(3):
-        a = edges[t, k, 0] * SUBPIXEL
-        r = edges[t, k, 0] * px0 + edges[t, k, 1] * py + edges[t, k, 2] + bias[t, k]   # E at i = 0
-        if a > 0:                      # first i with r + a·i ≥ 0
-            i = np.int64(np.ceil(-r / a))
-            while r + a * i < 0:
-                i += 1
-            while r + a * (i - 1) >= 0:
-                i -= 1
-            i_lo = max(i_lo, i)
-        elif a < 0:                    # last i with r + a·i ≥ 0
-            i = np.int64(np.floor(r / -a))
-            while r + a * i < 0:
-                i -= 1
-            while r + a * (i + 1) >= 0:
-                i += 1
-            i_hi = min(i_hi, i)
-        elif r < 0:
-            return 1, 0
-        if i_lo > i_hi:
-            return 1, 0
-    return i_lo, i_hi
-
-
-#: Depth tests for which a tile's farthest depth can reject whole triangles (with writes on).
-LESS, LEQUAL = 1, 3
-#: Safety margin of the hierarchical depth test: far larger than any rounding in
-#: the per-sample depth, far smaller than anything a picture could show.
-HIZ_MARGIN = 1e-6
-
-
-@numba.njit(cache=True)
-def _plane_z(edges, plane, t, px, py):
-    """The depth plane at a (possibly off-sample) fixed-point position, in float: for bounds only."""
-    _, e1, e2 = edge_values(edges, t, float(px), float(py))
-    return depth_at(plane, t, e1, e2)
-
-
-@numba.njit(cache=True)
-def _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
-    """Are all samples of pixels [i0, i1] × [j0, j1] inside the triangle? (Convex: the corners decide.)"""
-    qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
-    qy0, qy1 = j0 * SUBPIXEL + oy_lo, j1 * SUBPIXEL + oy_hi
-    return (covers(edges, bias, t, qx0, qy0) and covers(edges, bias, t, qx1, qy0)
-            and covers(edges, bias, t, qx0, qy1) and covers(edges, bias, t, qx1, qy1))
-
-
-@numba.njit(cache=True)
-def _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, strict, write):
-    """One span (contiguous views of one row of one sample plane) under LESS (strict) or LEQUAL.
-
-    Written so that the compiler vectorizes it: 1-D contiguous views indexed
-    from 0, and selects rather than branches. e1 + k·a1 is exact in float64
-    (integers below 2^53), so the depth is the reference rasterizer's
-    (:func:`~softpipe.pipeline.setup.plane_depth`).
-    """
-    for k in range(drow.shape[0]):
-        kf = float(k)
-        zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1 + kf * a1, e2 + kf * a2))
-        old = drow[k]
-        passed = zf < old if strict else zf <= old
-        if write:
-            drow[k] = zf if passed else old
-        vrow[k] = t if passed else vrow[k]
-
-
-@numba.njit(cache=True)
-def _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write):
-    """One span under any compare function."""
-    for k in range(drow.shape[0]):
-        kf = float(k)
-        zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1 + kf * a1, e2 + kf * a2))
-        if depth_passes(func, zf, drow[k]):
-            if write:
-                drow[k] = zf
-            vrow[k] = t
-
-
-#: A triangle whose box inside a tile is at most this many pixels wide is walked
-#: sample by sample: for small triangles, testing each sample costs less than
-#: solving each row's span.
-NARROW = 16
-
-
-@numba.njit(cache=True)
-def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, write, depth, vis):
-    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample's edges.
-
-    Along a row the edge values step by A_k·256 (exact integers); depth is
-    :func:`~softpipe.pipeline.setup.plane_depth` of the sample's exact edge values.
-    """
-    z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
-    step0, step1, step2 = edges[t, 0, 0] * SUBPIXEL, edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
-    for s in range(offsets.shape[0]):
-        ox, oy = offsets[s, 0], offsets[s, 1]
-        px = i0 * SUBPIXEL + ox
-        for j in range(j0, j1 + 1):
-            py = j * SUBPIXEL + oy
-            row = height - 1 - j
-            e0, e1, e2 = edge_values(edges, t, px, py)
-            for i in range(i0, i1 + 1):
-                if e0 + bias[t, 0] >= 0 and e1 + bias[t, 1] >= 0 and e2 + bias[t, 2] >= 0:
-                    zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1, e2))
-                    if depth_passes(func, zf, depth[s, row, i]):
-                        if write:
-                            depth[s, row, i] = zf
-                        vis[s, row, i] = t
-                e0 += step0
-                e1 += step1
-                e2 += step2
-
-
-@numba.njit(cache=True)
-def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, func, write, depth, vis):
-    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1] row span by row span.
-
-    ``whole``: every sample of the box is inside (no span to solve).
-    """
-    z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
-    a1, a2 = float(edges[t, 1, 0] * SUBPIXEL), float(edges[t, 2, 0] * SUBPIXEL)
-    for s in range(offsets.shape[0]):
-        ox, oy = offsets[s, 0], offsets[s, 1]
-        dplane, vplane = depth[s], vis[s]
-        for j in range(j0, j1 + 1):
-            py = j * SUBPIXEL + oy
-            lo, hi = (i0, i1) if whole else _span(edges, bias, t, ox, py, i0, i1)
-            if lo > hi:
-                continue
-            px = lo * SUBPIXEL + ox
-            _, e1i, e2i = edge_values(edges, t, px, py)
-            e1, e2 = float(e1i), float(e2i)
-            row = height - 1 - j
-            drow, vrow = dplane[row, lo:hi + 1], vplane[row, lo:hi + 1]
-            if func == LESS or func == LEQUAL:
-                _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func == LESS, write)
-            else:
-                _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
-
-
-@numba.njit(cache=True, inline="never")
-def _save_tile(depth, saved_depth, row_lo, row_hi, col_lo, col_hi):
-    for s in range(depth.shape[0]):
-        for row in range(row_lo, row_hi):
-            for i in range(col_lo, col_hi):
-                saved_depth[s, row, i] = depth[s, row, i]
-
-
-@numba.njit(cache=True, inline="always")
-def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
-                 depth, vis, touched, saved_depth):
-    """One tile of the visibility pass: its triangles, in primitive order (see :func:`raster_tiles`)."""
-    hiz = depth_write and (func == LESS or func == LEQUAL)
-    ox_lo, ox_hi, oy_lo, oy_hi = offset_bounds(offsets)
-    tx, ty = tile % tiles_x, tile // tiles_x
-    x_lo, x_hi = tx * TILE_W, min(tx * TILE_W + TILE_W, width) - 1
-    y_lo, y_hi = ty * TILE_H, min(ty * TILE_H + TILE_H, height) - 1
-    for s in range(offsets.shape[0]):      # nothing visible yet (here, in parallel, not one serial fill)
-        for row in range(height - 1 - y_hi, height - y_lo):
-            vis[s, row, x_lo:x_hi + 1] = -1
-    far = 0.0
-    save = saved_depth.shape[0] > 0
-    tile_touched = touched[tile]
-    if hiz and starts[tile + 1] > starts[tile]:
-        for s in range(offsets.shape[0]):
-            for row in range(height - 1 - y_hi, height - y_lo):
-                for i in range(x_lo, x_hi + 1):
-                    far = max(far, depth[s, row, i])
-    for k in range(starts[tile], starts[tile + 1]):
-        t = items[k]
-        i0, i1 = max(box[t, 0], x_lo), min(box[t, 1], x_hi)
-        j0, j1 = max(box[t, 2], y_lo), min(box[t, 3], y_hi)
-        if i0 > i1 or j0 > j1:
-            continue
-        whole_tile = i0 == x_lo and i1 == x_hi and j0 == y_lo and j1 == y_hi
-        if hiz and (far < 1.0 or whole_tile):      # (at far = 1, nothing can be rejected)
-            # the rectangle holding every sample this triangle may cover in the tile
-            qx0, qx1 = i0 * SUBPIXEL + ox_lo, i1 * SUBPIXEL + ox_hi
-            qy0, qy1 = j0 * SUBPIXEL + oy_lo, j1 * SUBPIXEL + oy_hi
-            za, zb = _plane_z(edges, plane, t, qx0, qy0), _plane_z(edges, plane, t, qx1, qy0)
-            zc, zd = _plane_z(edges, plane, t, qx0, qy1), _plane_z(edges, plane, t, qx1, qy1)
-            if min(za, zb, zc, zd) - HIZ_MARGIN > far:
-                continue
-            if whole_tile and _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
-                far = min(far, max(za, zb, zc, zd) + HIZ_MARGIN)
-        if not tile_touched:
-            if save:                        # the tile's depth before this draw, to undo it (shade_visible)
-                _save_tile(depth, saved_depth, height - 1 - y_hi, height - y_lo, x_lo, x_hi + 1)
-            # written once per tile, not per triangle: neighbouring tiles' flags share a cache
-            # line, and the other thread is drawing those tiles
-            touched[tile] = tile_touched = True
-        if i1 - i0 < NARROW:
-            _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
-        else:
-            whole = _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
-            _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, func, depth_write,
-                        depth, vis)
-
-
-@numba.njit(cache=True, nogil=True)
-def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func,
-                 depth_write, depth, vis, touched, saved_depth):
-    """The visibility pass over tiles [tile_lo, tile_hi); see the module docstring.
-
-    Hierarchical depth (LESS/LEQUAL with writes): each tile keeps an upper bound
-    of its depths; a triangle whose nearest point over the tile lies beyond it
-    cannot pass anywhere there and is skipped; a triangle that covers the whole
-    tile lowers the bound to its own farthest depth there. ``touched[tile]`` is
-    set for every tile where some triangle was depth-tested (the others keep no
-    visible sample of this draw: shading skips them); unless ``saved_depth`` is
-    empty, such a tile's depth is first copied there (to undo the draw).
-    """
-    for tile in range(tile_lo, tile_hi):
-        _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func,
-                     depth_write, depth, vis, touched, saved_depth)
-
 
 @dataclass
 class Visibility:
