@@ -34,7 +34,7 @@ from numba.extending import intrinsic, overload
 
 from softpipe.core.parallel import in_bands
 from softpipe.rays.build import binary_tree, fill_blocks, gather_corners, pack_boxes, refit_boxes, wide_tree
-from softpipe.rays.traverse import batch, query
+from softpipe.rays.traverse import node_stack, query, start_row, step, store, t_stack
 
 __all__ = ["BVH", "BVHUniform", "closest_hit", "any_hit", "scene_bvh"]
 
@@ -110,13 +110,57 @@ def any_hit(bvh, origin, direction, t_min: float, t_max: float) -> bool:
                  True)[0] >= 0
 
 
+# Why two rays at a time. A ray's traversal is one long chain of dependent steps (a node's
+# address comes from its parent's links, which child comes next from the boxes' tests) with
+# hard-to-guess branches, so one ray leaves most of the core idle: testing every box and
+# triangle twice was measured to add little to the time (benchmarks/README.md, "Rays"). The
+# batch kernel therefore walks two rays in turn, a step of one then a step of the other (each
+# on its own stack; softpipe.rays.traverse's start_row, step, store), and starts the band's next
+# ray where one finishes: the core overlaps the two chains. Each ray's answer is computed
+# exactly as alone, so the bytes do not change. The loop lives here, beside the borrowing: in
+# one body with it, the compiler sees that the arrays have no owner and drops the reference
+# counting of the inlined steps. A loop of its own in traverse.py, called with borrowed arrays,
+# ran slower as a call and compiled to other code inlined (benchmarks/README.md, "Rays").
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _batch_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, any_, ids, ts, bs, occluded):
-    """Rays lo_ … hi_ − 1 of a batch on ``bvh``'s borrowed arrays, two in flight
-    (:func:`softpipe.rays.traverse.batch`): closest hits into ids, ts, bs, or (any_) any hits into occluded."""
-    batch(lo_, hi_, _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi),
-          _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), _borrowed(bvh.tri_ids),
-          origins, directions, t_min, t_max, any_, ids, ts, bs, occluded)
+    """Rays lo_ … hi_ − 1 of a batch, two in flight: closest hits into ids, ts, bs, or (any_) any hits
+    into occluded."""
+    sa_node, sa_t, sb_node, sb_t = node_stack(), t_stack(), node_stack(), t_stack()
+    boxes, links, lo, hi = _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi)
+    first, count, tris, tri_ids = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), \
+        _borrowed(bvh.tri_ids)
+    ia, ib = lo_, lo_ + 1
+    ray_a, st_a = start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
+    if ib < hi_:
+        ray_b, st_b = start_row(lo, hi, first, count, origins, directions, t_min, t_max, ib)
+    else:
+        ib = -1
+        ray_b, st_b = ray_a, st_a
+    nxt = lo_ + 2
+    while ia >= 0 or ib >= 0:
+        if ia >= 0:
+            if st_a[0]:
+                st_a = step(boxes, links, tris, tri_ids, ray_a, st_a, any_, sa_node, sa_t)
+            else:
+                store(ia, st_a, any_, ids, ts, bs, occluded)
+                if nxt < hi_:
+                    ia = nxt
+                    nxt += 1
+                    ray_a, st_a = start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
+                else:
+                    ia = -1
+        if ib >= 0:
+            if st_b[0]:
+                st_b = step(boxes, links, tris, tri_ids, ray_b, st_b, any_, sb_node, sb_t)
+            else:
+                store(ib, st_b, any_, ids, ts, bs, occluded)
+                if nxt < hi_:
+                    ib = nxt
+                    nxt += 1
+                    ray_b, st_b = start_row(lo, hi, first, count, origins, directions, t_min, t_max, ib)
+                else:
+                    ib = -1
 
 
 # ------------------------------------------------------------------ the BVH

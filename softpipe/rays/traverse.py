@@ -1,9 +1,9 @@
-"""Walking a BVH: one ray's closest or any hit, and batches of rays two at a time.
+"""Walking a BVH: one ray's closest or any hit, and the steps a batch of rays is walked by.
 
 The traversal walks the wide tree :mod:`softpipe.rays.build` makes (the arrays are described
 in :mod:`softpipe.rays.layout`). Per ray, :func:`_start` computes the ray's constants once
 (the watertight test's shear, :func:`~softpipe.rays.triangle.ray_space`; ``1/d``; which box
-planes the ray enters by) and tests the root's box; then each :func:`_step` visits one node:
+planes the ray enters by) and tests the root's box; then each :func:`step` visits one node:
 
 - **a wide node**: its four children's boxes in one vector of four float64s
   (:func:`_lane_entries`: pbrt's robust slab test, the far distance padded by ``1 + 2γ(3)``),
@@ -16,12 +16,14 @@ planes the ray enters by) and tests the root's box; then each :func:`_step` visi
 
 The closest-hit search skips any box that begins beyond the nearest hit so far (plus
 :data:`REACH_PAD`, for ties: the lowest triangle id wins a tie in t); the any-hit search stops
-at its first hit. :func:`query` answers one ray, :func:`batch` a band of rays with two in
-flight. Both take the BVH's arrays *borrowed* (no owner, so numba counts no references per
-call: :func:`softpipe.rays.bvh._borrowed`), and keep their stacks in their own frame. Each
-ray's answer depends on nothing but the ray, so the bytes are the same for any thread count.
-docs/raytracing.md ("The BVH") explains why this shape; benchmarks/README.md ("Rays") has the
-measurements.
+at its first hit. :func:`query` answers one ray; a batch kernel
+(:func:`softpipe.rays.bvh._batch_kernel`) walks two rays in turn with :func:`start_row`,
+:func:`step` and :func:`store`, each ray on its own stack (:func:`node_stack`,
+:func:`t_stack`: arrays in the caller's frame). All of them work on the BVH's arrays
+*borrowed* (no owner, so numba counts no references: :func:`softpipe.rays.bvh._borrowed`).
+Each ray's answer depends on nothing but the ray, so the bytes are the same for any thread
+count. docs/raytracing.md ("The BVH") explains why this shape; benchmarks/README.md ("Rays")
+has the measurements.
 """
 from __future__ import annotations
 
@@ -37,7 +39,7 @@ from numba.extending import intrinsic, overload
 from softpipe.rays.layout import BLOCK, COUNT_MASK, MAX_DEPTH, REF_SHIFT, WIDTH
 from softpipe.rays.triangle import hit_sheared, ray_space
 
-__all__ = ["query", "batch", "STACK_SIZE", "SLAB_PAD", "REACH_PAD"]
+__all__ = ["query", "start_row", "step", "store", "node_stack", "t_stack", "STACK_SIZE", "SLAB_PAD", "REACH_PAD"]
 
 #: The traversal's stack: a wide node's level is at most its binary depth, and a visit puts
 #: aside at most WIDTH − 1 children.
@@ -59,12 +61,12 @@ REACH_PAD = 2.0 ** -44
 # The traversal's stacks live in the calling function's own frame (an alloca, as C would):
 # np.empty would cost a heap allocation, and a reference count, per ray.
 
-def _node_stack():
+def node_stack():
     """The traversal's [STACK_SIZE] int64 stack, in the calling function's frame (plain Python: a new array)."""
     return np.empty(STACK_SIZE, np.int64)
 
 
-def _t_stack():
+def t_stack():
     """The traversal's [STACK_SIZE] float64 stack, in the calling function's frame (plain Python: a new array)."""
     return np.empty(STACK_SIZE, np.float64)
 
@@ -93,12 +95,12 @@ _node_stack_intrinsic = _frame_stack_intrinsic(types.int64)
 _t_stack_intrinsic = _frame_stack_intrinsic(types.float64)
 
 
-@overload(_node_stack, inline="always")
+@overload(node_stack, inline="always")
 def _node_stack_compiled():
     return lambda: _node_stack_intrinsic()
 
 
-@overload(_t_stack, inline="always")
+@overload(t_stack, inline="always")
 def _t_stack_compiled():
     return lambda: _t_stack_intrinsic()
 
@@ -338,7 +340,7 @@ def _order2(ta, ca, tb, cb):
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
-    """A ray's constants and the traversal's first state: (ray, state); see :func:`_step`.
+    """A ray's constants and the traversal's first state: (ray, state); see :func:`step`.
 
     Once per ray: Woop's axis permutation and shear (:func:`ray_space`), ``1/d``,
     which box planes the ray enters by, and the root's box (a ray that misses it,
@@ -365,7 +367,7 @@ def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t):
+def step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t):
     """One step of the stack traversal: a wide node or a leaf visited, then the next one chosen.
 
     The traversal walks the wide nodes (``boxes``, ``links``; :mod:`softpipe.rays.layout`): a
@@ -432,10 +434,10 @@ def _step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t):
 def _traverse(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
               stack_node, stack_t):
     """One ray's query, (id, t, b1, b2), compiled into each caller (``inline="always"``) on borrowed
-    arrays: :func:`_start`, then :func:`_step` until the answer is known."""
+    arrays: :func:`_start`, then :func:`step` until the answer is known."""
     ray, state = _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max)
     while state[0]:
-        state = _step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t)
+        state = step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t)
     return state[5], state[6], state[7], state[8]
 
 
@@ -461,72 +463,22 @@ def query(boxes, links, lo, hi, first, count, tris, tri_ids, ox: float, oy: floa
         (id, t, b1, b2): id −1 for a miss (then t = t_max, b1 = b2 = 0).
     """
     return _traverse(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max,
-                     any_, _node_stack(), _t_stack())
+                     any_, node_stack(), t_stack())
 
 
 # ------------------------------------------------------------------ batches of rays
+# (the loop over a band is softpipe.rays.bvh._batch_kernel: it borrows the arrays in its own body)
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _start_row(lo, hi, first, count, origins, directions, t_min, t_max, r):
-    """:func:`_start` for ray r of a batch."""
+def start_row(lo, hi, first, count, origins, directions, t_min, t_max, r):
+    """:func:`_start` for ray r of a batch: (ray, state), the arguments of :func:`step`."""
     return _start(lo, hi, first, count, origins[r, 0], origins[r, 1], origins[r, 2],
                   directions[r, 0], directions[r, 1], directions[r, 2], t_min[r], t_max[r])
 
 
-# Why two rays at a time. A ray's traversal is one long chain of dependent steps (a node's
-# address comes from its parent's links, which child comes next from the boxes' tests) with
-# hard-to-guess branches, so one ray leaves most of the core idle: testing every box and
-# triangle twice was measured to add little to the time (benchmarks/README.md, "Rays"). The
-# batch kernel therefore walks two rays in turn, a step of one then a step of the other (each
-# on its own stack), and starts the band's next ray where one finishes: the core overlaps the
-# two chains. Each ray's answer is computed exactly as alone, so the bytes do not change.
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def batch(lo_, hi_, boxes, links, lo, hi, first, count, tris, tri_ids, origins, directions, t_min, t_max, any_,
-          ids, ts, bs, occluded) -> None:
-    """Rays ``lo_`` … ``hi_ − 1`` of a batch, two in flight, on borrowed arrays (see :func:`query`).
-
-    ``origins``, ``directions`` [R, 3], ``t_min``, ``t_max`` [R]: the rays. Closest hits go into
-    ``ids`` [R] (−1: a miss), ``ts`` [R] (inf: a miss) and ``bs`` [R, 2] (b1, b2); with ``any_``,
-    any hits into ``occluded`` [R] (bool) instead. Each ray's answer is :func:`query`'s.
-    """
-    sa_node, sa_t, sb_node, sb_t = _node_stack(), _t_stack(), _node_stack(), _t_stack()
-    ia, ib = lo_, lo_ + 1
-    ray_a, st_a = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
-    if ib < hi_:
-        ray_b, st_b = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ib)
-    else:
-        ib = -1
-        ray_b, st_b = ray_a, st_a
-    nxt = lo_ + 2
-    while ia >= 0 or ib >= 0:
-        if ia >= 0:
-            if st_a[0]:
-                st_a = _step(boxes, links, tris, tri_ids, ray_a, st_a, any_, sa_node, sa_t)
-            else:
-                _store(ia, st_a, any_, ids, ts, bs, occluded)
-                if nxt < hi_:
-                    ia = nxt
-                    nxt += 1
-                    ray_a, st_a = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
-                else:
-                    ia = -1
-        if ib >= 0:
-            if st_b[0]:
-                st_b = _step(boxes, links, tris, tri_ids, ray_b, st_b, any_, sb_node, sb_t)
-            else:
-                _store(ib, st_b, any_, ids, ts, bs, occluded)
-                if nxt < hi_:
-                    ib = nxt
-                    nxt += 1
-                    ray_b, st_b = _start_row(lo, hi, first, count, origins, directions, t_min, t_max, ib)
-                else:
-                    ib = -1
-
-
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _store(r, state, any_, ids, ts, bs, occluded):
-    """Ray r's answer from its final state (see :func:`_step`)."""
+def store(r, state, any_, ids, ts, bs, occluded):
+    """Ray r's answer from its final state (see :func:`step`)."""
     i = state[5]
     if any_:
         occluded[r] = i >= 0
