@@ -34,7 +34,7 @@ TOP_LEVEL = {"shading": "programs", "testing": "views", "": "scenes", "__main__"
 #: for each light's V_j in a pixel history; ``softpipe.batch`` is the batch tool, imported on
 #: first use.
 LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.explorer"),
-               ("pipeline.trace", "light.lighting"), ("", "tools.batch")}
+               ("pipeline.trace", "light.shadowmap"), ("", "tools.batch")}
 #: softpipe/pipeline/ in pipeline order; each may import only those before it.
 STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "raster",
           "fragment", "output", "visibility", "trace", "draw"]

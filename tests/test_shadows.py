@@ -26,7 +26,8 @@ from softpipe import Camera, DrawCall, Framebuffer, draw_mesh, render_shadow_map
 from softpipe.scenes import shapes
 from softpipe.light.material import Light, Lighting, Material
 from softpipe.scenes.scene import SceneObject
-from softpipe.light.shadowmap import ShadowSettings, depth_texture, shadow_map_visibility as light_visibility, texture_compare
+from softpipe.light.shadowmap import (ShadowSettings, depth_texture, light_visibility, shadow_map_visibility,
+                                     texture_compare)
 from softpipe.scenes.shadow_pass import casters_of
 from softpipe.pipeline.transforms import orthographic, rotate, scale, translate
 
@@ -468,7 +469,7 @@ def test_point_light_shadow_crosses_a_cube_face_seam_without_a_gap(pcf, seam):
     # the same line sampled every ~1/10 texel (V_j as the shaders compute it, world = eye space)
     shadows = maps.uniform(np.eye(4))
     ys = np.linspace(1.05, 4.95, 4001)
-    fine = np.array([light_visibility(shadows, 0, tuple(R @ (3.0, y, 0.6))) for y in ys])
+    fine = np.array([shadow_map_visibility(shadows, 0, tuple(R @ (3.0, y, 0.6))) for y in ys])
     assert (fine < 1e-6).all(), f"light through the shadow at y = {np.round(ys[(fine >= 1e-6).any(1)], 4).tolist()}"
 
 

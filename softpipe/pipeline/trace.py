@@ -313,7 +313,7 @@ class Trace:
         P = getattr(varyings, "position", None)
         if shadows is None or not shadows.light_maps[:, 1:].any() or P is None or len(P) != 3:
             return ()
-        from softpipe.light.lighting import light_visibility
+        from softpipe.light.shadowmap import light_visibility
         return tuple(tuple(float(c) for c in light_visibility(lighting, j, tuple(float(v) for v in P)))
                      for j in range(len(shadows.light_maps)))
 
