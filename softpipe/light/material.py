@@ -62,7 +62,7 @@ from softpipe.core.colors import parse_color
 from softpipe.light.packed import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
                                    LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
                                    LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT)
-from softpipe.light.shadowmap import ShadowSettings
+from softpipe.light.shadowmap import ShadowSettings, light_visibility
 
 RGB = Tuple[float, float, float]
 Vec3 = Tuple[float, float, float]
@@ -457,11 +457,27 @@ def _cos_degrees(beta: float) -> float:
     return math.cos(math.radians(beta))
 
 
-LightingUniform = namedtuple("LightingUniform", ["global_ambient", "lights", "shadows"])
-LightingUniform.__doc__ = """Lighting as a shader sees it: ``global_ambient`` (RGB tuple),
-``lights``, the packed eye-space array of :func:`pack_lights`, and ``shadows``, their
-shadow maps and shadow-ray scene (a :class:`~softpipe.light.shadowmap.ShadowUniform`), or None when
-no light casts shadows (then a compiled shader leaves the shadow code out)."""
+class LightingUniform(namedtuple("LightingUniform", ["global_ambient", "lights", "shadows"])):
+    """Lighting as a shader sees it: ``global_ambient`` (RGB tuple),
+    ``lights``, the packed eye-space array of :func:`pack_lights`, and ``shadows``, their
+    shadow maps and shadow-ray scene (a :class:`~softpipe.light.shadowmap.ShadowUniform`), or None when
+    no light casts shadows (then a compiled shader leaves the shadow code out).
+
+    A namedtuple, which numba types by its fields (the method below is for plain
+    Python: a pixel history asks it, :meth:`softpipe.pipeline.trace.Trace.pixel_history`).
+    """
+
+    __slots__ = ()
+
+    def visibilities(self, P) -> tuple:
+        """V_j of every light at the eye-space point P, as the lit programs compute it
+        (:func:`~softpipe.light.shadowmap.light_visibility`): a tuple of RGB float triples,
+        () when no light casts shadows."""
+        shadows = self.shadows
+        if shadows is None or not shadows.light_maps[:, 1:].any():
+            return ()
+        point = tuple(float(v) for v in P)
+        return tuple(tuple(float(c) for c in light_visibility(self, j, point)) for j in range(len(shadows.light_maps)))
 
 
 @dataclass(frozen=True)
