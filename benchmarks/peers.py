@@ -60,7 +60,8 @@ import numpy as np  # noqa: E402
 
 from softpipe.core.runtime import keep_freed_memory  # noqa: E402
 from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
-from softpipe.light.material import LIGHT_COLUMNS, Light, Lighting  # noqa: E402
+from softpipe.light.material import Light, Lighting  # noqa: E402
+from softpipe.light.packed import LIGHT_COLUMNS  # noqa: E402
 
 from .run import machine_info, render_frame, source_state  # noqa: E402
 from .scenes import REPO_ROOT, SCENES, Scene, build_scene, color_vertex  # noqa: E402
@@ -173,7 +174,7 @@ uniform float shininess;
 uniform float opacity;
 uniform vec3 global_ambient;
 uniform int num_lights;
-uniform float lights[MAX_LIGHTS * COLS];   // softpipe.light.material.pack_lights' rows, eye space
+uniform float lights[MAX_LIGHTS * COLS];   // softpipe.light.material.pack_lights' rows (softpipe.light.packed), eye space
 uniform int specular_model;
 uniform int orthographic;
 in vec3 v_position;
@@ -240,7 +241,7 @@ void main() {
 
 
 def _lit_fragment_source() -> str:
-    from softpipe.light import material as m
+    from softpipe.light import packed as m
     return LIT_FRAGMENT % dict(max_lights=MAX_LIGHTS, cols=LIGHT_COLUMNS, kind=m.LIGHT_KIND,
                                directional=m.LIGHT_DIRECTIONAL, position=m.LIGHT_POSITION,
                                att=m.LIGHT_ATTENUATION, cutoff=m.LIGHT_SPOT_COS_CUTOFF,

@@ -3,7 +3,8 @@
 This module defines nothing; it gathers, under one name, what the shader
 contract (:mod:`softpipe.language.contract`), the GLSL math (:mod:`softpipe.language.glsl`), the
 lighting equations (:mod:`softpipe.light.lighting`), the packed lights
-(:mod:`softpipe.light.material`) and the built-in programs (:mod:`softpipe.programs`)
+(:mod:`softpipe.light.packed`, :mod:`softpipe.light.material`), their shadows
+(:mod:`softpipe.light.shadowmap`) and the built-in programs (:mod:`softpipe.programs`)
 offer. Each name here *is* the object of its home module. A walk through
 writing one: ``docs/shaders.md``.
 
@@ -114,7 +115,7 @@ The lighting equations (:mod:`softpipe.light.lighting`; § as in FORMULAS.md)
     two_sided_lighting (§11),
     fresnel_rs_rp, fresnel, fresnel_schlick (§20), fresnel_directions (R, T, F_R: §16–§20),
     beckmann_d, geometry_g, cook_torrance, cook_torrance_lighting, gooch (§26)
-The packed lights (:mod:`softpipe.light.lighting`, :mod:`softpipe.light.material`)
+The packed lights (:mod:`softpipe.light.lighting`, :mod:`softpipe.light.packed`, :mod:`softpipe.light.shadowmap`)
     light_at                 (L, f_att · f_spot) of light j at P (§7–§9)
     light_vec3               three columns of light j: ``light_vec3(lights, j, LIGHT_DIFFUSE)`` is I_d
     light_colors             (I_a, I_d, I_s) of light j
@@ -146,19 +147,19 @@ from softpipe.language.glsl import (add, clamp, cross, distance, div, dot, facef
                    mat4_mul_vec4, max_component, min_component, mix, mul, neg, normalize, pow_, reflect,
                    refract, saturate, scale, smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin)
 from softpipe.light.lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
-                       casts_shadows, cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_directions,
+                       cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_directions,
                        fresnel_rs_rp,
                        fresnel_schlick, geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert,
-                       light_at, light_colors, light_vec3, light_visibility, opengl_lighting,
+                       light_at, light_colors, opengl_lighting,
                        phong_specular, positive_power, spot_factor, transmitted_half_vector, two_sided_lighting)
-from softpipe.light.material import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
+from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform
+from softpipe.light.packed import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
                        LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
-                       LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
-                       LightingUniform, Material, MaterialUniform)
+                       LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, light_vec3)
 from softpipe.rays.queries import RayScene, hit_normal, hit_position, medium_falloff, ray_visibility, trace_any, trace_closest
 from softpipe.tracers.whitted import trace_ray, tracer_uniform
 from softpipe.language.contract import DISCARD, Derivatives, FragInfo, ShaderError, reads_uniforms
-from softpipe.light.shadowmap import ShadowSettings
+from softpipe.light.shadowmap import ShadowSettings, casts_shadows, light_visibility
 from softpipe.programs.registry import Program
 from softpipe.programs.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
                              standard_vertex, toward_eye, uniform_or)

@@ -30,11 +30,8 @@ FOLDERS = ["core", "language", "pipeline", "rays", "light", "tracers", "programs
 TOP_LEVEL = {"shading": "programs", "testing": "views", "": "scenes", "__main__": "tools"}
 #: Imports made at call time that reach *up* a layer, each a convenience on the API, named here
 #: so that no other one can creep in: a trace draws its pictures and writes its explorer page
-#: with the views, and (until the shadow terms move out of the lighting formulas) asks lighting
-#: for each light's V_j in a pixel history; ``softpipe.batch`` is the batch tool, imported on
-#: first use.
-LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.explorer"),
-               ("pipeline.trace", "light.lighting"), ("", "tools.batch")}
+#: with the views; ``softpipe.batch`` is the batch tool, imported on first use.
+LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.explorer"), ("", "tools.batch")}
 #: softpipe/pipeline/ in pipeline order; each may import only those before it.
 STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "raster",
           "fragment", "output", "tiles", "visibility", "trace", "draw"]

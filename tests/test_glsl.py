@@ -127,6 +127,49 @@ def test_mix_is_exact_at_the_ends():
     assert mix(a, b, 0.0) == a and mix(a, b, 1.0) == b
 
 
+@njit(cache=True)
+def mix_each(a, b, t):
+    out = np.empty(a.shape[0])
+    for i in range(a.shape[0]):
+        out[i] = mix(a[i], b[i], t[i])
+    return out
+
+
+def test_mix_is_exact_at_both_ends_and_monotone_in_t():
+    """The one linear interpolation (a texture's mip levels and a cube map's texels blend with it too).
+
+    mix(a, b, 0) = a, mix(a, b, 1) = b and mix(a, a, t) = a exactly; at neighbouring
+    floats t < t′ below 1, mix(a, b, t′) never steps back from mix(a, b, t). Across t = 1,
+    and staying in [a, b] for t in [0, 1), wherever a + (b − a) rounds to b (the one
+    exception of the docstring is where it does not). The samples are ones on which
+    each textbook form fails (checked first); jitted and as plain Python.
+    """
+    n = 200_000
+    a = RNG.random(n) * 10.0 ** RNG.integers(-3, 3, n)
+    b = RNG.random(n) * 10.0 ** RNG.integers(-3, 3, n)
+    b[::10] = a[::10]                                             # equal ends
+    t = np.concatenate([RNG.random(n // 2), RNG.uniform(-1.0, 2.0, n - n // 2)])
+    t[:60] = 1.0 - 2.0 ** -np.arange(1, 61)                       # just below 1
+    t_next = np.nextafter(t, np.inf)
+    step_back = a * (1.0 - t_next) + b * t_next < a * (1.0 - t) + b * t
+    assert np.any(step_back & (b > a)), "no sample on which a(1 − t) + bt steps back"
+    lands = a + (b - a) == b
+    assert not np.all(lands), "no sample on which a + (b − a) misses b"
+
+    now, after = mix_each(a, b, t), mix_each(a, b, t_next)
+    assert np.array_equal(mix_each(a, b, np.zeros(n)), a) and np.array_equal(mix_each(a, b, np.ones(n)), b)
+    assert np.array_equal(now[::10], a[::10])
+    below = (t_next < 1.0) | lands                               # across t = 1 where a + (b − a) lands on b
+    up, down = below & (b > a), below & (b < a)
+    assert np.all(after[up] >= now[up]) and np.all(after[down] <= now[down])
+    inside = (t >= 0.0) & (t < 1.0) & lands
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    assert np.all((now[inside] >= lo[inside]) & (now[inside] <= hi[inside]))
+    for i in range(0, n, 997):                                    # plain Python: the same values
+        assert mix(float(a[i]), float(b[i]), float(t[i])) == now[i]
+    assert mix((0.25, 0.5, 0.75, 1.0), (1.0, 0.5, 0.0, 0.25), 1.0) == (1.0, 0.5, 0.0, 0.25)
+
+
 def test_normalize_zero_and_nan_give_zero_not_nan():
     assert normalize((0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
     assert normalize((math.nan, 0.0)) == (0.0, 0.0)

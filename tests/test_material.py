@@ -5,10 +5,10 @@ import numba
 import numpy as np
 import pytest
 
-from softpipe.light.material import (
+from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform, pack_lights
+from softpipe.light.packed import (
     LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_KIND, LIGHT_POSITION,
-    LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, Light, Lighting,
-    LightingUniform, Material, MaterialUniform, pack_lights,
+    LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT,
 )
 
 

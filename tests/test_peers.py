@@ -22,7 +22,7 @@ def test_glsl_sources_are_complete():
         assert src.startswith("#version 430\n")
         assert src.count("{") == src.count("}")
     assert "%(" not in lit and "%" not in lit.replace("%%", "")
-    from softpipe.light import material as m
+    from softpipe.light import packed as m
     assert f"const int COLS = {m.LIGHT_COLUMNS};" in lit
     assert f"lights[b + {m.LIGHT_KIND}] == {m.LIGHT_DIRECTIONAL}.0" in lit
     assert f"col3(j, {m.LIGHT_POSITION})" in lit and f"col3(j, {m.LIGHT_SPECULAR})" in lit

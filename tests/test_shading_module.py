@@ -26,7 +26,7 @@ import softpipe
 from softpipe import shading
 from softpipe.language import glsl
 from softpipe.light import lighting
-from softpipe.light import material
+from softpipe.light import packed
 from softpipe.programs import PROGRAMS
 from softpipe.programs import common
 
@@ -95,7 +95,7 @@ def test_it_offers_all_the_glsl_math_every_lighting_function_and_the_light_colum
                  if not name.startswith("_") and getattr(obj, "__module__", None) == "softpipe.light.lighting"
                  and callable(obj) and not inspect.isclass(obj)}
     assert functions <= offered, f"lighting functions not offered: {sorted(functions - offered)}"
-    assert {name for name in material.__all__ if name.startswith("LIGHT_")} <= offered
+    assert {name for name in packed.__all__ if name.startswith("LIGHT_")} <= offered
 
 
 def test_the_docstring_lists_every_name_and_defines_the_notes_names():

@@ -28,7 +28,9 @@ from softpipe import Camera, DrawCall, Framebuffer, draw_mesh, render_shadow_map
 from softpipe.scenes import shapes
 from softpipe.light.material import Light, Lighting, Material
 from softpipe.scenes.scene import SceneObject
-from softpipe.light.shadowmap import ShadowSettings, depth_texture, shadow_map_visibility as light_visibility, texture_compare
+from softpipe.light.material import LightingUniform
+from softpipe.light.shadowmap import (ShadowSettings, depth_texture, light_visibility, shadow_map_visibility,
+                                     texture_compare)
 from softpipe.scenes.shadow_pass import casters_of
 from softpipe.pipeline.transforms import orthographic, rotate, scale, translate
 
@@ -465,7 +467,7 @@ def test_point_light_shadow_crosses_a_cube_face_seam_without_a_gap(pcf, seam):
     # the same line sampled every ~1/10 texel (V_j as the shaders compute it, world = eye space)
     shadows = maps.uniform(np.eye(4))
     ys = np.linspace(1.05, 4.95, 4001)
-    fine = np.array([light_visibility(shadows, 0, tuple(R @ (3.0, y, 0.6))) for y in ys])
+    fine = np.array([shadow_map_visibility(shadows, 0, tuple(R @ (3.0, y, 0.6))) for y in ys])
     assert (fine < 1e-6).all(), f"light through the shadow at y = {np.round(ys[(fine >= 1e-6).any(1)], 4).tolist()}"
 
 
@@ -512,6 +514,27 @@ def test_glass_slab_tints_the_shadow_and_opaque_casters_still_cut_the_light():
     assert not (region["above"] & region["below"]).any()
     assert (region["glass"] | ~(region["above"] | region["below"])).all()
     np.testing.assert_allclose(fb.color[..., :3][~near_edge], expected[~near_edge], rtol=0, atol=1e-6)
+
+
+def test_the_lighting_uniform_answers_each_lights_visibility_as_the_shaders_compute_it():
+    """``LightingUniform.visibilities(P)``, what a pixel history shows (softpipe.pipeline.trace asks the
+    uniform; the pipeline imports no lighting): V_j of every light at an eye-space point, the very
+    values of ``light_visibility``: 0 under a box's shadow (map), 1 beside it, 1 for a light without
+    shadows; () when no light casts shadows. The uniform stays a LightingUniform through ``_replace``."""
+    down = Light.directional((0.0, -1.0, 0.0), shadows=ShadowSettings(resolution=256))
+    side = Light.point((4.0, 3.0, 0.0))
+    lighting = Lighting((down, side))
+    view = top_down()
+    maps = render_shadow_maps([floor(), box(translate(0.0, 1.0, 0.0))], lighting)
+    lu = maps.lighting_uniform(lighting, view.camera.view)
+    assert type(lu) is LightingUniform
+    eye = lambda world: tuple(view.camera.view[:3, :3] @ np.asarray(world, np.float64) + view.camera.view[:3, 3])  # noqa: E731
+    under, beside = eye((0.1, 0.0, -0.1)), eye((2.0, 0.0, 2.0))
+    assert lu.visibilities(under) == ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
+    assert lu.visibilities(beside) == ((1.0, 1.0, 1.0), (1.0, 1.0, 1.0))
+    for P in (under, beside):
+        assert lu.visibilities(P) == tuple(tuple(light_visibility(lu, j, P)) for j in range(2))
+    assert lighting.uniform(view.camera.view).visibilities(under) == ()
 
 
 # ------------------------------------------------------------------ 6. the fast and the reference path

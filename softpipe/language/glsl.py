@@ -440,8 +440,21 @@ def saturate(x: VecOrScalar) -> VecOrScalar:
 
 @_componentwise
 def mix(a: VecOrScalar, b: VecOrScalar, t: VecOrScalar) -> VecOrScalar:
-    """a·(1 − t) + b·t (GLSL ``mix``, in that form, so that t = 0 and t = 1 are exact)."""
-    return a * (1.0 - t) + b * t
+    """a + t·(b − a), and b itself at t = 1 (GLSL ``mix``): exact at both ends, monotone in t.
+
+    The one linear interpolation of softpipe: shaders, a texture's mip levels and a
+    cube map's texels blend with it. mix(a, b, 0) = a, mix(a, b, 1) = b and
+    mix(a, a, t) = a exactly, and as t grows the value only moves toward b (each
+    rounding in a + t·(b − a) is monotone). The textbook a·(1 − t) + b·t is exact at
+    both ends too, but its two rounded products can step back an ulp as t grows and
+    miss a for a = b. One exception remains, where b − a itself rounds (a and b far
+    apart in magnitude; never within a factor 2 of each other, nor for the texels of
+    an 8-bit image): just below t = 1 the value may pass b by an ulp. Holding it to b,
+    as C++20's ``std::lerp`` does, doubled the cost of a cube-map lookup's blends.
+    ``tests/test_glsl.py`` states each property.
+    """
+    x = a + t * (b - a)
+    return b if t == 1.0 else x
 
 
 @_componentwise

@@ -52,9 +52,10 @@ texel (c, r)'s edge is the neighbour's texel that touches it across the cube's
 edge. A border corner, where three faces meet, is the mean of the three texels
 there (GL's ``TEXTURE_CUBE_MAP_SEAMLESS`` does the same). With
 ``s·n + ½`` always inside the bordered face, every bilinear tap is a stored texel,
-and no lookup ever wraps or clamps. Interpolation is written as
-``p + α·(q − p)``, so equal texels give exactly that texel: a constant
-environment samples to its color exactly, across edges, corners and levels.
+and no lookup ever wraps or clamps. Interpolation is GLSL's ``mix``
+(:func:`softpipe.language.glsl.mix`, p + α·(q − p) held to [p, q]), so equal texels
+give exactly that texel: a constant environment samples to its color exactly, across
+edges, corners and levels.
 
 Mip levels and filters
 ----------------------
@@ -89,6 +90,7 @@ from typing import Callable, Optional, Sequence, Tuple, Union
 import numpy as np
 from numba import njit
 
+from softpipe.language.glsl import mix
 from softpipe.light.material import MEDIA
 from softpipe.light.texture import FILTER_BILINEAR, FILTER_NEAREST, FILTER_NEAREST_MIPMAP, FILTERS, _build_mipmaps, \
     _check_array, _check_size, _choose, _load_image
@@ -210,11 +212,6 @@ def _level(size, k):
 
 
 @njit(cache=True, inline="always")
-def _lerp4(p, q, a):
-    return (p[0] + a * (q[0] - p[0]), p[1] + a * (q[1] - p[1]), p[2] + a * (q[2] - p[2]), p[3] + a * (q[3] - p[3]))
-
-
-@njit(cache=True, inline="always")
 def _texel(texels, k):
     return (float(texels[k, 0]), float(texels[k, 1]), float(texels[k, 2]), float(texels[k, 3]))
 
@@ -230,9 +227,9 @@ def _face_bilinear(texels, base, n, s, t):
     a = x - i0
     b = y - j0
     k = base + j0 * m + i0
-    top = _lerp4(_texel(texels, k), _texel(texels, k + 1), a)
-    bottom = _lerp4(_texel(texels, k + m), _texel(texels, k + m + 1), a)
-    return _lerp4(top, bottom, b)
+    top = mix(_texel(texels, k), _texel(texels, k + 1), a)
+    bottom = mix(_texel(texels, k + m), _texel(texels, k + m + 1), a)
+    return mix(top, bottom, b)
 
 
 @njit(cache=True)
@@ -271,7 +268,7 @@ def _sample_cube(cube, direction, lod):
     offset += 6 * (n + 2) * (n + 2)
     n = max(1, n // 2)
     far = _face_bilinear(texels, offset + face * (n + 2) * (n + 2), n, s, t)
-    return _lerp4(near, far, frac)
+    return mix(near, far, frac)
 
 
 @njit(cache=True)

@@ -11,12 +11,12 @@ f_att, f_spot, η and m are FORMULAS.md's, defined once in :mod:`softpipe.shadin
 All vectors are in eye space and of unit length unless said.
 
 Colors are RGB 3-tuples multiplied per channel. Lights arrive packed in eye
-space, one row per light (``softpipe.light.material.pack_lights``; columns ``LIGHT_*``),
+space, one row per light (``softpipe.light.material.pack_lights``; columns :mod:`softpipe.light.packed`),
 in the ``lighting`` uniform (a :class:`~softpipe.light.material.LightingUniform`: the
 global ambient, the packed lights and their shadow maps). The sums over lights
 (:func:`opengl_lighting`, :func:`hall_local`, :func:`cook_torrance_lighting`)
 multiply light j's diffuse and specular terms by its visibility V_j
-(:func:`light_visibility`; FORMULAS §11 and §21): 1 without shadows, 0 in a
+(:func:`~softpipe.light.shadowmap.light_visibility`; FORMULAS §11 and §21): 1 without shadows, 0 in a
 shadow, a color behind glass. Ambient terms are not shadowed (§10).
 
 Conventions
@@ -37,18 +37,14 @@ import math
 from typing import Tuple
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from softpipe.language.glsl import add, dot, length, mul, normalize, pow_, reflect, refract, scale, sub
-from softpipe.light.material import (
-    LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL, LIGHT_KIND,
-    LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION,
-    LIGHT_SPOT_EXPONENT, LightingUniform, MaterialUniform,
-)
-from softpipe.rays.bvh import _borrowed
-from softpipe.rays.queries import ray_visibility
-from softpipe.light.shadowmap import SHADOW_RAY, ShadowUniform, shadow_map_visibility
+from softpipe.light.material import LightingUniform, MaterialUniform
+from softpipe.light.packed import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL, LIGHT_KIND,
+                                   LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION,
+                                   LIGHT_SPOT_EXPONENT, light_vec3)
+from softpipe.light.shadowmap import casts_shadows, light_visibility
 
 Vec3 = Tuple[float, float, float]
 Color = Tuple[float, float, float]
@@ -57,7 +53,7 @@ __all__ = [
     "BLINN_PHONG", "PHONG",
     "positive_power", "b_factor", "half_vector",
     "emission", "ambient", "lambert", "phong_specular", "blinn_phong_specular",
-    "attenuation", "spot_factor", "light_at", "light_vec3", "light_colors", "light_visibility", "casts_shadows",
+    "attenuation", "spot_factor", "light_at", "light_colors",
     "opengl_lighting",
     "transmitted_half_vector", "hall_transmission", "hall_local", "fresnel_directions",
     "two_sided_lighting",
@@ -193,12 +189,6 @@ def spot_factor(L: Vec3, S: Vec3, cos_cutoff: float, e: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def light_vec3(lights: np.ndarray, j: int, column: int) -> Vec3:
-    """The three values at ``lights[j, column:column + 3]``: a color, a position or a direction."""
-    return (lights[j, column], lights[j, column + 1], lights[j, column + 2])
-
-
-@njit(cache=True, inline="always")
 def light_colors(lights: np.ndarray, j: int) -> Tuple[Color, Color, Color]:
     """Light j's ambient, diffuse and specular colors (I_a,j, I_d,j, I_s,j)."""
     return (light_vec3(lights, j, LIGHT_AMBIENT), light_vec3(lights, j, LIGHT_DIFFUSE),
@@ -224,123 +214,6 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     return L, f_att * f_spot
 
 
-def casts_shadows(lighting: LightingUniform, j: int) -> bool:
-    """Does light j cast shadows (a shadow map or shadow rays)?
-
-    The sums ask it before :func:`light_visibility`. A lighting uniform without
-    shadows has ``shadows = None``; compiled, that is known from its type, the
-    question is answered False when numba compiles the shader and the shadow code is
-    left out of it: a draw without shadows runs the code it ran before shadows existed
-    (a ``ShadowUniform`` holds many arrays, and a shader that carried them through
-    every sample paid for each of them).
-    """
-    shadows = lighting.shadows
-    if shadows is None:
-        return False
-    return shadows.light_maps[j, 1] > 0 or shadows.light_maps[j, 2] == SHADOW_RAY
-
-
-def _shadows_type(lighting):
-    """numba's type of ``lighting.shadows`` (a LightingUniform's last field)."""
-    return lighting.types[list(lighting.fields).index("shadows")] if hasattr(lighting, "fields") else None
-
-
-@overload(casts_shadows, inline="always")
-def _casts_shadows_numba(lighting, j):
-    if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
-        return lambda lighting, j: False
-
-    def impl(lighting, j):
-        rows = lighting.shadows.light_maps
-        return (rows[j, 1] > 0) | (rows[j, 2] == SHADOW_RAY)   # no short-circuit: no branch for the inliner
-    return impl
-
-
-def light_visibility(lighting: LightingUniform, j: int, P: Vec3) -> Color:
-    """V_j: the RGB share of light j that reaches the eye-space point P past everything else (§11, §21).
-
-    From ``lighting.shadows``: light j's shadow map(s)
-    (:func:`~softpipe.light.shadowmap.shadow_map_visibility`), or a shadow ray toward the
-    light — to its position for a point or spot light, to infinity for a directional
-    one — through any transparent objects (:func:`~softpipe.rays.queries.ray_visibility`).
-    (1, 1, 1) for a light that casts no shadows, and when ``lighting.shadows`` is None.
-    Ambient light is never shadowed (§10).
-    """
-    if lighting.shadows is None:
-        return (1.0, 1.0, 1.0)
-    return _shadowed_visibility(lighting.lights, lighting.shadows, j, P)
-
-
-# inlined, as _shadowed_visibility and the map lookups (softpipe.light.shadowmap): per light and lit sample
-@overload(light_visibility, inline="always")
-def _light_visibility_numba(lighting, j, P):
-    if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
-        return lambda lighting, j, P: (1.0, 1.0, 1.0)
-    # The shadow arrays are handed on *borrowed* (softpipe.rays.bvh._borrowed: no owner, so numba counts no
-    # references): every call that received them counted two atomic operations per array, per light, per
-    # sample, and that made the bunny-shadows benchmark's lit pass 4x its unshadowed time.
-    return lambda lighting, j, P: _shadowed_visibility(_borrowed(lighting.lights), _borrow_shadows(lighting.shadows),
-                                                       j, P)
-
-
-def _rays_only(shadows_type) -> bool:
-    """Is this ShadowUniform's numba type one without maps (``maps`` None: every shadow from rays)?"""
-    fields = tuple(getattr(shadows_type, "fields", ()))
-    return "maps" in fields and isinstance(shadows_type.types[fields.index("maps")], types.NoneType)
-
-
-def _borrow_shadows(shadows):
-    """The ShadowUniform with its arrays borrowed (see :func:`softpipe.rays.bvh._borrowed`); plain Python: itself."""
-    return shadows
-
-
-@overload(_borrow_shadows, inline="always")
-def _borrow_shadows_numba(shadows):
-    if _rays_only(shadows):                                              # shadow rays only: no map arrays
-        return lambda shadows: ShadowUniform(_borrowed(shadows.light_maps), None, None, None, None, None,
-                                             shadows.rays)
-
-    def impl(shadows):
-        return ShadowUniform(_borrowed(shadows.light_maps), _borrowed(shadows.maps), _borrowed(shadows.matrices),
-                             _borrowed(shadows.depth), _borrowed(shadows.transparent_depth),
-                             _borrowed(shadows.transmission), shadows.rays)
-    return impl
-
-
-def _shadowed_visibility(lights, shadows, j, P):
-    if shadows.light_maps[j, 2] == SHADOW_RAY:
-        return _shadow_ray(shadows.rays, lights, j, P)
-    return shadow_map_visibility(shadows, j, P)
-
-
-@overload(_shadowed_visibility, inline="always")
-def _shadowed_visibility_numba(lights, shadows, j, P):
-    # shadows from rays only (maps None, as the ray tracer's): no map lookup compiled; a light that casts
-    # shadows then has method SHADOW_RAY (casts_shadows asked first)
-    if _rays_only(shadows):
-        return lambda lights, shadows, j, P: _shadow_ray(shadows.rays, lights, j, P)
-    return _shadowed_visibility
-
-
-def _shadow_ray(rays, lights, j, P):
-    """V_j by a shadow ray toward light j (to its position, or to infinity for a directional light)."""
-    if rays is None:
-        return (1.0, 1.0, 1.0)
-    position = light_vec3(lights, j, LIGHT_POSITION)
-    if lights[j, LIGHT_KIND] == LIGHT_DIRECTIONAL:
-        return ray_visibility(rays, P, position, np.inf)
-    to_light = sub(position, P)
-    return ray_visibility(rays, P, normalize(to_light), length(to_light))
-
-
-@overload(_shadow_ray)
-def _shadow_ray_numba(rays, lights, j, P):
-    # shadows made with maps only carry rays=None: no ray scene's arrays in the shader, no ray code compiled
-    if isinstance(rays, (types.NoneType, types.Omitted)):
-        return lambda rays, lights, j, P: (1.0, 1.0, 1.0)
-    return _shadow_ray
-
-
 @njit(cache=True, inline="always")
 def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
                     specular_model: int) -> Color:
@@ -351,7 +224,7 @@ def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighti
 
     with spec_j = (N·H_j)₊ⁿ for ``specular_model`` = BLINN_PHONG (0, OpenGL's) or
     (R_j·V)₊ⁿ for PHONG (1), and V_j light j's visibility at P
-    (:func:`light_visibility`, FORMULAS §11/§21; 1 without shadows).
+    (:func:`~softpipe.light.shadowmap.light_visibility`, FORMULAS §11/§21; 1 without shadows).
 
     Parameters
     ----------
@@ -446,7 +319,7 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
     for a light behind the surface (N·L_j < 0). η is as in
     :func:`transmitted_half_vector` (``material.ior`` for a viewer in air); n′ is
     ``material.transmission_shininess``; V_j is light j's visibility
-    (:func:`light_visibility`). The reflected and transmitted rays
+    (:func:`~softpipe.light.shadowmap.light_visibility`). The reflected and transmitted rays
     (k_r, k_t terms with T^d) belong to a ray tracer and are not included here:
     :func:`softpipe.tracers.whitted.raytrace_scene` adds them, k_r·I_r·T_r^{d_r} and
     k_t·I_t·T_t^{d_t} with I_r, I_t from the reflected and refracted rays and the
@@ -481,7 +354,7 @@ def two_sided_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lig
     c = ρ_d·L_a + Σ_i (ρ_d + ρ_s(N·H_i)) · L_i · V_i(p) · |N·L_i|,   ρ_s(N·H) = k_s·(N·H)₊ⁿ
 
     with ρ_d = ``kd``, k_s = ``ks``, n = ``shininess``, L_a the global ambient light,
-    H_i = normalize(L_i + V) and V_i light i's visibility (:func:`light_visibility`:
+    H_i = normalize(L_i + V) and V_i light i's visibility (:func:`~softpipe.light.shadowmap.light_visibility`:
     shadow maps or shadow rays). L_i is light i's response at P: its diffuse color
     k_l (``I_d``) divided by r² for a point light, r the distance to it (§11's
     L_i = k_l/r², not §7's coefficients), times f_spot for a spot (§8); k_l for a

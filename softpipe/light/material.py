@@ -48,28 +48,7 @@ spot points); L, the unit vector from the surface *toward* the light, is
 stored as OpenGL stores it: a homogeneous position with w = 0, whose xyz is that
 unit vector toward the light.
 
-The packed array, one row per light (column indices are the ``LIGHT_*`` names):
-
-======  =====================  ==========================================================
-column  name                   meaning (eye space)
-======  =====================  ==========================================================
-0       LIGHT_KIND             0 directional, 1 point, 2 spot (LIGHT_DIRECTIONAL, …)
-1–3     LIGHT_AMBIENT          ambient color I_a,j (RGB)
-4–6     LIGHT_DIFFUSE          diffuse color I_d,j (RGB)
-7–9     LIGHT_SPECULAR         specular color I_s,j (RGB)
-10–13   LIGHT_POSITION         homogeneous position (x, y, z, w): w = 1 point/spot, the
-                               light's position; w = 0 directional, xyz = unit vector
-                               toward the light
-14–16   LIGHT_ATTENUATION      a, b, c of f_att = 1/(a + b·r + c·r²) (§7); (1, 0, 0) for
-                               directional lights, which are never attenuated
-17–19   LIGHT_SPOT_DIRECTION   S, unit, the direction the spot points (§8); (0, 0, −1)
-                               when not a spot
-20      LIGHT_SPOT_COS_CUTOFF  cos β; −1 means "not a spotlight" (β = 180°, point and
-                               directional lights): f_spot = 1
-21      LIGHT_SPOT_EXPONENT    e (§8); 0 when not a spot
-======  =====================  ==========================================================
-
-``LIGHT_COLUMNS`` = 22 is the row length.
+The packed array's columns (the ``LIGHT_*`` names) are :mod:`softpipe.light.packed`'s.
 """
 from __future__ import annotations
 
@@ -82,16 +61,16 @@ import numpy as np
 
 from softpipe.core.validation import (checked, color, is_number, nonnegative, nonzero_vec3, numbers, positive,
                                       vec3)
-from softpipe.light.shadowmap import ShadowSettings
+from softpipe.light.packed import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
+                                   LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
+                                   LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT)
+from softpipe.light.shadowmap import ShadowSettings, light_visibility
 
 RGB = Tuple[float, float, float]
 Vec3 = Tuple[float, float, float]
 
 __all__ = [
     "Material", "MaterialUniform", "MEDIA", "FALLOFFS", "falloff_factor", "Light", "Lighting", "LightingUniform", "pack_lights",
-    "LIGHT_COLUMNS", "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR",
-    "LIGHT_POSITION", "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF",
-    "LIGHT_SPOT_EXPONENT", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
 ]
 
 
@@ -210,21 +189,7 @@ class Material:
 # Lights
 # --------------------------------------------------------------------------
 
-LIGHT_DIRECTIONAL = 0
-LIGHT_POINT = 1
-LIGHT_SPOT = 2
 _KIND_CODES = {"directional": LIGHT_DIRECTIONAL, "point": LIGHT_POINT, "spot": LIGHT_SPOT}
-
-LIGHT_KIND = 0
-LIGHT_AMBIENT = 1
-LIGHT_DIFFUSE = 4
-LIGHT_SPECULAR = 7
-LIGHT_POSITION = 10
-LIGHT_ATTENUATION = 14
-LIGHT_SPOT_DIRECTION = 17
-LIGHT_SPOT_COS_CUTOFF = 20
-LIGHT_SPOT_EXPONENT = 21
-LIGHT_COLUMNS = 22
 
 #: Light.attenuation's reader: (a, b, c), each finite and >= 0 (FORMULAS §7).
 _ATTENUATION = numbers(3, what="numbers (a, b, c)", allow_negative=False)
@@ -353,7 +318,7 @@ class Light:
                    cutoff=cutoff, exponent=exponent, **kw)
 
     def pack(self, view_matrix: np.ndarray) -> np.ndarray:
-        """This light as one row of the packed array, in eye space (see the module docstring)."""
+        """This light as one row of the packed array, in eye space (columns: :mod:`softpipe.light.packed`)."""
         return pack_lights([self], view_matrix)[0]
 
 
@@ -387,7 +352,7 @@ def pack_lights(lights: Iterable[Light], view_matrix: np.ndarray) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        C-contiguous float64, one row per light, columns as in the module docstring.
+        C-contiguous float64, one row per light, columns as :mod:`softpipe.light.packed` lays them out.
         Positions are transformed as points (w = 1); directions by the upper-left
         3×3 and renormalized, so a view matrix with uniform scale is fine.
     """
@@ -427,11 +392,27 @@ def _cos_degrees(beta: float) -> float:
     return math.cos(math.radians(beta))
 
 
-LightingUniform = namedtuple("LightingUniform", ["global_ambient", "lights", "shadows"])
-LightingUniform.__doc__ = """Lighting as a shader sees it: ``global_ambient`` (RGB tuple),
-``lights``, the packed eye-space array of :func:`pack_lights`, and ``shadows``, their
-shadow maps and shadow-ray scene (a :class:`~softpipe.light.shadowmap.ShadowUniform`), or None when
-no light casts shadows (then a compiled shader leaves the shadow code out)."""
+class LightingUniform(namedtuple("LightingUniform", ["global_ambient", "lights", "shadows"])):
+    """Lighting as a shader sees it: ``global_ambient`` (RGB tuple),
+    ``lights``, the packed eye-space array of :func:`pack_lights`, and ``shadows``, their
+    shadow maps and shadow-ray scene (a :class:`~softpipe.light.shadowmap.ShadowUniform`), or None when
+    no light casts shadows (then a compiled shader leaves the shadow code out).
+
+    A namedtuple, which numba types by its fields (the method below is for plain
+    Python: a pixel history asks it, :meth:`softpipe.pipeline.trace.Trace.pixel_history`).
+    """
+
+    __slots__ = ()
+
+    def visibilities(self, P) -> tuple:
+        """V_j of every light at the eye-space point P, as the lit programs compute it
+        (:func:`~softpipe.light.shadowmap.light_visibility`): a tuple of RGB float triples,
+        () when no light casts shadows."""
+        shadows = self.shadows
+        if shadows is None or not shadows.light_maps[:, 1:].any():
+            return ()
+        point = tuple(float(v) for v in P)
+        return tuple(tuple(float(c) for c in light_visibility(self, j, point)) for j in range(len(shadows.light_maps)))
 
 
 @dataclass(frozen=True)

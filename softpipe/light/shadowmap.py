@@ -1,4 +1,4 @@
-"""Shadow maps as a shader reads them: the depth compare, percentage-closer filtering, V_j.
+"""Shadow maps as a shader reads them, and V_j: the depth compare, percentage-closer filtering, shadow rays.
 
 A shadow map is the depth buffer of a draw made from a light (:mod:`softpipe.scenes.shadow_pass`
 makes them). A point p is lit by light j when nothing lies between p and the light:
@@ -14,14 +14,25 @@ V_j
     Light j's visibility at p (FORMULAS §11's V_i(p)): 1 lit, 0 in shadow, in between
     at a filtered edge; an RGB color behind a transparent occluder (§21: "scale the
     light by its transmission"). The lit programs multiply light j's diffuse and
-    specular terms by it (:func:`softpipe.light.lighting.light_visibility`); the ambient term
-    is untouched, as §10 keeps it.
+    specular terms by it (:func:`light_visibility`); the ambient term is untouched,
+    as §10 keeps it.
 ref
     p's depth in the light's window space, in [0, 1].
 PCF
     Percentage-closer filtering: the compare is made at the (2r+1)×(2r+1) texels
     around p's texel, r = ``ShadowSettings.pcf``, and the results (not the depths)
     averaged. r = 0 is the hard-edged single tap.
+
+V_j, from a map or a ray
+------------------------
+:func:`light_visibility` (what a shader calls, after :func:`casts_shadows`) looks V_j up
+in light j's map(s), or sends a shadow ray toward the light through the scene's
+:mod:`softpipe.rays` (``ShadowSettings(method="ray")``). Compiled, the choice of code is
+made from the uniform's numba type, once: lighting without shadows (``shadows`` None)
+compiles no shadow code at all, shadows from rays only (the ray tracer's) no map lookup,
+maps without rays no ray code. It is inlined into every lit sample with its arrays
+borrowed (uncounted: counting their references made bunny-shadows' lit pass 4× its
+unshadowed time).
 
 What a shader receives
 ----------------------
@@ -61,12 +72,22 @@ from __future__ import annotations
 
 from collections import namedtuple
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
-__all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "shadow_map_visibility", "shadow_compare",
+from softpipe.language.glsl import length, normalize, sub
+from softpipe.light.packed import LIGHT_DIRECTIONAL, LIGHT_KIND, LIGHT_POSITION, light_vec3
+from softpipe.rays.bvh import _borrowed
+from softpipe.rays.queries import ray_visibility
+
+Vec3 = Tuple[float, float, float]
+Color = Tuple[float, float, float]
+
+__all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "light_visibility", "casts_shadows",
+           "shadow_map_visibility", "shadow_compare",
            "SHADOW_MAP", "SHADOW_RAY", "SHADOW_METHODS",
            "depth_texture", "texture_compare",
            "map_coordinates", "cube_face", "cube_face_half_extent", "CUBE_FACE_NAMES", "MAX_SPOT_MAP_CUTOFF", "MAX_PCF_RADIUS",
@@ -280,8 +301,8 @@ def shadow_map_visibility(shadows, j, P):
     """V_j from light j's shadow map(s) at the eye-space point P: the RGB share of the light that passes.
 
     (1, 1, 1) when light j has no shadow map, and for a point outside its map.
-    :func:`softpipe.light.lighting.light_visibility` is what a shader calls: it also takes
-    the lights whose V_j comes from shadow rays.
+    :func:`light_visibility` is what a shader calls: it also takes the lights whose V_j
+    comes from shadow rays.
     """
     first, count = shadows.light_maps[j, 0], shadows.light_maps[j, 1]
     if count == 0:
@@ -291,3 +312,120 @@ def shadow_map_visibility(shadows, j, P):
     if not inside:
         return 1.0, 1.0, 1.0
     return shadow_compare(shadows, k, x, y, ref)
+
+
+def casts_shadows(lighting, j: int) -> bool:
+    """Does light j of the ``lighting`` uniform (a LightingUniform) cast shadows (a shadow map or shadow rays)?
+
+    The lighting sums ask it before :func:`light_visibility`. A lighting uniform without
+    shadows has ``shadows = None``; compiled, that is known from its type, the
+    question is answered False when numba compiles the shader and the shadow code is
+    left out of it: a draw without shadows runs the code it ran before shadows existed
+    (a ``ShadowUniform`` holds many arrays, and a shader that carried them through
+    every sample paid for each of them).
+    """
+    shadows = lighting.shadows
+    if shadows is None:
+        return False
+    return shadows.light_maps[j, 1] > 0 or shadows.light_maps[j, 2] == SHADOW_RAY
+
+
+def _shadows_type(lighting):
+    """numba's type of ``lighting.shadows`` (a LightingUniform's last field)."""
+    return lighting.types[list(lighting.fields).index("shadows")] if hasattr(lighting, "fields") else None
+
+
+@overload(casts_shadows, inline="always")
+def _casts_shadows_numba(lighting, j):
+    if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
+        return lambda lighting, j: False
+
+    def impl(lighting, j):
+        rows = lighting.shadows.light_maps
+        return (rows[j, 1] > 0) | (rows[j, 2] == SHADOW_RAY)   # no short-circuit: no branch for the inliner
+    return impl
+
+
+def light_visibility(lighting, j: int, P: Vec3) -> Color:
+    """V_j: the RGB share of light j that reaches the eye-space point P past everything else (§11, §21).
+
+    ``lighting`` is the ``lighting`` uniform (a :class:`~softpipe.light.material.LightingUniform`).
+    From ``lighting.shadows``: light j's shadow map(s) (:func:`shadow_map_visibility`), or a shadow ray toward the
+    light — to its position for a point or spot light, to infinity for a directional
+    one — through any transparent objects (:func:`~softpipe.rays.queries.ray_visibility`).
+    (1, 1, 1) for a light that casts no shadows, and when ``lighting.shadows`` is None.
+    Ambient light is never shadowed (§10).
+    """
+    if lighting.shadows is None:
+        return (1.0, 1.0, 1.0)
+    return _shadowed_visibility(lighting.lights, lighting.shadows, j, P)
+
+
+# inlined, as _shadowed_visibility and the map lookups above: per light and lit sample
+@overload(light_visibility, inline="always")
+def _light_visibility_numba(lighting, j, P):
+    if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
+        return lambda lighting, j, P: (1.0, 1.0, 1.0)
+    # The shadow arrays are handed on *borrowed* (softpipe.rays.bvh._borrowed: no owner, so numba counts no
+    # references): every call that received them counted two atomic operations per array, per light, per
+    # sample, and that made the bunny-shadows benchmark's lit pass 4x its unshadowed time.
+    return lambda lighting, j, P: _shadowed_visibility(_borrowed(lighting.lights), _borrow_shadows(lighting.shadows),
+                                                       j, P)
+
+
+def _rays_only(shadows_type) -> bool:
+    """Is this ShadowUniform's numba type one without maps (``maps`` None: every shadow from rays)?"""
+    fields = tuple(getattr(shadows_type, "fields", ()))
+    return "maps" in fields and isinstance(shadows_type.types[fields.index("maps")], types.NoneType)
+
+
+def _borrow_shadows(shadows):
+    """The ShadowUniform with its arrays borrowed (see :func:`softpipe.rays.bvh._borrowed`); plain Python: itself."""
+    return shadows
+
+
+@overload(_borrow_shadows, inline="always")
+def _borrow_shadows_numba(shadows):
+    if _rays_only(shadows):                                              # shadow rays only: no map arrays
+        return lambda shadows: ShadowUniform(_borrowed(shadows.light_maps), None, None, None, None, None,
+                                             shadows.rays)
+
+    def impl(shadows):
+        return ShadowUniform(_borrowed(shadows.light_maps), _borrowed(shadows.maps), _borrowed(shadows.matrices),
+                             _borrowed(shadows.depth), _borrowed(shadows.transparent_depth),
+                             _borrowed(shadows.transmission), shadows.rays)
+    return impl
+
+
+def _shadowed_visibility(lights, shadows, j, P):
+    if shadows.light_maps[j, 2] == SHADOW_RAY:
+        return _shadow_ray(shadows.rays, lights, j, P)
+    return shadow_map_visibility(shadows, j, P)
+
+
+@overload(_shadowed_visibility, inline="always")
+def _shadowed_visibility_numba(lights, shadows, j, P):
+    # shadows from rays only (maps None, as the ray tracer's): no map lookup compiled; a light that casts
+    # shadows then has method SHADOW_RAY (casts_shadows asked first)
+    if _rays_only(shadows):
+        return lambda lights, shadows, j, P: _shadow_ray(shadows.rays, lights, j, P)
+    return _shadowed_visibility
+
+
+def _shadow_ray(rays, lights, j, P):
+    """V_j by a shadow ray toward light j (to its position, or to infinity for a directional light)."""
+    if rays is None:
+        return (1.0, 1.0, 1.0)
+    position = light_vec3(lights, j, LIGHT_POSITION)
+    if lights[j, LIGHT_KIND] == LIGHT_DIRECTIONAL:
+        return ray_visibility(rays, P, position, np.inf)
+    to_light = sub(position, P)
+    return ray_visibility(rays, P, normalize(to_light), length(to_light))
+
+
+@overload(_shadow_ray)
+def _shadow_ray_numba(rays, lights, j, P):
+    # shadows made with maps only carry rays=None: no ray scene's arrays in the shader, no ray code compiled
+    if isinstance(rays, (types.NoneType, types.Omitted)):
+        return lambda rays, lights, j, P: (1.0, 1.0, 1.0)
+    return _shadow_ray

@@ -98,6 +98,8 @@ from typing import Optional, Tuple, Union
 import numpy as np
 from numba import njit
 
+from softpipe.language.glsl import mix
+
 __all__ = [
     "MAX_TEXTURE_BYTES", "texture_bytes",
     "Texture2D",
@@ -239,12 +241,6 @@ def _bilinear(texels, offset, w, h, wrap_s, wrap_t, u, v):
     )
 
 
-@njit(cache=True)
-def _mix4(a, b, t):
-    s = 1.0 - t
-    return (s * a[0] + t * b[0], s * a[1] + t * b[1], s * a[2] + t * b[2], s * a[3] + t * b[3])
-
-
 @njit(cache=True, inline="always")
 def _sample(tex, u, v, lod):
     """Sample at level of detail ``lod`` by the texture's filter (see the module docstring).
@@ -279,7 +275,7 @@ def _sample(tex, u, v, lod):
         return near
     d += 1
     far = _bilinear(texels, offsets[d], widths[d], heights[d], ws, wt, u, v)
-    return _mix4(near, far, t)
+    return mix(near, far, t)
 
 
 @njit(cache=True)

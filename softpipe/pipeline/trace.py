@@ -307,15 +307,16 @@ class Trace:
 
     def _shadow_terms(self, varyings) -> tuple:
         """V_j of every light at the fragment's eye-space ``position`` varying (FORMULAS §21), as the lit
-        programs compute it, when the draw's ``lighting`` uniform carries shadow maps; else ()."""
-        lighting = getattr(self.call.uniforms, "lighting", None)
-        shadows = getattr(lighting, "shadows", None)
+        programs compute it, when the draw's ``lighting`` uniform casts shadows; else ().
+
+        The uniform answers it (``LightingUniform.visibilities``, softpipe.light.material): the
+        pipeline knows no lighting, and asks any uniform that has the method.
+        """
+        visibilities = getattr(getattr(self.call.uniforms, "lighting", None), "visibilities", None)
         P = getattr(varyings, "position", None)
-        if shadows is None or not shadows.light_maps[:, 1:].any() or P is None or len(P) != 3:
+        if visibilities is None or P is None or len(P) != 3:
             return ()
-        from softpipe.light.lighting import light_visibility
-        return tuple(tuple(float(c) for c in light_visibility(lighting, j, tuple(float(v) for v in P)))
-                     for j in range(len(shadows.light_maps)))
+        return visibilities(P)
 
     # ------------------------------------------------------------- pictures
 

@@ -45,7 +45,7 @@ from softpipe.light.material import Light, Lighting, LightingUniform
 from softpipe.pipeline.draw import DrawCall
 from softpipe.rays.queries import RayScene, transmission_of
 from softpipe.light.shadowmap import (CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, SHADOW_MAP, SHADOW_RAY, ShadowSettings,
-                        ShadowUniform, cube_face_half_extent)
+                        ShadowUniform, cube_face_half_extent, light_visibility)
 from softpipe.pipeline.transforms import frustum, look_at, orthographic, transform_points
 
 __all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of"]
@@ -344,7 +344,6 @@ class ShadowMaps:
 
     def visibility(self, light_index: int, point: Sequence[float]) -> Tuple[float, float, float]:
         """V_j of light ``light_index`` at a world-space point, as the shaders compute it (RGB)."""
-        from softpipe.light.lighting import light_visibility
         lighting = self.lighting_uniform(Lighting(self.lights), np.eye(4))   # eye space = world space
         p = tuple(float(v) for v in point)
         return tuple(light_visibility(lighting, light_index, p))
