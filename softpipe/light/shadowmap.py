@@ -80,7 +80,7 @@ from numba.extending import overload
 
 from softpipe.language.glsl import length, normalize, sub
 from softpipe.light.packed import LIGHT_DIRECTIONAL, LIGHT_KIND, LIGHT_POSITION, light_vec3
-from softpipe.rays.bvh import _borrowed
+from softpipe.core.borrow import borrowed, borrowed_tuple
 from softpipe.rays.queries import ray_visibility
 
 Vec3 = Tuple[float, float, float]
@@ -366,10 +366,10 @@ def light_visibility(lighting, j: int, P: Vec3) -> Color:
 def _light_visibility_numba(lighting, j, P):
     if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
         return lambda lighting, j, P: (1.0, 1.0, 1.0)
-    # The shadow arrays are handed on *borrowed* (softpipe.rays.bvh._borrowed: no owner, so numba counts no
-    # references): every call that received them counted two atomic operations per array, per light, per
-    # sample, and that made the bunny-shadows benchmark's lit pass 4x its unshadowed time.
-    return lambda lighting, j, P: _shadowed_visibility(_borrowed(lighting.lights), _borrow_shadows(lighting.shadows),
+    # The shadow arrays are handed on *borrowed* (softpipe.core.borrow: no owner, so numba counts no
+    # references): otherwise every call that received them would count two atomic operations per array,
+    # per light, per sample, more than the lookups themselves (benchmarks/README.md, "Shadows").
+    return lambda lighting, j, P: _shadowed_visibility(borrowed(lighting.lights), borrowed_tuple(lighting.shadows),
                                                        j, P)
 
 
@@ -377,24 +377,6 @@ def _rays_only(shadows_type) -> bool:
     """Is this ShadowUniform's numba type one without maps (``maps`` None: every shadow from rays)?"""
     fields = tuple(getattr(shadows_type, "fields", ()))
     return "maps" in fields and isinstance(shadows_type.types[fields.index("maps")], types.NoneType)
-
-
-def _borrow_shadows(shadows):
-    """The ShadowUniform with its arrays borrowed (see :func:`softpipe.rays.bvh._borrowed`); plain Python: itself."""
-    return shadows
-
-
-@overload(_borrow_shadows, inline="always")
-def _borrow_shadows_numba(shadows):
-    if _rays_only(shadows):                                              # shadow rays only: no map arrays
-        return lambda shadows: ShadowUniform(_borrowed(shadows.light_maps), None, None, None, None, None,
-                                             shadows.rays)
-
-    def impl(shadows):
-        return ShadowUniform(_borrowed(shadows.light_maps), _borrowed(shadows.maps), _borrowed(shadows.matrices),
-                             _borrowed(shadows.depth), _borrowed(shadows.transparent_depth),
-                             _borrowed(shadows.transmission), shadows.rays)
-    return impl
 
 
 def _shadowed_visibility(lights, shadows, j, P):

@@ -18,7 +18,7 @@ The parts live beside it:
 - :mod:`softpipe.rays.traverse`: the walk, for one ray and for batches;
 - :mod:`softpipe.rays.layout`: the sizes and codes the build and the walk share.
 
-Here too: :func:`_borrowed`, an array without its owner, which the queries hand to the walk.
+Here too: the queries hand the walk its arrays borrowed (:mod:`softpipe.core.borrow`).
 Every answer is the same bytes on any thread count. docs/raytracing.md ("The BVH") has the
 long explanations; benchmarks/README.md ("Rays") the timings.
 """
@@ -28,10 +28,8 @@ from collections import namedtuple
 
 import numba
 import numpy as np
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic, overload
 
+from softpipe.core.borrow import borrowed
 from softpipe.core.parallel import in_bands
 from softpipe.rays.build import binary_tree, fill_blocks, gather_corners, pack_boxes, refit_boxes, wide_tree
 from softpipe.rays.traverse import node_stack, query, start_row, step, store, t_stack
@@ -45,42 +43,9 @@ BVHUniform.__doc__ = """A BVH as a shader receives it: its numpy arrays (see :cl
 ``boxes``, ``links``, ``tris``, ``tri_ids``; ``order`` and ``v0``, ``v1``, ``v2`` are there for shaders."""
 
 
-# ------------------------------------------------------------------ borrowed arrays
-
-# Why borrowed. numba counts references to every array a compiled function receives: an
-# atomic add on entry and an atomic subtract on exit, per array, per call. For a ray that is
-# 16 atomic operations on the BVH's 8 arrays, most of what a ray that misses the root box
-# costs, and two threads contend for the same counters (benchmarks/README.md, "Rays"). So the
-# queries hand the walk *borrowed* arrays: the same data with no owner attached, so there is
-# nothing to count; only used while the caller holds the BVH.
-
-def _borrowed(arr):
-    """The array ``arr`` without its owner (meminfo NULL), so numba counts no references to it.
-
-    Only for use inside the call that received ``arr``: the data stay alive
-    because the caller holds the original. In plain Python (NUMBA_DISABLE_JIT=1)
-    the array itself.
-    """
-    return arr
-
-
-@intrinsic
-def _borrowed_intrinsic(typingctx, arr):
-    if not isinstance(arr, types.Array):
-        return None
-
-    def codegen(context, builder, signature, args):
-        a = context.make_array(arr)(context, builder, value=args[0])
-        a.meminfo = cgutils.get_null_value(a.meminfo.type)
-        return a._getvalue()
-    return arr(arr), codegen
-
-
-@overload(_borrowed, inline="always")
-def _borrowed_compiled(arr):
-    if isinstance(arr, types.Array):
-        return lambda arr: _borrowed_intrinsic(arr)
-
+# The queries hand the walk *borrowed* arrays (softpipe.core.borrow): per ray, counting references
+# to the BVH's eight arrays would cost more than a ray that misses the root box, and two threads
+# would contend for the same counters.
 
 # ------------------------------------------------------------------ the queries
 
@@ -94,8 +59,8 @@ def closest_hit(bvh, origin, direction, t_min: float, t_max: float) -> tuple:
     t the lowest triangle id wins, so the answer does not depend on the tree.
     The hit point is (1 − b1 − b2)·v0 + b1·v1 + b2·v2 of triangle ``id``.
     """
-    return query(_borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi),
-                 _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), _borrowed(bvh.tri_ids),
+    return query(borrowed(bvh.boxes), borrowed(bvh.links), borrowed(bvh.lo), borrowed(bvh.hi),
+                 borrowed(bvh.first), borrowed(bvh.count), borrowed(bvh.tris), borrowed(bvh.tri_ids),
                  float(origin[0]), float(origin[1]), float(origin[2]),
                  float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max), False)
 
@@ -103,8 +68,8 @@ def closest_hit(bvh, origin, direction, t_min: float, t_max: float) -> tuple:
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def any_hit(bvh, origin, direction, t_min: float, t_max: float) -> bool:
     """Whether any triangle lies on the ray in (t_min, t_max): stops at the first one found (shadow rays, §21)."""
-    return query(_borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi),
-                 _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), _borrowed(bvh.tri_ids),
+    return query(borrowed(bvh.boxes), borrowed(bvh.links), borrowed(bvh.lo), borrowed(bvh.hi),
+                 borrowed(bvh.first), borrowed(bvh.count), borrowed(bvh.tris), borrowed(bvh.tri_ids),
                  float(origin[0]), float(origin[1]), float(origin[2]),
                  float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max),
                  True)[0] >= 0
@@ -127,9 +92,9 @@ def _batch_kernel(lo_, hi_, bvh, origins, directions, t_min, t_max, any_, ids, t
     """Rays lo_ … hi_ − 1 of a batch, two in flight: closest hits into ids, ts, bs, or (any_) any hits
     into occluded."""
     sa_node, sa_t, sb_node, sb_t = node_stack(), t_stack(), node_stack(), t_stack()
-    boxes, links, lo, hi = _borrowed(bvh.boxes), _borrowed(bvh.links), _borrowed(bvh.lo), _borrowed(bvh.hi)
-    first, count, tris, tri_ids = _borrowed(bvh.first), _borrowed(bvh.count), _borrowed(bvh.tris), \
-        _borrowed(bvh.tri_ids)
+    boxes, links, lo, hi = borrowed(bvh.boxes), borrowed(bvh.links), borrowed(bvh.lo), borrowed(bvh.hi)
+    first, count, tris, tri_ids = borrowed(bvh.first), borrowed(bvh.count), borrowed(bvh.tris), \
+        borrowed(bvh.tri_ids)
     ia, ib = lo_, lo_ + 1
     ray_a, st_a = start_row(lo, hi, first, count, origins, directions, t_min, t_max, ia)
     if ib < hi_:

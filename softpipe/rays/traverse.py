@@ -20,7 +20,7 @@ at its first hit. :func:`query` answers one ray; a batch kernel
 (:func:`softpipe.rays.bvh._batch_kernel`) walks two rays in turn with :func:`start_row`,
 :func:`step` and :func:`store`, each ray on its own stack (:func:`node_stack`,
 :func:`t_stack`: arrays in the caller's frame). All of them work on the BVH's arrays
-*borrowed* (no owner, so numba counts no references: :func:`softpipe.rays.bvh._borrowed`).
+*borrowed* (no owner, so numba counts no references: :func:`softpipe.core.borrow.borrowed`).
 Each ray's answer depends on nothing but the ray, so the bytes are the same for any thread
 count. docs/raytracing.md ("The BVH") explains why this shape; benchmarks/README.md ("Rays")
 has the measurements.
