@@ -59,8 +59,8 @@ SHADE_SAMPLE, SHADE_CENTER, SHADE_CENTROID = 0, 1, 2
 # ------------------------------------------------------- the rules, one by one
 
 # The rules below run inside setup_kernel; numba inlines them there (inline="always"), so
-# each is not compiled and optimized once on its own and again in its caller: the first
-# (cold-cache) compile of triangle setup took 1.1 s with them as separate functions.
+# each is not compiled and optimized once on its own and again in its caller, which made the
+# first (cold-cache) compile of triangle setup markedly slower (benchmarks/README.md).
 
 @numba.njit(cache=True, inline="always")
 def snap(v):
@@ -245,8 +245,8 @@ def _polygon_offset_kernel(lo, hi, window, edges, area, plane, factor, units):
 #
 # These run once per sample inside the hot loops (the rasterizer's, the visibility
 # pass's, the generated shading loops'), so numba inlines them into their callers
-# (inline="always"): called as functions, the fast path's shading loop of the `fill`
-# benchmark took 35 ms on one thread instead of 17.
+# (inline="always"): a call per sample costs as much as the work inside it (the `fill`
+# benchmark's figure is in benchmarks/README.md).
 
 @numba.njit(cache=True, inline="always")
 def edge_values(edges, t, px, py):
@@ -280,8 +280,9 @@ def inside(e0, e1, e2, bias, t):
 def covers(edges, bias, t, px, py):
     """Does triangle t cover the sample at (px, py)? The fill rule (:func:`inside_edge`) at every edge.
 
-    Edge by edge, stopping at the first it fails: evaluating the three edges first (as
-    :func:`inside` takes them) made the reference rasterizer's counting pass 18 % slower.
+    Edge by edge, stopping at the first it fails, so a sample outside skips the other edges'
+    arithmetic: evaluating the three edges first (as :func:`inside` takes them) made the
+    reference rasterizer's counting pass slower (benchmarks/README.md).
     """
     for k in range(3):
         if not inside_edge(edges[t, k, 0] * px + edges[t, k, 1] * py + edges[t, k, 2], bias, t, k):

@@ -275,7 +275,7 @@ class DiscardOnFastPath(Exception):
 
 
 #: Buffers for what a draw may have to undo, kept between draws: a new one's pages cost more
-#: to map (page faults: 6 ms for a 1920×1080 color buffer) than the copies made into them.
+#: to map (a page fault per page on first touch) than the copies made into them (benchmarks/README.md).
 _SCRATCH: dict = {}
 _SCRATCH_KEPT = 4
 

@@ -98,7 +98,8 @@ def _unit(v):
 
     One division where :func:`~softpipe.language.glsl.normalize` (v/|v| per component) has three;
     within two ulp of it (1/|v| and the product are each rounded). With it for N and V
-    (and light_at's L) a lit sample cost 4 % less on sphere200k, 8 % on bunny (issue 18).
+    (and light_at's L) a lit sample costs measurably less (issue 18; the figures are in
+    benchmarks/README.md, "The figures behind the pipeline's comments").
     """
     n = length(v)
     if n > 0.0:
