@@ -1,38 +1,26 @@
 """Triangle setup: the numbers every later step computes a triangle's samples from.
 
 One setup serves everything after assembly, as ``sp_setup.c`` does in Mesa's
-softpipe: the reference rasterizer (``raster.py``), the fast path's tile walk
-(``tiles.py``) and shading of visible samples (``visibility.py``), the generated
-shading loops (``kernels.py``) and the screen-space derivatives. The rules are
-OpenGL's, as Mesa implements them (DESIGN.md):
+softpipe: the reference rasterizer (:mod:`softpipe.pipeline.raster`), the fast path's
+tile walk (:mod:`softpipe.pipeline.tiles`) and shading of visible samples
+(:mod:`softpipe.pipeline.visibility`), the generated shading loops
+(:mod:`softpipe.language.kernels`) and the screen-space derivatives. The rules are
+OpenGL's, as Mesa implements them (docs/design.md), one small function each, so no
+two callers can disagree about one:
 
-1. **Snapping** (:func:`snap`). Window coordinates become fixed point with 8
-   subpixel bits: ``X = round_half_even((x_w − ½)·256)``, so pixel i's centre
-   is at ``256·i``.
-2. **Edge functions**, exact in 64-bit integers. E_k is the edge a→b opposite
-   corner k (a = k+1, b = k+2, mod 3); for a sample p,
-   ``E_k(p) = (X_b − X_a)(P_y − Y_a) − (Y_b − Y_a)(P_x − X_a)``, stored as
-   ``E_k = A_k·P_x + B_k·P_y + C_k`` (:attr:`TriangleSetup.edges`). A clockwise
-   triangle is turned around (every E negated), so E ≥ 0 inside. E_0 + E_1 + E_2
-   is twice the snapped area (:attr:`TriangleSetup.area`); a triangle whose
-   snapped area is 0 covers nothing. The barycentrics are ``b_k = E_k / area``.
-3. **The fill rule** (:func:`owns_samples_on_edge`): a sample strictly inside all
-   three edges is covered; one exactly on an edge is covered only if that edge
-   owns it — left edges and bottom horizontal edges, in window coordinates
-   (y up). The bias ``−1`` on the other edges makes the test ``E_k + bias_k ≥ 0``
-   (:func:`inside_edge`; :func:`covers` at a sample).
-4. **Depth** is linear in window space, ``z = b_0 z_0 + b_1 z_1 + b_2 z_2``,
-   evaluated as ``z_0 + (E_1 (z_1 − z_0) + E_2 (z_2 − z_0)) / area``
-   (:func:`depth_at`: the one expression both paths use, so their depth buffers
-   are the same bytes).
-   A draw with a **polygon offset** (``glPolygonOffset(factor, units)``) moves
-   each triangle's plane by ``factor·DZ + units·r`` before anything reads it
-   (:func:`apply_polygon_offset`): the shadow maps' depth bias.
-5. **Bounding box**: the pixels whose samples may lie inside, clamped to the
-   scissor rectangle (the viewport within the framebuffer).
-6. **Where a fragment is shaded** (:func:`shading_point`): at its sample; or,
-   multisampling, once per pixel at the pixel centre or at the centroid of the
-   triangle's covered samples there (:data:`SHADING_POSITIONS`).
+1. **Snapping** (:func:`snap`): fixed point with 8 subpixel bits, pixel i's centre at ``256·i``.
+2. **Edge functions** (:attr:`TriangleSetup.edges`), exact in 64-bit integers,
+   ``E_k = A_k·P_x + B_k·P_y + C_k``, ≥ 0 inside (a clockwise triangle is turned
+   around); ``b_k = E_k / area`` (:attr:`TriangleSetup.area`, twice the snapped area).
+3. **The fill rule** (:func:`owns_samples_on_edge`, :func:`inside_edge`, :func:`covers`).
+4. **Depth** (:func:`depth_at`: the one expression both paths use) and the
+   **polygon offset** (:func:`apply_polygon_offset`: the shadow maps' depth bias).
+5. **Bounding box**: the pixels whose samples may lie inside, clamped to the scissor
+   rectangle (the viewport within the framebuffer).
+6. **Where a fragment is shaded** (:func:`shading_point`, :data:`SHADING_POSITIONS`).
+
+docs/04-raster.md states each rule with its formula (the edge numbering, the fill
+rule's bias, the depth expression); docs/08-fast-path.md says what the fast path shares.
 """
 from __future__ import annotations
 
