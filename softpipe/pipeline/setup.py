@@ -249,7 +249,7 @@ def inside_edge(e, bias, t, k):
     """The fill rule at one edge: is a sample where E_k of triangle t is ``e`` on its inner side, E_k + bias_k ≥ 0?
 
     The one statement of the rule; :func:`inside` and :func:`covers` apply it at all three
-    edges, the fast path's row spans (``tiles.py``) edge by edge.
+    edges, the fast path's row spans (:mod:`softpipe.pipeline.tiles`) edge by edge.
     """
     return e + bias[t, k] >= 0
 

@@ -1,9 +1,9 @@
 """The fast path's coverage walk: which samples of which tile a triangle covers, and does it pass the depth test there.
 
-The second back end's rasterizer, beside the reference one (``raster.py``, which
+The second back end's rasterizer, beside the reference one (:mod:`softpipe.pipeline.raster`, which
 emits every covered sample as a fragment for the output merger). It shares the
 triangle setup with it and asks setup's rules rather than restating them
-(``setup.py``: the fill rule :func:`~softpipe.pipeline.setup.inside_edge`, the
+(:mod:`softpipe.pipeline.setup`: the fill rule :func:`~softpipe.pipeline.setup.inside_edge`, the
 depth plane :func:`~softpipe.pipeline.setup.plane_depth`), and the depth compare
 (``output.depth_passes``); it walks coverage its own way and keeps only a
 visibility buffer, the last triangle that passed the depth test at each sample:
@@ -20,7 +20,7 @@ visibility buffer, the last triangle that passed the depth test at each sample:
    compiler vectorizes; a narrower one has each sample tested, on edge values
    stepped along the row (:func:`~softpipe.pipeline.setup.inside`).
 
-``visibility.py`` chooses the path, runs this pass and shades what it left
+:mod:`softpipe.pipeline.visibility` chooses the path, runs this pass and shades what it left
 visible; docs/08-fast-path.md walks through both.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """What the built-in programs share: the standard vertex shader, the surface vectors N and V, lights.
 
 Every lit program shades in **eye space** (``softpipe.light.material``: the eye at the
-origin looking down −z). P, N, V and the other names are those of FORMULAS.md,
+origin looking down −z). P, N, V and the other names are those of docs/formulas.md,
 defined once in :mod:`softpipe.shading` (the module a shader author imports from,
 which re-exports the functions here).
 
