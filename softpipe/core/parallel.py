@@ -8,8 +8,7 @@ and :func:`in_bands` runs it over disjoint bands of the items on a small pool
 of Python threads.
 
 Why not numba's ``prange``: a parallel kernel costs seconds more to compile
-from an empty cache than the same loop written serially (measured: 3.3 s
-against 0.6 s for the tile loop, 3.3 s against 1.3 s for triangle setup), a
+from an empty cache than the same loop written serially (benchmarks/README.md), a
 shading loop is compiled per shader, and numba's OpenMP workers, spinning after
 each parallel loop, took a core from the Python threads that shade. Bands are
 disjoint and each item is computed the same whoever computes it, so the result

@@ -5,9 +5,9 @@
 arrays of tens of megabytes (assembled triangles, edge functions, the
 visibility buffer) and frees them at its end. By default glibc gives each such
 block back to the system and maps a fresh one for the next draw, and the
-kernel must zero every page again on first touch: sphere200k's assembly took
-31 ms that way and 5 ms with the memory kept (page faults per frame: about
-3,000 → 0; benchmarks/README.md). The cost is that the process keeps its peak
+kernel must zero every page again on first touch, a page fault per page per
+frame; with the memory kept, a large draw's assembly makes none
+(benchmarks/README.md has the figures). The cost is that the process keeps its peak
 memory instead of returning it after a large draw (:func:`release_memory`
 returns it).
 

@@ -1,50 +1,25 @@
-"""Shaders: per-invocation Python functions, compiled by numba, run over a batch.
+"""The shader contract: the types a shader receives and returns.
 
-A shader is written like GLSL: it sees one vertex or one fragment, small vectors
-are tuples of floats, and its inputs arrive as namedtuples so that they read by
-name (``varyings.normal``, ``uniforms.light_dir``, ``frag.x``).
+A shader is a per-invocation Python function written like GLSL, compiled by numba
+and run over a batch: it sees one vertex or one fragment, small vectors are tuples
+of floats, and its inputs arrive as namedtuples so that they read by name
+(``varyings.normal``, ``uniforms.light_dir``, ``frag.x``)::
 
-Vertex shader::
+    def vertex(attributes, uniforms):                    # -> clip position, Varyings(...)
+    def fragment(varyings, uniforms, frag):              # -> (r, g, b, a) or DISCARD
+    def fragment(varyings, uniforms, frag, derivatives): # with exact dFdx / dFdy
 
-    def vertex(attributes, uniforms):
-        ...
-        return clip_position, Varyings(normal=..., color=...)
+Here: :data:`FragInfo` (``x``, ``y`` as ``gl_FragCoord``, ``z``, ``front_facing``,
+``primitive_id``), :data:`DISCARD`, :class:`Derivatives`, the uniforms
+(:func:`make_uniforms`, :func:`reads_uniforms`: GLSL's ``uniform`` declarations, so a
+compiled loop serves every draw whose other uniforms differ), the varyings' layout
+(:class:`VaryingLayout`, :data:`QUALIFIERS`) and :class:`ShaderError`.
 
-``attributes`` has one field per vertex attribute (``position`` and the arrays
-given as ``attributes=``); a field is a float for an ``[N]`` array and a tuple of
-k floats for ``[N, k]``. It returns the clip position (x, y, z, w) and a
-namedtuple (any namedtuple class) of varyings; each varying is a float or a
-tuple of 2–4 floats. softpipe learns the varyings' names and sizes by running
-the vertex shader once as plain Python, on the first vertex.
-
-Fragment shader::
-
-    def fragment(varyings, uniforms, frag):
-        return (r, g, b, a)          # or DISCARD
-
-``varyings`` has the interpolated varyings by name, ``frag`` is a
-:data:`FragInfo` (``x``, ``y``: the window position of the sample, y up, pixel
-centres at +½, as ``gl_FragCoord``; ``z`` its depth; ``front_facing``;
-``primitive_id``). Returning :data:`DISCARD` discards the fragment.
-
-A fragment shader that needs screen-space derivatives (GLSL's ``dFdx``/``dFdy``,
-e.g. to choose a mipmap level) takes a fourth parameter::
-
-    def fragment(varyings, uniforms, frag, derivatives):
-        duv_dx, duv_dy = derivatives.dx.uv, derivatives.dy.uv
-
-They are exact, not finite differences: the derivative of each varying's
-interpolation formula at the fragment, per window pixel (y up).
-
-``uniforms`` is built once per draw from a dict by :func:`make_uniforms`. A
-shader may declare the uniforms it reads, as GLSL does (``uniform mat4
-model_view;``), with :func:`reads_uniforms`: its compiled loop then takes only
-those, and serves every draw whose other uniforms differ.
-
-This module is the contract: the types a shader receives and returns. How a
-shader runs (the generated loop that inlines it, numba's compilation and cache,
-how errors are reported) is :mod:`softpipe.language.kernels`; the functions a shader
-calls (GLSL math, lighting) are offered by :mod:`softpipe.shading`.
+Why it is shaped so: the contract is apart from how a shader runs (the generated
+loop, numba's compilation and cache, error reports: :mod:`softpipe.language.kernels`)
+and from what it calls (GLSL math, lighting: :mod:`softpipe.shading`), so a shader
+author reads only this and that. docs/shaders.md is the guide: every input, what
+Python a shader may use, an example, and what to do when it goes wrong.
 """
 from __future__ import annotations
 

@@ -5,8 +5,10 @@ One pipeline, two orders of the same stages (as early depth in Mesa's softpipe):
     reference:  vertex → assembly → setup → raster → fragment → output
     fast:       vertex → assembly → setup → visibility (raster + depth test) → fragment (visible samples only)
 
-(vertex.py, assembly.py, setup.py, raster.py, fragment.py, output.py;
-visibility.py for the fast order). :func:`softpipe.pipeline.visibility.choose_path` is the
+(:mod:`~softpipe.pipeline.vertex`, :mod:`~softpipe.pipeline.assembly`,
+:mod:`~softpipe.pipeline.setup`, :mod:`~softpipe.pipeline.raster`,
+:mod:`~softpipe.pipeline.fragment`, :mod:`~softpipe.pipeline.output`;
+:mod:`~softpipe.pipeline.visibility` for the fast order). :func:`softpipe.pipeline.visibility.choose_path` is the
 one function that picks the order; the draw records which it took and why
 (:attr:`DrawCall.path_taken`, :attr:`DrawCall.path_reason`).
 

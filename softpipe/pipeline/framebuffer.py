@@ -30,7 +30,7 @@ MAX_TOTAL_SAMPLES = 1 << 26
 
 @numba.njit(cache=True, nogil=True)
 def _fill(lo, hi, color, rgba, depth, z):
-    """Clear samples lo:hi (run in parallel bands: numpy's fill is single-threaded, and a 1080p clear is ~10 ms)."""
+    """Clear samples lo:hi (run in parallel bands: numpy's fill is single-threaded, a 1080p clear is worth sharing)."""
     for k in range(lo, hi):
         depth[k] = z
         for c in range(4):

@@ -2,8 +2,8 @@
 
 It answers exactly three questions per covered sample: which pixel and sample,
 which triangle, and the barycentrics (and from them the depth). Shading is a
-later stage. The rules are OpenGL's, as Mesa implements them (DESIGN.md); each
-is one function of the triangle setup (``setup.py``), which this stage shares
+later stage. The rules are OpenGL's, as Mesa implements them (docs/design.md); each
+is one function of the triangle setup (:mod:`softpipe.pipeline.setup`), which this stage shares
 with the fast path and the shading loops:
 
 1. **Snapping** (:func:`~softpipe.pipeline.setup.snap`): fixed point with 8 subpixel

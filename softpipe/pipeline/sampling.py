@@ -15,7 +15,7 @@ import numpy as np
 __all__ = ["SamplePattern", "CENTER", "MAX_SAMPLES", "grid", "rotated_grid_4x", "jittered", "random_pattern",
            "pattern_named"]
 
-#: Subpixel precision of the rasterizer: 8 bits, 1/256 pixel (DESIGN.md).
+#: Subpixel precision of the rasterizer: 8 bits, 1/256 pixel (docs/design.md, "Rasterization rules").
 SUBPIXEL_BITS = 8
 SUBPIXEL = 1 << SUBPIXEL_BITS
 MAX_SAMPLES = 64

@@ -1,38 +1,26 @@
 """Triangle setup: the numbers every later step computes a triangle's samples from.
 
 One setup serves everything after assembly, as ``sp_setup.c`` does in Mesa's
-softpipe: the reference rasterizer (``raster.py``), the fast path's tile walk
-(``tiles.py``) and shading of visible samples (``visibility.py``), the generated
-shading loops (``kernels.py``) and the screen-space derivatives. The rules are
-OpenGL's, as Mesa implements them (DESIGN.md):
+softpipe: the reference rasterizer (:mod:`softpipe.pipeline.raster`), the fast path's
+tile walk (:mod:`softpipe.pipeline.tiles`) and shading of visible samples
+(:mod:`softpipe.pipeline.visibility`), the generated shading loops
+(:mod:`softpipe.language.kernels`) and the screen-space derivatives. The rules are
+OpenGL's, as Mesa implements them (docs/design.md), one small function each, so no
+two callers can disagree about one:
 
-1. **Snapping** (:func:`snap`). Window coordinates become fixed point with 8
-   subpixel bits: ``X = round_half_even((x_w − ½)·256)``, so pixel i's centre
-   is at ``256·i``.
-2. **Edge functions**, exact in 64-bit integers. E_k is the edge a→b opposite
-   corner k (a = k+1, b = k+2, mod 3); for a sample p,
-   ``E_k(p) = (X_b − X_a)(P_y − Y_a) − (Y_b − Y_a)(P_x − X_a)``, stored as
-   ``E_k = A_k·P_x + B_k·P_y + C_k`` (:attr:`TriangleSetup.edges`). A clockwise
-   triangle is turned around (every E negated), so E ≥ 0 inside. E_0 + E_1 + E_2
-   is twice the snapped area (:attr:`TriangleSetup.area`); a triangle whose
-   snapped area is 0 covers nothing. The barycentrics are ``b_k = E_k / area``.
-3. **The fill rule** (:func:`owns_samples_on_edge`): a sample strictly inside all
-   three edges is covered; one exactly on an edge is covered only if that edge
-   owns it — left edges and bottom horizontal edges, in window coordinates
-   (y up). The bias ``−1`` on the other edges makes the test ``E_k + bias_k ≥ 0``
-   (:func:`inside_edge`; :func:`covers` at a sample).
-4. **Depth** is linear in window space, ``z = b_0 z_0 + b_1 z_1 + b_2 z_2``,
-   evaluated as ``z_0 + (E_1 (z_1 − z_0) + E_2 (z_2 − z_0)) / area``
-   (:func:`depth_at`: the one expression both paths use, so their depth buffers
-   are the same bytes).
-   A draw with a **polygon offset** (``glPolygonOffset(factor, units)``) moves
-   each triangle's plane by ``factor·DZ + units·r`` before anything reads it
-   (:func:`apply_polygon_offset`): the shadow maps' depth bias.
-5. **Bounding box**: the pixels whose samples may lie inside, clamped to the
-   scissor rectangle (the viewport within the framebuffer).
-6. **Where a fragment is shaded** (:func:`shading_point`): at its sample; or,
-   multisampling, once per pixel at the pixel centre or at the centroid of the
-   triangle's covered samples there (:data:`SHADING_POSITIONS`).
+1. **Snapping** (:func:`snap`): fixed point with 8 subpixel bits, pixel i's centre at ``256·i``.
+2. **Edge functions** (:attr:`TriangleSetup.edges`), exact in 64-bit integers,
+   ``E_k = A_k·P_x + B_k·P_y + C_k``, ≥ 0 inside (a clockwise triangle is turned
+   around); ``b_k = E_k / area`` (:attr:`TriangleSetup.area`, twice the snapped area).
+3. **The fill rule** (:func:`owns_samples_on_edge`, :func:`inside_edge`, :func:`covers`).
+4. **Depth** (:func:`depth_at`: the one expression both paths use) and the
+   **polygon offset** (:func:`apply_polygon_offset`: the shadow maps' depth bias).
+5. **Bounding box**: the pixels whose samples may lie inside, clamped to the scissor
+   rectangle (the viewport within the framebuffer).
+6. **Where a fragment is shaded** (:func:`shading_point`, :data:`SHADING_POSITIONS`).
+
+docs/04-raster.md states each rule with its formula (the edge numbering, the fill
+rule's bias, the depth expression); docs/08-fast-path.md says what the fast path shares.
 """
 from __future__ import annotations
 
@@ -59,8 +47,8 @@ SHADE_SAMPLE, SHADE_CENTER, SHADE_CENTROID = 0, 1, 2
 # ------------------------------------------------------- the rules, one by one
 
 # The rules below run inside setup_kernel; numba inlines them there (inline="always"), so
-# each is not compiled and optimized once on its own and again in its caller: the first
-# (cold-cache) compile of triangle setup took 1.1 s with them as separate functions.
+# each is not compiled and optimized once on its own and again in its caller, which made the
+# first (cold-cache) compile of triangle setup markedly slower (benchmarks/README.md).
 
 @numba.njit(cache=True, inline="always")
 def snap(v):
@@ -245,8 +233,8 @@ def _polygon_offset_kernel(lo, hi, window, edges, area, plane, factor, units):
 #
 # These run once per sample inside the hot loops (the rasterizer's, the visibility
 # pass's, the generated shading loops'), so numba inlines them into their callers
-# (inline="always"): called as functions, the fast path's shading loop of the `fill`
-# benchmark took 35 ms on one thread instead of 17.
+# (inline="always"): a call per sample costs as much as the work inside it (the `fill`
+# benchmark's figure is in benchmarks/README.md).
 
 @numba.njit(cache=True, inline="always")
 def edge_values(edges, t, px, py):
@@ -261,7 +249,7 @@ def inside_edge(e, bias, t, k):
     """The fill rule at one edge: is a sample where E_k of triangle t is ``e`` on its inner side, E_k + bias_k ≥ 0?
 
     The one statement of the rule; :func:`inside` and :func:`covers` apply it at all three
-    edges, the fast path's row spans (``tiles.py``) edge by edge.
+    edges, the fast path's row spans (:mod:`softpipe.pipeline.tiles`) edge by edge.
     """
     return e + bias[t, k] >= 0
 
@@ -280,8 +268,9 @@ def inside(e0, e1, e2, bias, t):
 def covers(edges, bias, t, px, py):
     """Does triangle t cover the sample at (px, py)? The fill rule (:func:`inside_edge`) at every edge.
 
-    Edge by edge, stopping at the first it fails: evaluating the three edges first (as
-    :func:`inside` takes them) made the reference rasterizer's counting pass 18 % slower.
+    Edge by edge, stopping at the first it fails, so a sample outside skips the other edges'
+    arithmetic: evaluating the three edges first (as :func:`inside` takes them) made the
+    reference rasterizer's counting pass slower (benchmarks/README.md).
     """
     for k in range(3):
         if not inside_edge(edges[t, k, 0] * px + edges[t, k, 1] * py + edges[t, k, 2], bias, t, k):

@@ -1,9 +1,9 @@
 """The fast path's coverage walk: which samples of which tile a triangle covers, and does it pass the depth test there.
 
-The second back end's rasterizer, beside the reference one (``raster.py``, which
+The second back end's rasterizer, beside the reference one (:mod:`softpipe.pipeline.raster`, which
 emits every covered sample as a fragment for the output merger). It shares the
 triangle setup with it and asks setup's rules rather than restating them
-(``setup.py``: the fill rule :func:`~softpipe.pipeline.setup.inside_edge`, the
+(:mod:`softpipe.pipeline.setup`: the fill rule :func:`~softpipe.pipeline.setup.inside_edge`, the
 depth plane :func:`~softpipe.pipeline.setup.plane_depth`), and the depth compare
 (``output.depth_passes``); it walks coverage its own way and keeps only a
 visibility buffer, the last triangle that passed the depth test at each sample:
@@ -20,7 +20,7 @@ visibility buffer, the last triangle that passed the depth test at each sample:
    compiler vectorizes; a narrower one has each sample tested, on edge values
    stepped along the row (:func:`~softpipe.pipeline.setup.inside`).
 
-``visibility.py`` chooses the path, runs this pass and shades what it left
+:mod:`softpipe.pipeline.visibility` chooses the path, runs this pass and shades what it left
 visible; docs/08-fast-path.md walks through both.
 """
 from __future__ import annotations
@@ -43,8 +43,8 @@ TILE_W, TILE_H = 128, 32
 # ------------------------------------------------------------------------ binning
 
 #: Binning runs in bands of at least this many triangles (each counted, then filled, on its own),
-#: two per thread at most. Handing bands to the helper threads costs about 0.3 ms a phase, more
-#: than binning the sphere's 68k triangles in the calling thread (0.45 ms for both phases).
+#: two per thread at most. Handing bands to the helper threads costs more than binning a
+#: mesh of tens of thousands of triangles in the calling thread (benchmarks/README.md).
 BIN_BAND_MIN = 131072
 
 
@@ -133,7 +133,7 @@ def _span(edges, bias, t, px0, py, i_lo, i_hi):
     """
     for k in range(3):
         a = edges[t, k, 0] * SUBPIXEL
-        # E_k at i = 0, edge by edge: edge_values' three at once before the loop made this 14–20 % slower
+        # E_k at i = 0, edge by edge: edge_values' three at once before the loop was slower (benchmarks/README.md)
         r = edges[t, k, 0] * px0 + edges[t, k, 1] * py + edges[t, k, 2]
         if a == 0:
             if not inside_edge(r, bias, t, k):
@@ -223,7 +223,8 @@ def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, w
     setup's fill rule decides on them (:func:`~softpipe.pipeline.setup.inside`); depth is
     :func:`~softpipe.pipeline.setup.plane_depth` of the sample's exact edge values.
     (Calling :func:`~softpipe.pipeline.setup.covers` at each sample instead, which
-    evaluates the edges there, made ``sphere200k``'s tile pass 15 % slower.)
+    evaluates the edges there rather than stepping them, made the tile pass slower;
+    benchmarks/README.md.)
     """
     z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
     step0, step1, step2 = edges[t, 0, 0] * SUBPIXEL, edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL

@@ -140,8 +140,7 @@ def transform_points(matrix: np.ndarray, points, rows: int = 3) -> np.ndarray:
 
     A compiled loop, not numpy's ``@``: numpy's matrix product runs on OpenBLAS's
     threads, which keep spinning for a while after it, taking the cores from the
-    bands that follow (on a loaded machine a 1024² shadow map's depth pass right
-    after one took twice as long; on a quiet one no difference was measured); and
+    bands that follow (measured on a loaded machine; benchmarks/README.md); and
     the loop gives the same bytes whatever BLAS a machine has.
     """
     m = np.ascontiguousarray(matrix, np.float64)

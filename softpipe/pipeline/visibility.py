@@ -2,39 +2,30 @@
 
 For a draw whose result depends only on which fragment is written last at each
 sample (no blending, no discard), the hidden fragments need not be shaded. The
-reference back end (``raster.py`` → ``fragment.py`` → ``output.py``) makes,
-shades and merges every fragment in primitive order; this one does not reorder
-those stages but replaces them below the triangle setup:
-
-- **shared** with the reference: assembly, the triangle setup and its rules
-  (``setup.py``: snapping, edge functions, the fill rule, the depth plane), the
-  depth compare (``output.depth_passes``), and the shader inputs (barycentrics,
-  depth and window position from setup's functions, interpolated by the same
-  generated code of ``kernels.py``);
-- **its own**: the coverage walk of ``tiles.py`` (tiles in parallel, exact row
-  spans, hierarchical depth), which keeps only a visibility buffer; a shading
-  loop over that buffer; and no output merger (the depth test ran in the walk).
+reference back end (:mod:`~softpipe.pipeline.raster` → :mod:`~softpipe.pipeline.fragment`
+→ :mod:`~softpipe.pipeline.output`) makes, shades and merges every fragment in
+primitive order; this one replaces those stages below the triangle setup. It
+**shares** assembly, the triangle setup and its rules (:mod:`softpipe.pipeline.setup`),
+the depth compare (``output.depth_passes``) and the shader inputs (interpolated by
+the same generated code of :mod:`softpipe.language.kernels`); its **own** are the
+coverage walk of :mod:`softpipe.pipeline.tiles`, which keeps only a visibility
+buffer, a shading loop over that buffer, and no output merger.
 
 Here:
 
 1. **The choice** (:func:`choose_path`, :func:`fast_path_blocker`): the one place
    that decides which back end a draw takes, and why.
-2. **The visibility pass** (:func:`visibility_pass`): ``tiles.py``'s binning and
-   walk over the draw's triangle setup. Output: :class:`Visibility`, the last
-   triangle that passed the depth test at each sample.
+2. **The visibility pass** (:func:`visibility_pass`): the tiles' binning and walk over
+   the draw's triangle setup. Output: :class:`Visibility`, the last triangle that
+   passed the depth test at each sample.
 3. **Shading** (:func:`shade_visible`, the generated ``visible_loop``): the fragment
-   shader runs once per sample whose visibility entry is set (with multisampling,
-   once per pixel and triangle there). Output: :class:`ShadedSamples` (the colors
-   are in the framebuffer). A shader that raises, or returns a NaN alpha
-   (:class:`DiscardOnFastPath`: the draw is then done on the reference path), has
-   the draw undone.
+   shader runs once per visible sample (with multisampling, once per pixel and
+   triangle there). Output: :class:`ShadedSamples`. A shader that raises, or returns
+   a NaN alpha (:class:`DiscardOnFastPath`: the draw is then done on the reference
+   path), has the draw undone.
 
-The bytes are the reference's: there, without blending or discard, a sample's
-final color is the shader's output for the last fragment that passed the depth
-test, and this path finds that fragment by the same coverage, depth and order
-and gives the shader the same inputs. Tests hold the two back ends to the same
-bytes (tests/test_fast_path.py, test_fast_path_sound.py, test_properties.py);
-docs/08-fast-path.md walks through it.
+The bytes are the reference's (tests/test_fast_path.py, test_fast_path_sound.py,
+test_properties.py hold them so); docs/08-fast-path.md walks through it and says why.
 """
 from __future__ import annotations
 
@@ -275,7 +266,7 @@ class DiscardOnFastPath(Exception):
 
 
 #: Buffers for what a draw may have to undo, kept between draws: a new one's pages cost more
-#: to map (page faults: 6 ms for a 1920×1080 color buffer) than the copies made into them.
+#: to map (a page fault per page on first touch) than the copies made into them (benchmarks/README.md).
 _SCRATCH: dict = {}
 _SCRATCH_KEPT = 4
 

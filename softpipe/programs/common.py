@@ -1,7 +1,7 @@
 """What the built-in programs share: the standard vertex shader, the surface vectors N and V, lights.
 
 Every lit program shades in **eye space** (``softpipe.light.material``: the eye at the
-origin looking down −z). P, N, V and the other names are those of FORMULAS.md,
+origin looking down −z). P, N, V and the other names are those of docs/formulas.md,
 defined once in :mod:`softpipe.shading` (the module a shader author imports from,
 which re-exports the functions here).
 
@@ -98,7 +98,8 @@ def _unit(v):
 
     One division where :func:`~softpipe.language.glsl.normalize` (v/|v| per component) has three;
     within two ulp of it (1/|v| and the product are each rounded). With it for N and V
-    (and light_at's L) a lit sample cost 4 % less on sphere200k, 8 % on bunny (issue 18).
+    (and light_at's L) a lit sample costs measurably less (issue 18; the figures are in
+    benchmarks/README.md, "The figures behind the pipeline's comments").
     """
     n = length(v)
     if n > 0.0:

@@ -7,51 +7,24 @@
                      looked up in a cube map (uniform ``environment``)
 
 ``mirror``
-    I = kr·env(R) + I_local, with I_local the OpenGL lighting equation (§10,
-    Blinn-Phong) of the material: a mirror is usually kd ≈ 0 and a sharp ks, so
-    the lights still leave their highlights.
+    I = kr·env(R) + I_local, I_local the OpenGL lighting equation (§10, Blinn-Phong).
 ``glass``
-    I = F_R·env(R) + (1 − F_R)·kt·env(T) + I_local, with F_R the exact Fresnel
-    reflectance (§20, :func:`softpipe.light.lighting.fresnel`) at cos θ₁ = N·V from
-    η_outside into ``material.ior``. On total internal reflection (§19:
-    η²(1 − c₁²) > 1, possible only when the outside is the denser medium) F_R = 1
-    and everything goes to reflection. Reflection is not scaled by kr here:
-    Fresnel decides how much is reflected.
+    I = F_R·env(R) + (1 − F_R)·kt·env(T) + I_local, F_R the exact Fresnel
+    reflectance (§20) from ``outside_ior`` into ``material.ior``; F_R = 1 on total
+    internal reflection (§19).
 
-The uniform ``outside_ior`` (default 1.0: vacuum or, near enough, air) is the index
-of the medium the viewer is in; :data:`softpipe.light.cubemap.MEDIA` names the notes'
-indices (FORMULAS §17).
+Uniforms: those of :mod:`softpipe.programs.common`, ``view`` (world → eye, to turn R
+and T into the world-space map's directions), ``environment``
+(a :class:`softpipe.light.cubemap.CubeMap`; :func:`softpipe.light.cubemap.sky` without
+it), ``outside_ior`` (1.0) and ``environment_lod`` (a level-of-detail bias, 0); or
+``tracer``, and then R and T are traced through the scene
+(:func:`softpipe.tracers.whitted.trace_ray`) instead of looked up.
 
-Which space: the shader works in eye space, as every built-in program; the
-environment is a world-space cube map. R and T are turned into world space by the
-uniform ``view`` (world → eye; :func:`softpipe.draw_mesh` passes it):
-d_world = view₃ᵀ · d_eye, valid because a camera's view matrix is a rotation and a
-translation (:func:`softpipe.pipeline.transforms.look_at`).
-
-What a rasterizer cannot do: it sees only the first surface. The refracted ray
-does not go through the object and out of its far side; it looks the environment
-up at once, as if the object were a thin shell, or as if everything behind it were
-far away. Nor does a reflection see the object itself or its neighbours, unless
-the environment was rendered from the scene (:func:`softpipe.scenes.environment_pass.render_cube_map`),
-and then only as seen from the map's centre. The ray tracer
-(:mod:`softpipe.tracers.whitted`) follows both rays through the scene, recursively.
-
-Without an ``environment`` uniform (a draw from the command line, say) both reflect
-:func:`softpipe.light.cubemap.sky`, a plain gradient from the ground to the zenith.
-
-The level of detail of a lookup is GL's for a samplerCube: the shaders take the
-screen-space derivatives of their varyings (the fragment shader's 4th parameter),
-work out R and T at the neighbouring pixels too (a forward difference), and read the
-cube map at the level whose texels one pixel step crosses
-(:func:`softpipe.light.cubemap.cube_level_of_detail`), so a curved mirror's rim, where R
-turns fast, does not alias. The optional uniform ``environment_lod`` (default 0) is
-added to it: a bias that blurs the environment for a rough-looking mirror (a
-``"trilinear"`` map). A tracer's rays need no level of detail.
-
-Programs ``mirror`` and ``glass``. Uniforms: ``model_view``, ``projection``,
-``normal_matrix``, ``view``, ``material``, ``lighting`` (see
-:mod:`softpipe.programs.common`) and ``environment``, a :class:`softpipe.light.cubemap.CubeMap`
-(optional: :func:`softpipe.light.cubemap.sky` without it).
+Why it is shaped so: a rasterizer sees only the first surface, so R and T look the
+environment up at once, at GL's level of detail for a samplerCube (R and T worked out
+at the neighbouring pixel too, from the fragment shader's 4th parameter, so a curved
+mirror's rim does not alias). docs/environment.md explains the programs, their
+uniforms, the level of detail and what a rasterizer cannot do.
 """
 from numba.core.errors import TypingError
 from numba.extending import overload, register_jitable

@@ -1,66 +1,23 @@
 """Wavefront OBJ (and MTL) loading, vectorized with numpy.
 
-What is read
-------------
-``v x y z`` (an optional ``w``, or ``r g b`` vertex colors after x y z, are read and
-ignored), ``vt u [v [w]]``, ``vn x y z``, and ``f`` with corners in any of the forms
-``v``, ``v/vt``, ``v//vn``, ``v/vt/vn``; an index is 1-based, or negative to count
-back from the latest element defined before the face (``-1`` is the last one).
-Polygons are fan-triangulated, ``(c0, ci, ci+1)``, which keeps their winding.
-``usemtl``/``mtllib`` select materials from MTL files (``newmtl``, ``Ka``, ``Kd``,
-``Ks``, ``Ke``, ``Ns`` → shininess, ``Ni`` → ior, ``d`` → opacity, ``Tr`` → 1 − opacity
-when there is no ``d``, ``map_Kd`` → diffuse texture path, relative to the MTL file).
-``o`` and ``g`` name parts of the mesh (see :class:`OBJReport`). ``s`` smoothing
-groups matter only when the file has no normals: faces in different groups (or with
-``s off``) then get separate vertices, and the loader gives the mesh normals welded
-within each group (:meth:`Mesh.vertex_normals` with ``groups``), so the crease stays.
-Every other statement is skipped and counted in ``OBJReport.skipped``. A line ending
-in a backslash continues on the next one; ``#`` starts a comment anywhere.
+:func:`load_obj` reads ``v``, ``vt``, ``vn``, ``f`` (any corner form, negative
+indices, polygons fan-triangulated), ``o``/``g`` names, ``s`` smoothing groups and
+materials from ``mtllib`` into a :class:`~softpipe.scenes.mesh.Mesh`, and records
+what it read in an :class:`OBJReport` (``Mesh.source``). The mesh has one vertex per
+distinct (v, vt, vn) triple a face uses, ordered by that triple. A malformed
+statement is an :class:`OBJError` (``file:line:`` first); a missing MTL or texture
+file, or one outside the model's folder (:func:`softpipe.core.files.resolve_inside`),
+is an :class:`OBJWarning`.
 
-Vertices
---------
-The mesh has one vertex per distinct (v, vt, vn) triple that a face uses, ordered
-by (v, vt, vn), so for a file with positions only, mesh vertex ``i`` is the
-``i``-th referenced ``v`` line in file order. Unreferenced ``v`` lines are dropped.
-``OBJReport.vertex_source`` maps each mesh vertex back to its file elements.
+Why it is shaped so: statements are sorted into per-keyword lists in one pass, then
+each keyword's numbers are converted in one numpy call, so every step is linear in
+the file's size; anything that fast path is unsure of goes through a per-line path,
+which is also the one that words the errors. Smooth normals are not made here but by
+:meth:`Mesh.vertex_normals`, so that every way to get them agrees; the loader adds
+only what the mesh cannot know, the smoothing groups.
 
-Normals
--------
-A file without ``vn`` (and without ``s``) gives a mesh without normals: whoever draws
-it computes them with :meth:`Mesh.vertex_normals`, which welds by position, so vertex
-records at one position (a ``v`` line repeated at a patch border, as in the Utah
-teapot, or a vertex split at a UV seam) share one smooth normal while keeping their
-own uvs. The weld is in the mesh, not here, because every way to get smooth normals
-(drawing, ``Mesh.with_normals``, a scene file's ``normals = "area"``) must agree; the
-loader only adds what the mesh cannot know, the smoothing groups (above).
-
-Errors and warnings
--------------------
-A malformed statement raises :class:`OBJError`, whose message starts with
-``file:line:`` and says what was expected, quoting at most a short excerpt of the
-line (:func:`softpipe.core.files.excerpt`). A missing MTL file, an undefined
-material or a missing texture file is only a :class:`OBJWarning`: the mesh loads
-with the default material (or without the texture).
-
-Files the OBJ names
--------------------
-``mtllib`` and ``map_Kd`` files are resolved inside the naming file's folder and
-below (:func:`softpipe.core.files.resolve_inside`): an absolute path, ``~``, ``..`` out of
-the folder, a link out of it, or a special file (FIFO, device) is refused with an
-:class:`OBJWarning` naming the referring file and line, as a missing file is, and
-the target is never opened, so nothing it holds reaches a message or the
-:class:`OBJReport`. ``allow_outside=True`` lifts the folder rule for files you
-trust; special files stay refused. The model file itself must be a regular file
-(a FIFO would block forever): anything else is a one-line
-:class:`~softpipe.core.files.PathPolicyError` before it is opened.
-
-Speed
------
-Statements are sorted into per-keyword lists in one pass over the lines; the numbers
-of all ``v`` (``vt``, ``vn``, ``f``) lines are then converted in a single numpy call.
-Anything the fast path is unsure of goes through a per-line path, which is also the
-one that words the errors. The 69k-triangle Stanford bunny loads in about 0.15 s.
-Every step is linear in the file's size (object and group names included).
+docs/scenes.md ("OBJ models") is the full account: every statement read, vertex
+order, normals, errors and warnings, and which files an OBJ may name.
 """
 from __future__ import annotations
 
@@ -129,7 +86,7 @@ class OBJReport:
 
 def load_obj(path: PathLike, *, allow_outside: bool = False) -> Mesh:
     """Load an OBJ file; MTL and texture paths are relative to the file's folder,
-    and must lie in it or below unless ``allow_outside=True`` (see "Files the OBJ names").
+    and must lie in it or below unless ``allow_outside=True`` (docs/scenes.md, "Files the OBJ names").
 
     Returns a :class:`~softpipe.scenes.mesh.Mesh` whose ``source`` is an :class:`OBJReport`.
     Raises :class:`OBJError` for malformed statements, :class:`~softpipe.core.files.PathPolicyError`

@@ -2,85 +2,15 @@
 
 ``load_scene(path)`` reads a scene file into a :class:`~softpipe.scenes.scene.Scene` (the
 scene model, :mod:`softpipe.scenes.scene`); :func:`softpipe.scenes.drawing.render_scene` draws it.
-This module only reads: the schema, its validation (every mistake is a
-:class:`SceneError` naming the file, table and key) and the conversion of values
-into the model's objects. ``examples/scene.toml`` is a full example with every key
-explained; in short::
+This module only reads: the schema (:class:`SceneReader`), its validation and the
+conversion of values into the model's objects. Every mistake is a :class:`SceneError`
+naming the file, table and key, in the wording of :mod:`softpipe.core.validation`,
+which job files share (:mod:`softpipe.tools.batch.job` reads its tables with
+:class:`SceneReader`).
 
-    ambient = [0.1, 0.1, 0.1]         # global ambient light (optional)
-
-    [camera]                          # optional; without it the camera frames every mesh
-    eye = [0, 1.5, 5]                 # or: frame = true, azimuth, elevation, fovy, margin, up
-    target = [0, 0.5, 0]
-    fovy = 40                         # also up, near, far
-
-    [render]                          # all optional
-    width = 640
-    height = 480
-    background = [0.08, 0.09, 0.12]   # RGB or RGBA, linear, 0..1
-    samples = "rgss4"                 # a sample pattern name (softpipe.pipeline.sampling.pattern_named)
-    sample_shading = "sample"         # "sample" (supersampling), "center"/"centroid" (MSAA)
-    program = "normals"               # the default shading program of every mesh
-    cull = "back"                     # "back", "front" or "none"
-    wireframe = false                 # draw the triangle edges over the image
-    wireframe_color = [1, 1, 1]
-    shadows = false                   # every light casts shadows (shadow maps)
-    ground = false                    # a floor under the meshes that receives shadows
-
-    [[lights]]                        # any number; without any, a key/fill/rim studio set
-    kind = "point"                    # "directional", "point" or "spot"
-    position = [2, 3, 2]              # and the other Light fields; color = diffuse and specular
-    shadows = true                    # or { resolution = 2048, pcf = 2, offset_factor = 3, offset_units = 16 }
-
-    [materials.gold]                  # Material fields by name; diffuse_texture = "file.png"
-    kd = [0.8, 0.6, 0.2]
-
-    [[meshes]]
-    obj = "model.obj"                 # relative to this file, or a bundled model: obj = "bunny"
-                                      # (or shape = "uv_sphere" + its parameters)
-    material = "gold"                 # a name from [materials], or an inline table
-    transform = [{ translate = [0, 1, 0] }, { rotate_y = 30 }, { scale = 0.5 }]
-    cast_shadows = true               # false: receives shadows, casts none
-
-Transforms
-----------
-``transform`` is a list of one-key tables, or one table whose keys are taken in the
-order written. The entries multiply left to right as :func:`softpipe.pipeline.transforms.compose`
-does: ``M = E1 · E2 · … · En``, so the **last** entry acts on the mesh first, and
-``translate, rotate, scale`` is the usual "scale, then rotate, then move". Entries:
-``translate = [x, y, z]``, ``scale = s`` or ``[sx, sy, sz]``, ``rotate = [degrees, ax, ay, az]``
-(about an axis), ``rotate_x``/``rotate_y``/``rotate_z = degrees``, and
-``matrix = [[...], [...], [...], [...]]`` (4×4, rows, affine). A mirroring transform
-(negative determinant) is drawn with clockwise front faces, so culling still removes
-the back faces.
-
-Errors
-------
-Every mistake raises :class:`SceneError` (a ``ValueError``) whose message starts with
-the file name and names the table and the key: an unknown key (with the keys that are
-allowed there), a value of the wrong type, a missing file, a TOML syntax error (with
-its line: ``scene.toml:7: TOML syntax error: …``), or a value the library rejects
-(``Camera``, ``Light``, ``Material``, a shape generator).
-
-Limits
-------
-The meshes of one scene may hold at most :data:`MAX_SCENE_TRIANGLES` triangles in all
-(a generated shape is counted before it is made); the image obeys the framebuffer's
-limits (``MAX_DIMENSION``, ``MAX_TOTAL_SAMPLES``).
-
-Models
-------
-``obj`` is a file name relative to the scene file, or the name of a model bundled with
-softpipe (:mod:`softpipe.scenes.models`: ``"bunny"``, ``"teapot"``, ``"suzanne"``, ``"spot"``,
-``"armadillo"``) when it is a bare word: no ``/`` and no ``.obj`` suffix. ``"spot"``
-comes with its texture.
-
-Drawing
--------
-Each object is drawn by :func:`softpipe.scenes.drawing.draw_mesh` with the uniforms listed
-there; the lighting is the scene's :class:`~softpipe.light.material.Lighting` in eye space
-(the studio set of :func:`softpipe.scenes.scene.studio_lights` when there is no
-``[[lights]]``) and the texture the material's ``diffuse_texture``.
+docs/scenes.md is the guide: every table and key, the order of ``transform``
+entries, bundled models by name, the errors and :data:`MAX_SCENE_TRIANGLES`;
+``examples/scene.toml`` is a full example with every key explained.
 """
 from __future__ import annotations
 

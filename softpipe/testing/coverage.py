@@ -1,7 +1,7 @@
 """Which pixels (or samples) triangles cover, under OpenGL's rules: :func:`coverage`.
 
-Built on softpipe's own rasterizer (the triangle setup of ``setup.py`` and
-``raster.rasterize``), not a copy of it: what :func:`coverage` says is what
+Built on softpipe's own rasterizer (the triangle setup of :mod:`softpipe.pipeline.setup`
+and :func:`softpipe.pipeline.raster.rasterize`), not a copy of it: what :func:`coverage` says is what
 ``softpipe.draw`` draws.
 
 Coordinates

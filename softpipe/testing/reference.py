@@ -1,7 +1,7 @@
 """A reference rasterizer: plain Python, exact rational arithmetic, slow on purpose.
 
 Written independently of softpipe.pipeline.raster (and imported by nothing in the
-pipeline) from the rules in DESIGN.md: snap to 1/256 pixel (round half to
+pipeline) from the rules in docs/design.md: snap to 1/256 pixel (round half to
 even), then decide every sample with exact integers and Fractions. The fill
 rule is stated here geometrically, not with softpipe's edge-direction test: a
 sample exactly on an edge is covered when the edge is a *left* edge (the

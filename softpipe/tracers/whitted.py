@@ -3,58 +3,24 @@
 The rasterizer asks, per triangle, which pixels it covers; a ray tracer asks, per
 pixel, which triangle its ray meets first. Given the same :class:`~softpipe.scenes.scene.Scene`
 — objects, camera, materials, lights — :func:`raytrace_scene` makes the picture the
-second way, so that the two can be put side by side and any pixel asked why.
+second way, so that the two can be put side by side and any pixel asked why:
 
-Per pixel (one ray through its centre, FORMULAS §23: u = (x + ½)/w, v = 1 − (y + ½)/h):
+- :func:`raytrace_scene`: per pixel a primary ray (FORMULAS §23), the local color by
+  the *same* functions of :mod:`softpipe.light.lighting` the rasterizer's shaders call,
+  V_j by shadow rays (:func:`softpipe.rays.queries.ray_visibility`), and the ray tree
+  of reflected and refracted rays (§16–§19, §22) with the falloff of §13 and §15;
+- :func:`ray_tree`: one pixel's tree as data, printed — the ray tracer's pixel history;
+- :class:`RayTracer`, :func:`tracer_uniform`, :func:`trace_ray`: the tracer as one
+  uniform, so that a rasterized fragment can be a tree's root (the programs
+  ``mirror``, ``glass`` and ``hall`` use it: GPUs' ray queries from a fragment shader).
 
-1. **Primary ray** from the camera's near plane through the pixel, to its far plane —
-   the rasterizer clips at both, so both see the same surfaces.
-2. **Local color** at the nearest hit P: the object's program's lighting equation,
-   the *same* functions of :mod:`softpipe.light.lighting` the rasterizer's shaders call
-   (§10 for ``phong`` and its kin, §13's local terms for ``hall``, §26 for
-   ``cook_torrance``, §11's two-sided form for ``two_sided``), with every light's
-   V_j from a **shadow ray** (§21,
-   :func:`softpipe.rays.queries.ray_visibility`: ε off the surface, through transparent
-   objects, meeting only the objects whose ``cast_shadows`` is true, as the shadow maps). N is the interpolated vertex normal, reversed on a back face (by the
-   triangle's winding, as the rasterizer's ``gl_FrontFacing``); V = −d. A primary ray
-   passes through the faces its object culls, as the rasterizer never drew them.
-3. **The ray tree** (§22): a material with reflection ``kr`` spawns the mirror ray
-   R = reflect(d, N) (§16) with weight w·kr; one with transmission ``kt`` the refracted
-   ray T (§17, §18; η = 1/ior entering an object, ior leaving it, the outside being
-   air, n = 1) with weight w·kt, or — beyond the critical angle, §19 — a reflected
-   ray carrying that weight too (total internal reflection sends everything to R).
-   An object drawn with ``glass`` splits by Fresnel instead, as that program does:
-   F_R to R and (1 − F_R)·kt to T (§20, from the side the ray comes from), all to R
-   on total internal reflection; one drawn with ``mirror`` sends kr to R and refracts
-   nothing.
-   The pixel is Σ weight × local color over the tree: §11's
-   c = local + k_r·trace(p, R) + k_t·trace(p, T), unrolled. A branch stops at
-   ``max_depth`` or when its weight falls below ``min_weight`` in every channel;
-   secondary rays start ε along their direction.
-4. **Falloff in a medium** (§13's T_r^{d_r}, T_t^{d_t}; §15): a secondary ray that
-   travels d to its hit has its weight multiplied by the falloff of the medium it
-   crossed — the object's (``Material.transmittance`` T, as T^d, or Glassner's
-   1/(1 + a·d) with ``Material.falloff="glassner"``) when it ends on a back face of
-   that object (it travelled inside it: refracted in, or reflected inside), air's
-   otherwise (``air_transmittance``, T = 1 by default: "T ≈ 1 for air in small
-   scenes", §15). So a Hall object's global terms are k_r·I_r·T_r^{d_r} and
-   k_t·I_t·T_t^{d_t}, with ``kr`` = k_r·F_s and ``kt`` = k_t·F_t (RGB). Objects are
-   taken as closed and not nested. The primary ray has no falloff (the pixel is
-   the first surface's I, as in Hall's recursion), nor has a ray that meets nothing.
-5. A ray that meets nothing brings the background.
+Why it is shaped so: it reuses the rasterizer's lighting functions and the scene
+model unchanged, so where both see the same surface the two agree to the rounding
+of the snapped vertices; what differs is only what a rasterizer cannot do.
 
-:func:`ray_tree` records one pixel's tree as data — every ray with its kind, origin,
-direction, hit, local color and weight — and prints it, the ray tracer's pixel history.
-
-:class:`RayTracer` is all of it as one uniform, so that a rasterized fragment can be a
-tree's root: :func:`trace_ray` brings back what a ray from a shader sees, and the
-programs ``mirror``, ``glass`` and ``hall`` call it for their reflected and refracted
-rays when a draw has the uniform ``tracer`` (:func:`tracer_uniform`;
-:func:`softpipe.scenes.environment_pass.render_with_environments` with ``"rays"``) — GPUs' ray queries
-from a fragment shader. Such a pixel is the ray tracer's except where the two see
-different surfaces (a silhouette's edge pixels).
-
-Not here yet: textures (a ``textured`` object is lit with its material's kd), area lights.
+docs/raytracing.md walks through it step by step (the primary ray, the local color,
+the ray tree, Fresnel and total internal reflection, falloff in a medium, what is not
+there yet); docs/hall.md has Hall's terms, docs/environment.md the rays from a shader.
 """
 from __future__ import annotations
 
@@ -408,7 +374,7 @@ def _air(air_transmittance) -> np.ndarray:
 def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5, min_weight: float = 1e-3,
                    notes: Optional[list] = None, timings: Optional[dict] = None,
                    air_transmittance=1.0) -> Framebuffer:
-    """Ray trace ``scene`` (Whitted; see the module docstring) into a new one-sample framebuffer.
+    """Ray trace ``scene`` (Whitted; docs/raytracing.md has the steps) into a new one-sample framebuffer.
 
     Parameters
     ----------

@@ -5,52 +5,16 @@ lights × sizes × sample patterns (``[sweep]``), and/or one by one (``[[frames]
 :func:`load_job` reads it from a TOML file, :func:`parse_job` from text and
 :func:`job_from_dict` from Python dicts of the same shape; every mistake is a
 :class:`JobError` (a :class:`~softpipe.scenes.scenefile.SceneError`) naming the file, the
-table and the key. ``examples/sweep.toml`` explains every key; in short::
+table and the key. Each :class:`Frame` has a stable, file-system-safe name made from
+its parameters (:attr:`Frame.name`: ``bunny-phong-glossy-az030-640x480``).
 
-    [job]                               # optional: what every frame shares
-    background = [0.08, 0.09, 0.12]
-    fovy = 35
-    elevation = 20                      # of the cameras given by azimuth alone
+Why it is shaped so: the tables are read as a scene file's are, by the scene file's
+reader (:class:`~softpipe.scenes.scenefile.SceneReader`: models, materials, lights) on
+the shared checks of :mod:`softpipe.core.validation`, so the two formats cannot drift
+apart. Nothing here renders; :mod:`softpipe.tools.batch.run` does.
 
-    [models]                            # optional: models beyond the bundled ones
-    ball = { shape = "uv_sphere", segments = 48, rings = 24 }
-    mine = { obj = "meshes/mine.obj" }  # relative to the job file
-
-    [materials.glossy]                  # fields replacing the model's own material's
-    ks = [0.9, 0.9, 0.9]
-    shininess = 64
-
-    [lights.sun]                        # a named light set; "studio" and "shadows" are built in
-    shadows = true
-    [[lights.sun.light]]
-    kind = "directional"
-    direction = [-1, -2, -1]
-
-    [sweep]                             # the product (or [[sweep]], several)
-    models = ["ball", "bunny"]
-    cameras = [0, 90, "front", { azimuth = 45, elevation = 60 }]
-    orbit = { frames = 36, elevation = 20 }   # a turntable's cameras (one distance for all)
-    programs = ["phong", "gouraud"]
-    materials = ["default", "glossy"]
-    lights = ["studio", "shadows", "sun"]
-    sizes = ["160x120"]
-    samples = ["1", "rgss4"]
-
-    [[frames]]                          # and single frames
-    model = "teapot"
-    azimuth = 45
-    program = "normals"
-    size = "320x240"
-
-Each frame has a stable, readable, file-system-safe **name** made from its
-parameters (:attr:`Frame.name`: ``bunny-phong-glossy-az030-640x480``; defaults are
-left out, and a short hash of the parameters is added when a value had to be
-changed to be safe in a file name), and is written to ``NAME.png``.
-
-The tables are read as a scene file's are: the job's reader is the scene file's
-(:class:`~softpipe.scenes.scenefile.SceneReader`: models, materials, lights) on the shared
-tables and values of :mod:`softpipe.core.validation`. Nothing here renders;
-:mod:`softpipe.tools.batch.run` does. docs/batch.md is the guide.
+docs/batch.md is the guide (every table and key, frame names, running, resuming);
+``examples/sweep.toml`` explains every key in comments.
 """
 from __future__ import annotations
 

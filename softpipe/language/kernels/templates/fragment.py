@@ -20,7 +20,7 @@ varying layout (the expressions come from templates/varyings.py):
 """
 
 
-# Stand-ins for what the generated module's header defines or imports (generate.py: the shader,
+# Stand-ins for what the generated module's header defines or imports (kernels/generate.py: the shader,
 # JIT, the Varyings namedtuple, the contract's FragInfo and Derivatives, the kernels package's
 # borrowed_tuple and rgba, the triangle setup's per-sample functions), so that a linter, or an
 # import, can read this file; the generator copies only the functions.
@@ -92,13 +92,13 @@ def fragment_loop(triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, p
 @JIT
 def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plane, offsets, positions,
                  shading, inv_w, corner, front, prim_id, bary_grad, uniforms, out_color, saved_color, started, status):
-    """Shade the samples the visibility pass kept (visibility.py), image rows row_lo:row_hi.
+    """Shade the samples the visibility pass kept (softpipe/pipeline/visibility.py), image rows row_lo:row_hi.
 
     ``visible_loop_at_samples`` is this loop for ``shading`` 0 alone (each visible sample
-    shaded at itself): without the multisampling branches, its first compile is a fifth
-    shorter, and a draw that shades at the samples compiles only it.
+    shaded at itself): without the multisampling branches its first compile is shorter
+    (benchmarks/README.md), and a draw that shades at the samples compiles only it.
 
-    Barycentrics, depth and position come from the triangle setup's functions (setup.py), as
+    Barycentrics, depth and position come from the triangle setup's functions (softpipe/pipeline/setup.py), as
     the rasterizer's do. Tiles no triangle touched are skipped; each sample is shaded on its
     own, so the order (tile, sample, column) does not change a byte.
 

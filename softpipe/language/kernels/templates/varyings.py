@@ -13,8 +13,8 @@ expression a function below returns (kernels/template.py,
 The weights (``interpolate``): b_k the window-space barycentrics, q_k = b_k / w_k,
 r = 1 / Σ q_k. A smooth varying is v = A / B with A = Σ q_k v_k and B = Σ q_k,
 so its derivative is ∂v = (∂A − v ∂B) / B; a noperspective one is linear in the
-window, ∂v = Σ ∂b_k v_k; a flat one is constant. DESIGN.md, stage 4
-(docs/design.md) says why the qualifiers differ; docs/05-fragment.md shows one
+window, ∂v = Σ ∂b_k v_k; a flat one is constant. docs/design.md, stage 4,
+says why the qualifiers differ; docs/05-fragment.md shows one
 worked through.
 """
 

@@ -14,7 +14,7 @@ Placeholders, filled per attribute set and varying layout:
 """
 
 
-# Stand-ins for what the generated module's header defines or imports (generate.py), so that
+# Stand-ins for what the generated module's header defines or imports (kernels/generate.py), so that
 # a linter, or an import, can read this file; the generator copies only the functions.
 def JIT(function):
     return function
