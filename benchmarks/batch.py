@@ -1,4 +1,4 @@
-"""softpipe batch's scaling: ``python -m benchmarks.batch`` (``make bench-batch``; docs/batch.md, "Scaling").
+r"""softpipe batch's scaling: ``python -m benchmarks.batch`` (``make bench-batch``; docs/batch.md, "Scaling").
 
 A ``--frames``-frame turntable of a bundled model (``--model``, default the bunny) at
 ``--size``, rendered by :func:`softpipe.tools.batch.batch` on ``LocalCluster``\ s of 1, 2, …

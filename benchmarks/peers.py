@@ -59,9 +59,9 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 from softpipe.core.runtime import keep_freed_memory  # noqa: E402
-from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
 from softpipe.light.material import Light, Lighting  # noqa: E402
 from softpipe.light.packed import LIGHT_COLUMNS  # noqa: E402
+from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
 
 from .run import machine_info, render_frame, source_state  # noqa: E402
 from .scenes import REPO_ROOT, SCENES, Scene, build_scene, color_vertex  # noqa: E402
@@ -79,8 +79,8 @@ DEFAULT_JSON = REPO_ROOT / "out" / "bench-peers.json"
 
 def _bunny_blinn(scale: float = 1.0) -> Scene:
     """The bunny with softpipe's ``phong`` program (Blinn-Phong) and sphere200k's one directional light."""
-    from softpipe.programs import get_program
     import softpipe.programs.phong  # noqa: F401  (registers the program)
+    from softpipe.programs import get_program
 
     base = build_scene("bunny", scale)
     program = get_program("phong")
@@ -355,8 +355,9 @@ def _set(prog, name: str, data: bytes) -> None:
 
 def _specular_model(fragment) -> int:
     """0 (Blinn-Phong) or 1 (Phong) for the lit fragment shaders the scenes use; PeerUnsupported otherwise."""
-    from softpipe.programs import get_program
     import softpipe.programs.phong  # noqa: F401
+    from softpipe.programs import get_program
+
     from . import scenes
     if fragment is get_program("phong").fragment or fragment is scenes.blinn_phong_fragment:
         return 0

@@ -516,7 +516,7 @@ def _threads(text: str) -> List[int]:
     try:
         out = [int(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--threads takes numbers separated by commas, got {text!r}")
+        raise argparse.ArgumentTypeError(f"--threads takes numbers separated by commas, got {text!r}") from None
     if not out or any(not 1 <= n <= numba.config.NUMBA_NUM_THREADS for n in out):
         raise argparse.ArgumentTypeError(
             f"--threads: each between 1 and {numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS), got {text!r}")

@@ -63,8 +63,8 @@ import numpy as np  # noqa: E402
 
 import softpipe.pipeline.draw as _pipeline  # noqa: E402
 from softpipe.core.runtime import keep_freed_memory, release_memory  # noqa: E402
-from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
 from softpipe.pipeline.draw import DrawCall  # noqa: E402
+from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
 from softpipe.pipeline.raster import count_fragments  # noqa: E402
 
 from .scenes import REPO_ROOT, SCENES, Scene, build_scene  # noqa: E402

@@ -43,17 +43,17 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from softpipe.pipeline.camera import Camera
 from softpipe.language.glsl import dot, mat3_mul_vec3, mat4_mul_vec4, neg, normalize
 from softpipe.light.lighting import BLINN_PHONG, PHONG, opengl_lighting
 from softpipe.light.material import Light, Lighting, Material
+from softpipe.light.texture import Texture2D, texture
+from softpipe.pipeline.camera import Camera
+from softpipe.pipeline.transforms import compose
+from softpipe.programs import get_program
+from softpipe.scenes.drawing import standard_uniforms
 from softpipe.scenes.models import MODELS_DIR
 from softpipe.scenes.obj import load_obj
-from softpipe.scenes.drawing import standard_uniforms
-from softpipe.programs import get_program
 from softpipe.scenes.shapes import plane, uv_sphere
-from softpipe.light.texture import Texture2D, texture
-from softpipe.pipeline.transforms import compose
 from softpipe.shading import standard_vertex
 
 __all__ = ["Scene", "SCENES", "build_scene", "AssetMissing", "ASSETS", "asset_path", "TEXTURE_NOTE"]
@@ -405,8 +405,8 @@ def _bunny_on_plane(name: str, shadows: bool) -> Callable[[float], Scene]:
     renders both maps in every frame and hands them to the draws' lighting uniform.
     """
     def scene(scale: float = 1.0) -> Scene:
-        from softpipe.scenes.scene import SceneObject
         from softpipe.light.shadowmap import ShadowSettings
+        from softpipe.scenes.scene import SceneObject
         from softpipe.scenes.shadow_pass import render_shadow_maps
 
         w, h = _size(1024, 1024, scale)

@@ -32,8 +32,8 @@ import numba
 
 from softpipe.core.runtime import keep_freed_memory
 from softpipe.language import kernels
-from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.visibility import visible_loop_args
 
 from .scenes import build_scene

@@ -23,11 +23,11 @@ import numpy as np
 from common import image, key_light, render, save_sheet, zoom
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Material
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.sampling import CENTER, grid, jittered, rotated_grid_4x
 from softpipe.pipeline.transforms import compose, rotate_x, rotate_y, translate
+from softpipe.scenes import shapes
 
 MODES = (("1 sample", CENTER, "sample"),
          ("4 grid SSAA", grid(2), "sample"),

@@ -10,10 +10,10 @@ each picture so that a surface at r = 1 facing the light gets the same light.
 """
 from common import image, render, save_sheet
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Lighting, Material
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import translate
+from softpipe.scenes import shapes
 
 LINEAR = ((1, 0, 0), (1, 0.25, 0), (1, 0.5, 0), (1, 1, 0), (1, 2, 0))
 QUADRATIC = ((1, 0, 0.1), (1, 0, 0.25), (1, 0, 0.5), (1, 0, 2), (0, 0, 1))

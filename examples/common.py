@@ -19,14 +19,15 @@ if str(REPO) not in sys.path:          # run from a checkout without installing
 
 import softpipe as sp  # noqa: E402
 from softpipe.light.material import Lighting  # noqa: E402
+
+# the lit programs register themselves when imported
+from softpipe.programs import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: E402,F401
+from softpipe.programs.common import lighting_uniform  # noqa: E402
+from softpipe.scenes.drawing import draw_mesh  # noqa: E402
 from softpipe.scenes.mesh import Mesh  # noqa: E402
 from softpipe.scenes.models import MODELS_DIR, model_path  # noqa: E402
 from softpipe.scenes.obj import load_obj  # noqa: E402
 from softpipe.views.pictures import contact_sheet  # noqa: E402
-from softpipe.scenes.drawing import draw_mesh  # noqa: E402
-# the lit programs register themselves when imported
-from softpipe.programs import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: E402,F401
-from softpipe.programs.common import lighting_uniform  # noqa: E402
 
 #: The test meshes bundled with softpipe (:mod:`softpipe.scenes.models`, ``softpipe/data/models/``).
 ASSETS = MODELS_DIR

@@ -21,8 +21,8 @@ k_cool = (0.2, 0, 0.4) to k_warm = (1, 0.4, 0).
 import numpy as np
 from common import image, key_light, load_asset, render, save_sheet
 
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Lighting, Material
+from softpipe.pipeline.camera import Camera
 
 BASE = dict(ka=(0.06, 0.05, 0.05), kd=(0.55, 0.45, 0.4), ks=(0.9, 0.9, 0.9))
 COLUMNS = (

@@ -26,11 +26,11 @@ import numpy as np
 from common import REPO, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Material
-from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
 
 DOCS_IMAGES = REPO / "docs" / "images" / "hall"
 CAMERA = Camera(eye=(0.0, 2.2, 5.0), target=(0.0, 0.5, 0.0), fovy=40.0)

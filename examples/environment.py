@@ -31,14 +31,14 @@ import sys
 import numpy as np
 from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.cubemap import MEDIA, CubeMap, sky_gradient
-from softpipe.scenes.environment_pass import dynamic_environments, render_with_environments
 from softpipe.light.material import Light, Material
-from softpipe.tracers.whitted import raytrace_scene
-from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import rotate_y, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.environment_pass import dynamic_environments, render_with_environments
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.tracers.whitted import raytrace_scene
 
 DOCS_IMAGES = REPO / "docs" / "images" / "environment"
 

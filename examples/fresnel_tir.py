@@ -26,13 +26,13 @@ import numpy as np
 from common import REPO, picture_size, save_docs_sheet, save_sheet
 from hall import checkerboard
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.lighting import fresnel_rs_rp
 from softpipe.light.material import MEDIA, Light, Material
-from softpipe.tracers.whitted import raytrace_scene
-from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import rotate_y, scale, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.tracers.whitted import raytrace_scene
 
 DOCS_IMAGES = REPO / "docs" / "images" / "hall"
 PLOTS = (("air->water", 1.0, MEDIA["water"]), ("air->glass", 1.0, MEDIA["glass"]),

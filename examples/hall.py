@@ -28,12 +28,12 @@ import sys
 import numpy as np
 from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Material
-from softpipe.tracers.whitted import primary_visibility, raytrace_scene
-from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import rotate_y, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.tracers.whitted import primary_visibility, raytrace_scene
 
 DOCS_IMAGES = REPO / "docs" / "images" / "hall"
 BACKGROUND = (0.3, 0.42, 0.6, 1.0)

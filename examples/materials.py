@@ -14,10 +14,10 @@ Blinn-Phong per fragment (``phong``), lit by a key, a fill and a rim light.
 import numpy as np
 from common import image, render, save_sheet, studio_lighting
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Material
 from softpipe.light.texture import Texture2D
+from softpipe.pipeline.camera import Camera
+from softpipe.scenes import shapes
 
 
 def metal(color, n=50.0):

@@ -35,13 +35,13 @@ import numpy as np
 from common import REPO, checkerboard, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Material
-from softpipe.tracers.whitted import ray_tree, raytrace_scene
-from softpipe.scenes.scene import Scene, SceneObject
 from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import rotate_y, scale, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.tracers.whitted import ray_tree, raytrace_scene
 
 DOCS_IMAGES = REPO / "docs" / "images" / "raytracing"
 BACKGROUND = (0.35, 0.5, 0.7, 1.0)               # a sky: what a reflected ray that meets nothing brings back

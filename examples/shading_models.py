@@ -8,11 +8,11 @@ lit per fragment). On the coarse sphere Gouraud smears the highlight into the
 triangles' shape, or misses it; Phong keeps it round. On the fine sphere the
 three converge, and only the facets of flat shading remain visible.
 """
-from common import key_light, render, image, save_sheet
+from common import image, key_light, render, save_sheet
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Material
+from softpipe.pipeline.camera import Camera
+from softpipe.scenes import shapes
 
 PLASTIC = Material(ka=(0.1, 0.03, 0.03), kd=(0.65, 0.12, 0.1), ks=(0.35, 0.35, 0.35), shininess=40.0)
 

@@ -19,11 +19,11 @@ import numpy as np
 from common import REPO, picture_size, save_docs_sheet, save_sheet
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Material
-from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
 
 FLOOR = Material(ka=0.25, kd=(0.78, 0.76, 0.72), ks=0.1, shininess=10.0)
 BALLS = (((-1.1, 0.75, 0.3), 0.45, (0.80, 0.25, 0.20)),
@@ -107,6 +107,7 @@ def shadow_settings(width):
 def write_docs_pictures(size=200):
     """docs/images/shadows/figure.png (the 2×3 figure) and maps.png (the maps, faces labelled)."""
     from PIL import Image
+
     from softpipe.views.pictures import contact_sheet
     DOCS_IMAGES.mkdir(parents=True, exist_ok=True)
     found = {}

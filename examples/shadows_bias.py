@@ -28,12 +28,12 @@ import numpy as np
 from common import REPO, save_docs_sheet, save_sheet
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Material
-from softpipe.scenes.scene import Scene, SceneObject
 from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import rotate_y, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
 
 FLOOR = Material(ka=0.25, kd=(0.78, 0.76, 0.72), ks=0.0)
 BOX = Material(ka=0.2, kd=(0.85, 0.4, 0.22), ks=0.2, shininess=20.0)

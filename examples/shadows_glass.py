@@ -22,12 +22,12 @@ import numpy as np
 from common import REPO, save_docs_sheet, save_sheet
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Material
-from softpipe.scenes.scene import Scene, SceneObject
 from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import scale, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
 
 FLOOR = Material(ka=0.3, kd=(0.85, 0.85, 0.85), ks=0.0)
 SLABS = (("red glass, kt (0.9, 0.3, 0.2)", -1.35,

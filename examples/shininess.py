@@ -8,9 +8,9 @@ side with ks (the notes' "planet" uses it with ks = 0).
 """
 from common import image, key_light, render, save_sheet
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Material
+from softpipe.pipeline.camera import Camera
+from softpipe.scenes import shapes
 
 SHININESS = (1, 3, 8, 16, 32, 64, 128, 200)
 

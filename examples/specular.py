@@ -13,9 +13,9 @@ import math
 
 from common import image, render, save_sheet
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Lighting, Material
+from softpipe.pipeline.camera import Camera
+from softpipe.scenes import shapes
 
 ROWS = (("Phong n=30", "phong_phong_specular", 30.0),
         ("Blinn-Phong n=30", "phong", 30.0),

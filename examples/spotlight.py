@@ -9,10 +9,10 @@ off toward the edge, and a large e leaves only a bright core.
 """
 from common import image, render, save_sheet
 
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Lighting, Material
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import translate
+from softpipe.scenes import shapes
 
 CUTOFFS = (10.0, 20.0, 30.0, 45.0, 60.0)
 EXPONENTS = (0.0, 4.0, 16.0, 48.0, 128.0)

@@ -13,11 +13,29 @@ functions given to ``softpipe.draw``, is all softpipe needs.
 """
 from common import image, key_light, render, save_sheet
 
-from softpipe.scenes import shapes
 from softpipe.pipeline.camera import Camera
-from softpipe.shading import (LIGHT_AMBIENT, LIGHT_DIFFUSE, LIGHT_SPECULAR, Material, Program, add, ambient,
-                              blinn_phong_specular, dot, emission, facing_normal, light_at, light_vec3,
-                              light_visibility, mul, scale, standard_vertex, toward_eye, uniform_or)
+from softpipe.scenes import shapes
+from softpipe.shading import (
+    LIGHT_AMBIENT,
+    LIGHT_DIFFUSE,
+    LIGHT_SPECULAR,
+    Material,
+    Program,
+    add,
+    ambient,
+    blinn_phong_specular,
+    dot,
+    emission,
+    facing_normal,
+    light_at,
+    light_vec3,
+    light_visibility,
+    mul,
+    scale,
+    standard_vertex,
+    toward_eye,
+    uniform_or,
+)
 
 
 def wrapped_fragment(varyings, uniforms, frag):

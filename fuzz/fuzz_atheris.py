@@ -29,12 +29,13 @@ if TARGET not in ("obj", "scene"):
 sys.argv[0] = f"{sys.executable} {os.path.abspath(__file__)}"
 
 # Heavy dependencies first, uninstrumented; then softpipe (and tomllib) under instrumentation.
-import numpy  # noqa: E402,F401
 import numba  # noqa: E402,F401
+import numpy  # noqa: E402,F401
 import PIL.Image  # noqa: E402,F401
 
 with atheris.instrument_imports(include=["softpipe", "tomllib"]):
     import tomllib  # noqa: F401
+
     import softpipe.scenes.obj  # noqa: F401
     import softpipe.scenes.scenefile  # noqa: F401
 

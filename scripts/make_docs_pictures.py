@@ -18,12 +18,13 @@ each path with its size.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 # --- the scene (docs/*.md start with exactly these lines) ---
 from collections import namedtuple
+from pathlib import Path
 
 import numpy as np
+
 import softpipe as sp
 from softpipe.shading import mat4_mul_vec4
 
@@ -75,7 +76,7 @@ def eye_space_picture(size=(200, 150)):
     img = Image.new("RGB", size, (24, 24, 28))
     d = ImageDraw.Draw(img)
     tan_x = 1.0 / projection[0, 0]                 # x/(−z) at the frustum's side
-    near, far = 1.0, 10.0
+    near = 1.0
     for sgn in (-1, 1):
         d.line([to_px(0, 0), to_px(sgn * tan_x * depth, -depth)], fill=(120, 120, 130))
     d.line([to_px(-tan_x * near, -near), to_px(tan_x * near, -near)], fill=(60, 200, 230), width=2)
@@ -96,7 +97,7 @@ def main(argv=None) -> int:
     paths["eye-space"] = out / "eye-space.png"
     eye_space_picture().save(paths["eye-space"], optimize=True)
     total = 0
-    for name, path in paths.items():
+    for path in paths.values():
         size = path.stat().st_size
         total += size
         shown = path.resolve()

@@ -143,26 +143,109 @@ What the uniforms are made from (:mod:`softpipe.light.material`, :mod:`softpipe.
     Material, MaterialUniform, Light, Lighting, LightingUniform, ShadowSettings,
     lighting_uniform         the ``lighting`` uniform for a camera's view matrix
 """
-from softpipe.language.glsl import (add, clamp, cross, distance, div, dot, faceforward, hsum, length, mat3_mul_vec3,
-                   mat4_mul_vec4, max_component, min_component, mix, mul, neg, normalize, pow_, reflect,
-                   refract, saturate, scale, smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin)
-from softpipe.light.lighting import (BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular,
-                       cook_torrance, cook_torrance_lighting, emission, fresnel, fresnel_directions,
-                       fresnel_rs_rp,
-                       fresnel_schlick, geometry_g, gooch, half_vector, hall_local, hall_transmission, lambert,
-                       light_at, light_colors, opengl_lighting,
-                       phong_specular, positive_power, spot_factor, transmitted_half_vector, two_sided_lighting)
-from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform
-from softpipe.light.packed import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
-                       LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
-                       LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT, light_vec3)
-from softpipe.rays.queries import RayScene, hit_normal, hit_position, medium_falloff, ray_visibility, trace_any, trace_closest
-from softpipe.tracers.whitted import trace_ray, tracer_uniform
 from softpipe.language.contract import DISCARD, Derivatives, FragInfo, ShaderError, reads_uniforms
+from softpipe.language.glsl import (
+                   add,
+                   clamp,
+                   cross,
+                   distance,
+                   div,
+                   dot,
+                   faceforward,
+                   hsum,
+                   length,
+                   mat3_mul_vec3,
+                   mat4_mul_vec4,
+                   max_component,
+                   min_component,
+                   mix,
+                   mul,
+                   neg,
+                   normalize,
+                   pow_,
+                   reflect,
+                   refract,
+                   saturate,
+                   scale,
+                   smoothstep,
+                   step,
+                   sub,
+                   vabs,
+                   vec2,
+                   vec3,
+                   vec4,
+                   vmax,
+                   vmin,
+)
+from softpipe.light.lighting import (
+                   BLINN_PHONG,
+                   PHONG,
+                   ambient,
+                   attenuation,
+                   b_factor,
+                   beckmann_d,
+                   blinn_phong_specular,
+                   cook_torrance,
+                   cook_torrance_lighting,
+                   emission,
+                   fresnel,
+                   fresnel_directions,
+                   fresnel_rs_rp,
+                   fresnel_schlick,
+                   geometry_g,
+                   gooch,
+                   half_vector,
+                   hall_local,
+                   hall_transmission,
+                   lambert,
+                   light_at,
+                   light_colors,
+                   opengl_lighting,
+                   phong_specular,
+                   positive_power,
+                   spot_factor,
+                   transmitted_half_vector,
+                   two_sided_lighting,
+)
+from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform
+from softpipe.light.packed import (
+                   LIGHT_AMBIENT,
+                   LIGHT_ATTENUATION,
+                   LIGHT_COLUMNS,
+                   LIGHT_DIFFUSE,
+                   LIGHT_DIRECTIONAL,
+                   LIGHT_KIND,
+                   LIGHT_POINT,
+                   LIGHT_POSITION,
+                   LIGHT_SPECULAR,
+                   LIGHT_SPOT,
+                   LIGHT_SPOT_COS_CUTOFF,
+                   LIGHT_SPOT_DIRECTION,
+                   LIGHT_SPOT_EXPONENT,
+                   light_vec3,
+)
 from softpipe.light.shadowmap import ShadowSettings, casts_shadows, light_visibility
+from softpipe.programs.common import (
+                   StandardVaryings,
+                   eye_space,
+                   facing_normal,
+                   lighting_uniform,
+                   rgba,
+                   standard_vertex,
+                   toward_eye,
+                   uniform_or,
+)
 from softpipe.programs.registry import Program
-from softpipe.programs.common import (StandardVaryings, eye_space, facing_normal, lighting_uniform, rgba,
-                             standard_vertex, toward_eye, uniform_or)
+from softpipe.rays.queries import (
+                   RayScene,
+                   hit_normal,
+                   hit_position,
+                   medium_falloff,
+                   ray_visibility,
+                   trace_any,
+                   trace_closest,
+)
+from softpipe.tracers.whitted import trace_ray, tracer_uniform
 
 __all__ = [
     # the contract

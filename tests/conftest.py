@@ -16,8 +16,9 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 
 import numba_cache_lock  # noqa: E402
-from softpipe.pipeline.assembly import Primitives  # noqa: E402
+
 from softpipe.language.contract import VaryingLayout  # noqa: E402
+from softpipe.pipeline.assembly import Primitives  # noqa: E402
 
 # make test runs the suite in two processes that share numba's on-disk cache: its index is locked
 # (numba_cache_lock.py says why).

@@ -59,7 +59,7 @@ def install() -> bool:
     from numba.core import caching
     cls = getattr(caching, "IndexDataCacheFile", None)
     if cls is None or not all(callable(getattr(cls, name, None)) for name in ("save", "load")):
-        warnings.warn("numba's IndexDataCacheFile has changed: its cache index is not locked")
+        warnings.warn("numba's IndexDataCacheFile has changed: its cache index is not locked", stacklevel=2)
         return False
     if getattr(cls, "_softpipe_tests_locked", False):
         return True

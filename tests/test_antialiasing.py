@@ -3,11 +3,11 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-
 import reference
-import softpipe as sp
 from conftest import window_to_clip
-from softpipe.pipeline.sampling import SUBPIXEL, grid, jittered, random_pattern, rotated_grid_4x, pattern_named
+
+import softpipe as sp
+from softpipe.pipeline.sampling import SUBPIXEL, grid, jittered, pattern_named, random_pattern, rotated_grid_4x
 
 PATTERNS = [sp.CENTER, grid(2), grid(3), grid(4), rotated_grid_4x(), jittered(4, seed=3), random_pattern(8, seed=5)]
 IDS = [p.name for p in PATTERNS]
@@ -76,7 +76,7 @@ def test_resolved_value_is_the_fraction_of_samples_inside(pattern, slope):
     sp.draw(fb, window_to_clip([(float(x), float(y)) for x, y in tri], size, size), varyings=white(3))
     got = fb.color[..., 0]
     want = np.zeros((size, size))
-    for i, j, s in reference.covered(tri, size, size, samples=exact_positions(pattern)):
+    for i, j, _sample in reference.covered(tri, size, size, samples=exact_positions(pattern)):
         want[size - 1 - j, i] += 1.0 / len(pattern)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-6)
     assert 0 < got.sum() < size * size          # the edge really crosses the framebuffer
@@ -164,7 +164,6 @@ def test_depth_test_runs_per_sample():
     # a: depth rises left to right 0.2 → 0.8; b: constant 0.5. Left samples (x = 0.25)
     # keep a (depth 0.2 + 0.6·0.25... < 0.5), right samples (x = 0.75) keep b.
     big = [(-4, -4), (8, -4), (-4, 8)]
-    a = [(x, y, 0.2 + 0.6 * (x / 1.0) * 0) for x, y in big]
     za = lambda x: 0.5 + (x - 0.5) * 0.8          # noqa: E731  linear in window x
     pa = window_to_clip([(x, y, 2 * za(x) - 1) for x, y in big], size, size)
     pb = window_to_clip([(x, y, 0.0) for x, y in big], size, size)   # z_ndc 0 → depth 0.5
@@ -172,7 +171,7 @@ def test_depth_test_runs_per_sample():
     sp.draw(fb, pa, varyings={"color": np.tile([1.0, 0, 0], (3, 1))})
     sp.draw(fb, pb, varyings={"color": np.tile([0, 0, 1.0], (3, 1))})
     s = fb.samples_color[:, 0, 0]
-    for k, (sx, sy) in enumerate(pattern.positions):
+    for k, (sx, _sy) in enumerate(pattern.positions):
         nearer_a = za(sx) < 0.5
         assert tuple(s[k, :3]) == ((1.0, 0.0, 0.0) if nearer_a else (0.0, 0.0, 1.0))
     assert fb.color[0, 0, 0] == 0.5 and fb.color[0, 0, 2] == 0.5

@@ -8,10 +8,10 @@ from fractions import Fraction as F
 
 import numpy as np
 import pytest
-
 import reference
-import softpipe
 from conftest import window_to_clip
+
+import softpipe
 from softpipe.pipeline.vertex import run_vertex_stage
 
 S = 8

@@ -14,10 +14,21 @@ from pathlib import Path
 
 import pytest
 
-from softpipe.tools import cli
-from softpipe.tools.batch import (CONTACT_SHEET, CRASH_ONCE_ENV, MANIFEST, BatchProgress, Frame, JobError, batch,
-                            job_from_dict, load_job, parse_job, read_manifest)
 from softpipe.scenes.shapes import uv_sphere
+from softpipe.tools import cli
+from softpipe.tools.batch import (
+    CONTACT_SHEET,
+    CRASH_ONCE_ENV,
+    MANIFEST,
+    BatchProgress,
+    Frame,
+    JobError,
+    batch,
+    job_from_dict,
+    load_job,
+    parse_job,
+    read_manifest,
+)
 
 HAVE_DASK = importlib.util.find_spec("distributed") is not None
 needs_dask = pytest.mark.skipif(not HAVE_DASK, reason="dask[distributed] is not installed "

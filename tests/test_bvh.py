@@ -37,15 +37,15 @@ import numba
 import numpy as np
 import pytest
 
-from softpipe.scenes import shapes
+from softpipe.core.parallel import in_bands
 from softpipe.pipeline import transforms
 from softpipe.rays import layout, traverse, triangle
 from softpipe.rays.bvh import BVH, BVHUniform, any_hit, closest_hit, scene_bvh
 from softpipe.rays.layout import MAX_DEPTH
 from softpipe.rays.triangle import intersect_triangle
+from softpipe.scenes import shapes
 from softpipe.scenes.models import load_model
 from softpipe.scenes.scene import SceneObject
-from softpipe.core.parallel import in_bands
 
 T_RTOL = 1e-6       # t of the BVH vs the oracle, relative
 EDGE_EPS = 1e-9     # the oracle's loosened barycentric test, for edge cases only

@@ -6,10 +6,11 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import TETRA_UV_OBJ, run_cli
 from PIL import Image
 
-from conftest import TETRA_UV_OBJ, run_cli
 from softpipe.programs import PROGRAMS
+
 
 def one_error_line(err: str, command: str = "render") -> str:
     lines = err.strip().splitlines()

@@ -23,10 +23,10 @@ from fractions import Fraction as F
 
 import numpy as np
 import pytest
-
 import reference
-import softpipe
 from conftest import window_to_clip
+
+import softpipe
 
 N = 16
 P = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, -2, -3], [0, 0, -1, 0]]   # perspective(90, 1, 1, 3)

@@ -22,22 +22,29 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import env_function
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
-from softpipe.light.cubemap import (FACES, MEDIA, CubeMap, face_coordinates, sky, sky_gradient, texture_cube,
-                              texture_cube_lod)
-from softpipe.scenes.drawing import draw_mesh
-from softpipe.scenes.environment_pass import fill_background, render_cube_map
-from softpipe.language.glsl import refract, reflect
+from softpipe.language.glsl import reflect, refract
+from softpipe.light.cubemap import (
+    FACES,
+    MEDIA,
+    CubeMap,
+    face_coordinates,
+    sky,
+    sky_gradient,
+    texture_cube,
+    texture_cube_lod,
+)
 from softpipe.light.lighting import fresnel
 from softpipe.light.material import Lighting, Material
-from softpipe.scenes.scene import SceneObject
-from softpipe.programs.environment import glass_weights
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import orthographic, rotate, translate
+from softpipe.programs.environment import glass_weights
+from softpipe.scenes import shapes
+from softpipe.scenes.drawing import draw_mesh
+from softpipe.scenes.environment_pass import fill_background, render_cube_map
+from softpipe.scenes.scene import SceneObject
 
 RNG = np.random.default_rng(17)
 DARK = Lighting([], global_ambient=(0.0, 0.0, 0.0))

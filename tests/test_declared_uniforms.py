@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.language.kernels import cache
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
-from softpipe.scenes.drawing import draw_mesh
 from softpipe.language.contract import ShaderError, declared_uniforms, make_uniforms, reads_uniforms
+from softpipe.language.kernels import cache
+from softpipe.pipeline.camera import Camera
 from softpipe.programs.common import standard_vertex
+from softpipe.scenes import shapes
+from softpipe.scenes.drawing import draw_mesh
 
 
 def test_declared_uniforms_keeps_the_declared_ones_in_their_order():

@@ -11,9 +11,9 @@ arithmetic is exact and the expected values are compared with ==.
 """
 import numpy as np
 import pytest
+from conftest import window_to_clip
 
 import softpipe
-from conftest import window_to_clip
 
 W = H = 4
 RED, GREEN, BLUE = (1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0), (0.0, 0.0, 1.0, 1.0)

@@ -13,12 +13,12 @@ import pytest
 from PIL import Image
 
 import softpipe as sp
-from softpipe.scenes import shapes
 from softpipe.pipeline.camera import Camera
-from softpipe.tools.cli import main
+from softpipe.scenes import shapes
 from softpipe.scenes.drawing import DrawResult, draw_mesh, render_scene, standard_uniforms
 from softpipe.scenes.scene import Scene, program_for
 from softpipe.scenes.scenefile import parse_scene
+from softpipe.tools.cli import main
 
 SOFTPIPE = Path(sp.__file__).resolve().parent
 

@@ -8,11 +8,11 @@ supersampling, a smaller viewport, clipping, and every interpolation qualifier.
 """
 import numpy as np
 import pytest
+from conftest import window_to_clip
 
 import softpipe as sp
-from conftest import window_to_clip
-from softpipe.pipeline.output import DEPTH_FUNCS
 from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.output import DEPTH_FUNCS
 from softpipe.pipeline.sampling import grid, rotated_grid_4x
 from softpipe.pipeline.transforms import perspective
 

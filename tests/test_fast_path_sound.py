@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 import pytest
+from conftest import window_to_clip
 
 import softpipe as sp
-from conftest import window_to_clip
 from softpipe.language import kernels
 from softpipe.pipeline.draw import DrawCall
 from softpipe.pipeline.sampling import rotated_grid_4x

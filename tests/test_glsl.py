@@ -7,16 +7,44 @@ import os
 import subprocess
 import sys
 
+import numba
 import numpy as np
 import pytest
-import numba
 from numba import njit
 from numba.core.errors import TypingError
 
 from softpipe.language.glsl import (
-    add, clamp, cross, distance, div, dot, faceforward, hsum, length, mat3_mul_vec3, mat4_mul_vec4,
-    max_component, min_component, mix, mul, neg, normalize, pow_, reflect, refract, saturate, scale,
-    smoothstep, step, sub, vabs, vec2, vec3, vec4, vmax, vmin,
+    add,
+    clamp,
+    cross,
+    distance,
+    div,
+    dot,
+    faceforward,
+    hsum,
+    length,
+    mat3_mul_vec3,
+    mat4_mul_vec4,
+    max_component,
+    min_component,
+    mix,
+    mul,
+    neg,
+    normalize,
+    pow_,
+    reflect,
+    refract,
+    saturate,
+    scale,
+    smoothstep,
+    step,
+    sub,
+    vabs,
+    vec2,
+    vec3,
+    vec4,
+    vmax,
+    vmin,
 )
 
 RNG = np.random.default_rng(20240601)

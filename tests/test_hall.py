@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.scenes import shapes
 from softpipe.light.lighting import two_sided_lighting
-from softpipe.rays.queries import medium_falloff
 from softpipe.light.material import MEDIA, Light, Lighting, Material, falloff_factor
-from softpipe.tracers.whitted import PROGRAM_CODES, ray_tree, raytrace_scene
-from softpipe.scenes.scene import Scene, SceneObject
-from softpipe.programs import PROGRAMS
 from softpipe.pipeline.transforms import scale, translate
+from softpipe.programs import PROGRAMS
+from softpipe.rays.queries import medium_falloff
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject
+from softpipe.tracers.whitted import PROGRAM_CODES, ray_tree, raytrace_scene
 
 DARK = dict(ka=0.0, kd=0.0, ks=0.0)                     # no local terms: only the global ones show
 GLOW = (0.2, 0.5, 0.9)
@@ -136,7 +136,7 @@ def test_transmission_of_other_surfaces_at_every_angle_follows_snell_for_d():
                        width=24, height=24, eye=(0.0, 4.0, 0.0), fovy=60.0)
     fb = raytrace_scene(scene)
     checked = 0
-    for i, j, o, d in _primary_rays(scene.camera, scene.width, scene.height):
+    for i, j, _origin, d in _primary_rays(scene.camera, scene.width, scene.height):
         sin_i = math.hypot(d[0], d[2])
         sin_t = sin_i / 1.52
         d_t = SLAB_THICKNESS / math.sqrt(1.0 - sin_t * sin_t)

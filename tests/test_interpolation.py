@@ -18,10 +18,10 @@ corners fit that affine function, so both triangles agree with it).
 """
 import numpy as np
 import pytest
-
 import reference
-import softpipe
 from conftest import window_to_clip
+
+import softpipe
 
 N = 10
 PROJ = softpipe.perspective(90.0, 1.0, 0.5, 10.0)

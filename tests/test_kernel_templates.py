@@ -23,7 +23,7 @@ import pytest
 
 from softpipe.language.contract import VaryingLayout
 from softpipe.language.kernels import cache, generate, template
-from softpipe.language.kernels.template import TEMPLATE_DIR, template_expression, template_function, template_files
+from softpipe.language.kernels.template import TEMPLATE_DIR, template_expression, template_files, template_function
 
 ROOT = cache.PACKAGE_DIR.parent
 

@@ -11,18 +11,34 @@ import sys
 import numba
 import numpy as np
 import pytest
-
 from conftest import tilt, unit
 
-from softpipe.light.material import LightingUniform
-from softpipe.light.shadowmap import no_shadows
 from softpipe.light.lighting import (
-    BLINN_PHONG, PHONG, ambient, attenuation, b_factor, beckmann_d, blinn_phong_specular, cook_torrance,
-    cook_torrance_lighting, emission, fresnel, fresnel_rs_rp, fresnel_schlick, geometry_g, gooch,
-    hall_local, hall_transmission, lambert, opengl_lighting, phong_specular, spot_factor,
+    BLINN_PHONG,
+    PHONG,
+    ambient,
+    attenuation,
+    b_factor,
+    beckmann_d,
+    blinn_phong_specular,
+    cook_torrance,
+    cook_torrance_lighting,
+    emission,
+    fresnel,
+    fresnel_rs_rp,
+    fresnel_schlick,
+    geometry_g,
+    gooch,
+    hall_local,
+    hall_transmission,
+    lambert,
+    opengl_lighting,
+    phong_specular,
+    spot_factor,
     transmitted_half_vector,
 )
-from softpipe.light.material import Light, Lighting, Material, pack_lights
+from softpipe.light.material import Light, Lighting, LightingUniform, Material, pack_lights
+from softpipe.light.shadowmap import no_shadows
 
 N_UP = (0.0, 0.0, 1.0)
 NO_LIGHTS = np.zeros((0, 22))

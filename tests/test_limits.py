@@ -26,17 +26,17 @@ import numpy as np
 import pytest
 from hypothesis import given, note
 from hypothesis import strategies as st
+from test_properties import assert_same_bytes, describe, examples, render, scenes
 
 import softpipe
-import softpipe.pipeline.framebuffer
 import softpipe.pipeline.draw
+import softpipe.pipeline.framebuffer
 import softpipe.pipeline.transforms
 import softpipe.pipeline.vertex
-from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 from softpipe.pipeline.sampling import CENTER, MAX_SAMPLES, SamplePattern, grid, random_pattern
 from softpipe.pipeline.vertex import MAX_VERTICES
-from test_properties import assert_same_bytes, describe, examples, render, scenes
 
 SMALL = 1 << 20          # "nothing big": at most 1 MiB allocated while refusing
 BIG_ARRAY = 64 << 20     # the guard refuses arrays over 64 MiB

@@ -7,8 +7,16 @@ import pytest
 
 from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform, pack_lights
 from softpipe.light.packed import (
-    LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_KIND, LIGHT_POSITION,
-    LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT,
+    LIGHT_AMBIENT,
+    LIGHT_ATTENUATION,
+    LIGHT_COLUMNS,
+    LIGHT_DIFFUSE,
+    LIGHT_KIND,
+    LIGHT_POSITION,
+    LIGHT_SPECULAR,
+    LIGHT_SPOT_COS_CUTOFF,
+    LIGHT_SPOT_DIRECTION,
+    LIGHT_SPOT_EXPONENT,
 )
 
 

@@ -13,15 +13,15 @@ import numpy as np
 import pytest
 
 import softpipe as sp
+from softpipe.light.material import MEDIA, Light, Lighting, Material
+from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.transforms import orthographic, rotate, scale, translate
+from softpipe.rays.queries import RayScene, ray_visibility
 from softpipe.scenes import shapes
 from softpipe.scenes.drawing import draw_mesh
 from softpipe.scenes.environment_pass import render_with_environments
-from softpipe.light.material import MEDIA, Light, Lighting, Material
-from softpipe.tracers.whitted import primary_visibility, ray_tree, raytrace_scene
-from softpipe.rays.queries import RayScene, ray_visibility
 from softpipe.scenes.scene import Scene, SceneObject
-from softpipe.light.shadowmap import ShadowSettings
-from softpipe.pipeline.transforms import orthographic, rotate, scale, translate
+from softpipe.tracers.whitted import primary_visibility, ray_tree, raytrace_scene
 
 DARK = dict(ka=0.0, kd=0.0, ks=0.0)
 GLOW = (0.2, 0.5, 0.9)

@@ -7,16 +7,16 @@ import re
 
 import numpy as np
 import pytest
+from conftest import run_cli
 from PIL import Image
 
-from conftest import run_cli
 import softpipe as sp
-from softpipe.pipeline.camera import Camera
 from softpipe.core.colors import color_names, parse_color
-from softpipe.scenes.drawing import as_mesh, draw_mesh, gif_frame, prepare_scene
 from softpipe.light.material import Lighting
-from softpipe.scenes.scene import Scene, studio_lights
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.trace import PixelEvent, PixelHistory
+from softpipe.scenes.drawing import as_mesh, draw_mesh, gif_frame, prepare_scene
+from softpipe.scenes.scene import Scene, studio_lights
 
 
 class TinyMesh:

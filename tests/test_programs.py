@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
-from softpipe.light.material import Light, Lighting, LightingUniform, Material
-from softpipe.scenes.drawing import draw_mesh
 from softpipe.language.contract import make_uniforms
+from softpipe.light.material import Light, Lighting, LightingUniform, Material
+from softpipe.pipeline.camera import Camera
 from softpipe.programs import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
 from softpipe.programs.common import DEFAULT_LIGHTING, facing_normal, lighting_uniform, toward_eye, uniform_or
+from softpipe.scenes import shapes
+from softpipe.scenes.drawing import draw_mesh
 
 EXAMPLES_README = Path(__file__).resolve().parent.parent / "examples" / "README.md"
 

@@ -43,12 +43,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import reference
+from conftest import window_prims, window_to_clip
 from hypothesis import HealthCheck, assume, event, example, given, note, settings
 from hypothesis import strategies as st
 
-import reference
 import softpipe
-from conftest import window_prims, window_to_clip
 from softpipe.pipeline.assembly import GUARD_PIXELS, W_MIN
 from softpipe.pipeline.output import DEPTH_FUNCS
 from softpipe.pipeline.raster import rasterize

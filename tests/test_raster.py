@@ -4,13 +4,12 @@ Coordinates in these tests are OpenGL window coordinates (y up); softpipe's
 Fragments hold image rows (row 0 at the top), so a window row j is image row
 height − 1 − j.
 """
-from fractions import Fraction
 
 import numpy as np
 import pytest
-
 import reference
 from conftest import window_prims
+
 from softpipe.pipeline.raster import count_fragments, rasterize, snap
 
 

@@ -15,13 +15,13 @@ import pytest
 from PIL import Image
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.tools.cli import main
 from softpipe.light.material import Light, Lighting, Material
-from softpipe.tracers.whitted import RAY_KINDS, ray_tree, raytrace_scene
-from softpipe.scenes.scene import Scene, SceneObject, studio_lights
 from softpipe.light.shadowmap import ShadowSettings
 from softpipe.pipeline.transforms import translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject, studio_lights
+from softpipe.tools.cli import main
+from softpipe.tracers.whitted import RAY_KINDS, ray_tree, raytrace_scene
 
 RAYS = ShadowSettings(method="ray")
 
@@ -294,10 +294,10 @@ def test_the_tracers_local_shading_is_the_phong_programs():
     """At a primary hit, the tracer's local color equals the phong program's fragment shader given the same
     surface point: P and N interpolated at the hit's barycentrics in eye space, front_facing by winding, the same
     lighting uniform (shadow rays for V_j) — within 1e-5."""
-    from softpipe.tracers.whitted import primary_visibility
+    from softpipe.language.contract import FragInfo
     from softpipe.programs.common import StandardVaryings
     from softpipe.programs.phong import phong_fragment
-    from softpipe.language.contract import FragInfo
+    from softpipe.tracers.whitted import primary_visibility
     scene = model_on_ground("suzanne")
     camera = scene.camera
     objects = scene.drawn_objects(camera)

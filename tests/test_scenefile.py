@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import softpipe.scenes.scenefile as scenefile
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light
-from softpipe.scenes.models import MODELS, model_path
+from softpipe.pipeline.camera import Camera
 from softpipe.scenes.drawing import render_scene
+from softpipe.scenes.models import MODELS, model_path
 from softpipe.scenes.scene import Scene, default_program, studio_lights
 from softpipe.scenes.scenefile import SceneError, SceneWarning, load_scene, parse_scene
 

@@ -18,12 +18,11 @@ import textwrap
 
 import numpy as np
 import pytest
+import shader_python_helpers as other_module
 
 import softpipe as sp
 from softpipe import ShaderError
 from softpipe.language.kernels import generate
-
-import shader_python_helpers as other_module
 
 FULL = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1.0]])
 QUAD = [0, 1, 2, 0, 2, 3]

@@ -10,18 +10,16 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import tilt
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Lighting, Material
-from softpipe.scenes.mesh import Mesh
-from softpipe.scenes.drawing import draw_mesh, standard_uniforms
-from softpipe.programs import PROGRAMS, cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401
-from softpipe.programs import Program, get_program
 from softpipe.light.texture import Texture2D
+from softpipe.pipeline.camera import Camera
+from softpipe.programs import PROGRAMS, Program, cook_torrance, flat, get_program, gooch, gouraud, hall, phong, textured  # noqa: F401
+from softpipe.scenes import shapes
+from softpipe.scenes.drawing import draw_mesh, standard_uniforms
+from softpipe.scenes.mesh import Mesh
 
 RTOL, ATOL = 1e-5, 1e-6
 BLACK = (0.0, 0.0, 0.0)

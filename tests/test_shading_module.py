@@ -25,10 +25,8 @@ import pytest
 import softpipe
 from softpipe import shading
 from softpipe.language import glsl
-from softpipe.light import lighting
-from softpipe.light import packed
-from softpipe.programs import PROGRAMS
-from softpipe.programs import common
+from softpipe.light import lighting, packed
+from softpipe.programs import PROGRAMS, common
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -169,8 +167,8 @@ def test_the_built_in_programs_use_the_standard_vertex_shader_next_to_them():
 @pytest.mark.parametrize("name", ["phong", "gooch"])
 def test_a_program_made_from_shading_draws_like_the_built_in_one(name):
     """A Program of the re-exported standard_vertex and a built-in fragment shader is the built-in program."""
-    from softpipe.scenes import shapes
     from softpipe.pipeline.camera import Camera
+    from softpipe.scenes import shapes
 
     mesh = shapes.uv_sphere(segments=16, rings=8)
     camera = Camera(eye=(0.5, 0.4, 3.0))

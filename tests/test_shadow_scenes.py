@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.scenes import shapes
-from softpipe.tools.cli import main
 from softpipe.light.material import Light, Material
-from softpipe.scenes.scene import Scene, SceneObject, ground_object
-from softpipe.scenes.scenefile import SceneError, parse_scene
 from softpipe.light.shadowmap import ShadowSettings
 from softpipe.pipeline.transforms import translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import Scene, SceneObject, ground_object
+from softpipe.scenes.scenefile import SceneError, parse_scene
+from softpipe.tools.cli import main
 
 SUN = (0.3, -1.0, -0.2)
 

@@ -21,18 +21,21 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import unit
 
 from softpipe import Camera, DrawCall, Framebuffer, draw_mesh, render_shadow_maps
-from softpipe.scenes import shapes
-from softpipe.light.material import Light, Lighting, Material
-from softpipe.scenes.scene import SceneObject
-from softpipe.light.material import LightingUniform
-from softpipe.light.shadowmap import (ShadowSettings, depth_texture, light_visibility, shadow_map_visibility,
-                                     texture_compare)
-from softpipe.scenes.shadow_pass import casters_of
+from softpipe.light.material import Light, Lighting, LightingUniform, Material
+from softpipe.light.shadowmap import (
+    ShadowSettings,
+    depth_texture,
+    light_visibility,
+    shadow_map_visibility,
+    texture_compare,
+)
 from softpipe.pipeline.transforms import orthographic, rotate, scale, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.scene import SceneObject
+from softpipe.scenes.shadow_pass import casters_of
 
 # A receiver lit by one white light: A = 0.2 (ka = 1 times the global ambient 0.2),
 # D = 0.8·(N·L); no specular, so that color = A + V·D exactly.

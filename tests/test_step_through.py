@@ -25,7 +25,6 @@ import sys
 import textwrap
 
 import numpy as np
-import pytest
 
 from softpipe.pipeline import raster
 

@@ -6,16 +6,25 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import window_prims
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
 import softpipe as sp
-from conftest import window_prims
 from softpipe.pipeline.raster import rasterize
 from softpipe.pipeline.sampling import pattern_named
-from softpipe.testing import (Coverage, ascii_picture, assert_pixels_equal, check_golden, coverage,
-                              covered_pixels, from_ascii, reference_coverage, to_8bit)
+from softpipe.testing import (
+    Coverage,
+    ascii_picture,
+    assert_pixels_equal,
+    check_golden,
+    coverage,
+    covered_pixels,
+    from_ascii,
+    reference_coverage,
+    to_8bit,
+)
 
 pytest_plugins = ["pytester"]
 

@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.scenes import shapes
 from softpipe.pipeline.camera import Camera
+from softpipe.pipeline.draw import DrawCall
+from softpipe.programs import get_program
+from softpipe.scenes import shapes
+from softpipe.scenes.drawing import standard_uniforms
 from softpipe.scenes.mesh import concatenate
 from softpipe.views.pictures import PICTURES, RED
-from softpipe.pipeline.draw import DrawCall
-from softpipe.scenes.drawing import standard_uniforms
-from softpipe.programs import get_program
 
 
 def scene_call(fb, cull="back", **state):
@@ -188,8 +188,8 @@ def test_trace_of_a_multisampled_draw_shows_samples():
 
 def test_overdraw_counts_coverings_not_samples_so_multisampling_reads_on_the_same_key():
     """Issue 14: the overdraw picture counted fragments, so under rgss4 one triangle read as 4 (red)."""
-    from softpipe.views.pictures import HEAT_STOPS, OVERDRAW_DEFINITION, contact_sheet, overdraw
     from softpipe.pipeline.sampling import rotated_grid_4x
+    from softpipe.views.pictures import HEAT_STOPS, OVERDRAW_DEFINITION, contact_sheet, overdraw
     quad = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1]], float)
     small = np.array([[-0.5, -0.5, 0, 1], [0.6, -0.4, 0, 1], [0.1, 0.7, 0, 1]], float)  # over the quad
     for pattern in (None, rotated_grid_4x()):

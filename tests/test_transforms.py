@@ -11,8 +11,22 @@ import numpy as np
 import pytest
 
 import softpipe
-from softpipe import (Viewport, compose, frustum, identity, look_at, normal_matrix, orthographic, perspective,
-                      rotate, rotate_x, rotate_y, rotate_z, scale, translate)
+from softpipe import (
+    Viewport,
+    compose,
+    frustum,
+    identity,
+    look_at,
+    normal_matrix,
+    orthographic,
+    perspective,
+    rotate,
+    rotate_x,
+    rotate_y,
+    rotate_z,
+    scale,
+    translate,
+)
 
 X, Y, Z = np.array([1.0, 0, 0, 0]), np.array([0, 1.0, 0, 0]), np.array([0, 0, 1.0, 0])
 

@@ -8,9 +8,27 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.core.validation import (BadType, BadValue, InputError, Reader, Table, boolean, checked, choice, color,
-                                      describe, integer, is_number, nonnegative, nonzero_vec3, number, numbers,
-                                      positive, string, vec3)
+from softpipe.core.validation import (
+    BadType,
+    BadValue,
+    InputError,
+    Reader,
+    Table,
+    boolean,
+    checked,
+    choice,
+    color,
+    describe,
+    integer,
+    is_number,
+    nonnegative,
+    nonzero_vec3,
+    number,
+    numbers,
+    positive,
+    string,
+    vec3,
+)
 from softpipe.scenes.scenefile import SceneError, parse_scene
 
 

@@ -6,8 +6,8 @@ all, "naive" (``>= 0`` on every edge) fails three kinds, on purpose; run
 """
 import numpy as np
 import pytest
-
 import student_raster
+
 from softpipe.testing import assert_pixels_equal, coverage, covered_pixels, from_ascii, reference_coverage
 
 RASTERIZERS = {"fixed": student_raster.fixed_triangle, "naive": student_raster.naive_triangle}

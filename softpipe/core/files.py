@@ -20,7 +20,7 @@ import os
 import stat
 import tempfile
 from pathlib import Path
-from typing import Callable, IO, Union
+from typing import IO, Callable, Union
 
 __all__ = ["PathPolicyError", "resolve_inside", "check_regular_file", "atomic_write", "check_writable", "excerpt"]
 

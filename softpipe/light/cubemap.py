@@ -92,8 +92,17 @@ from numba import njit
 
 from softpipe.language.glsl import mix
 from softpipe.light.material import MEDIA
-from softpipe.light.texture import FILTER_BILINEAR, FILTER_NEAREST, FILTER_NEAREST_MIPMAP, FILTERS, _build_mipmaps, \
-    _check_array, _check_size, _choose, _load_image
+from softpipe.light.texture import (
+    FILTER_BILINEAR,
+    FILTER_NEAREST,
+    FILTER_NEAREST_MIPMAP,
+    FILTERS,
+    _build_mipmaps,
+    _check_array,
+    _check_size,
+    _choose,
+    _load_image,
+)
 
 __all__ = ["CubeMap", "CubeUniform", "texture_cube", "texture_cube_lod", "texture_cube_grad", "cube_level_of_detail",
            "face_coordinates", "FACES", "MEDIA",

@@ -41,9 +41,19 @@ from numba import njit
 
 from softpipe.language.glsl import add, dot, length, mul, normalize, pow_, reflect, refract, scale, sub
 from softpipe.light.material import LightingUniform, MaterialUniform
-from softpipe.light.packed import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL, LIGHT_KIND,
-                                   LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION,
-                                   LIGHT_SPOT_EXPONENT, light_vec3)
+from softpipe.light.packed import (
+    LIGHT_AMBIENT,
+    LIGHT_ATTENUATION,
+    LIGHT_DIFFUSE,
+    LIGHT_DIRECTIONAL,
+    LIGHT_KIND,
+    LIGHT_POSITION,
+    LIGHT_SPECULAR,
+    LIGHT_SPOT_COS_CUTOFF,
+    LIGHT_SPOT_DIRECTION,
+    LIGHT_SPOT_EXPONENT,
+    light_vec3,
+)
 from softpipe.light.shadowmap import casts_shadows, light_visibility
 
 Vec3 = Tuple[float, float, float]

@@ -59,11 +59,22 @@ from typing import Iterable, Optional, Sequence, Tuple
 
 import numpy as np
 
-from softpipe.core.validation import (checked, color, is_number, nonnegative, nonzero_vec3, numbers, positive,
-                                      vec3)
-from softpipe.light.packed import (LIGHT_AMBIENT, LIGHT_ATTENUATION, LIGHT_COLUMNS, LIGHT_DIFFUSE, LIGHT_DIRECTIONAL,
-                                   LIGHT_KIND, LIGHT_POINT, LIGHT_POSITION, LIGHT_SPECULAR, LIGHT_SPOT,
-                                   LIGHT_SPOT_COS_CUTOFF, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_EXPONENT)
+from softpipe.core.validation import checked, color, is_number, nonnegative, nonzero_vec3, numbers, positive, vec3
+from softpipe.light.packed import (
+    LIGHT_AMBIENT,
+    LIGHT_ATTENUATION,
+    LIGHT_COLUMNS,
+    LIGHT_DIFFUSE,
+    LIGHT_DIRECTIONAL,
+    LIGHT_KIND,
+    LIGHT_POINT,
+    LIGHT_POSITION,
+    LIGHT_SPECULAR,
+    LIGHT_SPOT,
+    LIGHT_SPOT_COS_CUTOFF,
+    LIGHT_SPOT_DIRECTION,
+    LIGHT_SPOT_EXPONENT,
+)
 from softpipe.light.shadowmap import ShadowSettings, light_visibility
 
 RGB = Tuple[float, float, float]

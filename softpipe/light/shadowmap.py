@@ -78,9 +78,9 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
+from softpipe.core.borrow import borrowed, borrowed_tuple
 from softpipe.language.glsl import length, normalize, sub
 from softpipe.light.packed import LIGHT_DIRECTIONAL, LIGHT_KIND, LIGHT_POSITION, light_vec3
-from softpipe.core.borrow import borrowed, borrowed_tuple
 from softpipe.rays.queries import ray_visibility
 
 Vec3 = Tuple[float, float, float]

@@ -8,7 +8,7 @@ so that a bounding box fills the view.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Sequence, Tuple
 
 import numpy as np

@@ -39,17 +39,24 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 import numpy as np
 
 from softpipe.core.runtime import check_memory
+from softpipe.language.contract import make_uniforms
 from softpipe.pipeline.assembly import assemble
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.output import MergeResult, MergeState, merge
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize
 from softpipe.pipeline.setup import SHADING_POSITIONS, apply_polygon_offset, pixel_rect, setup_triangles
-from softpipe.language.contract import make_uniforms
 from softpipe.pipeline.transforms import Viewport
 from softpipe.pipeline.vertex import run_vertex_stage
-from softpipe.pipeline.visibility import (FAST_PATH_MIN_SAMPLES, PATHS, DiscardOnFastPath, choose_path, shade_visible,  # noqa: F401
-                         shading_may_fail, visibility_pass)
+from softpipe.pipeline.visibility import (  # noqa: F401
+    FAST_PATH_MIN_SAMPLES,
+    PATHS,
+    DiscardOnFastPath,
+    choose_path,
+    shade_visible,
+    shading_may_fail,
+    visibility_pass,
+)
 
 __all__ = ["draw", "DrawCall", "Stage", "MAX_FRAGMENTS_PER_BATCH", "STAGES"]
 

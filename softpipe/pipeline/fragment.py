@@ -23,9 +23,9 @@ from typing import Callable, Optional
 import numpy as np
 
 from softpipe.language import kernels
+from softpipe.language.contract import wants_derivatives
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.raster import Fragments
-from softpipe.language.contract import wants_derivatives
 
 __all__ = ["ShadedFragments", "run_fragment_stage", "default_fragment_shader", "color_rgb", "color_rgba"]
 

@@ -16,8 +16,8 @@ from typing import BinaryIO, Optional, Sequence, Union
 import numba
 import numpy as np
 
-from softpipe.core.parallel import in_bands
 from softpipe.core.colors import rgba
+from softpipe.core.parallel import in_bands
 from softpipe.pipeline.sampling import CENTER, SamplePattern
 
 __all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format"]

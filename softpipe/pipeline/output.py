@@ -21,8 +21,8 @@ from typing import Optional, Tuple, Union
 import numba
 import numpy as np
 
-from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.fragment import ShadedFragments
+from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.raster import Fragments
 
 __all__ = ["MergeState", "MergeResult", "merge", "DEPTH_FUNCS", "BLEND_FACTORS", "VERDICTS"]

@@ -35,8 +35,20 @@ import numpy as np
 from softpipe.core.parallel import in_bands
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.sampling import CENTER, SUBPIXEL, SamplePattern
-from softpipe.pipeline.setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, depth_at, edge_function, edge_values,
-                    owns_samples_on_edge, pixel_coverage, pixel_rect, setup_triangles, shading_point, snap)
+from softpipe.pipeline.setup import (
+    SHADE_SAMPLE,
+    SHADING_POSITIONS,
+    TriangleSetup,
+    depth_at,
+    edge_function,
+    edge_values,
+    owns_samples_on_edge,
+    pixel_coverage,
+    pixel_rect,
+    setup_triangles,
+    shading_point,
+    snap,
+)
 
 __all__ = ["Fragments", "rasterize", "count_fragments", "snap", "edge_function", "owns_samples_on_edge",
            "SHADING_POSITIONS", "pixel_rect", "TriangleSetup", "setup_triangles"]

@@ -8,7 +8,7 @@ rasterizer, fed a different pattern).
 """
 from __future__ import annotations
 
-from typing import Iterable, Sequence, Tuple
+from typing import Sequence, Tuple
 
 import numpy as np
 
@@ -114,7 +114,7 @@ def pattern_named(name: str) -> SamplePattern:
         return CENTER
     if text in ("rgss4", "rotated4", "4"):
         return rotated_grid_4x()
-    for prefix, make in (("grid", None), ("jitter", None), ("random", None)):
+    for prefix in ("grid", "jitter", "random"):
         if text.startswith(prefix) and text[len(prefix):].isdigit():
             n = int(text[len(prefix):])
             if prefix == "random":

@@ -31,10 +31,10 @@ from typing import Any, List, Optional
 import numpy as np
 
 from softpipe.language import kernels
+from softpipe.language.contract import python_function
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, derivative_gradients
 from softpipe.pipeline.output import VERDICTS, MergeResult
 from softpipe.pipeline.raster import Fragments
-from softpipe.language.contract import python_function
 
 __all__ = ["Trace", "PixelEvent", "PixelHistory"]
 

@@ -17,8 +17,8 @@ from typing import Any, Callable, Dict, Mapping, Optional
 
 import numpy as np
 
-from softpipe.language import kernels
 from softpipe.core.parallel import in_bands
+from softpipe.language import kernels
 from softpipe.language.contract import VaryingLayout, check_name, declared_uniforms
 
 __all__ = ["VertexOut", "run_vertex_stage"]
@@ -91,7 +91,7 @@ def _varying_arrays(varyings: Optional[Mapping[str, Any]], n: int) -> Dict[str, 
 def _pack(arrays: Dict[str, np.ndarray], n: int):
     layout = VaryingLayout.from_sizes([(k, a.shape[1]) for k, a in arrays.items()])
     packed = np.empty((n, layout.width), dtype=np.float64)
-    for (name, off, size, _), a in zip(layout.fields, arrays.values()):
+    for (_name, off, size, _), a in zip(layout.fields, arrays.values()):
         packed[:, off:off + size] = a
     return packed, layout
 

@@ -35,14 +35,20 @@ from typing import Callable, Optional, Tuple
 import numba
 import numpy as np
 
-from softpipe.language import kernels
 from softpipe.core.parallel import in_bands
+from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients
 from softpipe.pipeline.output import DEPTH_FUNCS, MergeState
 from softpipe.pipeline.raster import Fragments
-from softpipe.pipeline.setup import (SHADE_SAMPLE, SHADING_POSITIONS, TriangleSetup, pixel_coverage, sample_depth,
-                                     shading_point)
+from softpipe.pipeline.setup import (
+    SHADE_SAMPLE,
+    SHADING_POSITIONS,
+    TriangleSetup,
+    pixel_coverage,
+    sample_depth,
+    shading_point,
+)
 from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",

@@ -12,5 +12,15 @@ from softpipe.programs.registry import PROGRAMS, Program, get_program, register
 __all__ = ["Program", "PROGRAMS", "get_program", "register"]
 
 # Importing the modules registers their programs.
-from softpipe.programs import basic, cook_torrance, flat, gooch, gouraud, hall, phong, textured, two_sided  # noqa: E402,F401
-from softpipe.programs import environment  # noqa: E402,F401  (mirror, glass: cube-map reflection and refraction)
+from softpipe.programs import (  # noqa: E402,F401
+    basic,
+    cook_torrance,
+    environment,  # noqa: E402,F401  (mirror, glass: cube-map reflection and refraction)
+    flat,
+    gooch,
+    gouraud,
+    hall,
+    phong,
+    textured,
+    two_sided,
+)

@@ -4,8 +4,8 @@ Varyings from :func:`~softpipe.programs.common.standard_vertex`: ``position`` (e
 and ``normal`` (eye space, not normalized after interpolation).
 """
 from softpipe.language.glsl import add, normalize, scale
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import standard_vertex
+from softpipe.programs.registry import Program, register
 
 
 def unlit_fragment(varyings, uniforms, frag):

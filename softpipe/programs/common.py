@@ -43,9 +43,9 @@ from numba import types
 from numba.core.errors import TypingError
 from numba.extending import overload, register_jitable
 
+from softpipe.language.contract import reads_uniforms
 from softpipe.language.glsl import length, mat3_mul_vec3, mat4_mul_vec4, scale
 from softpipe.light.material import Light, Lighting, LightingUniform
-from softpipe.language.contract import reads_uniforms
 
 __all__ = ["eye_space", "standard_vertex", "StandardVaryings", "toward_eye", "facing_normal",
            "uniform_or", "rgba", "DEFAULT_LIGHTING", "lighting_uniform"]

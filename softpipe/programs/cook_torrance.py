@@ -19,8 +19,8 @@ Program ``cook_torrance``. Uniforms: ``model_view``, ``projection``,
 ``normal_matrix``, ``material``, ``lighting`` (see :mod:`softpipe.programs.common`).
 """
 from softpipe.light.lighting import cook_torrance_lighting
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import facing_normal, rgba, standard_vertex, toward_eye
+from softpipe.programs.registry import Program, register
 
 
 def cook_torrance_fragment(varyings, uniforms, frag):

@@ -29,18 +29,18 @@ uniforms, the level of detail and what a rasterizer cannot do.
 from numba.core.errors import TypingError
 from numba.extending import overload, register_jitable
 
-from softpipe.light.cubemap import cube_level_of_detail, sky, texture_cube_lod
 from softpipe.language.glsl import add, mul, reflect, scale, sub
+from softpipe.light.cubemap import cube_level_of_detail, sky, texture_cube_lod
 from softpipe.light.lighting import BLINN_PHONG, fresnel_directions, opengl_lighting
-from softpipe.tracers.whitted import trace_ray
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import facing_normal, rgba, standard_vertex, toward_eye, uniform_or
+from softpipe.programs.registry import Program, register
+from softpipe.tracers.whitted import trace_ray
 
 
 def view_matrix(uniforms):
     """The uniform ``view`` (world → eye). Compiled, it is read by its index: numba takes
     ``x.view`` for numpy's ``ndarray.view`` and refuses it on a namedtuple."""
-    return getattr(uniforms, "view")
+    return uniforms.view
 
 
 @overload(view_matrix)

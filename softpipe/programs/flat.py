@@ -15,8 +15,8 @@ still one color per face, lit with one corner's normal.
 Programs: ``flat`` (Blinn-Phong specular, §6) and ``flat_phong_specular``
 (Phong specular, §5). Uniforms as :mod:`softpipe.programs.gouraud`.
 """
-from softpipe.programs.registry import Program, register
 from softpipe.programs.gouraud import gouraud_phong_specular_vertex, gouraud_vertex
+from softpipe.programs.registry import Program, register
 
 FLAT = (("color", "flat"),)
 

@@ -21,8 +21,8 @@ Program ``gooch``. Uniforms: ``model_view``, ``projection``, ``normal_matrix``,
 """
 from softpipe.language.glsl import dot
 from softpipe.light.lighting import gooch, light_at
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import facing_normal, rgba, standard_vertex, toward_eye, uniform_or
+from softpipe.programs.registry import Program, register
 
 
 def gooch_fragment(varyings, uniforms, frag):

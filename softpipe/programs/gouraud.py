@@ -17,11 +17,11 @@ does, the vertex color is clamped to [0, 1] before it is interpolated.
 """
 from collections import namedtuple
 
+from softpipe.language.contract import reads_uniforms
 from softpipe.language.glsl import normalize, saturate
 from softpipe.light.lighting import BLINN_PHONG, PHONG, opengl_lighting
-from softpipe.language.contract import reads_uniforms
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import eye_space, rgba, toward_eye
+from softpipe.programs.registry import Program, register
 
 GouraudVaryings = namedtuple("GouraudVaryings", ["color"])  # RGBA
 

@@ -34,11 +34,11 @@ Program ``hall``. Uniforms: ``model_view``, ``projection``, ``normal_matrix``,
 """
 from numba.extending import overload, register_jitable
 
-from softpipe.language.glsl import add, refract, reflect, scale
+from softpipe.language.glsl import add, reflect, refract, scale
 from softpipe.light.lighting import hall_local
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import facing_normal, rgba, standard_vertex, toward_eye
 from softpipe.programs.environment import incoming
+from softpipe.programs.registry import Program, register
 
 
 def hall_global(uniforms, P, N, V, m, front_facing):

@@ -16,8 +16,8 @@ face seen with culling off is lit with its normal reversed. The color is not
 clamped here; the framebuffer clamps once, when it becomes 8 bits.
 """
 from softpipe.light.lighting import BLINN_PHONG, PHONG, opengl_lighting
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import facing_normal, rgba, standard_vertex, toward_eye
+from softpipe.programs.registry import Program, register
 
 
 def phong_fragment(varyings, uniforms, frag):

@@ -21,13 +21,13 @@ Uniforms: ``model_view``, ``projection``, ``normal_matrix``, ``material``,
 """
 from collections import namedtuple
 
+from softpipe.language.contract import reads_uniforms
 from softpipe.language.glsl import mul
 from softpipe.light.lighting import BLINN_PHONG, opengl_lighting
 from softpipe.light.material import MaterialUniform
-from softpipe.language.contract import reads_uniforms
 from softpipe.light.texture import texture_grad
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import eye_space, facing_normal, rgba, toward_eye
+from softpipe.programs.registry import Program, register
 
 TexturedVaryings = namedtuple("TexturedVaryings", ["position", "normal", "uv"])
 

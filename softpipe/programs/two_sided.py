@@ -20,8 +20,8 @@ Program ``two_sided``. Uniforms: ``model_view``, ``projection``, ``normal_matrix
 ``material``, ``lighting`` (see :mod:`softpipe.programs.common`).
 """
 from softpipe.light.lighting import two_sided_lighting
-from softpipe.programs.registry import Program, register
 from softpipe.programs.common import facing_normal, rgba, standard_vertex, toward_eye
+from softpipe.programs.registry import Program, register
 
 
 def two_sided_fragment(varyings, uniforms, frag):

@@ -36,18 +36,18 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
-from softpipe.pipeline.camera import Camera
 from softpipe.core.colors import parse_color, rgba
-from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES, Framebuffer
 from softpipe.light.material import Lighting, LightingUniform
-from softpipe.scenes.mesh import Mesh
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES, Framebuffer
 from softpipe.pipeline.sampling import pattern_named
-from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
-from softpipe.programs import Program, get_program
-from softpipe.scenes.shadow_pass import render_shadow_maps
-from softpipe.programs.common import lighting_uniform
 from softpipe.pipeline.transforms import compose, normal_matrix
+from softpipe.programs import Program, get_program
+from softpipe.programs.common import lighting_uniform
+from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
+from softpipe.scenes.shadow_pass import render_shadow_maps
 
 __all__ = ["standard_uniforms", "draw_mesh", "render_scene", "DrawResult", "as_mesh", "prepare_scene", "render",
            "turntable", "input_kind", "default_lighting", "gif_frame"]

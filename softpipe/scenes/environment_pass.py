@@ -29,12 +29,12 @@ from typing import Dict, Iterable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from softpipe.pipeline.camera import Camera
 from softpipe.light.cubemap import CubeMap, texel_directions
-from softpipe.scenes.drawing import draw_mesh
-from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.light.material import Lighting
+from softpipe.pipeline.camera import Camera
+from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.sampling import pattern_named
+from softpipe.scenes.drawing import draw_mesh
 from softpipe.scenes.scene import Scene, program_for
 from softpipe.scenes.shadow_pass import CUBE_FACES, render_shadow_maps
 

@@ -464,7 +464,8 @@ class _OBJParser:
             try:
                 value = 0 if word == "off" else int(word)
             except ValueError:
-                raise self.error(i, f"expected a smoothing group number or 'off' after 's', got {self.quoted(i)}")
+                raise self.error(i, f"expected a smoothing group number or 'off' after 's', got {self.quoted(i)}") \
+                    from None
             if not 0 <= value <= _MAX_INDEX:
                 raise self.error(i, f"expected a smoothing group number in [0, {_MAX_INDEX}] or 'off' after 's', "
                                     f"got {self.quoted(i)}")

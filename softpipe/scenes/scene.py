@@ -24,11 +24,11 @@ from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
-from softpipe.pipeline.camera import Camera
 from softpipe.light.material import Light, Lighting, Material
-from softpipe.scenes.mesh import Mesh
-from softpipe.programs import PROGRAMS
+from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.transforms import transform_points
+from softpipe.programs import PROGRAMS
+from softpipe.scenes.mesh import Mesh
 
 __all__ = ["Scene", "SceneObject", "FrameSpec", "framed_camera", "studio_lights", "default_program", "program_for"]
 

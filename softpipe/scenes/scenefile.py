@@ -23,23 +23,46 @@ from typing import Any, Dict, List, Optional
 
 import numpy as np
 
-from softpipe.scenes import shapes
+from softpipe.core.validation import (
+    BadValue,
+    InputError,
+    Reader,
+    Table,
+    boolean,
+    choice,
+    color,
+    describe,
+    integer,
+    is_number,
+    number,
+    numbers,
+    positive,
+    string,
+    vec3,
+)
+from softpipe.light.material import Light, Lighting, Material
+from softpipe.light.shadowmap import ShadowSettings
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
-from softpipe.light.material import Light, Lighting, Material
+from softpipe.pipeline.sampling import pattern_named
+from softpipe.pipeline.transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
+from softpipe.programs import PROGRAMS
+from softpipe.scenes import shapes
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.models import MODELS, load_model, model_path, texture_path
 from softpipe.scenes.obj import OBJError, load_obj
-from softpipe.pipeline.sampling import pattern_named
-from softpipe.light.shadowmap import ShadowSettings
+
 # default_program, program_for and studio_lights are not used here: they lived here
 # once, and old ``scenefile.studio_lights`` callers keep working.
-from softpipe.scenes.scene import (FrameSpec, Scene, SceneObject, default_program, framed_camera, program_for,  # noqa: F401
-                    studio_lights)
-from softpipe.core.validation import (BadValue, InputError, Reader, Table, boolean, choice, color, describe, integer,
-                                      is_number, number, numbers, positive, string, vec3)
-from softpipe.programs import PROGRAMS
-from softpipe.pipeline.transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
+from softpipe.scenes.scene import (  # noqa: F401
+    FrameSpec,
+    Scene,
+    SceneObject,
+    default_program,
+    framed_camera,
+    program_for,
+    studio_lights,
+)
 
 __all__ = ["SceneError", "SceneWarning", "load_scene", "parse_scene", "MAX_SCENE_TRIANGLES", "SHAPES",
            # for the readers of other files that name scenes' parts (softpipe.tools.batch's jobs)

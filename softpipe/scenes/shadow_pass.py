@@ -40,13 +40,21 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numba
 import numpy as np
 
-from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.light.material import Light, Lighting, LightingUniform
+from softpipe.light.shadowmap import (
+    CUBE_FACE_NAMES,
+    MAX_SPOT_MAP_CUTOFF,
+    SHADOW_MAP,
+    SHADOW_RAY,
+    ShadowSettings,
+    ShadowUniform,
+    cube_face_half_extent,
+    light_visibility,
+)
 from softpipe.pipeline.draw import DrawCall
-from softpipe.rays.queries import RayScene, transmission_of
-from softpipe.light.shadowmap import (CUBE_FACE_NAMES, MAX_SPOT_MAP_CUTOFF, SHADOW_MAP, SHADOW_RAY, ShadowSettings,
-                        ShadowUniform, cube_face_half_extent, light_visibility)
+from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.transforms import frustum, look_at, orthographic, transform_points
+from softpipe.rays.queries import RayScene, transmission_of
 
 __all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of"]
 

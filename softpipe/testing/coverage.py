@@ -25,10 +25,10 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
+from softpipe.language.contract import VaryingLayout
 from softpipe.pipeline.assembly import CULL_MODES, FRONT_FACES, GUARD_PIXELS, Primitives, assemble, triangle_indices
 from softpipe.pipeline.raster import rasterize
 from softpipe.pipeline.sampling import CENTER, SamplePattern, pattern_named
-from softpipe.language.contract import VaryingLayout
 from softpipe.pipeline.transforms import Viewport
 from softpipe.pipeline.vertex import run_vertex_stage
 

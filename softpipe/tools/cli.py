@@ -371,8 +371,8 @@ def _batch(args) -> int:
 
 
 def _list_programs(args) -> int:
-    from softpipe.scenes.scene import default_program
     from softpipe.programs import PROGRAMS
+    from softpipe.scenes.scene import default_program
     width = max(len(n) for n in PROGRAMS)
     print("shading programs (--program NAME):")
     for name in sorted(PROGRAMS):
@@ -641,10 +641,10 @@ def _turntable(args) -> int:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 error, 130 interrupted)."""
+    from softpipe.core.runtime import keep_freed_memory
+    from softpipe.language.contract import ShaderError
     from softpipe.scenes.obj import OBJError
     from softpipe.scenes.scenefile import SceneError
-    from softpipe.language.contract import ShaderError
-    from softpipe.core.runtime import keep_freed_memory
 
     try:
         parser = build_parser()

@@ -22,18 +22,18 @@ from typing import List, Tuple
 
 import numpy as np
 
-from softpipe.scenes import shapes
+from softpipe.light.material import Light, Lighting, Material
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.light.material import Light, Lighting, Material
-from softpipe.scenes.mesh import Mesh
-from softpipe.scenes.models import load_model
-from softpipe.scenes.drawing import draw_mesh
-from softpipe.scenes.scene import SceneObject
-from softpipe.scenes.shadow_pass import render_shadow_maps
+from softpipe.pipeline.transforms import compose, rotate_x, rotate_y, scale, translate
 from softpipe.programs import cook_torrance, flat, gooch, gouraud, hall, phong, textured  # noqa: F401  (register)
 from softpipe.programs.common import lighting_uniform
-from softpipe.pipeline.transforms import compose, rotate_x, rotate_y, scale, translate
+from softpipe.scenes import shapes
+from softpipe.scenes.drawing import draw_mesh
+from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.models import load_model
+from softpipe.scenes.scene import SceneObject
+from softpipe.scenes.shadow_pass import render_shadow_maps
 
 __all__ = ["render_demo", "demo_camera", "demo_lighting", "demo_objects"]
 

@@ -34,15 +34,22 @@ from numba import njit
 
 from softpipe.core.parallel import in_bands
 from softpipe.core.validation import checked, color
+from softpipe.language.glsl import dot, reflect, refract, scale
+from softpipe.light.lighting import (
+    BLINN_PHONG,
+    PHONG,
+    cook_torrance_lighting,
+    fresnel_directions,
+    hall_local,
+    opengl_lighting,
+    two_sided_lighting,
+)
+from softpipe.light.material import LightingUniform, MaterialUniform, pack_lights
+from softpipe.light.shadowmap import SHADOW_RAY, ShadowUniform
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.language.glsl import dot, reflect, refract, scale
-from softpipe.light.lighting import (BLINN_PHONG, PHONG, cook_torrance_lighting, fresnel_directions, hall_local, opengl_lighting,
-                       two_sided_lighting)
-from softpipe.light.material import LightingUniform, MaterialUniform, pack_lights
-from softpipe.rays.queries import RayScene, _direction_to_world, _point_to_world, hit_normal, medium_falloff
 from softpipe.rays.bvh import closest_hit
-from softpipe.light.shadowmap import SHADOW_RAY, ShadowUniform
+from softpipe.rays.queries import RayScene, _direction_to_world, _point_to_world, hit_normal, medium_falloff
 
 __all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "tracer_uniform", "trace_ray", "RayTracer", "RayTree",
            "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]

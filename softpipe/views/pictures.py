@@ -263,6 +263,7 @@ def save_stage_pictures(trace, directory) -> Dict[str, Path]:
     Each file is written whole or not at all (:func:`softpipe.core.files.atomic_write`).
     """
     from PIL import Image
+
     from softpipe.core.files import atomic_write
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)

@@ -26,8 +26,16 @@ docs/08-fast-path.md (the fast path's questions and loops).
 from softpipe.core.borrow import borrowed_tuple
 from softpipe.language.kernels.analysis import alpha_is_finite, may_discard, may_raise, probe_vertex_shader
 from softpipe.language.kernels.diagnostics import fragment_site, rgba, run_compiled, vertex_site, visible_site
-from softpipe.language.kernels.generate import (fragment_kernel, fragment_module, jit_function, kernel_source,
-                                                python_fragment_module, short_repr, vertex_kernel, visible_kernel)
+from softpipe.language.kernels.generate import (
+                                                fragment_kernel,
+                                                fragment_module,
+                                                jit_function,
+                                                kernel_source,
+                                                python_fragment_module,
+                                                short_repr,
+                                                vertex_kernel,
+                                                visible_kernel,
+)
 
 __all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
            "kernel_source", "run_compiled", "vertex_site", "fragment_site", "visible_site", "may_discard",

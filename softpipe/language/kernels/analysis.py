@@ -22,8 +22,7 @@ import numba
 import numpy as np
 
 from softpipe.language.contract import ShaderError, VaryingLayout, _field_size, python_function, shader_name
-from softpipe.language.kernels.diagnostics import (BadReturn, def_site, from_shader, raised_error, return_error,
-                                                   rgba)
+from softpipe.language.kernels.diagnostics import BadReturn, def_site, from_shader, raised_error, return_error, rgba
 from softpipe.language.kernels.snapshot import is_softpipe, nested_codes, reads, user_module
 
 __all__ = ["may_discard", "may_raise", "alpha_is_finite", "probe_vertex_shader", "probe_fragment_shader"]

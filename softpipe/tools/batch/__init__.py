@@ -21,10 +21,31 @@ import sys
 import types
 from typing import Any
 
-from softpipe.tools.batch.job import (BUILTIN_LIGHTS, MAX_JOB_FRAMES, VIEWS, Frame, Job, JobError, LightSet, as_job,
-                                      job_from_dict, load_job, parse_job)
-from softpipe.tools.batch.run import (CONTACT_SHEET, CONTACT_SHEET_MAX, CRASH_ONCE_ENV, MANIFEST, BatchProgress,
-                                      BatchResult, FrameRecord, batch, read_manifest, render_frame)
+from softpipe.tools.batch.job import (
+    BUILTIN_LIGHTS,
+    MAX_JOB_FRAMES,
+    VIEWS,
+    Frame,
+    Job,
+    JobError,
+    LightSet,
+    as_job,
+    job_from_dict,
+    load_job,
+    parse_job,
+)
+from softpipe.tools.batch.run import (
+    CONTACT_SHEET,
+    CONTACT_SHEET_MAX,
+    CRASH_ONCE_ENV,
+    MANIFEST,
+    BatchProgress,
+    BatchResult,
+    FrameRecord,
+    batch,
+    read_manifest,
+    render_frame,
+)
 
 __all__ = ["Frame", "Job", "JobError", "LightSet", "BatchProgress", "BatchResult", "FrameRecord", "load_job",
            "parse_job", "job_from_dict", "as_job", "batch", "render_frame", "read_manifest", "VIEWS",

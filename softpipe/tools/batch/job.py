@@ -29,14 +29,34 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
-from softpipe.core.validation import (BadValue, Table, boolean, choice, color, describe, integer, number, numbers,
-                                      positive, string)
-from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
+from softpipe.core.validation import (
+    BadValue,
+    Table,
+    boolean,
+    choice,
+    color,
+    describe,
+    integer,
+    number,
+    numbers,
+    positive,
+    string,
+)
 from softpipe.light.material import Light
-from softpipe.scenes.mesh import Mesh
+from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 from softpipe.pipeline.sampling import pattern_named
-from softpipe.scenes.scenefile import (MATERIAL_KEYS, SHAPES, SceneError, SceneReader, bundled_model, is_bare_word,
-                                       pattern_name, program_name, shape_params)
+from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.scenefile import (
+    MATERIAL_KEYS,
+    SHAPES,
+    SceneError,
+    SceneReader,
+    bundled_model,
+    is_bare_word,
+    pattern_name,
+    program_name,
+    shape_params,
+)
 
 __all__ = ["Frame", "Job", "JobError", "LightSet", "load_job", "parse_job", "job_from_dict", "as_job", "VIEWS",
            "BUILTIN_LIGHTS", "MAX_JOB_FRAMES"]
