@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-deps bench bench-cold bench-peers bench-batch bench-rays fuzz clean clean-cache
+.PHONY: demo test test-deps lint bench bench-cold bench-peers bench-batch bench-rays fuzz clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,8 +21,12 @@ demo: $(STAMP)
 # mostly compiled once). Workers share numba's on-disk cache (tests/numba_cache_lock.py) and
 # softpipe's kernel cache. TEST_WORKERS=1 (or 0: no workers) for one process.
 TEST_WORKERS ?= auto
-test: $(STAMP) test-deps
+test: $(STAMP) test-deps lint
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
+# ruff with the rule set in pyproject.toml ([tool.ruff]): the library, tests, examples, benchmarks.
+lint: $(STAMP)
+	$(VENV)/bin/ruff check softpipe tests benchmarks examples scripts fuzz
 
 # What the suite needs outside Python: Debian's chromium, which tests/test_explore.py drives headless
 # through Playwright (the test installs nothing: where chromium is absent it skips with the reason).
