@@ -16,10 +16,14 @@ to regenerate it (otherwise the test writes it to its tmp folder).
 """
 from __future__ import annotations
 
+import fnmatch
+import html
+import importlib.resources
 import math
 import os
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +31,10 @@ import pytest
 
 import softpipe as sp
 from softpipe.tools.cli import main
-from softpipe.views.explorer import read_explorer, write_explorer
+from softpipe.views.explorer import PAGE_FOLDER, read_explorer, write_explorer
+
+ROOT = Path(__file__).resolve().parent.parent
+
 
 #: A small scene: a ball in front of a box on a floor, 4 samples a pixel, a light with a shadow map.
 SCENE = """
@@ -116,6 +123,34 @@ def test_the_page_is_self_contained(scene):
     assert not re.search(r"@import|@font-face|url\(", page, re.I), "CSS that fetches something"
     assert not re.search(r"\b(fetch|XMLHttpRequest|WebSocket|EventSource|importScripts)\b", page)
     assert page.count("<script") == 2      # the JSON data and the page's own script
+
+
+def _page_file(name: str) -> str:
+    return (importlib.resources.files("softpipe.views") / PAGE_FOLDER / name).read_text(encoding="utf-8")
+
+
+def test_the_page_text_is_the_package_data_files_byte_for_byte(scene):
+    _, summary, data = scene
+    page = summary.path.read_bytes().decode("utf-8")
+    skeleton = re.sub(r'(<script type="application/json" id="softpipe-data">).*?(</script>)', r"\1__DATA__\2",
+                      page, count=1, flags=re.S)
+    skeleton = re.sub(r'(<div id="images" hidden>\n).*?(\n</div>)', r"\1__IMAGES__\2", skeleton, count=1, flags=re.S)
+    title = re.escape(html.escape(data.meta["title"]))
+    skeleton = re.sub(rf"(<title>softpipe explorer: ){title}(</title>)", r"\1__TITLE__\2", skeleton, count=1)
+    skeleton = re.sub(rf'(<span id="title">){title}(</span>)', r"\1__TITLE__\2", skeleton, count=1)
+    files = _page_file("page.html").replace("__STYLE__", _page_file("page.css"))
+    assert skeleton == files.replace("__SCRIPT__", _page_file("page.js"))
+
+
+def test_the_page_files_are_package_data():
+    tomllib = pytest.importorskip("tomllib") if sys.version_info >= (3, 11) else pytest.importorskip("tomli")
+    with open(ROOT / "pyproject.toml", "rb") as f:
+        patterns = tomllib.load(f)["tool"]["setuptools"]["package-data"]["softpipe"]
+    folder = ROOT / "softpipe" / "views" / PAGE_FOLDER
+    assert sorted(p.name for p in folder.iterdir()) == ["page.css", "page.html", "page.js"]
+    for path in folder.iterdir():
+        relative = path.relative_to(ROOT / "softpipe").as_posix()
+        assert any(fnmatch.fnmatch(relative, p) for p in patterns), relative
 
 
 def test_the_embedded_history_is_pixel_history_field_by_field(scene):
