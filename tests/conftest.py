@@ -1,5 +1,6 @@
 """What several test files share: scenes and shapes built by hand, and the fixtures and helpers they use;
-and, for every test process, the lock on numba's cache index (numba_cache_lock.py).
+and, for every test process, the lock on numba's cache index (numba_cache_lock.py) and the
+``alone`` marker of tests that must have no other test beside them (run_alone.py).
 
 Helpers are plain functions, imported by name (``from conftest import window_to_clip``: this folder is on
 ``sys.path``); fixtures are found by pytest. A helper that one file alone uses stays in that file.
@@ -16,6 +17,7 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 
 import numba_cache_lock  # noqa: E402
+import run_alone  # noqa: E402
 
 from softpipe.language.contract import VaryingLayout  # noqa: E402
 from softpipe.pipeline.assembly import Primitives  # noqa: E402
@@ -23,6 +25,19 @@ from softpipe.pipeline.assembly import Primitives  # noqa: E402
 # make test runs the suite in two processes that share numba's on-disk cache: its index is locked
 # (numba_cache_lock.py says why).
 numba_cache_lock.install()
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "alone: run with no other test beside it under xdist (the test reads the "
+                                       "wall clock); tests/run_alone.py")
+
+
+@pytest.fixture(autouse=True)
+def _one_at_a_time_where_marked(request, tmp_path_factory):
+    """Every test under xdist: beside the others, or alone where marked ``alone`` (run_alone.py)."""
+    alone = request.node.get_closest_marker("alone") is not None
+    with run_alone.turn(alone, tmp_path_factory.getbasetemp().parent):      # the folder the workers share
+        yield
 
 
 def window_prims(tris, z=0.5):

@@ -18,6 +18,7 @@ import targets  # noqa: E402
 PER_INPUT_SECONDS = 5.0
 
 
+@pytest.mark.alone          # each input within PER_INPUT_SECONDS on the wall clock
 @pytest.mark.parametrize("target", targets.TARGETS)
 def test_corpus_replays_within_the_contract(target):
     files = targets.corpus_files(target)

@@ -15,7 +15,8 @@ import time
 
 import pytest
 
-pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals")
+pytestmark = [pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals"),
+              pytest.mark.alone]        # the limits are seconds on the wall clock: no other test beside
 
 SCRIPT = textwrap.dedent('''
     import sys, numpy as np, softpipe as sp

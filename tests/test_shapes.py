@@ -61,6 +61,7 @@ def test_uv_sphere_uvs_follow_the_angles():
     np.testing.assert_allclose(-np.cos(math.pi * v), y, atol=1e-12)  # v = 0 south, 1 north
 
 
+@pytest.mark.alone          # seconds on the wall clock
 def test_large_uv_sphere_is_fast():
     start = time.perf_counter()
     mesh = shapes.uv_sphere(segments=448, rings=224)
