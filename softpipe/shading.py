@@ -52,14 +52,11 @@ Return value
     it becomes 8 bits), or :data:`DISCARD` (GLSL ``discard``). A shader that
     cannot compile or run raises :class:`ShaderError` naming it and its line.
 
-What Python a shader may use: the subset numba compiles. Vectors are tuples of
-floats (``(0.0, 1.0, 0.0)``), indexed ``v[0]``; arithmetic on them is the
-functions below (``add(a, b)``, ``scale(v, s)``, ``dot(N, L)``), not operators
-and not numpy (``length(v)``, not ``np.linalg.norm(v)``). ``math``, ``min``,
-``max``, ``if``, ``for j in range(n)`` and local variables are fine.
+What Python a shader may use (the subset numba compiles: tuples for vectors, the
+functions below for their arithmetic, no numpy): docs/shaders.md.
 
-Names (FORMULAS.md's, used by every function below)
----------------------------------------------------
+Names (the notes', docs/formulas.md; used by every function below)
+------------------------------------------------------------------
 All vectors are in **eye space** (the eye at the origin, looking down −z) and
 of unit length unless said.
 
@@ -106,7 +103,7 @@ GLSL math on tuples (:mod:`softpipe.language.glsl`)
     vmin, vmax, vabs                                 GLSL's min, max, abs
     hsum, max_component, min_component               reductions
     mat4_mul_vec4, mat3_mul_vec3                     M · v
-The lighting equations (:mod:`softpipe.light.lighting`; § as in FORMULAS.md)
+The lighting equations (:mod:`softpipe.light.lighting`; FORMULAS §n)
     emission (§1), ambient (§2), lambert (§3), b_factor (§4),
     phong_specular (§5), blinn_phong_specular (§6), half_vector (§6),
     positive_power (§5, §6), attenuation (§7), spot_factor (§8),

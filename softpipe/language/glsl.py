@@ -2,55 +2,30 @@
 
 Small vectors are tuples of floats: ``vec2 = (x, y)``, ``vec3 = (x, y, z)``,
 ``vec4 = (x, y, z, w)``; matrices are 4×4 (or 3×3) float64 numpy arrays acting on
-column vectors, ``p' = M @ p`` (DESIGN.md). Every function here has the same name,
-meaning and results in three places:
+column vectors, ``p' = M @ p`` (docs/design.md). Every function here has the same
+name, meaning and results called from plain Python, inside ``@njit`` code
+(kernels and shaders, ``cache=True`` included), and under ``NUMBA_DISABLE_JIT=1``.
 
-* called from ordinary Python code (each function *is* a plain Python function);
-* inside ``@njit`` code, including ``@njit(cache=True)`` kernels and shaders;
-* under ``NUMBA_DISABLE_JIT=1``, where the shaders themselves are plain Python.
+Why it is shaped so: numba cannot build a tuple whose length depends on a loop, so
+each function is written once in plain Python and numba is given an implementation
+of the same name. Componentwise functions (``add``, ``mul``, ``clamp``, ``mix``, …)
+are written as their *scalar* formula under :func:`_componentwise`, which maps it
+over the components in Python and registers (``numba.extending.overload``) one
+implementation per argument kinds and length 2, 3 or 4, a scalar broadcast as in
+GLSL; the reductions (``hsum``, ``max_component``, ``min_component``) likewise;
+everything else (``dot``, ``normalize``, ``reflect``, ``refract``, the matrix
+helpers, …) is ordinary code on those, ``register_jitable``. Both paths do the same
+floating-point operations in the same order: bit-identical results (tested), and
+compiled kernels of straight-line code with every call inlined and no allocation.
 
-How (the choice, and why)
--------------------------
-numba cannot build a tuple whose length depends on a loop, so one jitted body
-cannot serve vec2, vec3 and vec4. Each function is therefore written once as a
-plain Python function, and numba is given an implementation of the same name:
+Where GLSL leaves a case undefined, softpipe defines it: ``normalize`` of a zero or
+NaN vector is the zero vector; ``pow_(x, y)`` takes x ≤ 0 as 0 (0⁰ = 1);
+``smoothstep`` with e0 = e1 is the step at e0; ``clamp`` of NaN is ``lo``. Use
+floats in vectors (an int tuple compiles a second specialization).
 
-* **componentwise** functions (``add``, ``mul``, ``clamp``, ``mix``, …) are defined
-  by their *scalar* formula, decorated with :func:`_componentwise`. In Python the
-  decorator maps the formula over the components; for numba it registers, with
-  ``numba.extending.overload``, one implementation per argument kinds and tuple
-  length (2, 3 or 4), written out component by component. A scalar argument is
-  broadcast, as in GLSL (``clamp(v, 0.0, 1.0)``, ``mix(a, b, 0.5)``).
-* **reductions** (``hsum``, ``max_component``, ``min_component``) likewise, one
-  numba implementation per length.
-* **everything else** (``dot``, ``normalize``, ``reflect``, ``refract``, the
-  matrix helpers, …) is ordinary code built on those, registered with
-  ``numba.extending.register_jitable``: numba compiles the very same source.
-
-Both paths evaluate the same floating-point operations in the same order, so a
-shader gives bit-identical results jitted and as plain Python (tested).
-
-Measured (numba 0.68, this machine): a ``@njit(cache=True)`` kernel using these
-functions compiles to straight-line code on registers — every call inlined, no
-heap allocation (tested with numba's allocation counter) — and a second process
-loads it from numba's on-disk cache (tested). A loop that normalizes two vec3s,
-reflects, mixes and saturates ran at the speed of the same loop written out by
-hand in scalars (2·10⁶ elements: 28 ms vs 29 ms), with bit-identical results.
-One lesson is kept in the code: the scalar formulas use the builtins ``min`` and
-``max`` (branch-free selects, Python's exact semantics, NaN included) rather
-than conditional expressions, which numba compiled to branches 12× slower.
 numba decides whether a cached kernel is stale from the kernel's own source file
 only: after editing *this* file, delete the callers' ``__pycache__/*.nbi/*.nbc``.
-
-Conventions that differ from GLSL (which leaves these cases undefined)
-----------------------------------------------------------------------
-* ``normalize`` of a zero (or NaN) vector returns the zero vector, not NaN.
-* ``pow_(x, y)`` takes x ≤ 0 as 0: 0⁰ = 1, 0ʸ = 0 for y > 0, +inf for y < 0.
-* ``smoothstep(e0, e1, x)`` with e0 = e1 is the step at e0.
-* ``clamp`` of NaN returns ``lo``.
-
-Use floats in vectors (``vec3(0, 1, 0)`` converts); an int tuple works but makes
-numba compile a second specialization.
+docs/shaders.md ("The math library") has it at length.
 """
 from __future__ import annotations
 
@@ -427,8 +402,8 @@ def vmax(a: VecOrScalar, b: VecOrScalar) -> VecOrScalar:
 def clamp(x: VecOrScalar, lo: VecOrScalar, hi: VecOrScalar) -> VecOrScalar:
     """min(max(x, lo), hi) per component (GLSL ``clamp``); NaN gives ``lo``."""
     # Builtin min/max, not conditional expressions: numba turns these into
-    # branch-free selects (measured 12x faster in a loop), with Python's exact
-    # semantics; lo first so that max(lo, NaN) is lo.
+    # branch-free selects (much faster in a loop: benchmarks/README.md), with
+    # Python's exact semantics; lo first so that max(lo, NaN) is lo.
     return min(hi, max(lo, x))
 
 

@@ -1,84 +1,32 @@
 """Cube maps: six square textures around a point, looked up by direction, seamless at the edges.
 
 A cube map answers "what is seen from here in direction d?": six square images on
-the faces of a cube around the point, ±x, ±y, ±z. The lookup picks the face d
-points at (its major axis) and the texel where d pierces that face. It is the
+the faces of a cube around the point, in GL's order +x, −x, +y, −y, +z, −z
+(``FACES``). The lookup picks the face d points at (its major axis) and the texel
+where d pierces it, by OpenGL 4.6 §8.13's Table 8.19; row 0 of a face is its top
+row and nothing is flipped (RenderMan's convention, which GL kept). It is the
 environment of a mirror or a glass object in a rasterizer
-(:mod:`softpipe.programs.environment`), and a dynamic one is the scene drawn six
-times from a point (:func:`softpipe.scenes.environment_pass.render_cube_map`).
+(:mod:`softpipe.programs.environment`); a dynamic one is the scene drawn six times
+from a point (:func:`softpipe.scenes.environment_pass.render_cube_map`).
 
-Two halves, as :mod:`softpipe.light.texture`:
+Two halves, as :mod:`softpipe.light.texture`: :class:`CubeMap` is the host side
+(six images, one equirectangular panorama or a function of the direction → six
+float32 RGBA faces with mip pyramids, packed by ``__softpipe_uniform__`` into a
+:class:`CubeUniform`); :func:`texture_cube`, :func:`texture_cube_lod` and
+:func:`texture_cube_grad` are the shader side (GLSL's ``texture(samplerCube, d)``,
+``textureLod``, ``textureGrad``), plain Python under ``NUMBA_DISABLE_JIT=1``.
 
-* :class:`CubeMap` is the host side: six images (or one equirectangular image, or
-  a function of the direction) → six float32 RGBA faces with mip pyramids, packed
-  for shaders by ``__softpipe_uniform__`` into a :class:`CubeUniform`.
-* :func:`texture_cube` and :func:`texture_cube_lod` are the shader side (GLSL
-  ``texture(samplerCube, d)`` and ``textureLod``): numba functions, plain Python
-  under ``NUMBA_DISABLE_JIT=1``.
+Seamless: every face, at every mip level, is stored with a 1-texel border copied
+from its neighbours (a corner is the mean of the three texels that meet there, as
+GL's ``TEXTURE_CUBE_MAP_SEAMLESS``), so every bilinear tap is a stored texel and no
+lookup wraps or clamps; interpolation is GLSL's ``mix``, so a constant environment
+samples to its color exactly. ``filter`` is :mod:`softpipe.light.texture`'s.
 
-Faces and their orientation (OpenGL 4.6 §8.13, Table 8.19)
------------------------------------------------------------
-The faces are given in GL's order +x, −x, +y, −y, +z, −z (``FACES``). A direction
-d = (x, y, z) selects the face of its largest component in absolute value (ties go
-to x before y before z), and that face's coordinates (sc, tc) and major axis ma:
+:data:`MEDIA` (:data:`softpipe.light.material.MEDIA`, here too): the notes' indices
+of refraction (FORMULAS §17); ``Material(ior="glass")`` takes the names.
 
-====== ====== ====== ====
-face    sc     tc     ma
-====== ====== ====== ====
-+x      −z     −y     x
-−x      +z     −y     x
-+y      +x     +z     y
-−y      +x     −z     y
-+z      +x     −y     z
-−z      −x     −y     z
-====== ====== ====== ====
-
-    s = (sc/|ma| + 1)/2,   t = (tc/|ma| + 1)/2.
-
-Texel (column c, row r) of a face n texels wide covers s ∈ [c/n, (c+1)/n) and
-t ∈ [r/n, (r+1)/n), and **row 0 is the top row of the face's image** (the first
-row in memory, as GL uploads it): unlike a 2D texture, nothing is flipped. These
-are RenderMan's conventions, which GL kept: seen from *inside* the cube, each face
-image appears mirrored left to right (for +z, s grows toward +x, which is the
-viewer's left when looking along +z with +y up). :meth:`CubeMap.direction` is the
-table backwards; :func:`face_coordinates` the table forwards, vectorized.
-
-Seamless filtering
-------------------
-Bilinear filtering takes the 2×2 texels around (s, t). Near a face's edge two of
-them lie on the neighbouring face. Each face (each mip level) is therefore stored
-with a **1-texel border** copied from its neighbours: the border texel beyond
-texel (c, r)'s edge is the neighbour's texel that touches it across the cube's
-edge. A border corner, where three faces meet, is the mean of the three texels
-there (GL's ``TEXTURE_CUBE_MAP_SEAMLESS`` does the same). With
-``s·n + ½`` always inside the bordered face, every bilinear tap is a stored texel,
-and no lookup ever wraps or clamps. Interpolation is GLSL's ``mix``
-(:func:`softpipe.language.glsl.mix`, p + α·(q − p) held to [p, q]), so equal texels
-give exactly that texel: a constant environment samples to its color exactly, across
-edges, corners and levels.
-
-Mip levels and filters
-----------------------
-Each face has a full pyramid to 1×1 (:mod:`softpipe.light.texture`'s box filter, so
-for a power-of-two face a level is the mean of 2×2 texels), the borders refilled
-at every level. ``filter`` is :mod:`softpipe.light.texture`'s: ``"nearest"`` and
-``"bilinear"`` read level 0 only; ``"nearest_mipmap"`` the nearest level;
-``"trilinear"`` (the default) mixes the bilinear samples of levels ⌊λ⌋ and ⌊λ⌋ + 1
-by frac(λ), λ clamped to [0, levels − 1]. :func:`texture_cube` samples λ = 0.
-
-Equirectangular images
-----------------------
-A latitude-longitude panorama W × H (usually 2:1): row 0 is straight up (+y), the
-bottom row straight down; column u ∈ [0, 1) is the longitude, with the image's
-centre looking along −z (the default camera's view) and +x a quarter turn to the
-right:  u = ½ + atan2(x, −z)/(2π),  v_from_top = acos(y)/π.
-:meth:`CubeMap.from_equirectangular` samples it bilinearly (wrapping in u,
-clamped in v) at every face texel's centre direction.
-
-Named media
------------
-:data:`MEDIA` (:data:`softpipe.light.material.MEDIA`, here too): the notes' indices of refraction
-(FORMULAS §17); ``Material(ior="glass")`` takes the names.
+docs/environment.md has the face table, the borders, the levels and filters, the
+panorama's formulas, and the dynamic maps.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The lighting equations of FORMULAS.md, as numba functions on tuples.
+"""The lighting equations of the notes (docs/formulas.md, cited FORMULAS §n), as numba functions on tuples.
 
 One implementation shared by every built-in program: a Gouraud shader calls
 these per vertex, a Phong shader per fragment, and a user's shader may call them
@@ -6,7 +6,7 @@ too. Each function is ``@njit(cache=True)``; under ``NUMBA_DISABLE_JIT=1`` (or v
 ``.py_func``) it is the same code as plain Python, with bit-identical results.
 
 Names: P, N, L, V, H, R, H′, B, (x)₊, ke, ka, kd, ks, kt, n, n′, I_a, I_d, I_s,
-f_att, f_spot, η and m are FORMULAS.md's, defined once in :mod:`softpipe.shading`
+f_att, f_spot, η and m are the notes', defined once in :mod:`softpipe.shading`
 (the module a shader author imports from; it re-exports every function here).
 All vectors are in eye space and of unit length unless said.
 

@@ -1,54 +1,27 @@
 """Materials and lights: the coefficients of the lighting equations (FORMULAS §1–§15, §26).
 
-Material names follow the notes:
+:class:`Material` holds one surface's coefficients under the notes' names (ke, ka,
+kd, ks, shininess, kr, kt, ior, ...; its docstring gives each with its §);
+:class:`Light` one light source (FORMULAS §7–§10); :func:`pack_lights` packs lights
+for shaders into the columns of :mod:`softpipe.light.packed`; :data:`MEDIA` names
+the notes' indices of refraction (``ior="glass"``).
 
-ke          emission color (FORMULAS §1)
-ka          ambient reflectance (§2)
-kd          diffuse reflectance (§3)
-ks          specular reflectance (§5, §6)
-shininess   the specular exponent n (§5, §6); 0 is the notes' "planet": (N·H)⁰ = 1
-kr          reflection coefficient of the Hall model (§13)
-kt          transmission coefficient of the Hall model (§13)
-transmission_shininess   the transmission exponent n' (§13, §14)
-ior         index of refraction of the material (§17); Fresnel (§20) and
-            Cook-Torrance (§26) use it, so ior = 1 means "no specular reflection" there.
-            A name from :data:`MEDIA` (``ior="glass"``) gives the notes' index.
-opacity     alpha of the surface (1 = opaque)
-diffuse_texture  path of a texture that multiplies kd (MTL ``map_Kd``), or None
-roughness   Beckmann's m, the rms slope of the microfacets, for Cook-Torrance (§26)
-transmittance  T, the share of light (RGB) left after one unit of distance *inside* the
-            object (§13's T_r, T_t; §15): a ray that crosses d units of it keeps T^d.
-            1 (the default) is clear; air outside objects is taken as T = 1 (§15)
-falloff     how that share falls with distance d inside: ``"power"`` (the default),
-            T^d (§15, Hall's form); ``"glassner"``, Glassner's 1/(1 + a·d) with
-            a = ``falloff_a`` (then ``transmittance`` is not used)
-falloff_a   Glassner's a ≥ 0 (per unit distance); 0 means no falloff
-
-``transmittance``, ``falloff`` and ``falloff_a`` are read by the ray tracer
-(:mod:`softpipe.tracers.whitted`), the only place a distance inside an object is known;
-they are not in :class:`MaterialUniform` (a shader has no such distance).
-
-Colors are linear RGB triples of floats; each must be finite and non-negative.
-A single number means gray, a string a color's name or hex (``"orange"``, ``"#ff8000"``).
+Colors are linear RGB triples of floats, each finite and non-negative; a single
+number means gray, a string a color's name or hex (``"orange"``, ``"#ff8000"``).
 The fields are checked by :mod:`softpipe.core.validation`, which scene and job files
 share, so a mistake is worded alike: ``Material.kd must hold numbers >= 0, got …``.
 
-Lights (FORMULAS §7–§10)
-------------------------
-A :class:`Light` is specified in **world space**. ``pack_lights(lights, view)``
-brings positions and directions into **eye space** with the 4×4 view matrix
-(world → eye), because softpipe shades in eye space: the eye is at the origin and
-V = normalize(−P) for a surface point P (eye space). A fragment shader therefore
-needs the eye-space P and N (the normal matrix's job) and the packed lights.
+Lights are given in **world space**; ``pack_lights(lights, view)`` brings positions
+and directions into **eye space** with the view matrix (world → eye), because
+softpipe shades in eye space: the eye is at the origin and V = normalize(−P), so a
+fragment shader needs the eye-space P and N (the normal matrix's job) and the
+packed lights. ``Light.direction`` and ``Light.spot_direction`` (S of §8) are the
+direction **the light travels**; L, the unit vector from the surface toward the
+light, is −direction for a directional light, which the packed array stores as
+OpenGL does: a homogeneous position with w = 0 whose xyz is that L.
 
-Directions: ``Light.direction`` (directional lights) and ``Light.spot_direction``
-(S of §8) are both the direction **the light travels** (the sun's rays, where the
-spot points); L, the unit vector from the surface *toward* the light, is
-−direction for a directional light. In the packed array a directional light is
-stored as OpenGL stores it: a homogeneous position with w = 0, whose xyz is that
-unit vector toward the light.
-
-The packed array's columns (the ``LIGHT_*`` names) are :mod:`softpipe.light.packed`'s.
+Where these coefficients enter the formulas: docs/hall.md (Hall's terms, emission,
+Fresnel) and docs/shaders.md (the names a shader reads).
 """
 from __future__ import annotations
 
@@ -137,7 +110,53 @@ and a cached kernel is reused.
 
 @dataclass(frozen=True)
 class Material:
-    """The coefficients of one surface; see the module docstring for each name."""
+    """The coefficients of one surface, under the notes' names (FORMULAS §1–§15, §26).
+
+    Parameters
+    ----------
+    ke
+        Emission color (§1).
+    ka
+        Ambient reflectance (§2).
+    kd
+        Diffuse reflectance (§3).
+    ks
+        Specular reflectance (§5, §6).
+    shininess
+        The specular exponent n (§5, §6); 0 is the notes' "planet": (N·H)⁰ = 1.
+    kr
+        Reflection coefficient of the Hall model (§13).
+    kt
+        Transmission coefficient of the Hall model (§13).
+    transmission_shininess
+        The transmission exponent n' (§13, §14).
+    ior
+        Index of refraction of the material (§17); Fresnel (§20) and Cook-Torrance
+        (§26) use it, so ior = 1 means "no specular reflection" there. A name from
+        :data:`MEDIA` (``ior="glass"``) gives the notes' index.
+    opacity
+        Alpha of the surface (1 = opaque).
+    diffuse_texture
+        Path of a texture that multiplies kd (MTL ``map_Kd``), or None.
+    name
+        A label (not compared).
+    roughness
+        Beckmann's m, the rms slope of the microfacets, for Cook-Torrance (§26).
+    transmittance
+        T, the share of light (RGB) left after one unit of distance *inside* the
+        object (§13's T_r, T_t; §15): a ray that crosses d units of it keeps T^d.
+        1 (the default) is clear; air outside objects is taken as T = 1 (§15).
+    falloff
+        How that share falls with distance d inside: ``"power"`` (the default),
+        T^d (§15, Hall's form); ``"glassner"``, Glassner's 1/(1 + a·d) with
+        a = ``falloff_a`` (then ``transmittance`` is not used).
+    falloff_a
+        Glassner's a ≥ 0 (per unit distance); 0 means no falloff.
+
+    ``transmittance``, ``falloff`` and ``falloff_a`` are read by the ray tracer
+    (:mod:`softpipe.tracers.whitted`), the only place a distance inside an object is
+    known; they are not in :class:`MaterialUniform` (a shader has no such distance).
+    """
 
     ke: RGB = (0.0, 0.0, 0.0)
     ka: RGB = (0.1, 0.1, 0.1)

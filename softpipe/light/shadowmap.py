@@ -1,72 +1,32 @@
 """Shadow maps as a shader reads them, and V_j: the depth compare, percentage-closer filtering, shadow rays.
 
 A shadow map is the depth buffer of a draw made from a light (:mod:`softpipe.scenes.shadow_pass`
-makes them). A point p is lit by light j when nothing lies between p and the light:
-p is transformed into the light's clip space, and its depth there, ``ref``, is
-compared with the depth the map stored at p's position — GLSL's ``sampler2DShadow``
-with ``GL_LEQUAL``: lit when ``ref ≤ stored``. It is the rasterizer's form of the
-shadow ray of FORMULAS §21; the ε of the ray is the map's depth bias, a polygon
-offset given to the depth pass (:func:`softpipe.pipeline.setup.apply_polygon_offset`).
+makes them). Light j's visibility at p, V_j (FORMULAS §11's V_i(p)), is 1 lit, 0 in
+shadow, in between at a filtered edge, and an RGB color behind a transparent occluder
+(§21). p is lit when its depth in the light's window space, ``ref`` in [0, 1], is ≤
+the depth the map stored there: GLSL's ``sampler2DShadow`` with ``GL_LEQUAL``, the
+rasterizer's form of the shadow ray of FORMULAS §21, whose ε is the map's depth bias
+(a polygon offset, :func:`softpipe.pipeline.setup.apply_polygon_offset`).
+Percentage-closer filtering (PCF) compares at the (2r+1)×(2r+1) texels around p's,
+r = ``ShadowSettings.pcf``, and averages the results (not the depths).
 
-Names
------
-V_j
-    Light j's visibility at p (FORMULAS §11's V_i(p)): 1 lit, 0 in shadow, in between
-    at a filtered edge; an RGB color behind a transparent occluder (§21: "scale the
-    light by its transmission"). The lit programs multiply light j's diffuse and
-    specular terms by it (:func:`light_visibility`); the ambient term is untouched,
-    as §10 keeps it.
-ref
-    p's depth in the light's window space, in [0, 1].
-PCF
-    Percentage-closer filtering: the compare is made at the (2r+1)×(2r+1) texels
-    around p's texel, r = ``ShadowSettings.pcf``, and the results (not the depths)
-    averaged. r = 0 is the hard-edged single tap.
-
-V_j, from a map or a ray
-------------------------
 :func:`light_visibility` (what a shader calls, after :func:`casts_shadows`) looks V_j up
-in light j's map(s), or sends a shadow ray toward the light through the scene's
-:mod:`softpipe.rays` (``ShadowSettings(method="ray")``). Compiled, the choice of code is
-made from the uniform's numba type, once: lighting without shadows (``shadows`` None)
-compiles no shadow code at all, shadows from rays only (the ray tracer's) no map lookup,
-maps without rays no ray code. It is inlined into every lit sample with its arrays
-borrowed (uncounted: counting their references made bunny-shadows' lit pass 4× its
-unshadowed time).
+in light j's map(s), or sends a shadow ray through :mod:`softpipe.rays`
+(``ShadowSettings(method="ray")``). The lit programs multiply light j's diffuse and
+specular terms by it; the ambient term is untouched, as §10 keeps it. A shader receives
+``uniforms.lighting.shadows``, a :class:`ShadowUniform`: every map of every light in
+flat arrays, so any number of maps of any sizes has one numba type (its docstring has
+the layout). The choice of code is made from the uniform's numba type, once: no
+shadows compiles no shadow code, rays only no map lookup, maps only no ray code. It is
+inlined into every lit sample with its arrays borrowed, because counting their
+references made the lit pass several times slower (benchmarks/README.md, "The figures
+behind the pipeline's comments").
 
-What a shader receives
-----------------------
-``uniforms.lighting.shadows``, a :class:`ShadowUniform`: every map of every light
-packed in flat arrays, so that any number of maps of any sizes has one numba type
-(a scene with shadows and one without use the same compiled kernel).
-
-``light_maps`` int64 [num_lights, 3]
-    Light j's first map, how many it has — 0 (no shadow map), 1 (directional, spot)
-    or 6 (a cube map: point lights, and spots wider than :data:`MAX_SPOT_MAP_CUTOFF`) —
-    and how its V_j is found: :data:`SHADOW_MAP` or :data:`SHADOW_RAY` (a shadow ray
-    through ``rays``, :func:`softpipe.rays.queries.ray_visibility`).
-``maps`` int64 [num_maps, 5]
-    Each map's offset into ``depth``, width, height, PCF radius r, and offset into
-    ``transparent_depth``/``transmission`` (−1: no transparent caster in this map).
-``matrices`` float64 [num_maps, 4, 4]
-    Eye space → the map's clip space (its light's projection · its view · the
-    camera's inverse view): a shader works in eye space.
-``depth`` float32 [num_texels]
-    Per texel, row 0 at the bottom: the nearest opaque caster's depth (1 where none).
-``transparent_depth`` float32 [num_transparent_texels], ``transmission`` float32 [num_transparent_texels, 3]
-    For the maps that have transparent casters: the nearest one's depth and its
-    transmission color (k_t·F_t, its material's ``kt``; 1 where there is none). One transparent layer only: a second pane of
-    glass behind the first does not dim the light again (a ray tracer does that).
-
-A point outside a map's square is lit (GL's CLAMP_TO_BORDER with a border depth of
-1): the maps are fitted to the casters, and nothing outside them can cast a shadow.
-A point beyond the far plane compares with ref = 1 (a depth clamp): it is behind every
-caster the map holds, and in the shadow of any that covers its texel.
-
-Cube maps are sampled without seams: each of the six faces is drawn with a field of
-view a little over 90° (:func:`cube_face_half_extent`), so the PCF taps of a point
-near a face's edge stay inside the face it is looked up in (the one whose axis is
-nearest p's direction from the light, :func:`cube_face`).
+A point outside a map's square is lit (GL's CLAMP_TO_BORDER, border depth 1); one
+beyond the far plane compares with ref = 1. A point light's cube map is seamless for
+PCF because each face is drawn a little wider than 90° (:func:`cube_face_half_extent`,
+:func:`cube_face`). docs/shadows.md has the why of each: the bias, PCF, the map kinds,
+transparent occluders and rays.
 """
 from __future__ import annotations
 
@@ -110,7 +70,28 @@ ShadowUniform = namedtuple("ShadowUniform", ["light_maps", "maps", "matrices", "
 SHADOW_MAP, SHADOW_RAY = 0, 1
 #: ``ShadowSettings.method``'s values, in the order of those codes.
 SHADOW_METHODS = ("map", "ray")
-ShadowUniform.__doc__ = """Every shadow map of a draw, packed flat (see :mod:`softpipe.light.shadowmap`)."""
+ShadowUniform.__doc__ = """Every shadow map of a draw, packed flat: one numba type for any number of maps of
+any sizes (a scene with shadows and one without use the same compiled kernel).
+
+``light_maps`` int64 [num_lights, 3]
+    Light j's first map, how many it has — 0 (no shadow map), 1 (directional, spot)
+    or 6 (a cube map: point lights, and spots wider than :data:`MAX_SPOT_MAP_CUTOFF`) —
+    and how its V_j is found: :data:`SHADOW_MAP` or :data:`SHADOW_RAY` (a shadow ray
+    through ``rays``, :func:`softpipe.rays.queries.ray_visibility`).
+``maps`` int64 [num_maps, 5]
+    Each map's offset into ``depth``, width, height, PCF radius r, and offset into
+    ``transparent_depth``/``transmission`` (−1: no transparent caster in this map).
+``matrices`` float64 [num_maps, 4, 4]
+    Eye space → the map's clip space (its light's projection · its view · the
+    camera's inverse view): a shader works in eye space.
+``depth`` float32 [num_texels]
+    Per texel, row 0 at the bottom: the nearest opaque caster's depth (1 where none).
+``transparent_depth`` float32 [num_transparent_texels], ``transmission`` float32 [..., 3]
+    For the maps that have transparent casters: the nearest one's depth and its
+    transmission color (k_t·F_t, its material's ``kt``; 1 where there is none). One
+    transparent layer only: a second pane of glass behind the first does not dim the
+    light again (a ray tracer does that).
+"""
 
 
 @dataclass(frozen=True)
@@ -221,7 +202,8 @@ def cube_face(shadows, first, P):
 
 # map_coordinates, shadow_compare and shadow_map_visibility run per light at every lit sample:
 # they are inlined into the shader (inline="always"). Called as functions, each call passed the
-# ShadowUniform's six arrays on by value, and bunny-shadows' lighting took 279 ns a sample, not 97.
+# ShadowUniform's six arrays on by value, which made bunny-shadows' lighting about three times as
+# slow (benchmarks/README.md, "The figures behind the pipeline's comments").
 @njit(cache=True, inline="always")
 def map_coordinates(shadows, k, P):
     """(x, y, ref, inside): P in map k's window space — texels, y up — and its depth ref.

@@ -1,91 +1,25 @@
 """2D textures: images with mipmaps, and the GLSL-like functions shaders sample them with.
 
-Two halves, as on a GPU:
+Two halves, as on a GPU: :class:`Texture2D` is the host side (loads an image file
+or array, checks it, converts it to linear float RGBA, builds the mip pyramid
+once, hands shaders a :class:`TextureUniform` through ``__softpipe_uniform__``);
+:func:`texture`, :func:`texture_lod`, :func:`texture_grad`, :func:`mip_level` and
+:func:`texture_size` are the shader side, numba functions named after GLSL's
+``texture``, ``textureLod``, ``textureGrad``, ``textureQueryLod`` and
+``textureSize`` (the same as plain Python under ``NUMBA_DISABLE_JIT=1``).
 
-* :class:`Texture2D` is the host side. It loads an image file or a numpy array,
-  checks it, converts it to linear float RGBA, builds the mip pyramid once, and
-  hands shaders a :class:`TextureUniform` through ``__softpipe_uniform__``.
-* :func:`texture`, :func:`texture_lod`, :func:`texture_grad`, :func:`mip_level`
-  and :func:`texture_size` are the shader side: numba functions that a shader
-  calls on the uniform, named after GLSL's ``texture``, ``textureLod``,
-  ``textureGrad``, ``textureQueryLod`` and ``textureSize``. They run the same
-  as plain Python under ``NUMBA_DISABLE_JIT=1``.
+Texture coordinates follow OpenGL, ``(0, 0)`` the image's lower-left corner, v up;
+images are stored top row first, as numpy and pillow store them. The flip happens
+in one place, :func:`_fetch`. Texel addressing, wrap modes and filters follow
+OpenGL 4.6 §8.14: ``filter`` is one of ``"nearest"``, ``"bilinear"`` (level 0
+only), ``"nearest_mipmap"`` and ``"trilinear"``; λ = log2 ρ from the derivatives a
+shader passes (:func:`texture` has none and samples level 0). Every texture gets a
+box-filtered pyramid down to 1×1, summed in float64 and stored as float32. NaN and
+infinite coordinates are defined, so that jitted and plain-Python runs agree.
 
-Orientation (the one place softpipe maps images to texture coordinates)
------------------------------------------------------------------------
-Images are stored as numpy and pillow store them: row 0 is the TOP row.
-Texture coordinates follow OpenGL: ``(u, v) = (0, 0)`` is the LOWER-LEFT
-corner of the image, ``(1, 1)`` the upper-right; u grows to the right, v grows
-UP. So texel column ``i`` and texel row ``j`` counted from the bottom
-(``j = 0`` is the bottom row) is image element ``[H - 1 - j, i]``. The flip
-happens in exactly one place, :func:`_fetch`; every level in
-:attr:`Texture2D.levels` and in ``TextureUniform.texels`` is in image order.
-
-Texel addressing and filtering (OpenGL 4.6 §8.14)
--------------------------------------------------
-Texel ``i`` of a level ``W`` texels wide covers ``[i/W, (i+1)/W)`` in u; its
-centre is at ``(i + ½)/W``. With ``x = u·W``:
-
-* nearest: texel ``wrap(floor(x))``;
-* bilinear: ``i0 = floor(x − ½)``, ``α = frac(x − ½)``; the texels
-  ``wrap(i0)`` and ``wrap(i0 + 1)`` weighted ``1 − α`` and ``α`` (and the same
-  in v), the wrap applied to each of the four texel indices.
-
-Wrap modes, applied to integer texel indices (GL's Table 8.20):
-``"repeat"`` ``i mod W``; ``"clamp"`` (CLAMP_TO_EDGE) ``clamp(i, 0, W − 1)``;
-``"mirror"`` (MIRRORED_REPEAT) ``(W − 1) − mirror((i mod 2W) − W)`` with
-``mirror(a) = a`` for ``a ≥ 0`` and ``−(1 + a)`` otherwise.
-
-A NaN coordinate samples as coordinate 0, and texel coordinates (±inf
-included) are clamped to ±2**40 before they become integers, so that jitted
-and plain-Python runs agree on every input (GL leaves both undefined).
-
-Filters and mip levels
-----------------------
-``filter`` names GL's pair of minification/magnification filters:
-
-=================== ============================ =====================
-softpipe             GL minification filter       magnification
-=================== ============================ =====================
-``"nearest"``        NEAREST (level 0 only)       NEAREST
-``"bilinear"``       LINEAR (level 0 only)        LINEAR
-``"nearest_mipmap"`` NEAREST_MIPMAP_NEAREST       NEAREST
-``"trilinear"``      LINEAR_MIPMAP_LINEAR         LINEAR
-=================== ============================ =====================
-
-The level of detail is ``λ = log2 ρ`` with
-``ρ = max(sqrt((∂u/∂x)² + (∂v/∂x)²), sqrt((∂u/∂y)² + (∂v/∂y)²))`` measured in
-texels of level 0 (u scaled by W, v by H). It is clamped to ``[0, levels − 1]``;
-``λ ≤ 0`` is magnification and samples level 0. ``"trilinear"`` mixes the
-bilinear samples of levels ``floor(λ)`` and ``floor(λ) + 1`` by ``frac(λ)``;
-``"nearest_mipmap"`` takes the nearest texel of level ``ceil(λ + ½) − 1`` (the
-nearest level, halves rounding down). ``"nearest"`` and ``"bilinear"`` ignore
-λ and always sample level 0, as GL does for non-mipmap filters.
-
-:func:`texture` has no derivatives (softpipe does not compute screen-space
-derivatives behind a shader's back), so it samples with ``λ = 0``: level 0 for
-every filter. Shaders that want mipmapping pass derivatives to
-:func:`texture_grad` or a level to :func:`texture_lod`.
-
-Mipmaps
--------
-Every texture gets a full pyramid down to 1×1, built level by level. Each level
-is ``max(1, floor(w/2)) × max(1, floor(h/2))`` of the one before, and each of
-its texels is the box-filter average of the region of the previous level it
-covers, every texel weighted by the area it contributes. For an even size that
-is exactly the mean of a 2×2 block; for an odd size a destination texel covers
-2 + 1/k source texels (e.g. 5 → 2: each covers 2.5), so the middle source texel
-is shared between two destination texels. The number of levels is
-``floor(log2(max(W, H))) + 1``. Sums are done in float64 and each level is
-stored as float32.
-
-Texel values
-------------
-8-bit data (uint8 arrays, 8-bit image files) become float32 ``c / 255``, so
-0 → 0.0 and 255 → 1.0 exactly; 16-bit grayscale files become ``c / 65535``.
-Float arrays are taken as they are (linear values; no sRGB decoding; values
-outside [0, 1] are allowed) and must be finite. Grayscale becomes
-``(g, g, g, 1)``, RGB becomes ``(r, g, b, 1)``.
+docs/textures.md has it all: the orientation, the addressing and wrap formulas,
+the filter table and λ, how odd-sized levels are averaged, how 8-, 16-bit and
+float texels are read, and why the sampling helpers are shaped as they are.
 """
 from __future__ import annotations
 
@@ -193,11 +127,10 @@ def _floor_frac(x):
 # TextureUniform that dominated the cost of a sample. So the per-level helpers
 # take one array and plain ints, the tiny helpers and _sample are inlined (all
 # inside this module, so the on-disk cache keeps them), and only the public
-# functions take the whole uniform. Measured (2 cores): bilinear ~20 M samples/s
-# through texture_lod from a jitted loop, trilinear ~10 M/s, about 2× the
-# un-inlined version. Inlining the public functions too doubles that again but
-# adds ~0.7 s to the compile of every user shader that calls them, so they are
-# left as calls.
+# functions take the whole uniform. Inlining the public functions too would be
+# faster still but lengthens the compile of every user shader that calls them,
+# so they are left as calls (figures: benchmarks/README.md, "The figures behind
+# the pipeline's comments").
 
 
 @njit(cache=True, inline="always")

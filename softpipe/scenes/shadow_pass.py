@@ -231,7 +231,7 @@ def _outside_code(x, y, z, w):
 def _in_frustum(clip: np.ndarray, indices: np.ndarray) -> np.ndarray:
     """The triangles not wholly outside one clip plane (the rest cannot reach the map): a cheap
     cull before assembly, which matters for a cube map, where each face sees a sixth of the scene.
-    (Compiled: numpy's version made a dozen passes and took 2 ms a map for the bunny.)"""
+    (Compiled: numpy's version made a dozen passes over the vertices; benchmarks/README.md.)"""
     codes = np.empty(clip.shape[0], np.int64)
     for v in range(clip.shape[0]):
         codes[v] = _outside_code(clip[v, 0], clip[v, 1], clip[v, 2], clip[v, 3])
@@ -414,7 +414,7 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
 
 
 #: Depth-pass targets kept between calls, one per resolution: a new 1024² framebuffer (20 MB)
-#: cost its page faults and a clear, about 1.5 ms, in every frame that makes maps. At most
+#: cost its page faults and a clear in every frame that makes maps (benchmarks/README.md). At most
 #: _TARGETS_KEPT of them, none above _TARGET_KEPT_MAX_RES² (an 8192² one is 1.3 GB).
 _TARGETS: Dict[int, Framebuffer] = {}
 _TARGETS_KEPT, _TARGET_KEPT_MAX_RES = 2, 2048
