@@ -15,16 +15,16 @@ Writes each stage picture of :meth:`softpipe.pipeline.trace.Trace.save_pictures`
 ``eye-space.png``, a top view of the scene and the view frustum, and prints
 each path with its size.
 """
+# ruff: noqa: I001  (the scene's imports are the docs' first lines, exactly as a reader types them)
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 # --- the scene (docs/*.md start with exactly these lines) ---
 from collections import namedtuple
-from pathlib import Path
 
 import numpy as np
-
 import softpipe as sp
 from softpipe.shading import mat4_mul_vec4
 

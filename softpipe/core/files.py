@@ -22,7 +22,8 @@ import tempfile
 from pathlib import Path
 from typing import IO, Callable, Union
 
-__all__ = ["PathPolicyError", "resolve_inside", "check_regular_file", "atomic_write", "check_writable", "excerpt"]
+__all__ = ["PathPolicyError", "resolve_inside", "check_regular_file", "atomic_write", "check_writable", "excerpt",
+           "excerpt_path"]
 
 PathLike = Union[str, os.PathLike]
 
@@ -42,6 +43,14 @@ def excerpt(text: str, limit: int = EXCERPT_CHARS) -> str:
     return repr(text[:limit]) + f"… ({len(text):,} characters)"
 
 
+def excerpt_path(path: PathLike, limit: int = EXCERPT_CHARS) -> str:
+    """A path quoted (repr) for error messages; a long one keeps its end, the file's name ('…/models/a.obj')."""
+    text = os.fspath(path)
+    if len(text) <= limit:
+        return repr(text)
+    return repr("…" + text[-(limit - 1):])
+
+
 def check_regular_file(path: PathLike, shown: str | None = None) -> None:
     """Refuse what is not a regular file (a FIFO or device would block or never end), before opening it.
 
@@ -53,11 +62,11 @@ def check_regular_file(path: PathLike, shown: str | None = None) -> None:
     except FileNotFoundError:
         return          # the caller's own "not found" is clearer
     except OSError as e:
-        raise PathPolicyError(f"cannot read {excerpt(shown)}: {e.strerror}") from None
+        raise PathPolicyError(f"cannot read {excerpt_path(shown)}: {e.strerror}") from None
     if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
         kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
                 else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
-        raise PathPolicyError(f"{excerpt(shown)} is {kind}, not a regular file")
+        raise PathPolicyError(f"{excerpt_path(shown)} is {kind}, not a regular file")
 
 
 def resolve_inside(base_dir: PathLike, reference: str, *, allow_outside: bool = False) -> str:

@@ -32,7 +32,7 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from softpipe.core.files import PathPolicyError, check_regular_file, excerpt, resolve_inside
+from softpipe.core.files import PathPolicyError, check_regular_file, excerpt, excerpt_path, resolve_inside
 from softpipe.light.material import Material
 from softpipe.scenes.mesh import Mesh
 
@@ -145,7 +145,7 @@ def _read_text(path: str) -> str:
         if stat.S_ISDIR(mode):
             raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
         if not stat.S_ISREG(mode):
-            raise PathPolicyError(f"{excerpt(path)} is not a regular file")
+            raise PathPolicyError(f"{excerpt_path(path)} is not a regular file")
         data = f.read()
     return data.decode("utf-8-sig", errors="replace")
 
@@ -551,7 +551,7 @@ class _OBJParser:
                     continue
                 libs.append(_short(os.path.join(self.base_dir, lib), _PATH_CHARS))
                 if not os.path.isfile(path):
-                    self.warn(f"{self.file}:{i + 1}: material library {excerpt(os.path.join(self.base_dir, lib))} "
+                    self.warn(f"{self.file}:{i + 1}: material library {excerpt_path(os.path.join(self.base_dir, lib))} "
                               "not found; using default materials")
                     continue
                 try:
@@ -779,7 +779,7 @@ class _MTLParser:
             self.warn(f"{self.file}:{line_no}: texture {e}; {gets_none}")
             return None
         if not os.path.isfile(path):
-            self.warn(f"{self.file}:{line_no}: texture {excerpt(path)} not found; {gets_none}")
+            self.warn(f"{self.file}:{line_no}: texture {excerpt_path(path)} not found; {gets_none}")
             return None
         return path
 
