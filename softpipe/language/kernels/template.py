@@ -19,8 +19,9 @@ of the generated loop:
    (``Attributes(ATTRIBUTE_VALUES)``) it stands for text.
 
 So the generated source is the template's text, character for character, but
-where a rule says otherwise. A template may not name a placeholder or a
-constant it is not given, nor be given one it does not name.
+where a rule says otherwise. A placeholder or constant the template does not
+name is an error; one it names but is not given stays in the code as a name
+in capitals (tests/test_kernel_templates.py checks that none does).
 """
 from __future__ import annotations
 
