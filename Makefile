@@ -17,9 +17,10 @@ demo: $(STAMP)
 	$(PY) -m softpipe demo
 
 # The suite on every core (pytest-xdist): one worker process per core, each taking whole test files
-# (--dist loadfile: a file's module fixtures are made once, and the kernels its tests compile are
-# mostly compiled once). Workers share numba's on-disk cache (tests/numba_cache_lock.py) and
-# softpipe's kernel cache. TEST_WORKERS=1 (or 0: no workers) for one process.
+# (--dist loadfile: a file's module-scoped fixtures, some of them whole renders, are made on one
+# worker only). Workers share numba's on-disk cache (locked: tests/numba_cache_lock.py) and
+# softpipe's kernel cache; tests that read the wall clock run alone (tests/run_alone.py).
+# TEST_WORKERS=1 for one worker, 0 for none (the suite in pytest's own process).
 TEST_WORKERS ?= auto
 test: $(STAMP) test-deps lint
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
