@@ -116,6 +116,9 @@ The packed lights (:mod:`softpipe.light.lighting`, :mod:`softpipe.light.packed`,
     light_at                 (L, f_att · f_spot) of light j at P (§7–§9)
     light_vec3               three columns of light j: ``light_vec3(lights, j, LIGHT_DIFFUSE)`` is I_d
     light_colors             (I_a, I_d, I_s) of light j
+    sum_over_lights          color + Σ_j f_j·(ambient_j + V_j·direct_j), given one light's
+                             part of a model: opengl_light, hall_light, two_sided_light,
+                             cook_torrance_light, or a function of your own with their arguments
     light_visibility         V_j: the RGB share of light j that reaches P past the
                              shadow casters (shadow maps or shadow rays, §11, §21):
                              ``light_visibility(uniforms.lighting, j, P)``
@@ -183,6 +186,7 @@ from softpipe.light.lighting import (
                    beckmann_d,
                    blinn_phong_specular,
                    cook_torrance,
+                   cook_torrance_light,
                    cook_torrance_lighting,
                    emission,
                    fresnel,
@@ -192,16 +196,20 @@ from softpipe.light.lighting import (
                    geometry_g,
                    gooch,
                    half_vector,
+                   hall_light,
                    hall_local,
                    hall_transmission,
                    lambert,
                    light_at,
                    light_colors,
+                   opengl_light,
                    opengl_lighting,
                    phong_specular,
                    positive_power,
                    spot_factor,
+                   sum_over_lights,
                    transmitted_half_vector,
+                   two_sided_light,
                    two_sided_lighting,
 )
 from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform
@@ -267,7 +275,8 @@ __all__ = [
     "fresnel_rs_rp", "fresnel", "fresnel_schlick", "fresnel_directions",
     "beckmann_d", "geometry_g", "cook_torrance", "cook_torrance_lighting", "gooch",
     # the packed lights
-    "light_at", "light_vec3", "light_colors", "light_visibility", "casts_shadows",
+    "light_at", "light_vec3", "light_colors", "sum_over_lights",
+    "opengl_light", "hall_light", "two_sided_light", "cook_torrance_light", "light_visibility", "casts_shadows",
     "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR", "LIGHT_POSITION",
     "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF", "LIGHT_SPOT_EXPONENT",
     "LIGHT_COLUMNS", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",

@@ -6,6 +6,9 @@
 - No import circle among softpipe's modules.
 - The stages import only earlier stages (STAGES, the order of softpipe/pipeline/):
   a stage never imports a later one, directly or through another module.
+- No private name crosses a module: nothing imports a name that starts with ``_`` from
+  another softpipe module, or reaches one as ``module._name``; and a module that lists
+  its ``__all__`` lists every name another module imports from it.
 - Generated shader modules import only the contract (softpipe.language.contract), the
   module that generated them (softpipe.language.kernels), which names in its own
   imports everything the generated code calls, and the triangle setup.
@@ -13,6 +16,8 @@
 from __future__ import annotations
 
 import ast
+import importlib
+import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -202,3 +207,64 @@ def test_the_fast_path_and_the_reference_share_one_triangle_setup():
     for field in ("edges", "bias", "area", "plane", "box"):
         assert np.array_equal(getattr(a, field), getattr(b, field)), field
     assert call.path_taken == "fast" and ref.path_taken == "reference"
+
+
+def _names_crossing_modules(path: Path):
+    """(line, module, name) for every name a file takes from another softpipe module: each
+    ``from softpipe.x import name`` and each ``alias.name`` where alias is a softpipe module
+    imported by the file (``from softpipe.views import pictures as P`` … ``P.name``)."""
+    tree = ast.parse(path.read_text())
+    modules = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("softpipe") \
+                and not node.level:
+            for alias in node.names:
+                yield node.lineno, node.module, alias.name
+                full = f"{node.module}.{alias.name}"
+                if importlib.util.find_spec(full.split(".")[0]) and _is_module(full):
+                    modules[alias.asname or alias.name] = full
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("softpipe.") and alias.asname:
+                    modules[alias.asname] = alias.name
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in modules:
+            yield node.lineno, modules[node.value.id], node.attr
+
+
+def _is_module(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:
+        return False
+
+
+def test_no_private_name_crosses_a_module():
+    crossing = [f"{path.relative_to(PACKAGE.parent)}:{line}: {module}.{name}"
+                for path in sorted(PACKAGE.rglob("*.py"))
+                for line, module, name in _names_crossing_modules(path)
+                if name.startswith("_") and not name.startswith("__")]
+    assert not crossing, "private names used outside their module:\n" + "\n".join(crossing)
+
+
+def test_a_modules_all_lists_what_the_others_import_from_it():
+    missing = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for line, module, name in _names_crossing_modules(path):
+            target = importlib.import_module(module)
+            public = getattr(target, "__all__", None)
+            if public is None or hasattr(target, "__path__") and _is_module(f"{module}.{name}"):
+                continue
+            if name not in public and not name.startswith("__"):
+                missing.append(f"{path.relative_to(PACKAGE.parent)}:{line}: {module}.{name}")
+    assert not missing, "imported but not in the module's __all__:\n" + "\n".join(missing)
+
+
+def test_the_crossing_check_sees_a_private_import_and_a_private_attribute(tmp_path):
+    """The check above must be able to fail: on a made-up file it finds both forms."""
+    fake = tmp_path / "fake.py"
+    fake.write_text("from softpipe.light.texture import _wrap\nfrom softpipe.views import pictures as P\n"
+                    "P._to_image_xy(None, 1)\n")
+    found = {(module, name) for _, module, name in _names_crossing_modules(fake)}
+    assert ("softpipe.light.texture", "_wrap") in found
+    assert ("softpipe.views.pictures", "_to_image_xy") in found

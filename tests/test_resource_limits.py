@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from softpipe.light import texture
-from softpipe.light.texture import Texture2D, texture_bytes
+from softpipe.light import images
+from softpipe.light.images import texture_bytes
+from softpipe.light.texture import Texture2D
 
 
 def _png_header_only(path, width: int, height: int) -> None:
@@ -26,7 +27,7 @@ def test_a_9000_squared_png_is_refused_before_decoding_with_the_estimate(tmp_pat
     Image.new("L", (9000, 9000), 128).save(path)           # a few kilobytes on disk
     assert path.stat().st_size < 200_000
     need = texture_bytes(9000, 9000)
-    assert need == 9000 * 9000 * texture.PEAK_BYTES_PER_TEXEL
+    assert need == 9000 * 9000 * images.PEAK_BYTES_PER_TEXEL
     with pytest.raises(ValueError, match=r"big\.png' is 9000×9000 texels, which needs about 8\.3 GiB .* limit of "
                                          r"2\.0 GiB"):
         Texture2D(path)
@@ -39,7 +40,7 @@ def test_the_limit_is_per_texture_and_global(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match=r"64×32 texels.*max_bytes"):
         Texture2D(path, max_bytes=texture_bytes(64, 32) - 1)
     assert Texture2D(path, max_bytes=texture_bytes(64, 32)).height == 32
-    monkeypatch.setattr(texture, "MAX_TEXTURE_BYTES", 1000)
+    monkeypatch.setattr(images, "MAX_TEXTURE_BYTES", 1000)
     with pytest.raises(ValueError, match="limit of 0.0 GiB"):
         Texture2D(path)
     with pytest.raises(ValueError, match=r"array of shape \(32, 64, 3\)"):

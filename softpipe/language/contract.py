@@ -34,7 +34,8 @@ from typing import Any, Callable, Dict, Mapping, Sequence, Tuple
 import numpy as np
 
 __all__ = ["FragInfo", "DISCARD", "Derivatives", "ShaderError", "make_uniforms", "VaryingLayout", "QUALIFIERS",
-           "wants_derivatives", "reads_uniforms", "declared_uniforms"]
+           "wants_derivatives", "reads_uniforms", "declared_uniforms",
+           "check_name", "field_size", "python_function", "shader_name", "uniforms_class_field_names"]
 
 #: The fragment's fixed-function inputs (``gl_FragCoord`` and friends).
 FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id"])
@@ -97,7 +98,8 @@ def _uniforms_class_name(names: Sequence[str]) -> str:
     return "Uniforms_" + "_".join(f"{len(n)}{n}" for n in names)
 
 
-def _names_from_class_name(attr: str) -> list:
+def uniforms_class_field_names(attr: str) -> list:
+    """The field names spelled out in a uniforms class's name (the inverse of its naming)."""
     rest, names = attr[len("Uniforms_"):], []
     while rest:
         digits = len(rest) - len(rest.lstrip("0123456789"))
@@ -128,7 +130,7 @@ def _uniforms_class(names: Sequence[str]) -> type:
 def __getattr__(attr: str):
     # Unpickling a cached kernel's signature asks for Uniforms_… classes by name.
     if attr.startswith("Uniforms_"):
-        return _uniforms_class(_names_from_class_name(attr))
+        return _uniforms_class(uniforms_class_field_names(attr))
     raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
@@ -245,7 +247,8 @@ class VaryingLayout:
         return out
 
 
-def _field_size(name: str, what: str, value) -> int:
+def field_size(name: str, what: str, value) -> int:
+    """How many floats a varying or uniform field holds (1 to 4), or a ShaderError naming it."""
     if isinstance(value, (int, float, np.integer, np.floating, bool)):
         return 1
     if isinstance(value, tuple) and 2 <= len(value) <= 4 and all(

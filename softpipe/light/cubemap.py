@@ -39,17 +39,13 @@ import numpy as np
 from numba import njit
 
 from softpipe.language.glsl import mix
+from softpipe.light.images import build_mipmaps, check_array, check_size, choose, load_image
 from softpipe.light.material import MEDIA
 from softpipe.light.texture import (
     FILTER_BILINEAR,
     FILTER_NEAREST,
     FILTER_NEAREST_MIPMAP,
     FILTERS,
-    _build_mipmaps,
-    _check_array,
-    _check_size,
-    _choose,
-    _load_image,
 )
 
 __all__ = ["CubeMap", "CubeUniform", "texture_cube", "texture_cube_lod", "texture_cube_grad", "cube_level_of_detail",
@@ -396,11 +392,11 @@ def _bordered(faces: np.ndarray) -> np.ndarray:
 
 def _as_face(source, k: int, max_bytes) -> np.ndarray:
     if isinstance(source, (str, os.PathLike)):
-        return _load_image(source, max_bytes)
+        return load_image(source, max_bytes)
     a = np.asarray(source)
     if a.ndim >= 2:
-        _check_size(f"face {FACES[k]} (shape {a.shape})", a.shape[1], a.shape[0], max_bytes)
-    return _check_array(a)
+        check_size(f"face {FACES[k]} (shape {a.shape})", a.shape[1], a.shape[0], max_bytes)
+    return check_array(a)
 
 
 class CubeMap:
@@ -431,14 +427,14 @@ class CubeMap:
         if len(faces) != 6:
             raise ValueError(f"CubeMap: needs six faces (+x, -x, +y, -y, +z, -z), got {len(faces)}")
         self.filter = filter
-        self._filter = _choose("filter", filter, FILTERS)
+        self._filter = choose("filter", filter, FILTERS)
         level0 = [_as_face(f, k, max_bytes) for k, f in enumerate(faces)]
         n = level0[0].shape[0]
         for k, f in enumerate(level0):
             if f.shape[:2] != (n, n):
                 raise ValueError(f"CubeMap: every face must be square and the same size; face {FACES[k]} is "
                                  f"{f.shape[1]}×{f.shape[0]}, face +x {level0[0].shape[1]}×{n}")
-        pyramids = [_build_mipmaps(f) for f in level0]
+        pyramids = [build_mipmaps(f) for f in level0]
         self.levels = [np.stack([p[k] for p in pyramids]) for k in range(len(pyramids[0]))]
         for lv in self.levels:
             lv.flags.writeable = False
@@ -468,9 +464,9 @@ class CubeMap:
         module docstring's. ``size`` is the face width (default W/4, at least 1).
         """
         if isinstance(image, (str, os.PathLike)):
-            pano = _load_image(image, options.get("max_bytes"))
+            pano = load_image(image, options.get("max_bytes"))
         else:
-            pano = _check_array(image)
+            pano = check_array(image)
         h, w = pano.shape[:2]
         size = max(1, w // 4) if size is None else int(size)
         return cls.from_function(lambda d: equirectangular_lookup(pano, d), size, **options)

@@ -14,8 +14,10 @@ Colors are RGB 3-tuples multiplied per channel. Lights arrive packed in eye
 space, one row per light (``softpipe.light.material.pack_lights``; columns :mod:`softpipe.light.packed`),
 in the ``lighting`` uniform (a :class:`~softpipe.light.material.LightingUniform`: the
 global ambient, the packed lights and their shadow maps). The sums over lights
-(:func:`opengl_lighting`, :func:`hall_local`, :func:`cook_torrance_lighting`)
-multiply light j's diffuse and specular terms by its visibility V_j
+(:func:`opengl_lighting`, :func:`hall_local`, :func:`two_sided_lighting`,
+:func:`cook_torrance_lighting`) are one loop, :func:`sum_over_lights`, to which each model
+gives its own part for one light (``opengl_light``, …); it multiplies light j's diffuse
+and specular terms by its visibility V_j
 (:func:`~softpipe.light.shadowmap.light_visibility`; FORMULAS §11 and §21): 1 without shadows, 0 in a
 shadow, a color behind glass. Ambient terms are not shadowed (§10).
 
@@ -64,6 +66,7 @@ __all__ = [
     "positive_power", "b_factor", "half_vector",
     "emission", "ambient", "lambert", "phong_specular", "blinn_phong_specular",
     "attenuation", "spot_factor", "light_at", "light_colors",
+    "sum_over_lights", "opengl_light", "hall_light", "two_sided_light", "cook_torrance_light",
     "opengl_lighting",
     "transmitted_half_vector", "hall_transmission", "hall_local", "fresnel_directions",
     "two_sided_lighting",
@@ -225,6 +228,30 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
 
 
 @njit(cache=True, inline="always")
+def sum_over_lights(light_terms, P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
+                    color: Color, option) -> Color:
+    """``color`` + Σ_j f_j · (ambient_j + V_j · direct_j): every lit model's sum over lights, once.
+
+    ``light_terms(P, N, V, material, lights, j, option)`` is a model's own part: it returns
+    light j's weight f_j, its ambient term, its direct terms and whether light reaches the
+    surface at all (B_j = 1; only then is there light to shadow). The sum multiplies the
+    direct terms by light j's visibility V_j when the light casts shadows
+    (:func:`~softpipe.light.shadowmap.light_visibility`, FORMULAS §11, §21); the ambient
+    term is never shadowed (§10). ``option`` is the model's parameter (§10's specular
+    model, §13's η). The models pass their part as a function: numba compiles one loop per
+    model with the part inlined, and each model keeps the order of its arithmetic, so the
+    sum gives the same bytes a loop of the model's own would.
+    """
+    lights = lighting.lights
+    for j in range(lights.shape[0]):
+        f, ambient_j, direct, reached = light_terms(P, N, V, material, lights, j, option)
+        if reached and casts_shadows(lighting, j):
+            direct = mul(direct, light_visibility(lighting, j, P))
+        color = add(color, scale(add(ambient_j, direct), f))
+    return color
+
+
+@njit(cache=True, inline="always")
 def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
                     specular_model: int) -> Color:
     """The OpenGL lighting equation, summed over all lights (FORMULAS §10), with shadows.
@@ -249,23 +276,24 @@ def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighti
         BLINN_PHONG or PHONG.
     """
     m = material
-    lights = lighting.lights
     color = add(emission(m.ke), ambient(m.ka, lighting.global_ambient))
-    for j in range(lights.shape[0]):
-        L, f = light_at(P, lights, j)
-        Ia, Id, Is = light_colors(lights, j)
-        term = ambient(m.ka, Ia)
-        if f > 0.0 and dot(N, L) > 0.0:  # B_j = 1: the only case with light to shadow
-            if specular_model == PHONG:
-                specular = phong_specular(m.ks, Is, N, L, V, m.shininess)
-            else:
-                specular = blinn_phong_specular(m.ks, Is, N, L, V, m.shininess)
-            lit = add(lambert(m.kd, Id, N, L), specular)
-            if casts_shadows(lighting, j):
-                lit = mul(lit, light_visibility(lighting, j, P))
-            term = add(term, lit)
-        color = add(color, scale(term, f))
-    return color
+    return sum_over_lights(opengl_light, P, N, V, m, lighting, color, specular_model)
+
+
+@njit(cache=True, inline="always")
+def opengl_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, j: int,
+                 specular_model: int) -> Tuple[float, Color, Color, bool]:
+    """Light j's part of §10 (for :func:`sum_over_lights`): f_j, ka·I_a,j, and where B_j = 1
+    kd·I_d,j·(N·L_j) + ks·I_s,j·spec_j."""
+    L, f = light_at(P, lights, j)
+    Ia, Id, Is = light_colors(lights, j)
+    if not (f > 0.0 and dot(N, L) > 0.0):
+        return f, ambient(m.ka, Ia), ZERO3, False
+    if specular_model == PHONG:
+        specular = phong_specular(m.ks, Is, N, L, V, m.shininess)
+    else:
+        specular = blinn_phong_specular(m.ks, Is, N, L, V, m.shininess)
+    return f, ambient(m.ka, Ia), add(lambert(m.kd, Id, N, L), specular), True
 
 
 # --------------------------------------------------------------------------
@@ -335,22 +363,22 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
     k_t·I_t·T_t^{d_t} with I_r, I_t from the reflected and refracted rays and the
     falloff of :func:`softpipe.rays.queries.medium_falloff`.
     """
-    m = material
-    lights = lighting.lights
-    color = ambient(m.ka, lighting.global_ambient)
-    for j in range(lights.shape[0]):
-        L, f = light_at(P, lights, j)
-        Ia, Id, Is = light_colors(lights, j)
-        term = ambient(m.ka, Ia)
-        if f > 0.0:
-            reflected = add(blinn_phong_specular(m.ks, Is, N, L, V, m.shininess), lambert(m.kd, Id, N, L))
-            transmitted = hall_transmission(m.kt, Is, N, L, V, eta, m.transmission_shininess)
-            lit = add(reflected, transmitted)
-            if casts_shadows(lighting, j):
-                lit = mul(lit, light_visibility(lighting, j, P))
-            term = add(term, lit)
-        color = add(color, scale(term, f))
-    return color
+    color = ambient(material.ka, lighting.global_ambient)
+    return sum_over_lights(hall_light, P, N, V, material, lighting, color, eta)
+
+
+@njit(cache=True, inline="always")
+def hall_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, j: int,
+               eta: float) -> Tuple[float, Color, Color, bool]:
+    """Light j's part of §13 (for :func:`sum_over_lights`): f_j, ka·I_a,j, and the reflected
+    and transmitted terms (each with its own B_j or B′_j) where f_j > 0."""
+    L, f = light_at(P, lights, j)
+    Ia, Id, Is = light_colors(lights, j)
+    if not f > 0.0:
+        return f, ambient(m.ka, Ia), ZERO3, False
+    reflected = add(blinn_phong_specular(m.ks, Is, N, L, V, m.shininess), lambert(m.kd, Id, N, L))
+    transmitted = hall_transmission(m.kt, Is, N, L, V, eta, m.transmission_shininess)
+    return f, ambient(m.ka, Ia), add(reflected, transmitted), True
 
 
 # --------------------------------------------------------------------------
@@ -376,30 +404,31 @@ def two_sided_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lig
     specular lobe too; §10 (:func:`opengl_lighting`) does neither. There is no
     emission k_e and no k_a in §11: the ambient term is ρ_d·L_a.
     """
-    m = material
-    lights = lighting.lights
-    color = mul(m.kd, lighting.global_ambient)
-    for i in range(lights.shape[0]):
-        position = light_vec3(lights, i, LIGHT_POSITION)
-        if lights[i, LIGHT_KIND] == LIGHT_DIRECTIONAL:
-            L, response = position, 1.0
-        else:
-            to_light = sub(position, P)
-            r2 = dot(to_light, to_light)
-            L = normalize(to_light)
-            response = 1.0 / r2 if r2 > MIN_ATTENUATION_DENOMINATOR else 1.0 / MIN_ATTENUATION_DENOMINATOR
-            response *= spot_factor(L, light_vec3(lights, i, LIGHT_SPOT_DIRECTION),
-                                    lights[i, LIGHT_SPOT_COS_CUTOFF], lights[i, LIGHT_SPOT_EXPONENT])
-        cos_l = abs(dot(N, L))
-        if response <= 0.0 or cos_l == 0.0:
-            continue
-        H = half_vector(L, V)
-        rho = add(m.kd, scale(m.ks, positive_power(dot(N, H), m.shininess)))   # ρ_d + ρ_s(N·H)
-        lit = scale(mul(rho, light_vec3(lights, i, LIGHT_DIFFUSE)), response * cos_l)
-        if casts_shadows(lighting, i):
-            lit = mul(lit, light_visibility(lighting, i, P))
-        color = add(color, lit)
-    return color
+    color = mul(material.kd, lighting.global_ambient)
+    return sum_over_lights(two_sided_light, P, N, V, material, lighting, color, 0.0)
+
+
+@njit(cache=True, inline="always")
+def two_sided_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, i: int,
+                    unused: float) -> Tuple[float, Color, Color, bool]:
+    """Light i's part of §11 (for :func:`sum_over_lights`): (ρ_d + ρ_s(N·H_i))·L_i·|N·L_i|,
+    with weight 1 and no ambient term of its own (L_i holds the falloff)."""
+    position = light_vec3(lights, i, LIGHT_POSITION)
+    if lights[i, LIGHT_KIND] == LIGHT_DIRECTIONAL:
+        L, response = position, 1.0
+    else:
+        to_light = sub(position, P)
+        r2 = dot(to_light, to_light)
+        L = normalize(to_light)
+        response = 1.0 / r2 if r2 > MIN_ATTENUATION_DENOMINATOR else 1.0 / MIN_ATTENUATION_DENOMINATOR
+        response *= spot_factor(L, light_vec3(lights, i, LIGHT_SPOT_DIRECTION),
+                                lights[i, LIGHT_SPOT_COS_CUTOFF], lights[i, LIGHT_SPOT_EXPONENT])
+    cos_l = abs(dot(N, L))
+    if response <= 0.0 or cos_l == 0.0:
+        return 1.0, ZERO3, ZERO3, False
+    H = half_vector(L, V)
+    rho = add(m.kd, scale(m.ks, positive_power(dot(N, H), m.shininess)))   # ρ_d + ρ_s(N·H)
+    return 1.0, ZERO3, scale(mul(rho, light_vec3(lights, i, LIGHT_DIFFUSE)), response * cos_l), True
 
 
 # --------------------------------------------------------------------------
@@ -544,23 +573,23 @@ def cook_torrance_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform,
     (n1 = 1) into ``material.ior``: a material with ior = 1 has no specular term.
     The diffuse term is §3's (no 1/π), so switching from §10 keeps its brightness.
     """
-    mt = material
-    lights = lighting.lights
-    color = add(emission(mt.ke), ambient(mt.ka, lighting.global_ambient))
-    for j in range(lights.shape[0]):
-        L, f = light_at(P, lights, j)
-        Ia, Id, Is = light_colors(lights, j)
-        term = ambient(mt.ka, Ia)
-        n_dot_l = dot(N, L)
-        if f > 0.0 and n_dot_l > 0.0:  # B_j = 1
-            f_s = cook_torrance(N, L, V, mt.roughness, 1.0, mt.ior)
-            lit = add(mul(mt.kd, Id), scale(mul(mt.ks, Is), f_s))
-            lit = scale(lit, n_dot_l)
-            if casts_shadows(lighting, j):
-                lit = mul(lit, light_visibility(lighting, j, P))
-            term = add(term, lit)
-        color = add(color, scale(term, f))
-    return color
+    color = add(emission(material.ke), ambient(material.ka, lighting.global_ambient))
+    return sum_over_lights(cook_torrance_light, P, N, V, material, lighting, color, 0.0)
+
+
+@njit(cache=True, inline="always")
+def cook_torrance_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, j: int,
+                        unused: float) -> Tuple[float, Color, Color, bool]:
+    """Light j's part of §10 with Cook-Torrance (for :func:`sum_over_lights`): f_j, ka·I_a,j,
+    and where B_j = 1 (N·L_j)·(kd·I_d,j + ks·I_s,j·f_s,j)."""
+    L, f = light_at(P, lights, j)
+    Ia, Id, Is = light_colors(lights, j)
+    n_dot_l = dot(N, L)
+    if not (f > 0.0 and n_dot_l > 0.0):
+        return f, ambient(m.ka, Ia), ZERO3, False
+    f_s = cook_torrance(N, L, V, m.roughness, 1.0, m.ior)
+    lit = add(mul(m.kd, Id), scale(mul(m.ks, Is), f_s))
+    return f, ambient(m.ka, Ia), scale(lit, n_dot_l), True
 
 
 @njit(cache=True)

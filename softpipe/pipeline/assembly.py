@@ -34,7 +34,8 @@ from softpipe.language.contract import VaryingLayout
 from softpipe.pipeline.transforms import Viewport
 from softpipe.pipeline.vertex import VertexOut
 
-__all__ = ["Primitives", "assemble", "triangle_indices", "TOPOLOGIES", "CULL_MODES", "FRONT_FACES"]
+__all__ = ["Primitives", "assemble", "triangle_indices", "TOPOLOGIES", "CULL_MODES", "FRONT_FACES",
+           "GUARD_PIXELS"]
 
 TOPOLOGIES = ("triangles", "triangle_strip", "triangle_fan")
 CULL_MODES = ("none", "back", "front")

@@ -48,8 +48,7 @@ from softpipe.pipeline.raster import Fragments, count_fragments, rasterize
 from softpipe.pipeline.setup import SHADING_POSITIONS, apply_polygon_offset, pixel_rect, setup_triangles
 from softpipe.pipeline.transforms import Viewport
 from softpipe.pipeline.vertex import run_vertex_stage
-from softpipe.pipeline.visibility import (  # noqa: F401
-    FAST_PATH_MIN_SAMPLES,
+from softpipe.pipeline.visibility import (
     PATHS,
     DiscardOnFastPath,
     choose_path,

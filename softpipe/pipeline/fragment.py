@@ -27,7 +27,8 @@ from softpipe.language.contract import wants_derivatives
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.raster import Fragments
 
-__all__ = ["ShadedFragments", "run_fragment_stage", "default_fragment_shader", "color_rgb", "color_rgba"]
+__all__ = ["ShadedFragments", "run_fragment_stage", "default_fragment_shader", "color_rgb", "color_rgba",
+           "derivative_gradients"]
 
 
 @dataclass

@@ -25,7 +25,8 @@ from softpipe.pipeline.fragment import ShadedFragments
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.raster import Fragments
 
-__all__ = ["MergeState", "MergeResult", "merge", "DEPTH_FUNCS", "BLEND_FACTORS", "VERDICTS"]
+__all__ = ["MergeState", "MergeResult", "merge", "DEPTH_FUNCS", "BLEND_FACTORS", "VERDICTS",
+           "depth_passes"]
 
 #: OpenGL's eight depth compare functions: the fragment passes if ``z_frag OP z_stored``.
 DEPTH_FUNCS = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always")

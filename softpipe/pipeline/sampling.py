@@ -13,7 +13,8 @@ from typing import Sequence, Tuple
 import numpy as np
 
 __all__ = ["SamplePattern", "CENTER", "MAX_SAMPLES", "grid", "rotated_grid_4x", "jittered", "random_pattern",
-           "pattern_named"]
+           "pattern_named",
+           "SUBPIXEL"]
 
 #: Subpixel precision of the rasterizer: 8 bits, 1/256 pixel (docs/design.md, "Rasterization rules").
 SUBPIXEL_BITS = 8

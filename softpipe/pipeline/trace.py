@@ -32,25 +32,12 @@ import numpy as np
 
 from softpipe.language import kernels
 from softpipe.language.contract import python_function
+from softpipe.language.kernels.diagnostics import plain_value
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, derivative_gradients
 from softpipe.pipeline.output import VERDICTS, MergeResult
 from softpipe.pipeline.raster import Fragments
 
 __all__ = ["Trace", "PixelEvent", "PixelHistory"]
-
-
-def _plain(value):
-    """numpy scalars → Python floats, bools and ints (the same values, easier to read in pdb)."""
-    if isinstance(value, tuple):
-        items = [_plain(v) for v in value]
-        return type(value)(*items) if hasattr(value, "_fields") else tuple(items)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.floating):
-        return float(value)
-    return value
 
 
 def _concat(parts, cls, fields):
@@ -261,7 +248,7 @@ class Trace:
             self._grad = derivative_gradients(self.fragment_shader, f.setup)
         out = module.fragment_inputs(index, f.triangle, f.frag_x, f.frag_y, f.depth, f.bary, p.inv_w, p.varyings,
                                      p.front_facing, p.primitive_id, self._grad)
-        return (_plain(out[0]), self.call.uniforms) + tuple(_plain(o) for o in out[1:])
+        return (plain_value(out[0]), self.call.uniforms) + tuple(plain_value(o) for o in out[1:])
 
     def debug_fragment(self, x: int, y: int, which: Optional[int] = None, sample: Optional[int] = None,
                        index: Optional[int] = None):

@@ -21,7 +21,8 @@ from softpipe.core.parallel import in_bands
 from softpipe.language import kernels
 from softpipe.language.contract import VaryingLayout, check_name, declared_uniforms
 
-__all__ = ["VertexOut", "run_vertex_stage"]
+__all__ = ["VertexOut", "run_vertex_stage",
+           "MAX_VERTICES"]
 
 MAX_VERTICES = 1 << 26
 

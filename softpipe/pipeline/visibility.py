@@ -52,7 +52,8 @@ from softpipe.pipeline.setup import (
 from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
-           "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail"]
+           "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
+           "visible_loop_args"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).

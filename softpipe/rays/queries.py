@@ -37,7 +37,8 @@ from numba import njit
 from softpipe.rays.bvh import closest_hit, scene_bvh
 
 __all__ = ["RayScene", "RaySceneUniform", "transmission_of", "trace_closest", "trace_any",
-           "hit_position", "hit_normal", "ray_visibility", "medium_falloff", "MAX_TRANSPARENT_LAYERS", "EPSILON_SCALE"]
+           "hit_position", "hit_normal", "ray_visibility", "medium_falloff", "MAX_TRANSPARENT_LAYERS", "EPSILON_SCALE",
+           "point_to_world", "direction_to_world"]
 
 #: A shadow ray passes at most this many transparent surfaces before it counts as blocked.
 MAX_TRANSPARENT_LAYERS = 64
@@ -162,14 +163,16 @@ class RayScene:
 # ------------------------------------------------------------------ in shaders
 
 @njit(cache=True, inline="always")
-def _point_to_world(M, p):
+def point_to_world(M, p):
+    """The 3-D point M·(p, 1) for a 4×4 (or 3×4) matrix M: a point carried by an affine map."""
     return (M[0, 0] * p[0] + M[0, 1] * p[1] + M[0, 2] * p[2] + M[0, 3],
             M[1, 0] * p[0] + M[1, 1] * p[1] + M[1, 2] * p[2] + M[1, 3],
             M[2, 0] * p[0] + M[2, 1] * p[1] + M[2, 2] * p[2] + M[2, 3])
 
 
 @njit(cache=True, inline="always")
-def _direction_to_world(M, d):
+def direction_to_world(M, d):
+    """The 3-D direction M·(d, 0): a direction carried by an affine map (no translation, not renormalized)."""
     return (M[0, 0] * d[0] + M[0, 1] * d[1] + M[0, 2] * d[2],
             M[1, 0] * d[0] + M[1, 1] * d[1] + M[1, 2] * d[2],
             M[2, 0] * d[0] + M[2, 1] * d[1] + M[2, 2] * d[2])
@@ -182,7 +185,7 @@ def trace_closest(scene, origin, direction, t_min, t_max):
     ``triangle`` is −1 for a miss. The hit point is :func:`hit_position`.
     """
     M = scene.to_world
-    return closest_hit(scene.bvh, _point_to_world(M, origin), _direction_to_world(M, direction), t_min, t_max)
+    return closest_hit(scene.bvh, point_to_world(M, origin), direction_to_world(M, direction), t_min, t_max)
 
 
 @njit(cache=True)
@@ -242,7 +245,7 @@ def ray_visibility(scene, P, L, t_max):
     hit on its back, so objects are taken as closed; air outside is clear (T = 1).
     """
     M = scene.to_world
-    o, d = _point_to_world(M, P), _direction_to_world(M, L)
+    o, d = point_to_world(M, P), direction_to_world(M, L)
     eps = scene.epsilon
     red, green, blue = 1.0, 1.0, 1.0
     t0, last, entered = eps, -1, 0.0

@@ -50,7 +50,8 @@ from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
 from softpipe.scenes.shadow_pass import render_shadow_maps
 
 __all__ = ["standard_uniforms", "draw_mesh", "render_scene", "DrawResult", "as_mesh", "prepare_scene", "render",
-           "turntable", "input_kind", "default_lighting", "gif_frame"]
+           "turntable", "input_kind", "default_lighting", "gif_frame",
+           "MAX_FRAMES", "RENDER_SIZE", "TURNTABLE_SIZE", "animation_format", "frame_duration"]
 
 FRONT_FACES = ("ccw", "cw")
 CULL_MODES = ("back", "front", "none")

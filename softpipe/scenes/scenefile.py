@@ -51,22 +51,12 @@ from softpipe.scenes import shapes
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.models import MODELS, load_model, model_path, texture_path
 from softpipe.scenes.obj import OBJError, load_obj
-
-# default_program, program_for and studio_lights are not used here: they lived here
-# once, and old ``scenefile.studio_lights`` callers keep working.
-from softpipe.scenes.scene import (  # noqa: F401
-    FrameSpec,
-    Scene,
-    SceneObject,
-    default_program,
-    framed_camera,
-    program_for,
-    studio_lights,
-)
+from softpipe.scenes.scene import FrameSpec, Scene, SceneObject, framed_camera
 
 __all__ = ["SceneError", "SceneWarning", "load_scene", "parse_scene", "MAX_SCENE_TRIANGLES", "SHAPES",
            # for the readers of other files that name scenes' parts (softpipe.tools.batch's jobs)
-           "SceneReader", "program_name", "pattern_name", "shape_params", "bundled_model", "is_bare_word"]
+           "SceneReader", "program_name", "pattern_name", "shape_params", "bundled_model", "is_bare_word",
+           "MATERIAL_KEYS"]
 
 #: The most triangles all the meshes of one scene may hold together.
 MAX_SCENE_TRIANGLES = 4_000_000

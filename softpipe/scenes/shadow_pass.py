@@ -56,7 +56,8 @@ from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.transforms import frustum, look_at, orthographic, transform_points
 from softpipe.rays.queries import RayScene, transmission_of
 
-__all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of"]
+__all__ = ["ShadowCaster", "ShadowMap", "ShadowMaps", "render_shadow_maps", "light_frusta", "casters_of",
+           "CUBE_FACES"]
 
 # Directions of a cube map's faces, with an up vector for each (any that is not parallel will do:
 # a face is looked up by projecting with its own matrices, not by a face convention).

@@ -49,7 +49,7 @@ from softpipe.light.shadowmap import SHADOW_RAY, ShadowUniform
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.rays.bvh import closest_hit
-from softpipe.rays.queries import RayScene, _direction_to_world, _point_to_world, hit_normal, medium_falloff
+from softpipe.rays.queries import RayScene, direction_to_world, hit_normal, medium_falloff, point_to_world
 
 __all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "tracer_uniform", "trace_ray", "RayTracer", "RayTree",
            "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
@@ -235,8 +235,8 @@ def trace_ray(tracer, origin, direction, weight):
     """
     if max(weight[0], weight[1], weight[2]) < tracer.min_weight or tracer.max_depth < 1:
         return 0.0, 0.0, 0.0
-    o = _point_to_world(tracer.to_world, origin)
-    d = _unit(_direction_to_world(tracer.to_world, direction))
+    o = point_to_world(tracer.to_world, origin)
+    d = _unit(direction_to_world(tracer.to_world, direction))
     r, g, b, _ = _trace_tree(tracer, o, d, 1, 1, weight, np.inf, np.empty((0, _RECORD_COLUMNS)))
     return r, g, b
 

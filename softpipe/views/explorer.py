@@ -148,24 +148,24 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
     pics["vertices"] = img
     img = np.zeros((h, w, 3), np.uint8)                 # layer by layer across the draws, as for one
     for t in traces:
-        P._wire(img, t.primitives.culled_window, h, P.RED)
+        P.draw_triangle_outlines(img, t.primitives.culled_window, h, P.RED)
     for t in traces:
-        P._wire(img, P._cut_outlines(t), h, P.ORANGE)
+        P.draw_triangle_outlines(img, P.cut_outlines(t), h, P.ORANGE)
     for t in traces:
-        P._wire(img, t.primitives.window[~t.primitives.clipped], h, P.WHITE)
+        P.draw_triangle_outlines(img, t.primitives.window[~t.primitives.clipped], h, P.WHITE)
     for t in traces:
-        P._wire(img, t.primitives.window[t.primitives.clipped], h, P.CYAN)
+        P.draw_triangle_outlines(img, t.primitives.window[t.primitives.clipped], h, P.CYAN)
     pics["primitives"] = img
     img = np.zeros((h, w, 3), np.uint8)                 # the last fragment written, across the draws
     offset = 0
     for t in traces:
         f, wr = t.fragments, t.written()
         if wr.any():
-            img[f.y[wr], f.x[wr]] = P._id_colors(offset + f.primitive_id[wr])
+            img[f.y[wr], f.x[wr]] = P.id_colors(offset + f.primitive_id[wr])
         offset += int(t.primitives.input_count)
     pics["coverage"] = img
     pics["depth"] = each[-1]["depth"]                   # one framebuffer: its depth and color after the last
-    pics["overdraw"] = P._heat(sum(P.overdraw(t) for t in traces))
+    pics["overdraw"] = P.heat_colors(sum(P.overdraw(t) for t in traces))
     pics["final"] = each[-1]["final"]
     for p in each:
         for name, img in p.items():

@@ -38,7 +38,8 @@ from typing import Any, Dict, Sequence, Tuple
 import numpy as np
 
 __all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "overdraw", "PICTURES",
-           "HEAT_STOPS", "OVERDRAW_DEFINITION"]
+           "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "cut_outlines", "id_colors", "heat_colors",
+           "WHITE", "CYAN", "ORANGE", "RED", "YELLOW"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
 
@@ -73,7 +74,8 @@ def draw_segments(img: np.ndarray, a: np.ndarray, b: np.ndarray, color) -> None:
     img[y[inside], x[inside]] = color
 
 
-def _wire(img, window_tris: np.ndarray, height: int, color) -> None:
+def draw_triangle_outlines(img, window_tris: np.ndarray, height: int, color) -> None:
+    """Draw the outline of each window-space triangle [n, 3, ≥2] into the RGB image ``img``."""
     if len(window_tris) == 0:
         return
     p = _to_image_xy(window_tris[:, :, :2], height)
@@ -81,7 +83,7 @@ def _wire(img, window_tris: np.ndarray, height: int, color) -> None:
         draw_segments(img, p[:, k], p[:, (k + 1) % 3], color)
 
 
-def _id_colors(ids: np.ndarray) -> np.ndarray:
+def id_colors(ids: np.ndarray) -> np.ndarray:
     """A stable, well-spread color per integer id (golden-ratio hues)."""
     hue = (ids.astype(np.float64) * 0.6180339887498949) % 1.0
     k = (np.array([5.0, 3.0, 1.0])[None, :] + hue[:, None] * 6.0) % 6.0
@@ -97,7 +99,7 @@ HEAT_STOPS = np.array([[0, 0, 0], [40, 60, 220], [40, 200, 80], [240, 220, 40], 
 OVERDRAW_DEFINITION = "overdraw = covered samples / samples per pixel"
 
 
-def _heat(counts: np.ndarray) -> np.ndarray:
+def heat_colors(counts: np.ndarray) -> np.ndarray:
     """Black → blue → green → yellow → red → white for 0, 1, 2, 3, 4, ≥ 6 (linear in between)."""
     stops = HEAT_STOPS
     c = np.clip(counts.astype(np.float64), 0, len(stops) - 1)
@@ -129,16 +131,16 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
     pics["vertices"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
-    _wire(img, prims.culled_window, h, RED)          # under the rest: the back of a closed mesh
-    _wire(img, _cut_outlines(trace), h, ORANGE)
-    _wire(img, prims.window[~prims.clipped], h, WHITE)
-    _wire(img, prims.window[prims.clipped], h, CYAN)
+    draw_triangle_outlines(img, prims.culled_window, h, RED)          # under the rest: the back of a closed mesh
+    draw_triangle_outlines(img, cut_outlines(trace), h, ORANGE)
+    draw_triangle_outlines(img, prims.window[~prims.clipped], h, WHITE)
+    draw_triangle_outlines(img, prims.window[prims.clipped], h, CYAN)
     pics["primitives"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
     written = trace.written()
     if written.any():                                  # fancy assignment: the last written fragment wins
-        img[f.y[written], f.x[written]] = _id_colors(f.primitive_id[written])
+        img[f.y[written], f.x[written]] = id_colors(f.primitive_id[written])
     pics["coverage"] = img
 
     depth = fb.depth
@@ -148,7 +150,7 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
         g = np.where(depth < 1.0, 0.25 + 0.75 * (hi - depth) / max(hi - lo, 1e-12), 0.0)
     pics["depth"] = np.repeat((g * 255).astype(np.uint8)[..., None], 3, axis=2)
 
-    pics["overdraw"] = _heat(overdraw(trace))
+    pics["overdraw"] = heat_colors(overdraw(trace))
 
     pics["final"] = fb.to_uint8(alpha=False)
     pics.update(shadow_map_pictures(trace.call.uniforms, h, w))
@@ -199,7 +201,7 @@ def overdraw(trace) -> np.ndarray:
     return counts / max(int(getattr(trace.call.framebuffer, "samples", 1)), 1)
 
 
-def _cut_outlines(trace) -> np.ndarray:
+def cut_outlines(trace) -> np.ndarray:
     """Window coordinates of the input triangles that clipping cut, where all corners have w > 0."""
     prims = trace.primitives
     ids = np.unique(prims.primitive_id[prims.clipped])

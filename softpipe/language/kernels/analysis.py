@@ -21,7 +21,7 @@ from typing import Any, Callable, Tuple
 import numba
 import numpy as np
 
-from softpipe.language.contract import ShaderError, VaryingLayout, _field_size, python_function, shader_name
+from softpipe.language.contract import ShaderError, VaryingLayout, field_size, python_function, shader_name
 from softpipe.language.kernels.diagnostics import BadReturn, def_site, from_shader, raised_error, return_error, rgba
 from softpipe.language.kernels.snapshot import is_softpipe, nested_codes, reads, user_module
 
@@ -171,7 +171,7 @@ def probe_vertex_shader(shader: Callable, attributes, uniforms) -> Tuple[Tuple[f
     if not (isinstance(varyings, tuple) and hasattr(varyings, "_fields")):
         raise ShaderError(f"vertex shader {shader_name(shader)}: varyings must be a namedtuple, "
                           f"got {type(varyings).__name__}", **def_site(shader))
-    sizes = [(n, _field_size(n, "varying", v)) for n, v in zip(varyings._fields, varyings)]
+    sizes = [(n, field_size(n, "varying", v)) for n, v in zip(varyings._fields, varyings)]
     return clip, VaryingLayout.from_sizes(sizes)
 
 

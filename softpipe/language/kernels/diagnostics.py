@@ -32,12 +32,12 @@ import numba
 import numpy as np
 from numba.extending import overload
 
-from softpipe.language.contract import ShaderError, _names_from_class_name, python_function, shader_name
+from softpipe.language.contract import ShaderError, python_function, shader_name, uniforms_class_field_names
 from softpipe.language.kernels.cache import COMPILE_LOCK
 from softpipe.language.kernels.generate import exec_module
 from softpipe.language.kernels.snapshot import helper_kind, nested_codes, reads
 
-__all__ = ["run_compiled", "vertex_site", "fragment_site", "visible_site", "rgba", "BadReturn", "return_error",
+__all__ = ["run_compiled", "plain_value", "vertex_site", "fragment_site", "visible_site", "rgba", "BadReturn", "return_error",
            "raised_error", "from_shader", "def_site"]
 
 
@@ -237,7 +237,7 @@ def _plain_types(text: str) -> str:
 def _namedtuple_fields(typename: str, kernel) -> Tuple[str, Tuple[str, ...] | None]:
     """(what a shader calls it, its fields) for a namedtuple type numba names in an error."""
     if typename.startswith("Uniforms_"):
-        return "uniforms", tuple(_names_from_class_name(typename))
+        return "uniforms", tuple(uniforms_class_field_names(typename))
     owners = {"Varyings": "varyings", "Attributes": "attributes", "FragInfo": "frag", "Derivatives": "derivatives"}
     owner = owners.get(re.sub(r"_[0-9a-f]{12}$", "", typename), typename)
     places = [getattr(getattr(kernel, "py_func", kernel), "__globals__", {})]
@@ -416,12 +416,16 @@ def _bisect(run: Callable, count: int) -> int | None:
     return None
 
 
-def _plain(value):
-    """numpy scalars (as the Python loop reads them from arrays) as Python's: 1.0 / 0.0 raises, as compiled."""
+def plain_value(value):
+    """numpy scalars in ``value`` (a tuple or named tuple, nested) as Python's, the same values.
+
+    As the Python loop reads them from arrays; as Python's, 1.0 / 0.0 raises, as compiled,
+    and they are easier to read in pdb.
+    """
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, tuple):
-        items = [_plain(v) for v in value]
+        items = [plain_value(v) for v in value]
         return type(value)(*items) if hasattr(value, "_fields") else tuple(items)
     return value
 
@@ -444,7 +448,7 @@ def _locate(kind: str, shader: Callable, kernel, count: int, run: Callable, desc
 
     def noting(*args):
         try:
-            return user(*(_plain(a) for a in args))
+            return user(*(plain_value(a) for a in args))
         except Exception as e:
             noted.update(exc=e, args=args, locals=dict(sys._getframe(1).f_locals))
             raise
