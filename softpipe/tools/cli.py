@@ -308,8 +308,8 @@ def build_parser() -> argparse.ArgumentParser:
     jobs.add_argument("-o", "--output", metavar="DIR", required=True, help="the folder for the frames")
     jobs.add_argument("--scheduler", metavar="ADDRESS",
                       help="a running Dask scheduler (tcp://host:8786), or 'serial' for this process alone")
-    jobs.add_argument("--workers", type=_size, metavar="N",
-                      help="worker processes of the LocalCluster (default: one per core)")
+    jobs.add_argument("--workers", type=_worker_count, metavar="N",
+                      help="worker processes of the LocalCluster (default: one per core; at most two per core)")
     jobs.add_argument("--dashboard", metavar="ADDRESS", nargs="?", const=":8787",
                       help="start the LocalCluster's dashboard (default :8787; needs bokeh) and print its link")
     jobs.add_argument("--force", action="store_true", help="render every frame, even those already written")
@@ -331,12 +331,24 @@ def _demo(args) -> int:
     return 0
 
 
+def _worker_count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of worker processes, got {text!r}") from None
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number of worker processes, got {v}")
+    return v
+
+
 def _batch(args) -> int:
-    from softpipe.tools.batch import batch, load_job
+    from softpipe.tools.batch import ClusterError, batch, check_local_cluster, load_job
     if args.workers is not None and args.scheduler is not None:
         raise CLIError("--workers sizes the LocalCluster; a --scheduler's cluster has its own workers")
     if args.dashboard is not None and args.scheduler is not None:
         raise CLIError("--dashboard applies to the LocalCluster; a --scheduler's cluster has its own")
+    if args.scheduler is None:
+        check_local_cluster(args.workers, args.dashboard, ("--workers ", "--dashboard "))
     if os.path.exists(args.output) and not os.path.isdir(args.output):
         raise CLIError(f"-o: {args.output} is a file, not a folder")
     job = load_job(args.job)
@@ -360,8 +372,15 @@ def _batch(args) -> int:
             print(p.line(), file=sys.stderr, flush=True)
             shown[0] = now
 
-    result = batch(job, args.output, args.scheduler, force=args.force, progress=progress, workers=args.workers,
-                   dashboard=args.dashboard, log=None if args.quiet else lambda m: _note(args, m))
+    def log(message: str) -> None:     # warnings (an OBJ's refused mtllib) even with -q
+        if not args.quiet or message.startswith("warning: "):
+            _note(args, message)
+
+    try:
+        result = batch(job, args.output, args.scheduler, force=args.force, progress=progress,
+                       workers=args.workers, dashboard=args.dashboard, log=log)
+    except ClusterError as e:
+        raise CLIError(str(e)) from None
     rate = f", {len(result.done) / result.seconds:.2f} frames/s" if result.done and result.seconds else ""
     print(f"softpipe batch: wrote {len(result.done)} frames, skipped {len(result.skipped)}, "
           f"{len(result.failed)} failed, into {Path(args.output).resolve()} ({result.seconds:.1f} s{rate}); "

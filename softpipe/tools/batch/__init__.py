@@ -24,6 +24,7 @@ from typing import Any
 from softpipe.tools.batch.job import (
     BUILTIN_LIGHTS,
     MAX_JOB_FRAMES,
+    MAX_NAME_LENGTH,
     VIEWS,
     Frame,
     Job,
@@ -39,17 +40,24 @@ from softpipe.tools.batch.run import (
     CONTACT_SHEET_MAX,
     CRASH_ONCE_ENV,
     MANIFEST,
+    MAX_MANIFEST_LINE,
     BatchProgress,
     BatchResult,
+    ClusterError,
     FrameRecord,
     batch,
+    check_local_cluster,
+    frame_params,
+    local_worker_limit,
     read_manifest,
     render_frame,
 )
 
 __all__ = ["Frame", "Job", "JobError", "LightSet", "BatchProgress", "BatchResult", "FrameRecord", "load_job",
            "parse_job", "job_from_dict", "as_job", "batch", "render_frame", "read_manifest", "VIEWS",
-           "BUILTIN_LIGHTS", "MAX_JOB_FRAMES", "MANIFEST", "CONTACT_SHEET", "CONTACT_SHEET_MAX", "CRASH_ONCE_ENV"]
+           "BUILTIN_LIGHTS", "MAX_JOB_FRAMES", "MAX_NAME_LENGTH", "MANIFEST", "MAX_MANIFEST_LINE", "CONTACT_SHEET",
+           "CONTACT_SHEET_MAX", "CRASH_ONCE_ENV", "ClusterError", "check_local_cluster", "frame_params",
+           "local_worker_limit"]
 
 
 class _CallableModule(types.ModuleType):

@@ -22,6 +22,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import math
 import os
 import re
 import warnings
@@ -51,6 +52,7 @@ from softpipe.scenes.scenefile import (
     SHAPES,
     SceneError,
     SceneReader,
+    SceneWarning,
     bundled_model,
     is_bare_word,
     pattern_name,
@@ -59,15 +61,18 @@ from softpipe.scenes.scenefile import (
 )
 
 __all__ = ["Frame", "Job", "JobError", "LightSet", "load_job", "parse_job", "job_from_dict", "as_job", "VIEWS",
-           "BUILTIN_LIGHTS", "MAX_JOB_FRAMES"]
+           "BUILTIN_LIGHTS", "MAX_JOB_FRAMES", "MAX_NAME_LENGTH"]
 
 #: Named views: (azimuth, elevation) in degrees, as :class:`~softpipe.scenes.scene.FrameSpec` has them.
 VIEWS: Dict[str, Tuple[float, float]] = {
     "front": (0.0, 0.0), "back": (180.0, 0.0), "left": (-90.0, 0.0), "right": (90.0, 0.0),
     "top": (0.0, 90.0), "bottom": (0.0, -90.0), "three-quarter": (30.0, 20.0),
 }
-#: The most frames one job may hold.
+#: The most frames one job may hold (counted before a sweep's product is made).
 MAX_JOB_FRAMES = 100_000
+#: The longest frame name: ``NAME.png`` and the temporary file it is written through
+#: (``.NAME.png.XXXXXXXX.tmp``) stay well inside a file name's 255 bytes.
+MAX_NAME_LENGTH = 160
 
 DEFAULT_AZIMUTH, DEFAULT_ELEVATION, DEFAULT_FOVY = 30.0, 20.0, 35.0
 DEFAULT_SIZE = (640, 480)
@@ -157,14 +162,16 @@ class Frame:
 
         The camera is ``az030`` (and ``el45`` when the elevation is not 20°), ``orbit030``
         for a turntable's, or the view's name. A part that had to be changed to be safe
-        in a file name (only ``A-Z a-z 0-9 . _`` are kept in the names given by a job)
-        adds ``-`` and 6 hex digits of :meth:`digest`, so names stay unique.
+        in a file name (only ``A-Z a-z 0-9 . _`` are kept in the names given by a job, and
+        at most 48 of them) adds ``-`` and 6 hex digits of :meth:`digest`, so names stay
+        unique; a name is at most :data:`MAX_NAME_LENGTH` characters (a longer one is cut
+        and gets the digest).
         """
         lossless = True
 
         def word(text: str) -> str:
             nonlocal lossless
-            safe = re.sub(r"[^A-Za-z0-9._]+", "_", text).strip("._") or "x"
+            safe = re.sub(r"[^A-Za-z0-9._]+", "_", text).strip("._")[:48].rstrip("._") or "x"  # a long one is cut
             lossless &= safe == text
             return safe
 
@@ -185,12 +192,15 @@ class Frame:
         if self.samples != "1":
             parts.append(word(self.samples))
         name = "-".join(parts)
-        return name if lossless else f"{name}-{self.digest()[:6]}"
+        if lossless and len(name) <= MAX_NAME_LENGTH:
+            return name
+        # cut to the limit (a long model name, a huge angle); the digest keeps cut names apart
+        return f"{name[:MAX_NAME_LENGTH - 7].rstrip('-')}-{self.digest()[:6]}"
 
 
 def _number(x: float, digits: int) -> str:
     """An angle as a name shows it: whole degrees zero-padded (``030``, ``-045``), else every digit."""
-    if float(x) == int(x):
+    if float(x) == int(x) and abs(x) < 1e15:     # beyond, int() would spell out hundreds of digits
         return f"{int(x):0{digits + (x < 0)}d}"
     return repr(float(x))
 
@@ -214,10 +224,20 @@ class Job:
     base_dir: str = ""
 
     def load_models(self) -> Dict[str, Mesh]:
-        """The mesh of every model the frames use, each loaded once (JobError names a bad one)."""
+        """The mesh of every model the frames use, each loaded once (JobError names a bad one).
+
+        What loading an OBJ warns about (an ``mtllib`` refused or missing, corners without
+        normals) is issued once per model as a :class:`~softpipe.scenes.scenefile.SceneWarning`
+        naming the job and the entry: ``jobs.toml: [models] 'cup': cup.obj:3: material library …``.
+        """
         reader = _JobReader(self.path, self.base_dir)
-        used = dict.fromkeys(f.model for f in self.frames)
-        return {name: reader.model_mesh(name, self.models[name]) for name in used}
+        meshes = {}
+        for name in dict.fromkeys(f.model for f in self.frames):
+            reader.warnings = []
+            meshes[name] = reader.model_mesh(name, self.models[name])
+            for message in dict.fromkeys(reader.warnings):
+                warnings.warn(f"{self.path}: [models] {name!r}: {message}", SceneWarning, stacklevel=2)
+        return meshes
 
 
 # ---------------------------------------------------------------------------- reading a job
@@ -269,9 +289,12 @@ class _JobReader(SceneReader):
                                  f"([{key}] or [[{key}]]), got {describe(value)}", key=key)
         found: List[Frame] = []
         for k, data in enumerate(sweeps, 1):
-            found.extend(self.sweep(data, "[sweep]" if len(sweeps) == 1 else f"[[sweep]] #{k}", job, elevation))
-            if len(found) > MAX_JOB_FRAMES:
-                raise self.error(f"the job makes more than {MAX_JOB_FRAMES:,} frames (MAX_JOB_FRAMES)")
+            found.extend(self.sweep(data, "[sweep]" if len(sweeps) == 1 else f"[[sweep]] #{k}", job, elevation,
+                                    len(found)))
+        if len(found) + len(frames) > MAX_JOB_FRAMES:      # counted before any entry is read
+            raise self.error(f"the job makes {len(found) + len(frames):,} frames ({len(found):,} from sweeps, "
+                             f"{len(frames):,} [[frames]] entries), more than the limit MAX_JOB_FRAMES = "
+                             f"{MAX_JOB_FRAMES:,}", table="[[frames]]")
         for k, data in enumerate(frames, 1):
             found.append(self.frame(data, f"[[frames]] #{k}", job, elevation))
         if not found:
@@ -345,11 +368,12 @@ class _JobReader(SceneReader):
     def obj_file(self, t: Table, path: str) -> Mesh:
         from softpipe.scenes.obj import OBJError, load_obj
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
                 mesh = load_obj(path)
         except (OBJError, OSError, UnicodeError) as e:
             raise self.error(f"key 'obj' in {t.label}: {e}", table=t.label, key="obj") from None
+        self.warnings.extend(str(w.message) for w in caught)      # Job.load_models issues them
         if mesh.triangle_count == 0:
             raise self.error(f"key 'obj' in {t.label}: {path} has no faces", table=t.label, key="obj")
         return mesh
@@ -372,7 +396,8 @@ class _JobReader(SceneReader):
         ambient = t.get("ambient", color, (0.2, 0.2, 0.2))
         return LightSet(lights, t.get("shadows", boolean, False), ambient)
 
-    def sweep(self, data: Any, label: str, job: Job, elevation: float) -> List[Frame]:
+    def sweep(self, data: Any, label: str, job: Job, elevation: float, before: int = 0) -> List[Frame]:
+        """A sweep's frames, the product of its lists; ``before`` frames came from earlier sweeps."""
         t = Table(self, data, label, SWEEP_KEYS)
         models = self.axis(t, "models", lambda v: self.model_name(v, t, "models"), None)
         if models is None:
@@ -387,6 +412,14 @@ class _JobReader(SceneReader):
         lights = self.axis(t, "lights", lambda v: self.known(v, t, "lights", job.lights, ()), ["studio"])
         samples = self.axis(t, "samples", pattern_name, ["1"])
         sizes = self.axis(t, "sizes", _size, [DEFAULT_SIZE])
+        axes = {"models": models, "programs": programs, "materials": materials, "lights": lights, "sizes": sizes,
+                "samples": samples, "cameras": cameras + orbit}
+        count = math.prod(len(v) for v in axes.values())   # counted before the product is made
+        if before + count > MAX_JOB_FRAMES:
+            shown = " × ".join(f"{len(v):,} {k}" for k, v in axes.items() if len(v) > 1) or "1"
+            earlier = f", after {before:,} from earlier sweeps" if before else ""
+            raise t.error(f"makes {count:,} frames ({shown}){earlier}, more than the limit MAX_JOB_FRAMES = "
+                          f"{MAX_JOB_FRAMES:,}")
         for (w, h), s in itertools.product(sizes, samples):
             self.check_samples(t, "sizes", w, h, s)
         return [Frame(model=m, program=p, material=mat, lights=li, width=w, height=h, samples=s, **camera)
@@ -543,7 +576,14 @@ def _check_names(frames: Sequence[Frame], reader: _JobReader) -> None:
 def parse_job(text: str, name: str = "<string>", base_dir: Optional[str] = None) -> Job:
     """A job from TOML text; ``name`` labels errors and ``base_dir`` resolves file names."""
     reader = _JobReader(name, os.fspath(base_dir) if base_dir is not None else "")
-    return reader.job(reader.parse_toml(text))
+    return _read(reader, reader.parse_toml(text))
+
+
+def _read(reader: _JobReader, doc: Mapping[str, Any]) -> Job:
+    try:
+        return reader.job(doc)
+    except RecursionError:  # pragma: no cover - nothing here recurses on the input, as in parse_scene
+        raise reader.error("the job is nested too deeply") from None
 
 
 def job_from_dict(doc: Mapping[str, Any], name: str = "<job>", base_dir: Optional[str] = None) -> Job:
@@ -551,7 +591,7 @@ def job_from_dict(doc: Mapping[str, Any], name: str = "<job>", base_dir: Optiona
     ``[models]`` values may also be :class:`~softpipe.scenes.mesh.Mesh` objects."""
     if not isinstance(doc, Mapping):
         raise TypeError(f"a job is a dict, a Job or a .toml path, got {type(doc).__name__}")
-    return _JobReader(name, os.fspath(base_dir) if base_dir is not None else "").job(doc)
+    return _read(_JobReader(name, os.fspath(base_dir) if base_dir is not None else ""), doc)
 
 
 def load_job(path: Union[str, os.PathLike]) -> Job:

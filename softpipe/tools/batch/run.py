@@ -10,7 +10,10 @@ Models are loaded once, in the client, and scattered to the workers; the workers
 render and encode the PNG, the client writes it (whole or not at all,
 :func:`softpipe.core.files.atomic_write`) and appends a line to ``manifest.jsonl`` (name,
 parameters, output, SHA-256, seconds), flushed per frame. A second run skips the
-frames whose file still has the manifest's SHA-256 (:func:`read_manifest`). A frame
+frames whose content key (:func:`frame_params`: a digest of everything the frame's
+pixels depend on) is the manifest's and whose file still has the manifest's SHA-256
+(:func:`read_manifest`); the folder's files are trusted no further than that (a link or
+a special file there is never followed or read). A frame
 that raises is reported (its name and the error's line) and the others go on; a
 worker that dies has its frames run again by Dask. ``contact-sheet.png`` shows every
 frame at the end. docs/batch.md is the guide; ``python -m benchmarks.batch`` measures
@@ -18,23 +21,36 @@ the frames per second on 1, 2, … workers.
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import hashlib
 import io
 import json
 import logging
 import math
 import os
+import re
+import signal
+import stat
+import sys
+import threading
 import time
+import warnings
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Tuple, Union
+from typing import Any, Callable, Collection, Dict, Iterator, List, Optional, Tuple, Union
 
+from softpipe.core.files import PathPolicyError
 from softpipe.core.runtime import keep_freed_memory
 from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.scenefile import SceneWarning
 from softpipe.tools.batch.job import Frame, Job, LightSet, as_job
 
-__all__ = ["batch", "render_frame", "read_manifest", "BatchProgress", "BatchResult", "FrameRecord", "MANIFEST",
-           "CONTACT_SHEET", "CONTACT_SHEET_MAX", "CRASH_ONCE_ENV"]
+__all__ = ["batch", "render_frame", "read_manifest", "frame_params", "local_worker_limit", "check_local_cluster",
+           "BatchProgress",
+           "BatchResult", "FrameRecord", "ClusterError", "MANIFEST", "CONTACT_SHEET", "CONTACT_SHEET_MAX",
+           "CRASH_ONCE_ENV", "MAX_MANIFEST_LINE"]
 
 #: The file, in the output folder, that lists the frames written.
 MANIFEST = "manifest.jsonl"
@@ -45,6 +61,14 @@ CONTACT_SHEET_MAX = 400
 #: Test-only: ``NAME:MARKER`` makes the worker rendering frame NAME exit at once (``os._exit``) when
 #: the file MARKER does not exist yet, after creating it: a worker that dies once, mid-run.
 CRASH_ONCE_ENV = "SOFTPIPE_BATCH_CRASH_ONCE"
+#: The longest manifest line read (bytes); a longer one is skipped, as a line cut short is.
+MAX_MANIFEST_LINE = 1 << 16
+#: Worker processes of a LocalCluster per core, at most (each draws on one core; more only wait for one).
+WORKERS_PER_CORE = 2
+
+
+class ClusterError(RuntimeError):
+    """The LocalCluster did not start (a dashboard address that cannot be bound, …); one line."""
 
 
 # ---------------------------------------------------------------------------- one frame
@@ -121,6 +145,80 @@ def _maybe_crash(frame: Frame) -> None:
         os._exit(17)
 
 
+# ---------------------------------------------------------------------------- the content key
+
+
+def _canonical(value: Any) -> Any:
+    """``value`` as JSON values, exactly: dataclasses by field, arrays by dtype, shape and SHA-256."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _canonical(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {str(k): _canonical(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_canonical(v) for v in value]
+    if hasattr(value, "dtype") and hasattr(value, "tobytes"):
+        import numpy as np
+        a = np.ascontiguousarray(value)
+        return {"dtype": a.dtype.str, "shape": list(a.shape), "sha256": hashlib.sha256(a.tobytes()).hexdigest()}
+    if isinstance(value, float):
+        return repr(value)              # every bit, and nan or inf as JSON cannot
+    return value
+
+
+def _digest(value: Any) -> str:
+    text = json.dumps(_canonical(value), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _mesh_digest(mesh: Mesh) -> str:
+    """What a mesh draws: its arrays and materials, a texture by its file's bytes (not its path)."""
+    def material(m):
+        texture = m.diffuse_texture
+        return dataclasses.replace(m, diffuse_texture=None), (_sha256_file(Path(texture), follow=True)
+                                                              if texture else None)
+    parts = {f.name: getattr(mesh, f.name) for f in dataclasses.fields(mesh) if f.name not in ("name", "source")}
+    parts["material"] = material(mesh.material)
+    parts["materials"] = [material(m) for m in mesh.materials]
+    return _digest(parts)
+
+
+def _softpipe_version() -> str:
+    # the package above tools/ is imported already (it is this module's parent); read, not imported
+    return str(getattr(sys.modules.get("softpipe"), "__version__", "unknown"))
+
+
+def frame_params(frame: Frame, job: Job, model_digest: str) -> Dict[str, Any]:
+    """A frame's manifest ``params``: :meth:`Frame.params`, its ``inputs`` and its content ``key``.
+
+    ``inputs`` are short digests of what the frame's pixels depend on besides its own
+    parameters: the model's mesh (``model_digest``: its arrays, materials and the bytes of
+    its texture), the material's and the light set's values, ``[job]`` background and
+    fovy, and softpipe's version; ``key`` is the SHA-256 of all of it. A run skips a frame
+    only when the manifest holds the same ``params`` (docs/batch.md).
+    """
+    material = None if frame.material == "default" else job.materials[frame.material]
+    inputs = {"model": model_digest[:16], "material": _digest(material)[:16],
+              "lights": _digest(job.lights[frame.lights])[:16], "background": list(job.background),
+              "fovy": job.fovy, "softpipe": _softpipe_version()}
+    params = frame.params()
+    params["inputs"] = inputs
+    params["key"] = _digest(params)
+    return params
+
+
+def _why_changed(frame: Frame, old: Any, new: Dict[str, Any]) -> str:
+    """Why a manifest line's ``params`` no longer hold: the inputs that changed, named as the job names them."""
+    if not isinstance(old, dict) or not isinstance(old.get("inputs"), dict):
+        return "its manifest line has no content key (an older softpipe wrote it)"
+    before = old["inputs"]
+    names = {"model": f"model {frame.model!r}", "material": f"material {frame.material!r}",
+             "lights": f"light set {frame.lights!r}", "background": "[job] background", "fovy": "[job] fovy"}
+    changed = [names[k] for k in names if before.get(k) != new["inputs"][k]]
+    if before.get("softpipe") != new["inputs"]["softpipe"]:
+        changed.append(f"softpipe {before.get('softpipe')} → {new['inputs']['softpipe']}")
+    return ", ".join(changed) if changed else "its parameters"
+
+
 # ---------------------------------------------------------------------------- results and progress
 
 
@@ -175,12 +273,15 @@ class BatchProgress:
 @dataclass
 class BatchResult:
     """What :func:`batch` did: frames ``done`` (rendered now), ``skipped`` (names, already
-    written) and ``failed`` ((name, error line) pairs), the manifest and the contact sheet."""
+    written) and ``failed`` ((name, error line) pairs), the manifest and the contact sheet.
+    ``rerendered`` are the (name, why) of frames in the manifest rendered again because
+    what they depend on changed (or their file did)."""
 
     out_dir: Path
     done: List[FrameRecord] = field(default_factory=list)
     skipped: List[str] = field(default_factory=list)
     failed: List[Tuple[str, str]] = field(default_factory=list)
+    rerendered: List[Tuple[str, str]] = field(default_factory=list)
     seconds: float = 0.0
     workers: int = 1
     contact_sheet: Optional[Path] = None
@@ -194,30 +295,76 @@ class BatchResult:
         return not self.failed
 
 
-def read_manifest(out_dir: Union[str, os.PathLike]) -> Dict[str, Dict[str, Any]]:
-    """The manifest's entries by frame name (a later line wins; a line cut short is ignored)."""
+#: open() flags that never follow a link (ELOOP) nor wait on a FIFO.
+_NO_FOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+
+
+def _open_manifest(path: Path, flags: int) -> int:
+    """A descriptor of the manifest, which must be a regular file in the folder (not a link, a FIFO, a device)."""
+    try:
+        fd = os.open(path, flags | _NO_FOLLOW, 0o666)
+    except OSError:
+        if not os.path.lexists(path) or stat.S_ISREG(os.lstat(path).st_mode):
+            raise                               # missing (the caller's case), or unwritable: as it is
+        mode = os.lstat(path).st_mode           # a link (ELOOP), a FIFO without a reader (ENXIO), …
+    else:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISREG(mode):
+            return fd
+        os.close(fd)
+    problem = ("a symbolic link" if stat.S_ISLNK(mode) else "a FIFO" if stat.S_ISFIFO(mode) else
+               "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a folder" if stat.S_ISDIR(mode) else
+               "not a regular file")
+    raise PathPolicyError(f"{path} is {problem}; softpipe batch reads and appends its manifest only as a "
+                          "regular file in the output folder (remove it, or write into another folder)")
+
+
+def read_manifest(out_dir: Union[str, os.PathLike], names: Optional[Collection[str]] = None
+                  ) -> Dict[str, Dict[str, Any]]:
+    """The manifest's entries by frame name (a later line wins; a line cut short, or longer than
+    :data:`MAX_MANIFEST_LINE`, is ignored); only those of ``names`` when given.
+
+    The manifest must be a regular file (a link or a special file there is refused with a
+    :class:`~softpipe.core.files.PathPolicyError`, never followed or read).
+    """
     entries: Dict[str, Dict[str, Any]] = {}
     try:
-        with open(Path(out_dir) / MANIFEST, "rb") as f:
-            for raw in f:
-                try:
-                    entry = json.loads(raw)
-                except ValueError:
-                    continue
-                if isinstance(entry, dict) and isinstance(entry.get("name"), str):
-                    entries[entry["name"]] = entry
+        fd = _open_manifest(Path(out_dir) / MANIFEST, os.O_RDONLY)
     except FileNotFoundError:
-        pass
+        return entries
+    with os.fdopen(fd, "rb") as f:
+        while True:
+            raw = f.readline(MAX_MANIFEST_LINE + 1)
+            if not raw:
+                break
+            if len(raw) > MAX_MANIFEST_LINE:            # read past the rest of it, bounded
+                while raw and not raw.endswith(b"\n"):
+                    raw = f.readline(MAX_MANIFEST_LINE + 1)
+                continue
+            try:
+                entry = json.loads(raw)
+            except ValueError:
+                continue
+            if isinstance(entry, dict) and isinstance(entry.get("name"), str) and \
+                    (names is None or entry["name"] in names):
+                entries[entry["name"]] = entry
     return entries
 
 
-def _sha256_file(path: Path) -> Optional[str]:
+def _sha256_file(path: Path, follow: bool = False) -> Optional[str]:
+    """SHA-256 of a regular file's bytes; None for what is missing, a link (unless ``follow``) or not a
+    regular file (a device such as /dev/zero would never end)."""
     try:
-        with open(path, "rb") as f:
-            return hashlib.file_digest(f, "sha256").hexdigest() if hasattr(hashlib, "file_digest") else \
-                hashlib.sha256(f.read()).hexdigest()
+        fd = os.open(path, os.O_RDONLY | (_NO_FOLLOW if not follow else getattr(os, "O_NONBLOCK", 0)))
     except OSError:
         return None
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        digest = hashlib.sha256()
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+        return digest.hexdigest()
 
 
 class _Manifest:
@@ -225,10 +372,11 @@ class _Manifest:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self.file = open(path, "ab")
-        if self.file.tell():                     # a line cut short (a crash mid-write) ends here
-            with open(path, "rb") as f:
-                f.seek(-1, os.SEEK_END)
+        self.file = os.fdopen(_open_manifest(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT), "ab")
+        size = os.fstat(self.file.fileno()).st_size
+        if size:                                 # a line cut short (a crash mid-write) ends here
+            with os.fdopen(_open_manifest(path, os.O_RDONLY), "rb") as f:
+                f.seek(size - 1)
                 if f.read(1) != b"\n":
                     self.file.write(b"\n")
 
@@ -284,25 +432,41 @@ def batch(job, out_dir: Union[str, os.PathLike], scheduler=None, *, force: bool 
         written and listed; no file is left half-written.
     """
     job = as_job(job)
+    if scheduler is None:
+        check_local_cluster(workers, dashboard)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     from softpipe.core.files import check_writable
     check_writable(out / MANIFEST)
+    entries = {} if force else read_manifest(out, {f.name for f in job.frames})
     start = time.perf_counter()
     result = BatchResult(out_dir=out)
-    entries = {} if force else read_manifest(out)
+    meshes = _load_models(job, log)
+    model_digests = {name: _mesh_digest(mesh) for name, mesh in meshes.items()}
+    params = {f.name: frame_params(f, job, model_digests[f.model]) for f in job.frames}
     todo = []
     for frame in job.frames:
         entry = entries.get(frame.name)
-        if entry is not None and entry.get("params") == frame.params() and \
-                _sha256_file(out / str(entry.get("output", ""))) == entry.get("sha256"):
-            result.skipped.append(frame.name)
-        else:
+        if entry is None:
             todo.append(frame)
-    state = _Run(job, out, result, start, progress)
+            continue
+        same = entry.get("params") == params[frame.name]
+        if same and entry.get("output") == f"{frame.name}.png" and \
+                _sha256_file(out / f"{frame.name}.png") == entry.get("sha256"):
+            result.skipped.append(frame.name)
+            continue
+        todo.append(frame)
+        why = _why_changed(frame, entry.get("params"), params[frame.name]) if not same else \
+            "its file is missing or changed"
+        result.rerendered.append((frame.name, why))
+    if result.rerendered and log is not None:
+        reasons = Counter(part for _, why in result.rerendered for part in why.split(", "))
+        n = len(result.rerendered)
+        log(f"rendering {n} frame{'s' * (n != 1)} again (changed since the manifest): " +
+            "; ".join(f"{why} ({k} frame{'s' * (k != 1)})" for why, k in reasons.items()))
+    state = _Run(job, out, result, start, progress, params)
     state.report()
     if todo:
-        meshes = Job(frames=todo, models=job.models, path=job.path, base_dir=job.base_dir).load_models()
         manifest = _Manifest(out / MANIFEST)
         try:
             if scheduler == "serial":
@@ -317,12 +481,87 @@ def batch(job, out_dir: Union[str, os.PathLike], scheduler=None, *, force: bool 
     return result
 
 
+def _load_models(job: Job, log: Optional[Callable[[str], None]]) -> Dict[str, Mesh]:
+    """Every model the frames use, once; what loading one warns about goes to ``log`` (else it is
+    issued as a :class:`~softpipe.scenes.scenefile.SceneWarning`), once per model."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        meshes = job.load_models()
+    for w in caught:
+        if log is not None and issubclass(w.category, SceneWarning):
+            log(f"warning: {w.message}")
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return meshes
+
+
+def local_worker_limit() -> int:
+    """The most worker processes a LocalCluster takes on this machine: :data:`WORKERS_PER_CORE` per core."""
+    return WORKERS_PER_CORE * (os.cpu_count() or 1)
+
+
+#: A dashboard's address: ``:PORT``, ``HOST:PORT`` or ``[IPv6]:PORT``, or ``PORT`` alone.
+_ADDRESS = re.compile(r"(?:(?:[A-Za-z0-9_.-]*|\[[0-9A-Fa-f:.]+\]):)?([0-9]{1,5})")
+
+
+def check_local_cluster(workers: Optional[int], dashboard: Optional[str],
+                        names: Tuple[str, str] = ("workers=", "dashboard=")) -> None:
+    """Refuse, before anything starts, a LocalCluster's size or dashboard address that cannot work
+    (a ValueError; ``names`` are how the message names the two: ``("--workers ", "--dashboard ")``)."""
+    if workers is not None:
+        limit = local_worker_limit()
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"{names[0]}{workers!r}: a LocalCluster needs a whole number of worker processes, 1 "
+                             "or more")
+        if workers > limit:
+            raise ValueError(f"{names[0]}{workers}: this machine has {os.cpu_count() or 1} cores, and a LocalCluster "
+                             f"takes at most {limit} worker processes ({WORKERS_PER_CORE} per core; more would only "
+                             "wait for a core); for more, start a cluster and give its scheduler's address")
+    if dashboard is not None:
+        m = _ADDRESS.fullmatch(dashboard) if isinstance(dashboard, str) else None
+        if m is None or int(m.group(1)) > 65535:
+            raise ValueError(f"{names[1]}{dashboard!r}: expected an address [HOST]:PORT such as ':8787' or "
+                             "'localhost:8787' (PORT 0 to 65535)")
+
+
+@contextlib.contextmanager
+def _interrupt_held() -> Iterator[None]:
+    """Ctrl-C while a LocalCluster starts is held until it has started, then raised (and the
+    cluster closed by the caller): a cluster interrupted half-way is left to Dask's exit hook,
+    which fails with a traceback. A second Ctrl-C stops at once."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pressed: List[int] = []
+
+    def hold(signum, _frame) -> None:
+        if pressed:
+            raise KeyboardInterrupt
+        pressed.append(signum)
+    old = signal.signal(signal.SIGINT, hold)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old if old is not None else signal.default_int_handler)
+    if pressed:
+        raise KeyboardInterrupt
+
+
+def _root_cause(e: BaseException) -> BaseException:
+    seen = {id(e)}
+    while (e.__cause__ or e.__context__) is not None and id(e.__cause__ or e.__context__) not in seen:
+        e = e.__cause__ or e.__context__
+        seen.add(id(e))
+    return e
+
+
 class _Run:
-    """A run's bookkeeping: the result so far, the progress calls."""
+    """A run's bookkeeping: the result so far, the progress calls, each frame's manifest ``params``."""
 
     def __init__(self, job: Job, out: Path, result: BatchResult, start: float,
-                 progress: Optional[Callable[[BatchProgress], None]]) -> None:
+                 progress: Optional[Callable[[BatchProgress], None]], params: Dict[str, Dict[str, Any]]) -> None:
         self.job, self.out, self.result, self.start, self.progress = job, out, result, start, progress
+        self.params = params
         self.total = len(job.frames)
 
     def report(self, frame: Optional[str] = None, error: Optional[str] = None) -> None:
@@ -337,12 +576,17 @@ class _Run:
                                     frame, error))
 
     def wrote(self, frame: Frame, png: bytes, sha: str, seconds: float, cpu: float, manifest: _Manifest) -> None:
-        """Write a frame's file (whole or not at all), then its manifest line."""
+        """Write a frame's file (whole or not at all), then its manifest line; a file that cannot be
+        written (a folder in its place, a full disk) fails the frame alone."""
         from softpipe.core.files import atomic_write
         path = self.out / f"{frame.name}.png"
-        atomic_write(path, lambda f: f.write(png))
-        manifest.append({"name": frame.name, "params": frame.params(), "output": path.name, "sha256": sha,
-                         "seconds": round(seconds, 4)})
+        try:
+            atomic_write(path, lambda f: f.write(png))
+        except OSError as e:
+            self.failed(frame, _error_line(e))
+            return
+        manifest.append({"name": frame.name, "params": self.params[frame.name], "output": path.name,
+                         "sha256": sha, "seconds": round(seconds, 4)})
         self.result.done.append(FrameRecord(frame.name, path, sha, seconds, cpu))
         self.report(frame.name)
 
@@ -373,16 +617,21 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
     except ImportError:
         raise RuntimeError("rendering on a cluster needs Dask: pip install 'softpipe[cluster]' "
                            "(or scheduler='serial')") from None
-    import contextlib
     import uuid
     with contextlib.ExitStack() as stack:
         if scheduler is None:
             n = workers or os.cpu_count() or 1
-            cluster = stack.enter_context(LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True,
-                dashboard_address=":0" if dashboard is None else dashboard,   # None would still take :8787
-                silence_logs=logging.ERROR))   # a frame's error is reported once, by the client
-            client = stack.enter_context(Client(cluster))
+            with _interrupt_held():
+                try:
+                    cluster = stack.enter_context(LocalCluster(
+                        n_workers=n, threads_per_worker=1, processes=True,
+                        dashboard_address=":0" if dashboard is None else dashboard,   # None would still take :8787
+                        silence_logs=logging.ERROR))   # a frame's error is reported once, by the client
+                except Exception as e:  # noqa: BLE001 - Dask's "Cluster failed to start", whatever the cause
+                    hint = f" (the dashboard address {dashboard!r}?)" if dashboard is not None else ""
+                    raise ClusterError(f"the LocalCluster did not start: {_error_line(_root_cause(e))}{hint}") \
+                        from None
+                client = stack.enter_context(Client(cluster))
             if log is not None:
                 link = f", dashboard {cluster.dashboard_link}" if dashboard is not None else ""
                 log(f"started a LocalCluster of {n} worker processes{link}")
@@ -433,8 +682,8 @@ def _write_contact_sheet(job: Job, out: Path, result: BatchResult) -> Optional[P
 
     from softpipe.core.files import atomic_write
     from softpipe.views.pictures import contact_sheet
-    failed = {name for name, _ in result.failed}
-    names = [f.name for f in job.frames if f.name not in failed and (out / f"{f.name}.png").is_file()]
+    written = {r.name for r in result.done} | set(result.skipped)     # files this run wrote or checked
+    names = [f.name for f in job.frames if f.name in written and (out / f"{f.name}.png").is_file()]
     names = names[:CONTACT_SHEET_MAX]
     if not names:
         return None
