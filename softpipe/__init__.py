@@ -10,6 +10,7 @@ docs/design.md draws the whole house.
 from softpipe import shading
 from softpipe.core.colors import parse_color
 from softpipe.core.runtime import keep_freed_memory
+from softpipe.core.version import VERSION
 from softpipe.language import glsl
 from softpipe.language.contract import DISCARD, FragInfo, ShaderError, make_uniforms
 from softpipe.light import lighting
@@ -67,7 +68,7 @@ __all__ = [
     "render_shadow_maps", "__version__",
 ]
 
-__version__ = "0.1.0"
+__version__ = VERSION
 
 
 def __getattr__(name: str):

@@ -21,6 +21,7 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import softpipe as sp
 from softpipe.language import kernels
@@ -268,3 +269,10 @@ def test_the_crossing_check_sees_a_private_import_and_a_private_attribute(tmp_pa
     found = {(module, name) for _, module, name in _names_crossing_modules(fake)}
     assert ("softpipe.light.texture", "_wrap") in found
     assert ("softpipe.views.pictures", "_to_image_xy") in found
+
+
+def test_the_version_is_the_one_pyproject_states():
+    from softpipe.core.version import VERSION
+    tomllib = pytest.importorskip("tomllib")     # Python 3.11+
+    pyproject = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())
+    assert VERSION == pyproject["project"]["version"] == sp.__version__

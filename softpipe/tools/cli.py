@@ -37,6 +37,7 @@ import warnings
 from pathlib import Path
 from typing import List, Optional, Sequence, Tuple
 
+from softpipe.core.version import VERSION
 from softpipe.scenes.drawing import MAX_FRAMES  # softpipe turntable's limit is softpipe.turntable's
 
 __all__ = ["main", "build_parser", "CLIError"]
@@ -206,8 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
                f"\nmodels bundled with softpipe (INPUT may name one): {models}.\n"
                "\nerrors print one line on stderr and exit with status 2.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    from softpipe import __version__
-    parser.add_argument("--version", action="version", version=f"softpipe {__version__}",
+    parser.add_argument("--version", action="version", version=f"softpipe {VERSION}",
                         help="print softpipe's version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 

@@ -32,7 +32,6 @@ import os
 import re
 import signal
 import stat
-import sys
 import threading
 import time
 import warnings
@@ -43,6 +42,7 @@ from typing import Any, Callable, Collection, Dict, Iterator, List, Optional, Tu
 
 from softpipe.core.files import PathPolicyError
 from softpipe.core.runtime import keep_freed_memory
+from softpipe.core.version import VERSION
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.scenefile import SceneWarning
 from softpipe.tools.batch.job import Frame, Job, LightSet, as_job
@@ -183,8 +183,7 @@ def _mesh_digest(mesh: Mesh) -> str:
 
 
 def _softpipe_version() -> str:
-    # the package above tools/ is imported already (it is this module's parent); read, not imported
-    return str(getattr(sys.modules.get("softpipe"), "__version__", "unknown"))
+    return VERSION
 
 
 def frame_params(frame: Frame, job: Job, model_digest: str) -> Dict[str, Any]:
