@@ -24,7 +24,7 @@ import difflib
 import math
 import numbers
 import re
-from typing import Any, Tuple
+from typing import Any, Tuple, cast
 
 __all__ = ["parse_color", "rgba", "color_names"]
 
@@ -107,4 +107,4 @@ def _flat(value):
 def rgba(value: Any) -> Tuple[float, float, float, float]:
     """:func:`parse_color`, with alpha 1 added to an RGB color."""
     c = parse_color(value)
-    return c + (1.0,) if len(c) == 3 else c
+    return cast(Tuple[float, float, float, float], c + (1.0,) if len(c) == 3 else c)  # 3 or 4 numbers: 4

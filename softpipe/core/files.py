@@ -110,7 +110,7 @@ def check_writable(path: PathLike) -> None:
         raise IsADirectoryError(f"cannot write {excerpt(os.fspath(path))}: it is a folder")
 
 
-def atomic_write(path: PathLike, write: Callable[[IO[bytes]], None]) -> None:
+def atomic_write(path: PathLike, write: Callable[[IO[bytes]], object]) -> None:
     """Write ``path`` whole or not at all: ``write(file)`` fills a temporary file in the same
     folder, which then replaces ``path`` (``os.replace``, atomic on one file system).
 

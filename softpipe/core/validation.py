@@ -31,7 +31,7 @@ import os
 import re
 from collections.abc import Sequence as _SequenceABC
 from numbers import Integral, Real
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar, cast
 
 try:  # Python 3.11+
     import tomllib as _toml
@@ -237,7 +237,7 @@ vec3 = numbers(3)
 
 def nonzero_vec3(v: Any) -> Tuple[float, float, float]:
     """A direction: :data:`vec3`, not (0, 0, 0)."""
-    x = vec3(v)
+    x = cast(Tuple[float, float, float], vec3(v))
     if not any(x):
         raise BadValue("must not be the zero vector")
     return x
@@ -264,7 +264,8 @@ def color(v: Any, *, allow_negative: bool = False) -> Tuple[float, float, float]
     items = _items(v)
     if items is None or len(items) != 3:
         raise (BadType if items is None else BadValue)(f"must be {COLOR_FORMS}, got {describe(v)}")
-    return tuple(_entry(c, v, "an array [r, g, b] of numbers", allow_negative) for c in items)
+    return cast(Tuple[float, float, float],
+                tuple(_entry(c, v, "an array [r, g, b] of numbers", allow_negative) for c in items))
 
 
 # ---------------------------------------------------------------------------- reading a file

@@ -121,9 +121,8 @@ def _uniforms_class(names: Sequence[str]) -> type:
     attr = _uniforms_class_name(names)
     cls = globals().get(attr)
     if cls is None:
-        cls = namedtuple(attr, list(names) or ["empty"])
+        cls = globals()[attr] = namedtuple(attr, list(names) or ["empty"])
         cls.__module__ = __name__
-        globals()[attr] = cls
     return cls
 
 
@@ -148,7 +147,7 @@ def reads_uniforms(*names: str) -> Callable[[Callable], Callable]:
         check_name("uniform", n)
 
     def declare(shader: Callable) -> Callable:
-        python_function(shader).uniforms_read = tuple(names)
+        python_function(shader).uniforms_read = tuple(names)  # type: ignore[attr-defined]  # a function's attribute
         return shader
     return declare
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 from dataclasses import dataclass, field, fields
-from typing import Iterable, Optional, Sequence, Tuple
+from typing import Iterable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -262,14 +262,14 @@ class Light:
     ambient: RGB = (0.0, 0.0, 0.0)
     diffuse: RGB = (1.0, 1.0, 1.0)
     specular: RGB = (1.0, 1.0, 1.0)
-    position: Optional[Vec3] = None
-    direction: Optional[Vec3] = None
+    position: Optional[Sequence[float]] = None
+    direction: Optional[Sequence[float]] = None
     attenuation: Tuple[float, float, float] = (1.0, 0.0, 0.0)
-    spot_direction: Optional[Vec3] = None
+    spot_direction: Optional[Sequence[float]] = None
     cutoff: float = 180.0
     exponent: float = 0.0
     name: str = field(default="light", compare=False)
-    shadows: Optional[ShadowSettings] = field(default=None, kw_only=True)
+    shadows: Union[bool, ShadowSettings, None] = field(default=None, kw_only=True)
 
     def __post_init__(self) -> None:
         if self.shadows is True:
@@ -454,7 +454,7 @@ class Lighting:
     use ``lighting.uniform(view_matrix)``.
     """
 
-    lights: Tuple[Light, ...] = ()
+    lights: Sequence[Light] = ()
     global_ambient: RGB = (0.2, 0.2, 0.2)
 
     def __post_init__(self) -> None:

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from collections import namedtuple
 from dataclasses import dataclass
-from typing import Optional, Tuple
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 from numba import njit, types
@@ -328,7 +328,7 @@ def _casts_shadows_numba(lighting, j):
     return impl
 
 
-def light_visibility(lighting, j: int, P: Vec3) -> Color:
+def light_visibility(lighting, j: int, P: Sequence[float]) -> Color:
     """V_j: the RGB share of light j that reaches the eye-space point P past everything else (§11, §21).
 
     ``lighting`` is the ``lighting`` uniform (a :class:`~softpipe.light.material.LightingUniform`).

@@ -22,7 +22,7 @@ def _triple(name: str, v) -> Tuple[float, float, float]:
     a = np.asarray(v, dtype=np.float64).reshape(-1)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         raise ValueError(f"Camera.{name} must be 3 finite numbers, got {v!r}")
-    return tuple(float(c) for c in a)
+    return (float(a[0]), float(a[1]), float(a[2]))
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,7 @@ class Camera:
         distance = radius / math.sin(half_narrow)
         direction = (rotate_y(azimuth) @ rotate_x(-elevation) @ np.array([0.0, 0.0, 1.0, 0.0]))[:3]
         eye = centre + distance * direction
-        return cls(eye=tuple(eye), target=tuple(centre), up=tuple(up), fovy=fovy,
+        return cls(eye=tuple(eye), target=tuple(centre), up=_triple("up", up), fovy=fovy,
                    near=max(distance - radius, 1e-3 * distance), far=distance + radius)
 
     def replace(self, **changes) -> "Camera":

@@ -40,7 +40,7 @@ import numpy as np
 
 from softpipe.core.runtime import check_memory
 from softpipe.language.contract import make_uniforms
-from softpipe.pipeline.assembly import assemble
+from softpipe.pipeline.assembly import Primitives, assemble
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.output import MergeResult, MergeState, merge
@@ -169,7 +169,7 @@ class DrawCall:
         #: shading writes the visible samples' color)
         self.timings: dict = {}
         #: the last run's assembled triangles (what reached the rasterizer), on either path
-        self.primitives = None
+        self.primitives: Optional[Primitives] = None
         #: which path the last run took ("reference" or "fast"), and why
         self.path_taken: Optional[str] = None
         self.path_reason: Optional[str] = None

@@ -135,6 +135,13 @@ class Framebuffer:
     # changes the framebuffer, while changing the view's shape, dtype or strides does not.
 
     _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth")
+    # set once, by __init__ (through object.__setattr__)
+    _width: int
+    _height: int
+    _pattern: SamplePattern
+    _count: int
+    _samples_color: np.ndarray
+    _samples_depth: np.ndarray
 
     def __setattr__(self, name, value):
         if name in self._READ_ONLY or name.startswith("_"):
@@ -308,12 +315,12 @@ class Framebuffer:
         if not is_path and isinstance(file, io.TextIOBase):
             raise TypeError(f"save() needs a binary file (opened with 'wb'), got the text file "
                             f"{getattr(file, 'name', file)!r}")
-        name = os.fspath(file) if is_path else getattr(file, "name", None)
+        name = os.fspath(file) if isinstance(file, (str, os.PathLike)) else getattr(file, "name", None)
         fmt = image_format(name if isinstance(name, str) else None, format)
         image = self.to_image(alpha)
         if alpha and fmt in ("JPEG", "PCX", "EPS", "PPM", "MPO"):
             raise ValueError(f"{fmt} images have no alpha channel; save with alpha=False or as .png")
-        if is_path:
+        if isinstance(file, (str, os.PathLike)):
             from softpipe.core.files import atomic_write
             path = Path(file)
             path.parent.mkdir(parents=True, exist_ok=True)

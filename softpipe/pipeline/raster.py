@@ -88,9 +88,9 @@ class Fragments:
     bary: np.ndarray
     triangle: np.ndarray
     primitive_id: np.ndarray
-    frag_x: np.ndarray = None
-    frag_y: np.ndarray = None
-    setup: TriangleSetup = None
+    frag_x: np.ndarray | None = None
+    frag_y: np.ndarray | None = None
+    setup: TriangleSetup | None = None
 
     def __len__(self) -> int:
         return len(self.x)
@@ -100,6 +100,7 @@ class Fragments:
 
     def take(self, rows: np.ndarray) -> "Fragments":
         """The fragments at ``rows`` (same setup)."""
+        assert self.frag_x is not None and self.frag_y is not None   # every stage that makes fragments gives them
         return Fragments(self.x[rows], self.y[rows], self.sample[rows], self.depth[rows], self.bary[rows],
                          self.triangle[rows], self.primitive_id[rows], self.frag_x[rows], self.frag_y[rows],
                          self.setup)

@@ -8,7 +8,7 @@ rasterizer, fed a different pattern).
 """
 from __future__ import annotations
 
-from typing import Sequence, Tuple
+from typing import Sequence, Tuple, Union
 
 import numpy as np
 
@@ -31,7 +31,7 @@ class SamplePattern:
     name : a label for pictures and traces
     """
 
-    def __init__(self, positions: Sequence[Tuple[float, float]], name: str = "custom"):
+    def __init__(self, positions: Union[Sequence[Tuple[float, float]], np.ndarray], name: str = "custom"):
         pos = np.asarray(positions, dtype=np.float64)
         if pos.ndim != 2 or pos.shape[1] != 2 or len(pos) == 0:
             raise ValueError(f"sample positions must have shape [S, 2] with S ≥ 1, got {list(pos.shape)}")

@@ -150,14 +150,14 @@ class Trace:
         self.width, self.height, self.pattern = fb.width, fb.height, fb.pattern
         self.path, self.path_reason = call.path_taken, call.path_reason
         self.visibility = None
-        self._grad = None
+        self._grad: Optional[np.ndarray] = None
 
     @classmethod
     def record(cls, call) -> "Trace":
         """Run ``call`` (a :class:`~softpipe.pipeline.draw.DrawCall`) and keep what every stage made."""
         fb = call.framebuffer
         before_color, before_depth = fb.samples_color.copy(), fb.samples_depth.copy()
-        out = {"raster": [], "fragment": [], "output": [], "visibility": []}
+        out: dict[str, list] = {"raster": [], "fragment": [], "output": [], "visibility": []}
         vertex = primitives = None
         for stage in call.steps(record=True):
             if stage.name == "vertex":
@@ -280,6 +280,7 @@ class Trace:
         idx = self.at(x, y)
         module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
         f, s, m = self.fragments, self.shaded, self.merged
+        assert m.color_after is not None    # a trace's merge keeps it (recorded)
         events = []
         for k in idx:
             varyings = self._inputs(module, int(k))[0]

@@ -14,7 +14,7 @@ the origin at the lower-left corner, depth in [near, far] of the depth range).
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Sequence, Union
 
 import numba
 import numpy as np
@@ -161,7 +161,8 @@ def _transform_points(m, p, out):
             out[n, r] = m[r, 0] * x + m[r, 1] * y + m[r, 2] * z + m[r, 3]
 
 
-def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float] = (0.0, 1.0, 0.0)) -> np.ndarray:
+def look_at(eye: Union[Sequence[float], np.ndarray], target: Union[Sequence[float], np.ndarray],
+            up: Union[Sequence[float], np.ndarray] = (0.0, 1.0, 0.0)) -> np.ndarray:
     """The view matrix of a camera at ``eye`` looking at ``target`` (gluLookAt).
 
     In eye space the camera sits at the origin looking down −Z with ``up``

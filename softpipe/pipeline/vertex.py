@@ -138,7 +138,7 @@ def _run_shader(vertex_shader: Callable, inputs: Dict[str, np.ndarray], uniforms
     uniforms = declared_uniforms(vertex_shader, uniforms)     # (its loop serves every such program)
     n = len(inputs["position"])
     sizes = [(k, a.shape[1]) for k, a in inputs.items()]
-    Attributes = namedtuple("Attributes", list(inputs))
+    Attributes = namedtuple("Attributes", list(inputs))  # type: ignore[misc]  # the fields are the inputs' names
     if n == 0:
         return VertexOut(np.zeros((0, 4)), np.zeros((0, 0)), VaryingLayout())
     first = Attributes(*(tuple(float(c) for c in a[0]) if a.shape[1] > 1 else float(a[0, 0])

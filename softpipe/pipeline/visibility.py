@@ -199,7 +199,7 @@ def _failure_modes(shader: Callable, layout) -> Tuple[bool, bool]:
     module = kernels.fragment_module(shader, layout)
     modes = getattr(module, "_softpipe_failure_modes", None)
     if modes is None:
-        modes = module._softpipe_failure_modes = (kernels.may_raise(shader), not kernels.alpha_is_finite(shader))
+        modes = module._softpipe_failure_modes = (kernels.may_raise(shader), not kernels.alpha_is_finite(shader))  # type: ignore[attr-defined]  # kept on the module
     return modes
 
 

@@ -5,7 +5,7 @@ Each program module registers its pair at import; :mod:`softpipe.programs` impor
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Dict
+from typing import Callable, Dict, Union
 
 __all__ = ["Program", "PROGRAMS", "get_program", "register"]
 
@@ -30,7 +30,7 @@ def register(program: Program) -> Program:
     return program
 
 
-def get_program(name: str) -> Program:
+def get_program(name: Union[str, Program]) -> Program:
     """The built-in program called ``name``; a ValueError lists the known names otherwise."""
     if isinstance(name, Program):
         return name

@@ -61,7 +61,7 @@ Glassner's form, its a)."""
 def transmission_of(material) -> Optional[Tuple[float, float, float]]:
     """What a surface of this material lets through: kt when nonzero, 1 − opacity when < 1, else None (opaque)."""
     if any(c > 0.0 for c in material.kt):
-        return tuple(float(c) for c in material.kt)
+        return (float(material.kt[0]), float(material.kt[1]), float(material.kt[2]))
     if material.opacity < 1.0:
         return (1.0 - material.opacity,) * 3
     return None

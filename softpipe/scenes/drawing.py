@@ -341,7 +341,7 @@ def _angle_value(name: str, v, low: Optional[float] = None, high: Optional[float
         return None
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
         raise ValueError(f"{name} must be a finite angle in degrees, got {v!r}")
-    if low is not None and not low < v < high:
+    if low is not None and high is not None and not low < v < high:
         raise ValueError(f"{name} must be in ({low:g}, {high:g}) degrees, got {v!r}")
     return float(v)
 

@@ -25,6 +25,7 @@ import errno
 import os
 import stat
 import sys
+import types
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -201,6 +202,7 @@ def _strip_comment(text: str) -> str:
 
 def _warn(message: str) -> None:
     """Warn with the location of the first caller outside this module."""
+    frame: Optional[types.FrameType]
     frame, level = sys._getframe(1), 2
     while frame is not None and frame.f_code.co_filename == __file__:
         frame, level = frame.f_back, level + 1
@@ -259,8 +261,8 @@ class _OBJParser:
 
     def scan(self) -> None:
         """One pass over the lines; the common ``v ``/``f `` prefixes skip the split."""
-        self.vec = {k: ([], []) for k in ("v", "vt", "vn", "f")}  # keyword -> (texts, line indices)
-        self.events = {k: [] for k in ("usemtl", "o", "g", "s", "mtllib")}  # keyword -> [(index, rest)]
+        self.vec: Dict[str, Tuple[list, list]] = {k: ([], []) for k in ("v", "vt", "vn", "f")}  # keyword -> (texts, line indices)
+        self.events: Dict[str, List[Tuple[int, str]]] = {k: [] for k in ("usemtl", "o", "g", "s", "mtllib")}  # keyword -> [(index, rest)]
         skipped: Counter = Counter()
         # Bound methods: this loop runs once per line of the file.
         v_text, v_line = (lst.append for lst in self.vec["v"])
@@ -533,7 +535,8 @@ class _OBJParser:
 
     def load_libraries(self) -> Dict[str, Material]:
         library: Dict[str, Material] = {}
-        libs, skipped = [], Counter()
+        libs: List[str] = []
+        skipped: Counter = Counter()
         for i, rest in self.events["mtllib"]:
             rest = _strip_comment(rest).strip()
             if not rest:
@@ -712,6 +715,7 @@ class _MTLParser:
         return OBJError(self.file, line_no, message)
 
     def set(self, line_no: int, **values) -> None:
+        assert self.current is not None     # statement() checks it before apply()
         try:
             self.current = self.current.replace(**values)
         except (TypeError, ValueError) as e:
@@ -756,6 +760,7 @@ class _MTLParser:
             if keyword == "d" and args[:1] == ["-halo"]:
                 args = args[1:]
             (x,) = self.numbers(line_no, keyword, args, (1,), line)
+            assert self.current is not None     # statement() checks it before apply()
             if keyword == "Ni" and x <= 0:
                 self.warn(f"{self.file}:{line_no}: 'Ni {_short(args[0])}' is not an index of refraction; keeping {self.current.ior}")
             elif keyword == "Tr":
@@ -769,6 +774,7 @@ class _MTLParser:
         name = _map_file(args)
         if not name:
             raise self.fail(line_no, f"expected a file name after 'map_Kd', got {excerpt(line.strip())}")
+        assert self.current is not None     # statement() checks it before apply()
         gets_none = f"material {excerpt(self.current.name)} gets no diffuse texture"
         try:
             # Refused before anything is looked up: the same answer whether or not an outside file exists.

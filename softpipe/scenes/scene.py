@@ -421,7 +421,7 @@ def framed_camera(points, f: FrameSpec, azimuth: float, elevation: float, aspect
     depth = t - rel @ back
     near = max(0.95 * float(depth.min()), 1e-3 * t)
     far = max(1.05 * float(depth.max()), 2.0 * near)
-    return Camera(eye=tuple(target + t * back), target=tuple(target), up=tuple(up), fovy=f.fovy, near=near,
+    return Camera(eye=tuple(target + t * back), target=tuple(target), up=up, fovy=f.fovy, near=near,
                   far=far)
 
 

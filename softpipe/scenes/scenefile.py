@@ -499,8 +499,8 @@ def _transform_entry(kind: str, v: Any) -> np.ndarray:
         if is_number(v):
             s = number(v)
             return scale(s, s, s)
-        s = numbers(1, 3, what="numbers (s or [sx, sy, sz])")(v)
-        return scale(*(s * 3 if len(s) == 1 else s))
+        factors = numbers(1, 3, what="numbers (s or [sx, sy, sz])")(v)
+        return scale(*(factors * 3 if len(factors) == 1 else factors))
     if kind == "rotate":
         angle, *axis = numbers(4, what="numbers [degrees, ax, ay, az]")(v)
         if not any(axis):

@@ -262,6 +262,7 @@ def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: n
         if c.transmission is None:
             fb, shader, uniforms = opaque, _depth_fragment, None
         else:
+            assert clear is not None    # made above: this caster lets light through
             fb, shader, uniforms = clear, _transmission_fragment, {"transmission": c.transmission}
         DrawCall(fb, clip, indices, None, None, shader, uniforms, cull="none",
                  polygon_offset=settings.polygon_offset).run()
@@ -294,7 +295,7 @@ class ShadowMaps:
 
     lights: Tuple[Light, ...]
     maps: List[ShadowMap] = field(default_factory=list)
-    light_maps: np.ndarray = None
+    light_maps: np.ndarray = None  # type: ignore[assignment, unused-ignore]  # always given; a default as maps has one
     rays: Optional[RayScene] = None
     _packed: Optional[tuple] = field(default=None, repr=False, compare=False)
     _depth: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
@@ -355,7 +356,8 @@ class ShadowMaps:
         """V_j of light ``light_index`` at a world-space point, as the shaders compute it (RGB)."""
         lighting = self.lighting_uniform(Lighting(self.lights), np.eye(4))   # eye space = world space
         p = tuple(float(v) for v in point)
-        return tuple(light_visibility(lighting, light_index, p))
+        r, g, b = light_visibility(lighting, light_index, p)
+        return (r, g, b)
 
 
 def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
@@ -377,9 +379,9 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
     casters = objects if given_casters else casters_of(objects)
     points = np.concatenate([c.positions for c in casters]) if casters else np.zeros((0, 3))
     out = ShadowMaps(tuple(lighting.lights), [], np.zeros((len(lighting.lights), 3), np.int64))
-    planned = []                                    # (light index, view, projection, face)
+    planned: list = []                              # (light index, view, projection, face)
     for j, light in enumerate(lighting.lights):
-        if light.shadows is None:
+        if not isinstance(light.shadows, ShadowSettings):   # None (True became the settings)
             continue
         if light.shadows.method == "ray":
             if given_casters:

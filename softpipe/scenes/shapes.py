@@ -60,8 +60,7 @@ def _grid_patch(center, u_axis, v_axis, cells: int, name: str, material: Materia
     """
     center, u_axis, v_axis = (np.asarray(x, dtype=np.float64) for x in (center, u_axis, v_axis))
     a = np.linspace(0.0, 1.0, cells + 1)
-    ua, va = np.meshgrid(a, a, indexing="ij")  # [i, k]: i along u, k along v
-    ua, va = ua.ravel(), va.ravel()
+    ua, va = (g.ravel() for g in np.meshgrid(a, a, indexing="ij"))  # [i, k]: i along u, k along v
     positions = center + (ua[:, None] - 0.5) * u_axis + (va[:, None] - 0.5) * v_axis
     normal = np.cross(u_axis, v_axis)
     normals = np.broadcast_to(normal / np.linalg.norm(normal), positions.shape)
@@ -129,7 +128,7 @@ def _evaluate_profile(profile: Profile, t_values) -> Tuple[np.ndarray, ...]:
         parts = list(profile)
         if len(parts) == 2:
             parts = [*parts[0], *parts[1]]
-        arrays = [np.asarray(p, dtype=np.float64) for p in parts]
+        arrays: Sequence[np.ndarray] = [np.asarray(p, dtype=np.float64) for p in parts]
         if len(arrays) != 4:
             raise shape_error
         arrays = np.broadcast_arrays(*arrays, *([] if t is None else [t]))

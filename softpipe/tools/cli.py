@@ -425,7 +425,7 @@ def _image_format(path: str) -> str:
         raise CLIError(str(e)) from None
 
 
-def _frame_size(args, default: Tuple[int, int]) -> Tuple[Optional[int], Optional[int]]:
+def _frame_size(args, default: Tuple[int, int]) -> Tuple[int, int]:
     if args.size and (args.width or args.height):
         raise CLIError("give --size or --width/--height, not both")
     if args.size:
@@ -649,7 +649,7 @@ def _turntable(args) -> int:
         _to_stdout(buffer.getvalue())
         where = "GIF to stdout"
     else:
-        where = turntable(scene, output, frames=args.frames, fps=args.fps, progress=progress).resolve()
+        where = str(turntable(scene, output, frames=args.frames, fps=args.fps, progress=progress).resolve())
     _wrote(args, output, f"wrote {where} ({args.frames} frames, {scene.width}×{scene.height}, "
                          f"{frame_duration(args.fps)} ms each, {time.perf_counter() - start:.2f} s)")
     return 0

@@ -45,7 +45,7 @@ import re
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, cast
 
 import numpy as np
 
@@ -101,11 +101,12 @@ def _array(a: np.ndarray, dtype: str) -> dict:
     for columns in ((False, True) if a.ndim > 1 and a.size else (False,)):
         b = np.ascontiguousarray(a.reshape(len(a), -1).T) if columns else a
         for shuffle in ((False, True) if a.itemsize > 1 else (False,)):
-            raw = b.reshape(-1).view(np.uint8)
-            raw = raw.reshape(-1, a.itemsize).T.tobytes() if shuffle else raw.tobytes()
+            octets = b.reshape(-1).view(np.uint8)
+            raw = octets.reshape(-1, a.itemsize).T.tobytes() if shuffle else octets.tobytes()
             z = zlib.compress(raw, 6)
             if best is None or len(z) < len(best[0]):
                 best = (z, columns, shuffle, raw)
+    assert best is not None     # both loops run at least once
     return {"dtype": dtype, "shape": list(a.shape), "columns": best[1], "shuffle": best[2],
             "b64": base64.b64encode(zlib.compress(best[3], 9)).decode("ascii")}
 
@@ -165,7 +166,7 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
         offset += int(t.primitives.input_count)
     pics["coverage"] = img
     pics["depth"] = each[-1]["depth"]                   # one framebuffer: its depth and color after the last
-    pics["overdraw"] = P.heat_colors(sum(P.overdraw(t) for t in traces))
+    pics["overdraw"] = P.heat_colors(cast(np.ndarray, sum(P.overdraw(t) for t in traces)))   # (one draw at least)
     pics["final"] = each[-1]["final"]
     for p in each:
         for name, img in p.items():
@@ -229,13 +230,13 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     keep_pixel[hp] = True
     layouts = [[(n, s) for n, _, s, _ in t.primitives.layout.fields] for t in traces]
     kmax = max([sum(s for _, s in lay) for lay in layouts] + [1])
-    rows = []                                               # (pixel, draw, index) of every held fragment
+    held_rows = []                                          # (pixel, draw, index) of every held fragment
     for k, t in enumerate(traces):
         f = t.fragments
         pix = f.y.astype(np.int64) * w + f.x
         idx = np.nonzero(keep_pixel[pix])[0]
-        rows.append(np.stack([pix[idx], np.full(len(idx), k), idx], axis=1))
-    rows = np.concatenate(rows) if rows else np.zeros((0, 3), np.int64)
+        held_rows.append(np.stack([pix[idx], np.full(len(idx), k), idx], axis=1))
+    rows = np.concatenate(held_rows) if held_rows else np.zeros((0, 3), np.int64)
     rows = rows[np.lexsort((rows[:, 2], rows[:, 1], rows[:, 0]))]
     F = len(rows)
     vary = np.full((F, kmax), np.nan)
@@ -275,8 +276,8 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         shadow_cols.append(ncols)
     lmax = max(shadow_cols + [0])
     shadow = np.full((F, max(lmax, 1), 3), np.nan, np.float32)
-    for r, s in shadows.items():
-        shadow[r, :len(s)] = s
+    for row, s in shadows.items():
+        shadow[row, :len(s)] = s
     same = (color == after).all(axis=1)                     # the color after is the shader's, mostly: once
     hpix, hstart = np.unique(rows[:, 0], return_index=True)
     hstart = np.append(hstart, F)
@@ -318,7 +319,9 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         ok = clip[:, 3] > 0
         if ok.any():
             win_xyz[ok] = call.viewport.apply(clip[ok, :3] / clip[ok, 3:4])
-        v_obj.append(obj), v_clip.append(clip), v_win.append(win_xyz)
+        v_obj.append(obj)
+        v_clip.append(clip)
+        v_win.append(win_xyz)
     cat = lambda parts, n: np.concatenate(parts) if parts else np.zeros((0, n))  # noqa: E731
 
     pics = _pictures(draws)

@@ -181,6 +181,7 @@ def load_cached(source: str, module_name: str) -> types.ModuleType:
             # rename: a concurrent writer never sees, nor truncates, half a file
             atomic_write(path, lambda f: f.write(source.encode()))
         spec = importlib.util.spec_from_file_location(module_name, path)
+        assert spec is not None and spec.loader is not None, path   # a .py file's spec has its loader
         module = importlib.util.module_from_spec(spec)
         sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
         try:
@@ -188,5 +189,5 @@ def load_cached(source: str, module_name: str) -> types.ModuleType:
         except BaseException:
             sys.modules.pop(module_name, None)
             raise
-        module.__softpipe_source__ = source
+        module.__softpipe_source__ = source  # type: ignore[attr-defined]  # the mark load_cached reads
         return module

@@ -280,10 +280,10 @@ def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dic
     if m:
         name = m.group(1)
         site = _name_site(functions, name, _GLOBAL_OPS)
-        owner = next((f for f in functions if site and f.__name__ == site["function"]), None)
-        if owner is not None and name in owner.__globals__:
+        function = next((f for f in functions if site and f.__name__ == site["function"]), None)
+        if function is not None and name in function.__globals__:
             # numba says so of a global it has no type for, inlined into the loop
-            return (f"the global {name!r} (a {type(owner.__globals__[name]).__name__}) cannot be used in "
+            return (f"the global {name!r} (a {type(function.__globals__[name]).__name__}) cannot be used in "
                     "compiled code", site, _GLOBALS_HINT)
         return (f"name {name!r} is not defined", site,
                 "define it (a plain Python function is compiled with the shader) or import it in the shader's module")
@@ -453,7 +453,7 @@ def _locate(kind: str, shader: Callable, kernel, count: int, run: Callable, desc
             noted.update(exc=e, args=args, locals=dict(sys._getframe(1).f_locals))
             raise
 
-    twin.shader = noting
+    twin.shader = noting  # type: ignore[attr-defined]  # the generated module's global, replaced
     try:
         run(getattr(twin, func.__name__), index, index + 1)
     except Exception:

@@ -33,7 +33,7 @@ from __future__ import annotations
 import hashlib
 import re
 import types
-from typing import Callable, Sequence, Tuple
+from typing import Callable, NamedTuple, Sequence, Tuple
 
 import numba
 
@@ -120,14 +120,14 @@ def exec_module(source: str, shader: Callable, kind: str, python: bool = False,
         The function the module's ``shader`` is made from (default: the user's own).
     """
     module = types.ModuleType(f"softpipe_{kind}_loop")
-    module._shader_py = python_function(shader) if compiled is None else compiled
+    module._shader_py = python_function(shader) if compiled is None else compiled  # type: ignore[attr-defined]  # the source reads it
     if python:
         # The same source, run as plain Python: JIT and jit_function become no-ops.
         source = source.replace("shader = jit_function(_shader_py)", "shader = _shader_py")
         source = re.sub(r"JIT = numba\.njit\([^)]*\)", "JIT = lambda f: f", source)
         source = re.sub(r"^from \S+ import \S+ as _shader_py\n", "", source, flags=re.M)
     exec(compile(source, f"<softpipe {kind} loop for {shader_name(shader)}>", "exec"), module.__dict__)
-    module.__softpipe_source__ = source
+    module.__softpipe_source__ = source  # type: ignore[attr-defined]  # as cached_module's
     return module
 
 
@@ -144,7 +144,7 @@ def _namedtuple_line(var: str, typename: str, names: Sequence[str]) -> str:
             f"{var} = {unique}\n")
 
 
-def short_repr(self: tuple) -> str:
+def short_repr(self: NamedTuple) -> str:
     """A generated namedtuple's repr without its unique tag: ``Varyings(normal=…)``."""
     name = type(self).__name__.rsplit("_", 1)[0]
     return name + "(" + ", ".join(f"{f}={v!r}" for f, v in zip(self._fields, self)) + ")"

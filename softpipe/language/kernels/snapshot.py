@@ -23,7 +23,7 @@ import os
 import sys
 import types
 import weakref
-from typing import Any, Callable, Dict, Iterator, Tuple
+from typing import Any, Callable, Dict, Iterator, Tuple, cast
 
 import numba
 import numpy as np
@@ -111,7 +111,7 @@ def user_module(value: Any) -> bool:
     called as ``module.helper(…)`` are helpers, its numbers globals like the shader's own."""
     if not isinstance(value, types.ModuleType) or is_softpipe(value) or value.__name__ == "softpipe":
         return False
-    file = getattr(value, "__file__", None)
+    file = getattr(value, "__file__", None) or ""
     return bool(file) and not os.path.realpath(file).startswith(_LIBRARY_DIRS)
 
 
@@ -194,8 +194,7 @@ def _copy_function(f: types.FunctionType, memo: dict, make: Callable) -> Callabl
                 cells.append(cell)
                 continue
             cells.append(types.CellType(_snapshot_helper(value, memo) if helper_kind(value) else value))
-        cells = tuple(cells)
-    copy = types.FunctionType(f.__code__, glob, f.__name__, f.__defaults__, cells)
+    copy = types.FunctionType(f.__code__, glob, f.__name__, f.__defaults__, None if cells is None else tuple(cells))
     copy.__kwdefaults__ = f.__kwdefaults__
     copy.__qualname__, copy.__module__, copy.__doc__ = f.__qualname__, f.__module__, f.__doc__
     result = memo[id(f)] = make(copy)
@@ -233,7 +232,7 @@ def _snapshot_helper(value, memo: dict) -> Callable:
     options = {}
     if isinstance(value, numba.core.registry.CPUDispatcher):
         options = {k: v for k, v in value.targetoptions.items() if k in _JIT_OPTIONS}
-    return _copy_function(python_function(value), memo, lambda copy: numba.njit(copy, **options))
+    return _copy_function(cast(types.FunctionType, python_function(value)), memo, lambda copy: numba.njit(copy, **options))
 
 
 def shader_snapshot(shader: Callable) -> Callable:

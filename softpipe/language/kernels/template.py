@@ -120,6 +120,7 @@ def _expression_text(template: str, name: str) -> str:
     if len(body) != 1 or not isinstance(body[0], ast.Return) or body[0].value is None:
         raise ValueError(f"templates/{template}.py:{name} must be a docstring and one return statement")
     expression = ast.get_source_segment(text, body[0].value)
+    assert expression is not None, name     # a node of ast.parse has its position
     if "\n" in expression:
         raise ValueError(f"templates/{template}.py:{name}: its expression must stand on one line")
     return expression
@@ -179,9 +180,9 @@ def _fold_constants(source: str, constants: Mapping[str, Any]) -> str:
         raise ValueError("a template may not assign to a compile-time constant")
     lines = source.splitlines(keepends=True)
     for n in sorted(reads, key=lambda n: (n.lineno, n.col_offset), reverse=True):
-        line = lines[n.lineno - 1].encode()              # ast's columns count UTF-8 bytes
-        lines[n.lineno - 1] = (line[:n.col_offset] + repr(constants[n.id]).encode()
-                               + line[n.end_col_offset:]).decode()
+        encoded = lines[n.lineno - 1].encode()           # ast's columns count UTF-8 bytes
+        lines[n.lineno - 1] = (encoded[:n.col_offset] + repr(constants[n.id]).encode()
+                               + encoded[n.end_col_offset:]).decode()
         used.add(n.id)
     unused = set(constants) - used
     if unused:

@@ -491,7 +491,7 @@ class _JobReader(SceneReader):
         self.known_models[name] = source
         return name
 
-    def camera(self, value: Any, t: Table, elevation: float, key: str = "cameras") -> Dict[str, Any]:
+    def camera(self, value: Any, t: Table, elevation: float, key: str = "cameras") -> Dict[str, Any]:  # type: ignore[override]  # a job's, not a scene's [camera] (scene() is not used here)
         """A camera: an azimuth in degrees, a view's name (:data:`VIEWS`) or ``{azimuth, elevation}``."""
         if isinstance(value, str):
             if value not in VIEWS:
