@@ -547,10 +547,13 @@ def _interrupt_held() -> Iterator[None]:
 
 
 def _root_cause(e: BaseException) -> BaseException:
+    """The first exception of ``e``'s chain (its cause, or the one it was raised while handling)."""
     seen = {id(e)}
-    while (e.__cause__ or e.__context__) is not None and id(e.__cause__ or e.__context__) not in seen:
-        e = e.__cause__ or e.__context__
+    inner = e.__cause__ or e.__context__
+    while inner is not None and id(inner) not in seen:
+        e = inner
         seen.add(id(e))
+        inner = e.__cause__ or e.__context__
     return e
 
 
