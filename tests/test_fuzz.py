@@ -64,9 +64,11 @@ def test_the_time_bound():
 
 
 
-def test_the_scene_target_parses_a_bundled_model_once(monkeypatch):
-    """Parsing the bunny for every input, under atheris's instrumentation, outlasted the time bound
-    (a false hang); the model files are fixed, so the scene target loads each once."""
+def test_the_scene_target_parses_a_bundled_model_and_its_texture_once(monkeypatch):
+    """Parsing the bunny (and spot's texture's mipmaps) for every input, under atheris's
+    instrumentation, outlasted the time bound (a false hang); the files are fixed, so the scene
+    target loads each once."""
+    import softpipe.light.texture as texture
     import softpipe.scenes.models as models
 
     loads = []
@@ -78,8 +80,14 @@ def test_the_scene_target_parses_a_bundled_model_once(monkeypatch):
 
     monkeypatch.setattr(models, "load_model", counting)
     targets._bundled_model.cache_clear()
-    data = b'[[meshes]]\nobj = "suzanne"\n'
+    targets._bundled_texture.cache_clear()
+    real_texture = texture.Texture2D
+    data = b'[[meshes]]\nobj = "spot"\n[meshes.material]\ndiffuse_texture = "spot"\n'
     assert targets.check_scene(data) == "ok"
     assert targets.check_scene(data) == "ok"
-    assert loads == ["suzanne"]
+    assert loads == ["spot"]
+    info = targets._bundled_texture.cache_info()
+    assert (info.misses, info.hits) == (1, 1)
+    assert texture.Texture2D is real_texture          # the library is left as it was
     targets._bundled_model.cache_clear()
+    targets._bundled_texture.cache_clear()
