@@ -210,3 +210,81 @@ def test_the_scene_target_fuzzes_a_mesh_under_atheris(tmp_path):
                          capture_output=True, text=True, timeout=600, cwd=ROOT)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     assert "Executed" in run.stderr and "TypingError" not in run.stderr
+
+
+# ------------------------------------------------------------ damaged kernel cache entries
+
+DAMAGED_RUN = '''
+import numpy as np
+from softpipe.language.kernels.cache import load_cached
+from softpipe.pipeline.transforms import transform_points
+
+SOURCE = "import numba\\n\\n@numba.njit(cache=True)\\ndef plus_one(x):\\n    return x + 1\\n"
+module = load_cached(SOURCE, "softpipe_damaged_probe")            # a generated kernel module, as softpipe's
+print(module.plus_one(41))
+print(transform_points(np.eye(4) * 2.0, np.array([[1.0, 2.0, 3.0]])).tolist())   # a library function
+'''
+
+
+@pytest.fixture(scope="module")
+def warm_caches(tmp_path_factory):
+    """Both caches (softpipe's kernel modules, numba's files) after one run, and how to run again."""
+    import os
+    import shutil
+    import subprocess
+
+    root = tmp_path_factory.mktemp("caches")
+    live, pristine, script = root / "live", root / "pristine", root / "run.py"
+    script.write_text(DAMAGED_RUN)
+    env = dict(os.environ, SOFTPIPE_CACHE_DIR=str(live / "kernels"), NUMBA_CACHE_DIR=str(live / "numba"),
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+
+    def run(*options):
+        return subprocess.run([sys.executable, *options, str(script)], env=env, capture_output=True, text=True,
+                              timeout=600, cwd=root)
+
+    first = run()
+    assert first.returncode == 0 and first.stdout == "42\n[[2.0, 4.0, 6.0]]\n", first.stderr[-3000:]
+    shutil.copytree(live, pristine)
+
+    def fresh():
+        shutil.rmtree(live)
+        shutil.copytree(pristine, live)          # the same paths: numba's cache folders are named after them
+        return live
+
+    return fresh, run
+
+
+@pytest.mark.parametrize("damaged", ["kernel .nbi", "kernel .nbc", "kernel .py", "kernel .pyc", "library .nbi",
+                                     "library .nbc"])
+def test_a_damaged_cache_entry_is_dropped_and_rebuilt(warm_caches, damaged):
+    import py_compile
+    from importlib.util import cache_from_source
+
+    fresh, run = warm_caches
+    live = fresh()
+    where, kind = damaged.split()
+    stem = "softpipe_damaged_probe.plus_one" if where == "kernel" else "transforms._transform_points"
+    if kind == ".py":
+        files = [live / "kernels" / "softpipe_damaged_probe.py"]
+    elif kind == ".pyc":
+        source = live / "kernels" / "softpipe_damaged_probe.py"
+        files = [Path(py_compile.compile(str(source), cfile=cache_from_source(str(source)), doraise=True))]
+    else:
+        files = list((live / "numba").rglob(f"{stem}-*{kind}"))
+    assert files, damaged
+    for f in files:
+        f.write_bytes(f.read_bytes()[:len(f.read_bytes()) // 2])               # truncated, as by a full disk
+    second = run()
+    assert second.returncode == 0, second.stderr[-3000:]
+    assert second.stdout == "42\n[[2.0, 4.0, 6.0]]\n"
+    if kind in (".nbi", ".nbc"):
+        name = stem if where == "kernel" else "softpipe.pipeline." + stem
+        index = next((live / "numba").rglob(f"{stem}-*.nbi"))
+        assert (f"RuntimeWarning: softpipe: numba's cache entry for {name} ({index} and its .nbc files) could not be "
+                "read (") in second.stderr, second.stderr[-3000:]
+        assert "; it is dropped and the function compiled again" in second.stderr
+    else:
+        assert "Warning" not in second.stderr, second.stderr[-3000:]
+    third = run("-W", "error")                                                # rebuilt: no warning any more
+    assert third.returncode == 0 and third.stdout == "42\n[[2.0, 4.0, 6.0]]\n", third.stderr[-3000:]
