@@ -11,8 +11,9 @@ is installed (a ``pytest11`` entry point of the same name). In a test::
   second call in one test needs its own ``name=``. Characters other than letters,
   digits, ``_``, ``.`` and ``-`` become ``-`` and the name gets a hash of the whole
   name (``test_x[a/b]`` → ``test_x-a-b~<8 hex digits>``), so that ids such as
-  ``a/b``, ``a-b`` and ``a b`` never share a file; two tests of one run that would
-  still use one golden image (two files' ``test_x``, or the same ``name=``) are an error.
+  ``a/b``, ``a-b`` and ``a b`` never share a file; two tests of one pytest process that
+  would still use one golden image (two files' ``test_x``, or the same ``name=``) are an
+  error.
 - It is stored as an 8-bit PNG, and the comparison is of 8-bit values:
   ``tolerance`` (default 0: the same bytes) is in 8-bit levels per channel.
   A Framebuffer is its 8-bit RGB picture (``np.asarray(fb)``).
