@@ -3,7 +3,9 @@
     python fuzz/fuzz_atheris.py TARGET [libFuzzer options] [CORPUS_DIR ...]
 
 TARGET is ``obj`` or ``scene`` (see targets.py). softpipe (and, for the scene target,
-the standard library's tomllib) is instrumented for coverage; numpy and numba are not.
+the standard library's tomllib) is instrumented for coverage; numpy and numba are not,
+nor are softpipe's numba-compiled functions (numba cannot compile atheris's calls;
+see uninstrumented.py).
 Usually started by run.py, which passes the time budget, the per-input timeout, the
 dictionary and the corpus folders.
 """
@@ -32,7 +34,9 @@ sys.argv[0] = f"{sys.executable} {os.path.abspath(__file__)}"
 import numba  # noqa: E402,F401
 import numpy  # noqa: E402,F401
 import PIL.Image  # noqa: E402,F401
+from uninstrumented import keep_numba_uninstrumented  # noqa: E402
 
+keep_numba_uninstrumented()
 with atheris.instrument_imports(include=["softpipe", "tomllib"]):
     import tomllib  # noqa: F401
 

@@ -16,10 +16,15 @@ File names in the inputs resolve against ``fuzz/data`` (a triangle, a quad with 
 and a 4×4 texture), so that ``mtllib``/``obj =``/``diffuse_texture =`` can succeed.
 The scene target lowers ``MAX_SCENE_TRIANGLES`` to :data:`FUZZ_SCENE_TRIANGLES` so that
 the fuzzer spends its time on parsing rather than on making large spheres; the limit
-is still checked, just smaller.
+is still checked, just smaller. It also loads each bundled model (``obj = "bunny"``) and
+its texture (spot's, 1024², with its mipmaps) once per process: those files are fixed
+(the ``obj`` target fuzzes the OBJ parser), and loading them again for every input, under
+the fuzzer's instrumentation on a busy machine, took longer than the time bound and was
+reported as a hang.
 """
 from __future__ import annotations
 
+import functools
 import os
 import warnings
 from pathlib import Path
@@ -102,12 +107,44 @@ def _check_mesh(mesh) -> None:
     assert np.isfinite(mesh.positions).all()
 
 
+@functools.lru_cache(maxsize=None)
+def _bundled_model(name: str, **kwargs):
+    """softpipe.scenes.models.load_model, once per bundled model (a Mesh is a value: sharing it is safe)."""
+    import softpipe.scenes.models as models
+
+    return models.load_model(name, **kwargs)
+
+
+@functools.lru_cache(maxsize=None)
+def _bundled_texture(path: str):
+    """softpipe's Texture2D of a bundled model's texture file, made once."""
+    return _TEXTURE_2D[0](path)
+
+
+#: softpipe.light.texture.Texture2D, as the library has it.
+_TEXTURE_2D: list = []
+
+
+def _texture(path, *args, **kwargs):
+    """Texture2D(path, ...) in the scene target: a bundled model's texture once, other files each time."""
+    from softpipe.scenes.models import MODELS_DIR
+
+    if not args and not kwargs and isinstance(path, str) and Path(path).resolve().is_relative_to(MODELS_DIR):
+        return _bundled_texture(path)
+    return _TEXTURE_2D[0](path, *args, **kwargs)
+
+
 def check_scene(data: bytes) -> str:
     """Run the scene-file parser on ``data``; returns "ok" or "SceneError"."""
+    import softpipe.light.texture as texture
     import softpipe.scenes.scenefile as scenefile
 
     text = _decode(data)
     scenefile.MAX_SCENE_TRIANGLES = FUZZ_SCENE_TRIANGLES
+    load_model, scenefile.load_model = scenefile.load_model, _bundled_model
+    if not _TEXTURE_2D:
+        _TEXTURE_2D.append(texture.Texture2D)
+    texture_2d, texture.Texture2D = texture.Texture2D, _texture
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -120,6 +157,9 @@ def check_scene(data: bytes) -> str:
             if strict() or not known_issue("scene", e):
                 raise
             return "known-" + type(e).__name__
+        finally:
+            scenefile.load_model = load_model      # other users of this process see the library as it is
+            texture.Texture2D = texture_2d
     return "ok"
 
 

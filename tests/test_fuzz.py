@@ -62,3 +62,32 @@ def test_the_time_bound():
 # Findings the fuzzer made go into fuzz/known/ with an entry in targets.KNOWN until they
 # are fixed, then into the corpus (as regression-*), which the tests above replay.
 
+
+
+def test_the_scene_target_parses_a_bundled_model_and_its_texture_once(monkeypatch):
+    """Parsing the bunny (and spot's texture's mipmaps) for every input, under atheris's
+    instrumentation, outlasted the time bound (a false hang); the files are fixed, so the scene
+    target loads each once."""
+    import softpipe.light.texture as texture
+    import softpipe.scenes.models as models
+
+    loads = []
+    real = models.load_model
+
+    def counting(name, **kwargs):
+        loads.append(name)
+        return real(name, **kwargs)
+
+    monkeypatch.setattr(models, "load_model", counting)
+    targets._bundled_model.cache_clear()
+    targets._bundled_texture.cache_clear()
+    real_texture = texture.Texture2D
+    data = b'[[meshes]]\nobj = "spot"\n[meshes.material]\ndiffuse_texture = "spot"\n'
+    assert targets.check_scene(data) == "ok"
+    assert targets.check_scene(data) == "ok"
+    assert loads == ["spot"]
+    info = targets._bundled_texture.cache_info()
+    assert (info.misses, info.hits) == (1, 1)
+    assert texture.Texture2D is real_texture          # the library is left as it was
+    targets._bundled_model.cache_clear()
+    targets._bundled_texture.cache_clear()

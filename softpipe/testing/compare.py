@@ -56,6 +56,10 @@ def _check_mask(mask, shape, name="mask") -> Optional[np.ndarray]:
         raise TypeError(f"{name} must be a bool array [H, W] (True: compare this pixel), got dtype {m.dtype}")
     if m.shape != shape:
         raise ValueError(f"{name} has shape {list(m.shape)}, the images {list(shape)}")
+    if not m.any():
+        # A comparison of no pixel passes whatever the images hold: that is never what a test means.
+        raise ValueError(f"{name} is False everywhere: it compares no pixel, so any image would pass "
+                         "(True marks the pixels to compare; mask=None compares them all)")
     return m
 
 
@@ -272,18 +276,31 @@ def check_golden(image, golden_path, *, tolerance=0, mask=None, update: bool = F
     Returns "passed", "created" or "updated"; raises AssertionError when the
     golden image is missing (it is written, to be looked at and committed) or
     differs (``output_dir`` then receives NAME.actual.png and NAME.diff.png).
-    With ``update`` a missing or different golden image is (re)written instead.
+    With ``update`` a missing or different golden image is (re)written instead, and so
+    is one of another size or number of channels, or one that is not a readable image.
     """
     __tracebackhide__ = True
     golden_path = Path(golden_path)
     actual = to_8bit(image, "image")
+    _check_mask(mask, actual.shape[:2])          # a bad mask is an error in update mode too
     if not golden_path.exists():
         write_png(actual, golden_path)
         if update:
             return "created"
         raise AssertionError(f"golden image {golden_path} did not exist; it is written now from this run: look at "
                              "it, commit it, and run the test again")
-    message, a, b, differs = compare(actual, golden_path, tolerance=tolerance, mask=mask,
+    try:
+        golden = as_pixels(golden_path, "golden")
+        if golden.shape != actual.shape:
+            raise ValueError(f"actual has shape {list(actual.shape)} and golden {list(golden.shape)}: "
+                             "they cannot be compared pixel by pixel")
+    except ValueError as e:                      # unreadable, or another size or number of channels
+        if update:
+            write_png(actual, golden_path)
+            return "updated"
+        raise ValueError(f"{e}\ngolden image: {golden_path}\n(if the new image is right: "
+                         "pytest --softpipe-update-golden rewrites the golden image)") from None
+    message, a, b, differs = compare(actual, golden, tolerance=tolerance, mask=mask,
                                      actual_name="actual", expected_name="golden")
     if message is None:
         return "passed"

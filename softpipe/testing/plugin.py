@@ -8,7 +8,12 @@ is installed (a ``pytest11`` entry point of the same name). In a test::
 
 - The golden image is ``golden/NAME.png`` in the test file's folder; NAME is the
   test's name (``test_x[param]`` → ``test_x-param``) unless ``name=`` is given; a
-  second call in one test needs its own ``name=``.
+  second call in one test needs its own ``name=``. Characters other than letters,
+  digits, ``_``, ``.`` and ``-`` become ``-`` and the name gets a hash of the whole
+  name (``test_x[a/b]`` → ``test_x-a-b~<8 hex digits>``), so that ids such as
+  ``a/b``, ``a-b`` and ``a b`` never share a file; two tests of one pytest process that
+  would still use one golden image (two files' ``test_x``, or the same ``name=``) are an
+  error.
 - It is stored as an 8-bit PNG, and the comparison is of 8-bit values:
   ``tolerance`` (default 0: the same bytes) is in 8-bit levels per channel.
   A Framebuffer is its 8-bit RGB picture (``np.asarray(fb)``).
@@ -17,10 +22,13 @@ is installed (a ``pytest11`` entry point of the same name). In a test::
   message and writes NAME.actual.png and NAME.diff.png into the test's
   ``tmp_path`` (or ``--softpipe-golden-output DIR``).
 - ``pytest --softpipe-update-golden`` rewrites the golden images that differ
-  (and writes missing ones) and passes; the terminal summary lists them.
+  (or have another size or channels, or cannot be read) and writes missing ones,
+  and passes; the terminal summary lists them.
+- ``mask=`` False everywhere is an error: it would compare no pixel.
 """
 from __future__ import annotations
 
+import hashlib
 import re
 from pathlib import Path
 
@@ -31,6 +39,8 @@ from softpipe.testing.compare import check_golden
 __all__ = ["golden", "Golden"]
 
 _UPDATED = pytest.StashKey[list]()
+#: The golden images used in this run: path → the test (node id) that used it.
+_OWNERS = pytest.StashKey[dict]()
 
 
 def pytest_addoption(parser):
@@ -45,11 +55,27 @@ def pytest_addoption(parser):
 
 def pytest_configure(config):
     config.stash[_UPDATED] = []
+    config.stash[_OWNERS] = {}
+
+
+_PARAMETRIZED = re.compile(r"([A-Za-z0-9_]+)\[([A-Za-z0-9_.-]+)\]")
 
 
 def _file_name(name: str) -> str:
-    """A test's name as a file name: test_x[a-1] → test_x-a-1."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "-", name).strip("-.") or "golden"
+    """A test's name as a file name: test_x[a-1] → test_x-a-1; test_x[a/b] → test_x-a-b~<hash>.
+
+    Names of letters, digits, ``_.-`` (and a test's name with such an id) keep their
+    readable form; any other name gets the first 8 hex digits of the SHA-256 of the whole
+    name after a ``~`` (a character the readable forms never hold), so that names
+    differing only in the characters replaced have files of their own. Over tests' names
+    (a Python name, then maybe ``[id]``) this is one-to-one; a ``name=`` given by hand may
+    still equal another test's file name, which :class:`Golden` reports as an error.
+    """
+    readable = re.sub(r"[^A-Za-z0-9_.-]+", "-", name).strip("-.") or "golden"
+    plain = _PARAMETRIZED.fullmatch(name)
+    if readable == name or (plain is not None and readable == f"{plain[1]}-{plain[2]}"):
+        return readable
+    return f"{readable}~{hashlib.sha256(name.encode('utf-8')).hexdigest()[:8]}"
 
 
 class Golden:
@@ -75,6 +101,12 @@ class Golden:
                              "own name=")
         self._used.add(path)
         config = self._request.config
+        owners = config.stash[_OWNERS]
+        test = self._request.node.nodeid
+        other = owners.setdefault(path.resolve(), test)
+        if other != test:
+            raise ValueError(f"golden image {path} is already used by {other}: two tests would overwrite each "
+                             f"other's golden image; give one of them its own name=")
         update = config.getoption("softpipe_update_golden")
         out = config.getoption("softpipe_golden_output")
         out = Path(out) if out else self._request.getfixturevalue("tmp_path")

@@ -13,6 +13,12 @@
   values instead: numba cannot see when a user's file changes.
 - **One compile at a time** (:data:`COMPILE_LOCK`): two threads asking for the same
   loop build it once, and a fork waits until no thread is compiling.
+- **A damaged entry is rebuilt**: a generated module file that is not the source it
+  should hold is written again, and it is run from that source (no ``.pyc`` is read);
+  a numba cache file (``.nbi``/``.nbc``) of softpipe's own functions or generated
+  kernels that cannot be read (truncated, garbled) is dropped with a
+  :class:`RuntimeWarning` and the function compiled again (:func:`_load_or_drop`),
+  rather than failing every later render of the program.
 
 More: docs/08-fast-path.md (what is compiled when), docs/batch.md (the cache on a cluster).
 """
@@ -25,6 +31,7 @@ import os
 import sys
 import threading
 import types
+import warnings
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Tuple
 
@@ -64,6 +71,54 @@ if _cache_dir().is_dir():       # so even a first cache lookup can import what i
 #: softpipe/ (this file is softpipe/language/kernels/cache.py)
 PACKAGE_DIR = Path(__file__).resolve().parents[2]
 _PACKAGE_HASH: list = []
+
+
+# ------------------------------------------------------------------ damaged numba cache files
+
+_NUMBA_LOAD_OVERLOAD = numba.core.caching.Cache.load_overload
+
+
+def _is_softpipes(py_file: str) -> bool:
+    """Whether numba's cache entry is for a function of softpipe's sources or of its generated kernels."""
+    try:
+        path = Path(py_file).resolve()
+    except (OSError, RuntimeError, TypeError, ValueError):
+        return False
+    return any(path.is_relative_to(root) for root in (PACKAGE_DIR, _cache_dir().resolve()))
+
+
+def _load_or_drop(cache, sig, target_context):
+    """numba's ``Cache.load_overload``; for softpipe's functions, an entry that cannot be read is a miss.
+
+    A truncated or garbled ``.nbi``/``.nbc`` file makes numba's loader raise (an
+    ``UnpicklingError``, an ``EOFError``, …) on every later call, which a render reports
+    as a shader that cannot be compiled, in every process from then on. Here the index is
+    removed instead (numba writes a new one when it saves the recompiled function), a
+    RuntimeWarning says which file, and numba compiles the function again. Others'
+    numba functions are left to numba.
+    """
+    try:
+        return _NUMBA_LOAD_OVERLOAD(cache, sig, target_context)
+    except Exception as e:           # whatever a damaged pickle raises: compiling anew is always right
+        function = getattr(cache, "_py_func", None)
+        index = getattr(getattr(cache, "_cache_file", None), "_index_path", None)
+        code = getattr(function, "__code__", None)
+        if index is None or code is None or not _is_softpipes(code.co_filename):
+            raise
+        try:
+            os.unlink(index)
+        except FileNotFoundError:
+            pass
+        except OSError:
+            raise e from None        # a cache entry we can neither read nor remove: numba's error stands
+        name = f"{getattr(function, '__module__', '?')}.{getattr(function, '__qualname__', '?')}"
+        warnings.warn(f"softpipe: numba's cache entry for {name} ({index} and its .nbc files) could not "
+                      f"be read ({type(e).__name__}: {e}); it is dropped and the function compiled again",
+                      RuntimeWarning, stacklevel=2)
+        return None
+
+
+numba.core.caching.Cache.load_overload = _load_or_drop
 
 
 def hashed_sources() -> List[Path]:
@@ -164,9 +219,10 @@ def cached_file_name(source: str, kind: str, globals_key: tuple) -> str:
 def load_cached(source: str, module_name: str) -> types.ModuleType:
     """The generated module ``source``, written to the cache directory as ``module_name``.py and imported.
 
-    The file is written only when it is missing or differs, through a temporary file
-    and an atomic rename; the module goes into ``sys.modules`` so that numba's cache
-    can find its namedtuple classes by name.
+    The file is written only when it is missing or differs (a damaged one is written
+    again), through a temporary file and an atomic rename; the module is run from
+    ``source`` itself (a stale or damaged ``.pyc`` beside the file is never read), and
+    goes into ``sys.modules`` so that numba's cache can find its namedtuple classes by name.
     """
     directory = _cache_dir()
     directory.mkdir(parents=True, exist_ok=True)
@@ -176,16 +232,19 @@ def load_cached(source: str, module_name: str) -> types.ModuleType:
         loaded = sys.modules.get(module_name)
         if loaded is not None and getattr(loaded, "__softpipe_source__", None) == source:
             return loaded
-        if not path.exists() or path.read_text() != source:
+        data = source.encode()
+        if not path.is_file() or path.read_bytes() != data:
             # a temporary file of our own (unique across processes and threads), then an atomic
             # rename: a concurrent writer never sees, nor truncates, half a file
-            atomic_write(path, lambda f: f.write(source.encode()))
+            atomic_write(path, lambda f: f.write(data))
         spec = importlib.util.spec_from_file_location(module_name, path)
         assert spec is not None and spec.loader is not None, path   # a .py file's spec has its loader
         module = importlib.util.module_from_spec(spec)
         sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
         try:
-            spec.loader.exec_module(module)
+            # the source we checked, compiled under the file's name (numba's cache is keyed by that
+            # file); not spec.loader.exec_module, which would trust a .pyc in __pycache__
+            exec(compile(source, str(path), "exec"), module.__dict__)
         except BaseException:
             sys.modules.pop(module_name, None)
             raise
