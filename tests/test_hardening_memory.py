@@ -316,3 +316,14 @@ def test_the_sigterm_handler_is_up_only_while_writing_and_never_over_the_program
         assert seen[1] is mine and signal.getsignal(signal.SIGTERM) is mine
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+def test_the_history_of_a_pixel_the_draw_did_not_touch_says_so_once_the_framebuffer_moved_on():
+    fb = sp.Framebuffer(20, 16)
+    fb.clear((0.25, 0.5, 0.75, 1.0))
+    trace = sp.draw(fb, triangle(0.0, 0.0) * [0.3, 0.3, 1, 1], varyings={"color": np.ones((3, 3))}, trace=True)
+    assert trace.pixel_history(0, 0).before == (0.25, 0.5, 0.75, 1.0)     # unchanged since: known
+    fb.clear("black")
+    history = trace.pixel_history(0, 0)
+    assert len(history) == 0 and history.before is None
+    assert str(history) == "pixel (0, 0): 0 fragment(s); the draw did not touch it"

@@ -137,9 +137,13 @@ class PixelEvent:
 
 
 class PixelHistory(list):
-    """The :class:`PixelEvent` list of one pixel; prints as a table (an HTML table in Jupyter)."""
+    """The :class:`PixelEvent` list of one pixel; prints as a table (an HTML table in Jupyter).
 
-    def __init__(self, x: int, y: int, events: List[PixelEvent], before: tuple):
+    ``before`` is the pixel's color (sample 0) before the draw; None for a pixel the draw did
+    not touch once the framebuffer has been written since (the trace does not keep it).
+    """
+
+    def __init__(self, x: int, y: int, events: List[PixelEvent], before: Optional[tuple]):
         super().__init__(events)
         self.x, self.y, self.before = x, y, before
 
@@ -150,6 +154,8 @@ class PixelHistory(list):
         return f"{v:.4g}" if isinstance(v, float) else str(v)
 
     def _heading(self) -> str:
+        if self.before is None:         # a pixel the draw did not touch, asked after the framebuffer changed
+            return f"pixel ({self.x}, {self.y}): 0 fragment(s); the draw did not touch it"
         return (f"pixel ({self.x}, {self.y}): {len(self)} fragment(s); color before the draw "
                 f"{self._fmt(self.before)}")
 
@@ -417,7 +423,10 @@ class Trace:
                 color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
                 color_after=tuple(float(c) for c in m.color_after[k])))
             events[-1].shadow = self._shadow_terms(varyings)
-        before = tuple(float(c) for c in self.before_at(x, y)[0][0])
+        if self.before.find(x, y, self.width) < 0 and self.call.framebuffer.writes != self.before.writes:
+            before = None       # not touched, and the framebuffer has changed since: not kept (module docstring)
+        else:
+            before = tuple(float(c) for c in self.before_at(x, y)[0][0])
         return PixelHistory(x, y, events, before)
 
     def _shadow_terms(self, varyings) -> tuple:
