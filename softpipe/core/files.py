@@ -13,12 +13,18 @@ line) lifts the folder rule for files you trust; special files stay refused.
 **Outputs** are written whole or not at all (:func:`atomic_write`): to a
 temporary file in the same folder, then renamed over the target, so a full disk,
 a crash or Ctrl-C never leaves half a PNG and never destroys the previous file.
+SIGTERM (``kill``, a job scheduler stopping the program) removes the temporary file
+too: while the main thread writes one, softpipe's handler stands in for the default
+one, removes every temporary file being written and ends the process by SIGTERM as
+the default would (a handler of the program's own is left as it is).
 """
 from __future__ import annotations
 
 import os
+import signal
 import stat
 import tempfile
+import threading
 from pathlib import Path
 from typing import IO, Callable, Union
 
@@ -120,21 +126,70 @@ def atomic_write(path: PathLike, write: Callable[[IO[bytes]], object]) -> None:
     path = os.fspath(path)
     check_writable(path)
     folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        mode = 0o666 & ~_umask()
-        os.chmod(tmp, mode)             # mkstemp's 0600 would make outputs private
-        os.replace(tmp, path)
-    except BaseException:
+    with _removed_on_sigterm() as pending:
+        fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=folder)
+        pending.add(tmp)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                write(f)
+                f.flush()
+                os.fsync(f.fileno())
+            mode = 0o666 & ~_umask()
+            os.chmod(tmp, mode)             # mkstemp's 0600 would make outputs private
+            os.replace(tmp, path)
+        except BaseException:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            raise
+        finally:
+            pending.discard(tmp)
+
+
+# The temporary files being written, and how many writes of the main thread have SIGTERM's handler up.
+_pending: set = set()
+_pending_lock = threading.Lock()
+_handler_users = 0
+
+
+def _on_sigterm(signum, frame) -> None:
+    """Remove the temporary files being written, then die of SIGTERM as the default handler does."""
+    for tmp in list(_pending):
         try:
             os.unlink(tmp)
         except OSError:
             pass
-        raise
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+class _removed_on_sigterm:
+    """While it is entered: the temporary files added to it are removed if SIGTERM comes.
+
+    The handler goes up only from the main thread (the only one that may set one) and only over
+    the default handler; the first write to enter puts it up and the last to leave takes it down.
+    """
+
+    def __enter__(self) -> set:
+        global _handler_users
+        self.installed = False
+        if threading.current_thread() is threading.main_thread():
+            with _pending_lock:
+                if _handler_users or signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+                    if not _handler_users:
+                        signal.signal(signal.SIGTERM, _on_sigterm)
+                    _handler_users += 1
+                    self.installed = True
+        return _pending
+
+    def __exit__(self, *exc) -> None:
+        global _handler_users
+        if self.installed:
+            with _pending_lock:
+                _handler_users -= 1
+                if not _handler_users and signal.getsignal(signal.SIGTERM) is _on_sigterm:
+                    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _umask() -> int:

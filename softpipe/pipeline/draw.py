@@ -189,7 +189,18 @@ class DrawCall:
         "fragment" stage on the fast path); a draw stepped to the end leaves it
         exactly as :meth:`run` would. ``record`` keeps each fragment's color
         after merging (for pixel history).
+
+        The draw holds the framebuffer's lock (:attr:`Framebuffer.lock`) from its
+        first stage to its last, so draws from several threads into one
+        framebuffer take turns; and it refuses (ValueError), before any stage, a
+        framebuffer with an array flagged read-only (:meth:`Framebuffer.check_drawable`).
         """
+        with self.framebuffer.lock:
+            self.framebuffer.check_drawable()
+            self.framebuffer.count_write()
+            yield from self._steps(record)
+
+    def _steps(self, record: bool) -> Iterator[Stage]:
         self.path_taken, self.path_reason = self.choose_path(keep_fragments=record)
         debug = _debug_stages()
         clock = self._clock()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import os
+import threading
 from pathlib import Path
 from typing import BinaryIO, Optional, Sequence, Union
 
@@ -18,6 +19,7 @@ import numpy as np
 
 from softpipe.core.colors import rgba
 from softpipe.core.parallel import in_bands
+from softpipe.core.runtime import check_memory
 from softpipe.pipeline.sampling import CENTER, SamplePattern
 
 __all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format"]
@@ -112,6 +114,11 @@ class Framebuffer:
     why), so ``PIL.Image.fromarray(np.asarray(fb))``, ``plt.imshow(fb)`` and
     ``imageio.imwrite("x.png", fb)`` take it as it is; :meth:`save` writes any format
     pillow knows to a path or a binary file; in Jupyter ``fb`` shows the picture.
+
+    Threads may share a framebuffer: the draws into it (and :meth:`clear`) take its
+    lock, :attr:`lock`, one at a time, so the bytes are those of the same draws made one
+    after another. Flagging one of its arrays read-only (``fb.color.flags.writeable =
+    False``) freezes it: a draw or a clear then raises ValueError instead of writing.
     """
 
     def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER):
@@ -119,22 +126,30 @@ class Framebuffer:
             raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
         _check_size(width, height, len(pattern))
         s = len(pattern)
+        check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel (20 bytes a sample)",
+                     int(width) * int(height) * s * 20)
         object.__setattr__(self, "_width", int(width))
         object.__setattr__(self, "_height", int(height))
         object.__setattr__(self, "_pattern", pattern)
         object.__setattr__(self, "_count", s)
         object.__setattr__(self, "_samples_color", np.empty((s, self._height, self._width, 4), dtype=np.float32))
         object.__setattr__(self, "_samples_depth", np.empty((s, self._height, self._width), dtype=np.float32))
+        object.__setattr__(self, "_views", {})
+        object.__setattr__(self, "_lock", threading.RLock())
+        object.__setattr__(self, "_writes", 0)
         self.clear()
 
     # The size, the pattern and the two arrays are read-only: the kernels write into the
     # arrays by index without bounds checks, trusting that they are [S, H, W(, 4)] float32,
     # C-contiguous, with S, H, W those of the pattern, height and width. Every read of
     # ``samples_color`` / ``samples_depth`` checks that the framebuffer's own array still is
-    # so and hands out a new view of it: writing into it (``fb.samples_color[...] = c``)
+    # so and hands out a view of it: writing into it (``fb.samples_color[...] = c``)
     # changes the framebuffer, while changing the view's shape, dtype or strides does not.
+    # The view is kept and handed out again while it is intact, so that a flag set on it
+    # (``fb.color.flags.writeable = False``, even on the view of one expression) stays
+    # and the draws can honour it (:meth:`check_drawable`).
 
-    _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth")
+    _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth", "lock", "writes")
     # set once, by __init__ (through object.__setattr__)
     _width: int
     _height: int
@@ -142,6 +157,9 @@ class Framebuffer:
     _count: int
     _samples_color: np.ndarray
     _samples_depth: np.ndarray
+    _lock: threading.RLock
+    _writes: int
+    _views: dict
 
     def __setattr__(self, name, value):
         if name in self._READ_ONLY or name.startswith("_"):
@@ -184,20 +202,71 @@ class Framebuffer:
     @property
     def samples_color(self) -> np.ndarray:
         """float32 [S, H, W, 4], C-contiguous: every sample's color (a view: write into it in place)."""
-        return self._checked(self._samples_color, (self._count, self._height, self._width, 4), "samples_color")
+        return self._view("samples_color")
 
     @property
     def samples_depth(self) -> np.ndarray:
         """float32 [S, H, W], C-contiguous: every sample's depth (a view: write into it in place)."""
-        return self._checked(self._samples_depth, (self._count, self._height, self._width), "samples_depth")
+        return self._view("samples_depth")
 
-    @staticmethod
-    def _checked(a: np.ndarray, shape, name: str) -> np.ndarray:
+    @property
+    def lock(self) -> threading.RLock:
+        """The lock every draw into this framebuffer (and :meth:`clear`) holds while it writes.
+
+        Draws from several threads into one framebuffer take turns whole: hold it
+        (``with fb.lock:``) to read the arrays while other threads draw.
+        """
+        return self._lock
+
+    @property
+    def writes(self) -> int:
+        """How many draws and clears have written into this framebuffer (a trace tells by it whether
+        the framebuffer changed after its draw)."""
+        return self._writes
+
+    def count_write(self) -> None:
+        """Count a draw or clear about to write (:attr:`writes`); the caller holds :attr:`lock`."""
+        object.__setattr__(self, "_writes", self._writes + 1)
+
+    # the views handed out: name → (the array viewed, index into it)
+    _VIEWS = {"samples_color": ("_samples_color", ()), "samples_depth": ("_samples_depth", ()),
+              "color": ("_samples_color", (0,)), "depth": ("_samples_depth", (0,))}
+
+    def _view(self, name: str) -> np.ndarray:
+        """The kept view ``name`` of the framebuffer's array, or a new one if it was reshaped or retyped."""
+        owner, index = self._VIEWS[name]
+        a = getattr(self, owner)
+        shape = (self._count, self._height, self._width) + ((4,) if owner == "_samples_color" else ())
         if not (a.shape == shape and a.dtype == np.float32 and a.flags.c_contiguous and a.flags.writeable):
-            raise RuntimeError(f"Framebuffer.{name} was changed in place (it is {a.dtype} {list(a.shape)}, "
-                               f"{'' if a.flags.c_contiguous else 'not '}C-contiguous, not float32 {list(shape)}); "
+            raise RuntimeError(f"Framebuffer.{owner[1:]} was changed in place (it is {a.dtype} {list(a.shape)}, "
+                               f"{'' if a.flags.c_contiguous else 'not '}C-contiguous"
+                               f"{'' if a.flags.writeable else ', read-only'}, not float32 {list(shape)}); "
                                "the kernels cannot draw into it safely")
-        return a.view()
+        want = a[index]
+        v = self._views.get(name)
+        if not (v is not None and v.shape == want.shape and v.dtype == want.dtype and v.strides == want.strides
+                and v.ctypes.data == want.ctypes.data):
+            v = self._views[name] = want
+        return v
+
+    def check_drawable(self) -> None:
+        """Refuse (ValueError) to write into a framebuffer one of whose arrays was flagged read-only."""
+        for name in self._VIEWS:
+            v = self._views.get(name)
+            if v is not None and not v.flags.writeable and v is self._view(name):
+                raise ValueError(f"Framebuffer.{name} is read-only (flags.writeable is False): softpipe will not "
+                                 f"draw into it; set fb.{name}.flags.writeable = True to draw, or draw into "
+                                 f"another Framebuffer")
+
+    def __getstate__(self) -> dict:
+        """For pickling: the size, pattern and arrays (not the lock or the kept views)."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("_lock", "_views")}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        object.__setattr__(self, "_views", {})
+        object.__setattr__(self, "_lock", threading.RLock())
+        self.__dict__.setdefault("_writes", 0)
 
     def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0) -> "Framebuffer":
         """Set every sample to ``color`` and ``depth``; returns the framebuffer.
@@ -216,15 +285,18 @@ class Framebuffer:
             raise ValueError(f"clear color must be 3 or 4 finite numbers, a color name or '#rrggbb', got {color!r}")
         if not 0.0 <= float(depth) <= 1.0:
             raise ValueError(f"clear depth must be in [0, 1], got {depth!r}")
-        in_bands(_fill, self.samples_depth.size, self.samples_color.reshape(-1, 4), c, self.samples_depth.reshape(-1),
-                 np.float32(depth), grain=65536)
+        with self._lock:
+            self.check_drawable()
+            self.count_write()
+            in_bands(_fill, self.samples_depth.size, self.samples_color.reshape(-1, 4), c,
+                     self.samples_depth.reshape(-1), np.float32(depth), grain=65536)
         return self
 
     @property
     def color(self) -> np.ndarray:
         """[H, W, 4]: the buffer itself for one sample, else the box-filtered resolve."""
         if self.samples == 1:
-            return self.samples_color[0]
+            return self._view("color")
         return self.resolve("box")
 
     def resolve(self, filter: str = "box") -> np.ndarray:
@@ -259,7 +331,7 @@ class Framebuffer:
     def depth(self) -> np.ndarray:
         """[H, W]: the buffer itself for one sample, else the nearest sample's depth."""
         if self.samples == 1:
-            return self.samples_depth[0]
+            return self._view("depth")
         return self.samples_depth.min(axis=0)
 
     def to_uint8(self, alpha: bool = True) -> np.ndarray:

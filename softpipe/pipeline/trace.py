@@ -8,7 +8,8 @@ stages, the same pixels) and keeps:
 ``fragments``   the rasterizer's :class:`~softpipe.pipeline.raster.Fragments`, all batches
 ``shaded``      the fragment shader's :class:`~softpipe.pipeline.fragment.ShadedFragments`
 ``merged``      the output merger's :class:`~softpipe.pipeline.output.MergeResult` (verdicts, color after each)
-``before``      a copy of the framebuffer's color and depth before the draw
+``before``      the framebuffer's color and depth before the draw (:meth:`Trace.before_at`,
+                :attr:`Trace.before_color`): kept only at the pixels the draw touched
 ``path``        the path the draw took ("reference" or "fast") and ``path_reason`` why
 ``visibility``  on the fast path, the visibility pass's :class:`~softpipe.pipeline.visibility.Visibility`
 
@@ -22,14 +23,22 @@ and answers: :meth:`Trace.pixel_history` (every fragment that touched a pixel,
 in order), :meth:`Trace.fragment_inputs` and :meth:`Trace.debug_fragment`
 (re-run the fragment shader as plain Python on exactly one fragment's inputs,
 so a breakpoint in the shader stops there). :mod:`softpipe.views.pictures` draws it.
+
+What was under the draw is kept small: every sample of the pixels the draw's fragments
+reached or changed, not a copy of the whole framebuffer (a scene of 1,500 small draws,
+each traced, would otherwise keep 1,500 framebuffers). While the framebuffer is
+drawn into (or cleared) no more, :attr:`Trace.before_color` and
+:attr:`Trace.before_depth` give the whole arrays; after that, only the touched pixels
+are known, and those properties say so (ValueError) rather than guess.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, List, Optional
+from typing import Any, List, Optional, Tuple
 
 import numpy as np
 
+from softpipe.core.runtime import check_memory
 from softpipe.language import kernels
 from softpipe.language.contract import python_function
 from softpipe.language.kernels.diagnostics import plain_value
@@ -37,11 +46,78 @@ from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader,
 from softpipe.pipeline.output import VERDICTS, MergeResult
 from softpipe.pipeline.raster import Fragments
 
-__all__ = ["Trace", "PixelEvent", "PixelHistory"]
+__all__ = ["Trace", "PixelEvent", "PixelHistory", "BeforeDraw"]
 
 
 def _concat(parts, cls, fields):
     return cls(**{f: np.concatenate([getattr(p, f) for p in parts]) for f in fields})
+
+
+@dataclass
+class BeforeDraw:
+    """What a framebuffer held, before one draw, at the pixels the draw touched.
+
+    ``pixels`` int64 [P], sorted: row · width + column of each pixel kept; ``color``
+    float32 [S, P, 4] and ``depth`` float32 [S, P]: every sample of those pixels before
+    the draw; ``writes``: the framebuffer's :attr:`~softpipe.pipeline.framebuffer.Framebuffer.writes`
+    right after the draw (while it is unchanged the pixels not kept still hold what they
+    held before the draw).
+    """
+
+    pixels: np.ndarray
+    color: np.ndarray
+    depth: np.ndarray
+    writes: int
+
+    @classmethod
+    def take(cls, fb, primitives) -> "_Snapshot":
+        """Copy, before the draw, the samples of the rectangle of pixels ``primitives``' triangles can reach."""
+        h, w = fb.height, fb.width
+        window = np.asarray(primitives.window, dtype=np.float64)
+        if len(window) == 0:
+            x0 = x1 = y0 = y1 = 0
+        elif not np.isfinite(window[..., :2]).all():
+            x0, x1, y0, y1 = 0, w, 0, h
+        else:                               # window y up → image rows; one pixel to spare on each side
+            xs, ys = window[..., 0], window[..., 1]
+            x0, x1 = int(max(np.floor(xs.min()) - 1, 0)), int(min(np.ceil(xs.max()) + 2, w))
+            y0, y1 = int(max(np.floor(h - ys.max()) - 1, 0)), int(min(np.ceil(h - ys.min()) + 2, h))
+            x1, y1 = max(x1, x0), max(y1, y0)
+        need = fb.samples * (y1 - y0) * (x1 - x0) * 20
+        check_memory(f"tracing a draw over {x1 - x0}×{y1 - y0} pixels ({fb.samples} sample(s), 20 bytes each: "
+                     "the framebuffer under it, kept to show each pixel's color before the draw)", need)
+        return _Snapshot((y0, y1, x0, x1), fb.samples_color[:, y0:y1, x0:x1].copy(),
+                         fb.samples_depth[:, y0:y1, x0:x1].copy())
+
+    def find(self, x: int, y: int, width: int) -> int:
+        """The column of pixel (x, y) in :attr:`pixels`, or -1 when it was not kept."""
+        p = y * width + x
+        j = int(np.searchsorted(self.pixels, p))
+        return j if j < len(self.pixels) and self.pixels[j] == p else -1
+
+
+@dataclass
+class _Snapshot:
+    """The rectangle (rows y0:y1, columns x0:x1) a draw can reach, copied before it; :meth:`keep` shrinks it."""
+
+    rect: tuple
+    color: np.ndarray
+    depth: np.ndarray
+
+    def keep(self, fb, fragments) -> BeforeDraw:
+        """After the draw: keep the pixels its fragments reached or whose samples it changed."""
+        y0, y1, x0, x1 = self.rect
+        w = fb.width
+        now_c, now_d = fb.samples_color[:, y0:y1, x0:x1], fb.samples_depth[:, y0:y1, x0:x1]
+        changed = ((now_c != self.color).any(axis=(0, 3)) | (now_d != self.depth).any(axis=0))
+        mask = changed.copy()
+        fx, fy = np.asarray(fragments.x, np.int64), np.asarray(fragments.y, np.int64)
+        inside = (fx >= x0) & (fx < x1) & (fy >= y0) & (fy < y1)
+        mask[fy[inside] - y0, fx[inside] - x0] = True
+        rows, cols = np.nonzero(mask)                       # row-major: the pixels come out sorted
+        pixels = (rows + y0).astype(np.int64) * w + (cols + x0)
+        return BeforeDraw(pixels, np.ascontiguousarray(self.color[:, rows, cols]),
+                          np.ascontiguousarray(self.depth[:, rows, cols]), fb.writes)
 
 
 @dataclass
@@ -61,9 +137,13 @@ class PixelEvent:
 
 
 class PixelHistory(list):
-    """The :class:`PixelEvent` list of one pixel; prints as a table (an HTML table in Jupyter)."""
+    """The :class:`PixelEvent` list of one pixel; prints as a table (an HTML table in Jupyter).
 
-    def __init__(self, x: int, y: int, events: List[PixelEvent], before: tuple):
+    ``before`` is the pixel's color (sample 0) before the draw; None for a pixel the draw did
+    not touch once the framebuffer has been written since (the trace does not keep it).
+    """
+
+    def __init__(self, x: int, y: int, events: List[PixelEvent], before: Optional[tuple]):
         super().__init__(events)
         self.x, self.y, self.before = x, y, before
 
@@ -74,6 +154,8 @@ class PixelHistory(list):
         return f"{v:.4g}" if isinstance(v, float) else str(v)
 
     def _heading(self) -> str:
+        if self.before is None:         # a pixel the draw did not touch, asked after the framebuffer changed
+            return f"pixel ({self.x}, {self.y}): 0 fragment(s); the draw did not touch it"
         return (f"pixel ({self.x}, {self.y}): {len(self)} fragment(s); color before the draw "
                 f"{self._fmt(self.before)}")
 
@@ -140,12 +222,16 @@ class PixelHistory(list):
 class Trace:
     """Every stage's output of one draw; see the module docstring."""
 
+    #: The framebuffer before the draw, where the draw touched it (set by :meth:`record`).
+    before: BeforeDraw
+
     def __init__(self, call, vertex, primitives, fragments: Fragments, shaded: ShadedFragments,
-                 merged: MergeResult, before_color: np.ndarray, before_depth: np.ndarray):
+                 merged: MergeResult, before: Optional[BeforeDraw] = None):
         self.call = call
         self.vertex, self.primitives = vertex, primitives
         self.fragments, self.shaded, self.merged = fragments, shaded, merged
-        self.before_color, self.before_depth = before_color, before_depth
+        if before is not None:
+            self.before = before
         fb = call.framebuffer
         self.width, self.height, self.pattern = fb.width, fb.height, fb.pattern
         self.path, self.path_reason = call.path_taken, call.path_reason
@@ -156,19 +242,28 @@ class Trace:
     def record(cls, call) -> "Trace":
         """Run ``call`` (a :class:`~softpipe.pipeline.draw.DrawCall`) and keep what every stage made."""
         fb = call.framebuffer
-        before_color, before_depth = fb.samples_color.copy(), fb.samples_depth.copy()
         out: dict[str, list] = {"raster": [], "fragment": [], "output": [], "visibility": []}
-        vertex = primitives = None
-        for stage in call.steps(record=True):
-            if stage.name == "vertex":
-                vertex = stage.output
-            elif stage.name == "assembly":
-                primitives = stage.output
+        vertex = primitives = snapshot = None
+        with fb.lock:                       # the same as the draw's: the snapshot and the draw are one turn
+            for stage in call.steps(record=True):
+                if stage.name == "vertex":
+                    vertex = stage.output
+                elif stage.name == "assembly":
+                    primitives = stage.output
+                    snapshot = BeforeDraw.take(fb, primitives)      # nothing is written before assembly
+                else:
+                    out[stage.name].append(stage.output)
+            if out["visibility"]:
+                trace = cls._fast(call, vertex, primitives, out["visibility"][0], out["fragment"][0])
             else:
-                out[stage.name].append(stage.output)
-        if out["visibility"]:
-            return cls._fast(call, vertex, primitives, out["visibility"][0], out["fragment"][0], before_color,
-                             before_depth)
+                trace = cls._reference(call, vertex, primitives, out)
+            assert snapshot is not None, "a draw's steps always include assembly"
+            trace.before = snapshot.keep(fb, trace.fragments)
+        return trace
+
+    @classmethod
+    def _reference(cls, call, vertex, primitives, out) -> "Trace":
+        """A trace of the reference path: its batches joined."""
         frag_fields = ("x", "y", "sample", "depth", "bary", "triangle", "primitive_id", "frag_x", "frag_y")
         if out["raster"]:
             fragments = _concat(out["raster"], Fragments, frag_fields)
@@ -183,19 +278,63 @@ class Trace:
                                   empty, empty)
             shaded = ShadedFragments(np.zeros((0, 4), np.float32), np.zeros(0, bool))
             merged = MergeResult(np.zeros(0, np.int8), np.zeros((0, 4), np.float32))
-        return cls(call, vertex, primitives, fragments, shaded, merged, before_color, before_depth)
+        return cls(call, vertex, primitives, fragments, shaded, merged)
 
     @classmethod
-    def _fast(cls, call, vertex, primitives, visibility, shaded_samples, before_color, before_depth) -> "Trace":
+    def _fast(cls, call, vertex, primitives, visibility, shaded_samples) -> "Trace":
         """A trace of the fast path: its fragments are those it shaded, each written."""
         fb = call.framebuffer
         fragments = visibility.fragments(primitives, fb.pattern, call.sample_shading)
         color = fb.samples_color[fragments.sample, fragments.y, fragments.x]
         shaded = ShadedFragments(color, np.zeros(len(fragments), bool), shaded_samples.invocations)
         merged = MergeResult(np.zeros(len(fragments), np.int8), color.copy())
-        trace = cls(call, vertex, primitives, fragments, shaded, merged, before_color, before_depth)
+        trace = cls(call, vertex, primitives, fragments, shaded, merged)
         trace.visibility = visibility
         return trace
+
+    # ------------------------------------------------------------- before the draw
+
+    def before_at(self, x: int, y: int) -> Tuple[np.ndarray, np.ndarray]:
+        """The color (float32 [S, 4]) and depth (float32 [S]) of pixel (x, y)'s samples before the draw.
+
+        Known for every pixel the draw's fragments reached or changed; for another
+        pixel, while the framebuffer has not been written since (its color then is as
+        before the draw), else a ValueError says so.
+        """
+        self._check_pixel(x, y)
+        j = self.before.find(x, y, self.width)
+        if j >= 0:
+            return self.before.color[:, j].copy(), self.before.depth[:, j].copy()
+        fb = self._unchanged_framebuffer(f"pixel ({x}, {y}), which the draw did not touch")
+        return fb.samples_color[:, y, x].copy(), fb.samples_depth[:, y, x].copy()
+
+    @property
+    def before_color(self) -> np.ndarray:
+        """float32 [S, H, W, 4]: every sample's color before the draw (a new array; see the module docstring)."""
+        fb = self._unchanged_framebuffer("the whole before_color")
+        return self._put_back(fb.samples_color.copy(), self.before.color)
+
+    @property
+    def before_depth(self) -> np.ndarray:
+        """float32 [S, H, W]: every sample's depth before the draw (a new array; see the module docstring)."""
+        fb = self._unchanged_framebuffer("the whole before_depth")
+        return self._put_back(fb.samples_depth.copy(), self.before.depth)
+
+    def _put_back(self, now: np.ndarray, kept: np.ndarray) -> np.ndarray:
+        rows, cols = np.divmod(self.before.pixels, self.width)
+        now[:, rows, cols] = kept
+        return now
+
+    def _unchanged_framebuffer(self, what: str):
+        """The framebuffer, if nothing wrote into it after this draw (so it shows what the trace did not keep)."""
+        fb = self.call.framebuffer
+        if fb.writes != self.before.writes:
+            raise ValueError(f"{what}: the trace keeps the framebuffer as it was before the draw only at the "
+                             f"pixels the draw touched ({len(self.before.pixels):,} of them), and the framebuffer "
+                             f"has been drawn into or cleared {fb.writes - self.before.writes} time(s) since; "
+                             "ask trace.before_at(x, y) for a touched pixel, or keep fb.samples_color.copy() "
+                             "before the draw")
+        return fb
 
     # ------------------------------------------------------------- questions
 
@@ -290,7 +429,10 @@ class Trace:
                 color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
                 color_after=tuple(float(c) for c in m.color_after[k])))
             events[-1].shadow = self._shadow_terms(varyings)
-        before = tuple(float(c) for c in self.before_color[0, y, x])
+        if self.before.find(x, y, self.width) < 0 and self.call.framebuffer.writes != self.before.writes:
+            before = None       # not touched, and the framebuffer has changed since: not kept (module docstring)
+        else:
+            before = tuple(float(c) for c in self.before_at(x, y)[0][0])
         return PixelHistory(x, y, events, before)
 
     def _shadow_terms(self, varyings) -> tuple:

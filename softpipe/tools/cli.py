@@ -9,7 +9,8 @@
     softpipe demo                                   the default scene
     softpipe programs                               the shading programs and sample patterns
 
-Errors are one line on stderr and exit status 2; ``--help`` documents every option.
+Errors are one line on stderr and exit status 2; ``--help`` documents every option. Running out of
+memory is one line too, saying what ran out and which options make the job smaller, and exit status 1.
 Every render prints where it wrote and how long it took; progress goes to stderr.
 
 Outputs (``-o``): the extension chooses the format (an unknown one is refused), a
@@ -401,8 +402,14 @@ def _list_programs(args) -> int:
     return 0
 
 
+def _printable(text: str) -> str:
+    """``text`` with a file name's non-UTF-8 bytes (held as lone surrogates) shown as '�', which any terminal
+    prints (a surrogate stops print() under a UTF-8 locale)."""
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+
+
 def _note(args, message: str) -> None:
-    print(f"softpipe {args.command}: {message}", file=sys.stderr)
+    print(_printable(f"softpipe {args.command}: {message}"), file=sys.stderr)
 
 
 def _progress(args, message: str) -> None:
@@ -444,7 +451,15 @@ def _check_options(args, kind: str, default_size) -> None:
     if max(w, h) > MAX_DIMENSION:
         raise CLIError(f"image size {w}×{h}: a side may be at most {MAX_DIMENSION} pixels (MAX_DIMENSION)")
     if args.texture and not os.path.isfile(args.texture):
-        raise CLIError(f"--texture: {args.texture}: no such file")
+        from softpipe.core.files import PathPolicyError, check_regular_file
+        if not os.path.exists(args.texture):
+            raise CLIError(f"--texture: {args.texture}: no such file")
+        if os.path.isdir(args.texture):
+            raise CLIError(f"--texture: {args.texture}: is a folder, not an image file")
+        try:
+            check_regular_file(args.texture)
+        except PathPolicyError as e:
+            raise CLIError(f"--texture: {e}") from None
     if args.texture and kind == ".toml":
         raise CLIError("--texture applies to an OBJ model; in a scene file give the material a diffuse_texture")
 
@@ -547,7 +562,7 @@ def _save_image(fb, output: str) -> str:
 
 def _wrote(args, output: str, message: str) -> None:
     """The command's last line: on stdout, or on stderr when stdout holds the picture."""
-    print(f"softpipe {args.command}: {message}", file=sys.stderr if output == STDOUT else sys.stdout)
+    print(_printable(f"softpipe {args.command}: {message}"), file=sys.stderr if output == STDOUT else sys.stdout)
 
 
 def _render(args) -> int:
@@ -658,8 +673,19 @@ def _turntable(args) -> int:
 # ---------------------------------------------------------------------------- main
 
 
+#: What makes a command need less memory, said when it runs out (exit status 1).
+MEMORY_HINTS = {
+    "render": "a smaller --size (or --width/--height) or fewer --samples makes it smaller; --stages keeps every "
+              "draw's fragments",
+    "explore": "a smaller --size (or --width/--height), fewer --samples or a smaller --max-fragments makes it "
+               "smaller",
+    "turntable": "a smaller --size (or --width/--height) or fewer --samples makes it smaller",
+    "demo": "a smaller --width/--height makes it smaller",
+}
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 error, 130 interrupted)."""
+    """Run the command line; returns the exit status (0 ok, 1 out of memory, 2 error, 130 interrupted)."""
     from softpipe.core.runtime import keep_freed_memory
     from softpipe.language.contract import ShaderError
     from softpipe.scenes.obj import OBJError
@@ -686,11 +712,17 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except KeyboardInterrupt:
         print(f"softpipe {args.command}: interrupted", file=sys.stderr)
         return 130
+    except MemoryError as e:
+        what = " ".join(str(e).split()) or "an array did not fit in memory"
+        hint = MEMORY_HINTS.get(args.command)
+        print(f"softpipe {args.command}: error: out of memory: {what}" + (f"; {hint}" if hint else ""),
+              file=sys.stderr)
+        return 1
     except (CLIError, SceneError, OBJError, ShaderError, ValueError, OSError) as e:
         message = " ".join(str(e).split()) or type(e).__name__
         if isinstance(e, OSError) and e.filename and str(e.filename) not in message:
             message = f"{e.filename}: {message}"
-        print(f"softpipe {args.command}: error: {message}", file=sys.stderr)
+        print(_printable(f"softpipe {args.command}: error: {message}"), file=sys.stderr)
         return 2
 
 

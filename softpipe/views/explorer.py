@@ -41,6 +41,7 @@ import html
 import importlib.resources
 import io
 import json
+import os
 import re
 import zlib
 from dataclasses import dataclass, field
@@ -49,11 +50,16 @@ from typing import Any, Dict, List, Optional, cast
 
 import numpy as np
 
+from softpipe.core.runtime import check_memory
+
 __all__ = ["write_explorer", "explorer_html", "read_explorer", "ExplorerData", "ExplorerSummary",
-           "MAX_FRAGMENTS"]
+           "MAX_FRAGMENTS", "READ_LIMIT"]
 
 #: Fragments whose whole history the page holds, by default (about 140 bytes each, compressed).
 MAX_FRAGMENTS = 400_000
+
+#: The most :func:`read_explorer` reads by default: the page's file, and its arrays inflated (bytes).
+READ_LIMIT = 1 << 31
 
 #: The verdicts, as :data:`softpipe.pipeline.output.VERDICTS` names them (index = the stored code).
 _VERDICTS = ("written", "depth-failed", "discarded")
@@ -111,9 +117,33 @@ def _array(a: np.ndarray, dtype: str) -> dict:
             "b64": base64.b64encode(zlib.compress(best[3], 9)).decode("ascii")}
 
 
-def _unarray(d: dict) -> np.ndarray:
-    raw = np.frombuffer(zlib.decompress(base64.b64decode(d["b64"])), np.uint8)
+#: The dtypes a page's arrays are stored in (what :func:`_array` is given).
+_DTYPES = ("u1", "u2", "u4", "f4", "f8")
+
+
+def _array_bytes(name: str, d: Any) -> int:
+    """The bytes array ``name`` of a page inflates to, as its dtype and shape say (checked to be such)."""
+    shape = d.get("shape") if isinstance(d, dict) else None
+    if not (isinstance(d, dict) and d.get("dtype") in _DTYPES and isinstance(d.get("b64"), str)
+            and isinstance(shape, list) and len(shape) <= 4
+            and all(isinstance(n, int) and not isinstance(n, bool) and 0 <= n < 1 << 40 for n in shape)):
+        raise ValueError(f"array {name!r} is not one write_explorer stores (a dtype of {', '.join(_DTYPES)}, a "
+                         "shape of whole numbers, base64 data)")
+    return int(np.prod(shape, dtype=object)) * np.dtype(d["dtype"]).itemsize
+
+
+def _unarray(d: dict, name: str = "") -> np.ndarray:
     size = np.dtype(d["dtype"]).itemsize
+    expected = _array_bytes(name, d)
+    try:
+        inflate = zlib.decompressobj()
+        data = inflate.decompress(base64.b64decode(d["b64"]), expected + 1)   # never more than the shape says
+    except (ValueError, zlib.error) as e:
+        raise ValueError(f"array {name!r}: its data cannot be decoded ({e})") from None
+    if len(data) != expected or not inflate.eof:
+        raise ValueError(f"array {name!r}: its data inflates to {'more' if len(data) > expected else 'less'} "
+                         f"than the {expected:,} bytes its shape {d['shape']} and dtype {d['dtype']} say")
+    raw = np.frombuffer(data, np.uint8)
     if d["shuffle"]:
         raw = raw.reshape(size, -1).T
     a = np.ascontiguousarray(raw).view("<" + d["dtype"]).reshape(-1)
@@ -140,13 +170,18 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
         return P.stage_pictures(draws[0][2])
     traces = [t for _, _, t in draws]
     h, w = traces[0].height, traces[0].width
-    each = [P.stage_pictures(t) for t in traces]
-    pics: Dict[str, np.ndarray] = {}
-    img = np.zeros((h, w, 3), np.uint8)
-    for p in each:                                      # a later draw's dots over an earlier's
-        lit = p["vertices"].any(axis=2)
-        img[lit] = p["vertices"][lit]
-    pics["vertices"] = img
+    # one draw's pictures at a time, folded in: a scene of 1,500 draws would otherwise hold 1,500 sets
+    dots = np.zeros((h, w, 3), np.uint8)
+    extra: Dict[str, np.ndarray] = {}
+    for t in traces:
+        p = P.stage_pictures(t)
+        lit = p["vertices"].any(axis=2)                 # a later draw's dots over an earlier's
+        dots[lit] = p["vertices"][lit]
+        for name, img in p.items():
+            if name not in P.PICTURES and name not in extra:
+                extra[name] = img
+        last = p
+    pics: Dict[str, np.ndarray] = {"vertices": dots}
     img = np.zeros((h, w, 3), np.uint8)                 # layer by layer across the draws, as for one
     for t in traces:
         P.draw_triangle_outlines(img, t.primitives.culled_window, h, P.RED)
@@ -165,13 +200,10 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
             img[f.y[wr], f.x[wr]] = P.id_colors(offset + f.primitive_id[wr])
         offset += int(t.primitives.input_count)
     pics["coverage"] = img
-    pics["depth"] = each[-1]["depth"]                   # one framebuffer: its depth and color after the last
+    pics["depth"] = last["depth"]                       # one framebuffer: its depth and color after the last
     pics["overdraw"] = P.heat_colors(cast(np.ndarray, sum(P.overdraw(t) for t in traces)))   # (one draw at least)
-    pics["final"] = each[-1]["final"]
-    for p in each:
-        for name, img in p.items():
-            if name not in pics:
-                pics[name] = img
+    pics["final"] = last["final"]
+    pics.update(extra)
     return pics
 
 
@@ -192,6 +224,12 @@ def _history_pixels(traces, max_fragments: int):
         if n[keep].sum() <= max_fragments:
             return uniq[keep], n[keep], s
     return uniq[:0], n[:0], 0
+
+
+def _shown(text) -> str:
+    """``text`` as the page shows it: a file name's bytes that are not UTF-8 (a Latin-1 'café.obj', which
+    Python holds as lone surrogates, and which no UTF-8 page can hold) become U+FFFD, '�'."""
+    return str(text).encode("utf-8", "surrogateescape").decode("utf-8", "replace")
 
 
 def _varyings_flat(v) -> List[float]:
@@ -284,7 +322,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     before = np.zeros((len(hpix), 4), np.float32)
     for j, (p, r) in enumerate(zip(hpix, hstart[:-1])):
         t = traces[int(rows[r, 1])]
-        before[j] = t.before_color[0, p // w, p % w]
+        before[j] = t.before_at(int(p % w), int(p // w))[0][0]
 
     # --- the triangles named by the map or a history, and their vertices in every space
     gid = np.unique(np.concatenate([win[win > 0].astype(np.int64) - 1, tri_offset[rows[:, 1]] + tri]))
@@ -339,10 +377,10 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     pattern = traces[0].pattern
     meta = {
         "format": "softpipe-explorer 1",
-        "title": title or " + ".join(n for n, _, _ in draws),
+        "title": _shown(title or " + ".join(n for n, _, _ in draws)),
         "width": w, "height": h,
         "pattern": {"name": getattr(pattern, "name", ""), "positions": np.asarray(pattern.positions).tolist()},
-        "draws": [{"name": n, "program": prog, "path": t.path, "fragments": int(len(t)),
+        "draws": [{"name": _shown(n), "program": _shown(prog), "path": t.path, "fragments": int(len(t)),
                    "triangles": int(len(t.primitives)), "input_triangles": int(t.primitives.input_count),
                    "tri_offset": int(tri_offset[k]), "varyings": [[a, int(b)] for a, b in layouts[k]],
                    "shadow_lights": int(shadow_cols[k]),
@@ -390,10 +428,10 @@ def explorer_html(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     """The page as a string (see :func:`write_explorer`)."""
     data = explorer_data(traces_or_results, max_fragments=max_fragments, title=title, progress=progress)
     meta, pics = data["meta"], data["pictures"]
-    images = "\n".join(f'<img id="pic-{k}" alt="{html.escape(name)}" src="{_png(img)}">'
+    images = "\n".join(f'<img id="pic-{k}" alt="{html.escape(_shown(name))}" src="{_png(img)}">'
                        for k, (name, img) in enumerate(pics.items()))
     blob = json.dumps(meta, separators=(",", ":")).replace("<", "\\u003c").replace(">", "\\u003e")
-    page = _page_text("page.html").replace("__TITLE__", html.escape(meta["title"]))
+    page = _page_text("page.html").replace("__TITLE__", html.escape(meta["title"]))    # _shown: UTF-8 safe
     page = page.replace("__STYLE__", _page_text("page.css")).replace("__SCRIPT__", _page_text("page.js"))
     page = page.replace("__IMAGES__", images).replace("__DATA__", blob)
     return page
@@ -451,9 +489,20 @@ def write_explorer(traces_or_results, path, *, max_fragments: int = MAX_FRAGMENT
 class ExplorerData:
     """A page's embedded data, decoded: ``meta`` (the JSON), ``arrays`` (numpy) and :meth:`history`."""
 
-    def __init__(self, meta: dict):
+    def __init__(self, meta: dict, max_bytes: int = READ_LIMIT):
         self.meta = meta
-        self.arrays = {k: _unarray(v) for k, v in meta["arrays"].items()}
+        arrays = meta.get("arrays") if isinstance(meta, dict) else None
+        if not isinstance(arrays, dict):
+            raise ValueError("not a softpipe explorer page: its data has no arrays")
+        missing = [k for k in ("win", "f_color", "f_after", "f_after_same") if k not in arrays]
+        if missing or not all(isinstance(meta.get(k), int) for k in ("width", "height")):
+            raise ValueError(f"not a softpipe explorer page: its data lacks {', '.join(missing) or 'its size'}")
+        need = sum(_array_bytes(k, v) for k, v in arrays.items())
+        if need > max_bytes:
+            raise ValueError(f"the page's arrays would inflate to {need:,} bytes, more than the limit of "
+                             f"{max_bytes:,} bytes (read_explorer(path, max_bytes=...) raises it)")
+        check_memory(f"reading an explorer page's arrays ({need:,} bytes inflated)", need)
+        self.arrays = {k: _unarray(v, k) for k, v in arrays.items()}
         same = self.arrays.pop("f_after_same").astype(bool)
         after = np.array(self.arrays["f_color"])
         after[~same] = self.arrays["f_after"]
@@ -461,11 +510,11 @@ class ExplorerData:
         self.width, self.height = meta["width"], meta["height"]
 
     @classmethod
-    def from_html(cls, text: str) -> "ExplorerData":
+    def from_html(cls, text: str, max_bytes: int = READ_LIMIT) -> "ExplorerData":
         m = re.search(r'<script type="application/json" id="softpipe-data">(.*?)</script>', text, re.S)
         if not m:
             raise ValueError("not a softpipe explorer page: no softpipe-data block")
-        return cls(json.loads(m.group(1)))
+        return cls(json.loads(m.group(1)), max_bytes)
 
     def winner(self, x: int, y: int) -> Optional[tuple]:
         """(draw, post-clip triangle) of the last fragment written at pixel (x, y), or None."""
@@ -502,6 +551,24 @@ class ExplorerData:
         return out
 
 
-def read_explorer(path) -> ExplorerData:
-    """The data embedded in an explorer page written by :func:`write_explorer`."""
-    return ExplorerData.from_html(Path(path).read_text(encoding="utf-8"))
+def read_explorer(path, *, max_bytes: int = READ_LIMIT) -> ExplorerData:
+    """The data embedded in an explorer page written by :func:`write_explorer`.
+
+    Parameters
+    ----------
+    path : str or path-like
+    max_bytes : int
+        The most the page (its file) and its arrays, inflated, may take; a page past it is
+        refused (ValueError) before anything is inflated, and every array must inflate to
+        exactly the bytes its shape says, so a small page cannot fill the memory.
+    """
+    from softpipe.core.files import check_regular_file, excerpt_path
+    check_regular_file(path)
+    size = os.path.getsize(path)
+    try:
+        if size > max_bytes:
+            raise ValueError(f"the file is {size:,} bytes, more than the limit of {max_bytes:,} bytes "
+                             "(read_explorer(path, max_bytes=...) raises it)")
+        return ExplorerData.from_html(Path(path).read_text(encoding="utf-8"), max_bytes)
+    except (ValueError, UnicodeDecodeError) as e:
+        raise ValueError(f"{excerpt_path(path)}: {e}") from None
