@@ -234,3 +234,88 @@ print(bool(np.isfinite(fb.color).all()))
 def test_the_ray_tracer_survives_an_ior_that_makes_nan_rays():
     """Should an ior of 1e200 reach the tracer anyway (here past the check), its NaN refracted rays miss."""
     assert ok(run_python(_FORCED_IOR)).split()[-1] in ("True", "False")
+
+
+# ------------------------------------------------------------------ 2. memory asked for before it is taken
+
+def _many_point_lights(n: int, resolution: int = 1024):
+    from softpipe.light.material import Light, Lighting
+    from softpipe.light.shadowmap import ShadowSettings
+    return Lighting([Light.point((float(k % 7), 2.0 + k // 7, 3.0), name=f"lamp {k}",
+                                 shadows=ShadowSettings(resolution=resolution)) for k in range(n)])
+
+
+def test_shadow_maps_are_capped_in_total_before_any_is_made(monkeypatch):
+    """300 shadowed point lights ask for 1800 maps of 1024² (7 GiB): refused before the first map's memory."""
+    from softpipe.scenes import shadow_pass, shapes
+    from softpipe.scenes.scene import SceneObject
+
+    def made(*args, **kwargs):
+        raise AssertionError("a shadow map was made")
+    monkeypatch.setattr(shadow_pass, "_render_map", made)
+    ball = SceneObject("ball", shapes.icosphere(1.0, 1), np.eye(4))
+    with pytest.raises(ValueError) as e:
+        shadow_pass.render_shadow_maps([ball], _many_point_lights(300))
+    assert str(e.value) == (
+        "shadow maps: 300 light(s) ask for 1800 maps, about 7.0 GiB together (4 bytes a texel), more than the "
+        "limit of 2.0 GiB; the largest is light 0 (lamp 0): 6 map(s) of 1024×1024. Lower the lights' shadow "
+        "resolution (ShadowSettings.resolution; 'resolution' in a scene file's shadows table), let fewer lights "
+        "cast shadows, or raise the limit (render_shadow_maps(..., max_bytes=...), "
+        "softpipe.scenes.shadow_pass.MAX_SHADOW_MAP_BYTES)")
+    with pytest.raises(ValueError, match=r"^shadow maps: 2 light\(s\) ask for 12 maps, about 0.0 GiB together "):
+        shadow_pass.render_shadow_maps([ball], _many_point_lights(2, 64), max_bytes=1000)
+
+
+def test_transparent_casters_count_their_layers_in_the_total(monkeypatch):
+    from softpipe.scenes import shadow_pass, shapes
+    from softpipe.scenes.scene import SceneObject
+    glass = SceneObject("glass", shapes.icosphere(1.0, 1, material=Material(kt=0.5)), np.eye(4))
+    monkeypatch.setattr(shadow_pass, "MAX_SHADOW_MAP_BYTES", 6 * 1024 ** 2 * 36 - 1)
+    with pytest.raises(ValueError, match=r"1 light\(s\) ask for 6 maps, .* \(36 bytes a texel\)"):
+        shadow_pass.render_shadow_maps([glass], _many_point_lights(1))
+
+
+def test_a_scene_file_with_300_shadowed_lights_is_refused_by_the_command_line(tmp_path, capsys):
+    """The issue's 15 KB scene: 300 point lights that cast shadows. The command says what to change."""
+    from softpipe.tools.cli import main
+    lights = "".join(f'[[lights]]\nkind = "point"\nposition = [{k % 7}.0, 3.0, {k // 7}.0]\nshadows = true\n\n'
+                     for k in range(300))
+    scene = tmp_path / "lamps.toml"
+    scene.write_text('[render]\nwidth = 16\nheight = 16\n\n' + lights + '[[meshes]]\nshape = "cube"\n')
+    out = tmp_path / "lamps.png"
+    assert main(["render", str(scene), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "shadow maps: 300 light(s) ask for 1800 maps, about 7.0 GiB together" in err
+    assert "'resolution' in a scene file's shadows table" in err
+    assert not out.exists()
+
+
+def test_a_cube_map_face_size_is_checked_before_anything_is_allocated(monkeypatch):
+    """from_equirectangular(size=30000) made [6, 30000, 30000, 3] float64 directions (130 GB) first."""
+    from softpipe.light import cubemap
+    from softpipe.light.cubemap import CubeMap
+
+    def made(size):
+        raise AssertionError("texel directions were made")
+    monkeypatch.setattr(cubemap, "texel_directions", made)
+    pano = np.zeros((8, 16, 3), np.float32)
+    message = ("CubeMap.from_equirectangular: size=30000 makes six 30000×30000 faces, each needing about 92.2 GiB "
+               "while its mipmaps are made (110 bytes a texel), more than the limit of 2.0 GiB a face: give a "
+               "smaller size (at most 4418), or raise max_bytes=... (softpipe.light.images.MAX_TEXTURE_BYTES)")
+    with pytest.raises(ValueError) as e:
+        CubeMap.from_equirectangular(pano, size=30000)
+    assert str(e.value) == message
+    with pytest.raises(ValueError, match=r"^CubeMap.from_function: size=30000 makes six"):
+        CubeMap.from_function(lambda d: d, 30000)
+    with pytest.raises(ValueError, match=r"^CubeMap.from_function: size=64 .* limit of 0.0 GiB"):
+        CubeMap.from_function(lambda d: d, 64, max_bytes=1000)
+    for bad in (0, -3, 2.5, True, "64"):
+        with pytest.raises(ValueError, match=r"^CubeMap.from_equirectangular: size must be an integer ≥ 1 "
+                                             r"\(the face width in texels\), got "):
+            CubeMap.from_equirectangular(pano, size=bad)
+
+
+def test_a_cube_map_within_the_budget_is_made_as_before():
+    from softpipe.light.cubemap import CubeMap
+    pano = np.linspace(0.0, 1.0, 8 * 16 * 3, dtype=np.float32).reshape(8, 16, 3)
+    assert CubeMap.from_equirectangular(pano).size == 4 and CubeMap.from_equirectangular(pano, size=3).size == 3

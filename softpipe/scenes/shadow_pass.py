@@ -358,7 +358,40 @@ class ShadowMaps:
         return tuple(light_visibility(lighting, light_index, p))
 
 
-def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
+#: The most memory all of a scene's shadow maps may take together (bytes); each light's
+#: resolution is capped on its own (MAX_SHADOW_RESOLUTION), this caps their sum (300 point
+#: lights of 1024² cube maps would take 7 GiB). ``render_shadow_maps(..., max_bytes=...)``
+#: raises or lowers it for one call.
+MAX_SHADOW_MAP_BYTES = 2 << 30
+#: Bytes a map keeps per texel: its float32 depth; with transparent casters also their
+#: layer's float32 depth and RGB transmission, kept per map and packed once more for shaders.
+SHADOW_BYTES_PER_TEXEL, TRANSPARENT_BYTES_PER_TEXEL = 4, 2 * 16
+
+
+def _check_total(lighting: Lighting, planned: list, transparent: bool, max_bytes: Optional[int]) -> None:
+    """Refuse maps that together need more than ``max_bytes`` (None: MAX_SHADOW_MAP_BYTES), before any is made."""
+    limit = MAX_SHADOW_MAP_BYTES if max_bytes is None else max_bytes
+    per_texel = SHADOW_BYTES_PER_TEXEL + (TRANSPARENT_BYTES_PER_TEXEL if transparent else 0)
+    texels: Dict[int, int] = {}
+    for j, *_ in planned:
+        texels[j] = texels.get(j, 0) + lighting.lights[j].shadows.resolution ** 2
+    need = sum(texels.values()) * per_texel
+    if need <= limit:
+        return
+    j = max(texels, key=lambda k: (texels[k], -k))
+    light = lighting.lights[j]
+    maps = sum(1 for k, *_ in planned if k == j)
+    res = light.shadows.resolution
+    raise ValueError(
+        f"shadow maps: {len(texels)} light(s) ask for {len(planned)} maps, about {need / 2**30:.1f} GiB together "
+        f"({per_texel} bytes a texel), more than the limit of {limit / 2**30:.1f} GiB; the largest is light {j} "
+        f"({light.name}): {maps} map(s) of {res}×{res}. Lower the lights' shadow resolution "
+        "(ShadowSettings.resolution; 'resolution' in a scene file's shadows table), let fewer lights cast "
+        "shadows, or raise the limit (render_shadow_maps(..., max_bytes=...), "
+        "softpipe.scenes.shadow_pass.MAX_SHADOW_MAP_BYTES)")
+
+
+def render_shadow_maps(objects, lighting: Lighting, *, max_bytes: Optional[int] = None) -> ShadowMaps:
     """Draw the shadow maps of every light of ``lighting`` whose ``shadows`` is set.
 
     Parameters
@@ -367,6 +400,9 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
         The scene's objects (those with ``cast_shadows`` false are left out), or
         casters made by :func:`casters_of`.
     lighting : Lighting
+    max_bytes : int, optional
+        The most memory the maps may take together (default :data:`MAX_SHADOW_MAP_BYTES`),
+        checked before any map is made.
 
     Returns
     -------
@@ -393,6 +429,7 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
         out.light_maps[j] = (len(planned), len(frusta), SHADOW_MAP)
         names = CUBE_FACE_NAMES if len(frusta) == 6 else ("",)
         planned.extend((j, view, projection, face) for (view, projection), face in zip(frusta, names))
+    _check_total(lighting, planned, any(c.transmission for c in casters), max_bytes)
     # every map's depth goes straight into the one array the shaders read (ShadowMaps.uniform)
     sizes = [lighting.lights[j].shadows.resolution ** 2 for j, *_ in planned]
     depth = np.empty(sum(sizes), np.float32)
