@@ -319,3 +319,95 @@ def test_a_cube_map_within_the_budget_is_made_as_before():
     from softpipe.light.cubemap import CubeMap
     pano = np.linspace(0.0, 1.0, 8 * 16 * 3, dtype=np.float32).reshape(8, 16, 3)
     assert CubeMap.from_equirectangular(pano).size == 4 and CubeMap.from_equirectangular(pano, size=3).size == 3
+
+
+# ------------------------------------------------------------------ 3. messages that say what is wrong
+
+def _ball():
+    from softpipe.scenes import shapes
+    from softpipe.scenes.scene import SceneObject
+    return SceneObject("ball", shapes.icosphere(1.0, 1), np.eye(4))
+
+
+@pytest.mark.parametrize("kind", ["point", "spot"])
+def test_a_light_too_far_for_its_shadow_map_is_named_with_its_distance(kind):
+    """A light at 1e30 said "look_at: eye and target are the same point"."""
+    from softpipe.light.material import Light, Lighting
+    from softpipe.light.shadowmap import ShadowSettings
+    from softpipe.scenes.shadow_pass import render_shadow_maps
+    where = (1e30, 0.0, 0.0)
+    light = (Light.point(where, name="sun lamp", shadows=ShadowSettings()) if kind == "point" else
+             Light.spot(where, (-1.0, 0.0, 0.0), 20.0, name="sun lamp", shadows=ShadowSettings()))
+    with pytest.raises(ValueError) as e:
+        render_shadow_maps([_ball()], Lighting([Light.directional((0, -1, 0)), light]))
+    assert str(e.value) == (
+        "light 1 (sun lamp) at position (1e+30, 0, 0) is 1e+30 from the shadow casters, which are 3.46 across: "
+        "its shadow map cannot tell their depths apart from farther than 1e+06 times their size. Move the light "
+        "nearer, make it a directional light (a far sun), or turn its shadows off")
+
+
+def test_a_model_1e20_across_gets_its_shadow_maps():
+    """A model 1e20 across, its light as far: eye + 1 rounded to eye ("eye and target are the same point");
+    the map's view is now made from the direction itself."""
+    from softpipe.light.material import Light, Lighting
+    from softpipe.light.shadowmap import ShadowSettings
+    from softpipe.scenes import shapes
+    from softpipe.scenes.scene import SceneObject
+    from softpipe.scenes.shadow_pass import render_shadow_maps
+    big = SceneObject("big", shapes.icosphere(1e20, 1), np.eye(4))
+    for light in (Light.point((3e20, 1e20, 0.0), shadows=ShadowSettings(resolution=32)),
+                  Light.spot((3e20, 0.0, 0.0), (-1.0, 0.0, 0.0), 30.0, shadows=ShadowSettings(resolution=32))):
+        maps = render_shadow_maps([big], Lighting([light]))
+        assert any((m.depth < 1.0).any() for m in maps.maps)        # the ball is in the map
+        assert all(np.isfinite(m.matrix).all() for m in maps.maps)
+
+
+def test_a_spot_with_cutoff_0_is_named_when_it_casts_shadows():
+    """cutoff = 0 said "frustum: left == right or bottom == top"."""
+    from softpipe.light.material import Light, Lighting
+    from softpipe.light.shadowmap import ShadowSettings
+    from softpipe.scenes.shadow_pass import render_shadow_maps
+    spot = Light.spot((0.0, 5.0, 0.0), (0.0, -1.0, 0.0), 0.0, name="pin", shadows=ShadowSettings())
+    with pytest.raises(ValueError) as e:
+        render_shadow_maps([_ball()], Lighting([spot]))
+    assert str(e.value) == ("light 0 (pin): a spot with cutoff 0.0° lights nothing, so it has no shadow map; "
+                            "give it a cutoff in (0, 90] degrees (at least 1e-6), or no shadows")
+
+
+def test_a_tiny_light_direction_is_a_direction_without_numpy_warnings(recwarn):
+    """A direction of 1e-300 printed numpy's divide warnings and packed NaN; it is the direction it names."""
+    from softpipe.light.material import Light, Lighting, pack_lights
+    from softpipe.light.shadowmap import ShadowSettings
+    from softpipe.scenes.shadow_pass import render_shadow_maps
+    tiny = Light.directional((1e-300, -1e-300, 0.0), shadows=ShadowSettings(resolution=16))
+    plain = Light.directional((1.0, -1.0, 0.0), shadows=ShadowSettings(resolution=16))
+    huge = Light.directional((1e300, -1e300, 0.0), shadows=ShadowSettings(resolution=16))
+    rows = [pack_lights([light], np.eye(4)) for light in (tiny, plain, huge)]
+    np.testing.assert_array_equal(rows[0], rows[1])
+    np.testing.assert_array_equal(rows[2], rows[1])
+    maps = [render_shadow_maps([_ball()], Lighting([light])).maps[0] for light in (tiny, plain)]
+    np.testing.assert_array_equal(maps[0].depth, maps[1].depth)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+# ------------------------------------------------------------------ 4. a model too small to draw
+
+def test_framing_a_model_1e_10_across_warns_with_its_size():
+    """A model ~1e-10 across rendered blank without a word (the framed camera came nearer than the
+    rasterizer's W_MIN)."""
+    from softpipe.scenes import shapes
+    from softpipe.scenes.scene import Scene
+    scene = Scene.from_model(shapes.icosphere(1e-10, 1), width=16, height=16)
+    with pytest.warns(UserWarning) as caught:
+        scene.view_camera()
+    assert [str(w.message) for w in caught] == [
+        "the meshes are only 2e-10 units across: the framed camera comes within 9e-10 of them, and the "
+        "rasterizer drops points nearer the eye than 1e-09 (softpipe.pipeline.assembly.W_MIN), so they may not "
+        "be drawn at all. Scale the model up (a scene file's fit = 1, or transform = { scale = ... })"]
+
+
+def test_framing_a_small_model_that_draws_does_not_warn(recwarn):
+    from softpipe.scenes import shapes
+    from softpipe.scenes.scene import Scene
+    Scene.from_model(shapes.icosphere(1e-6, 1), width=16, height=16).view_camera()
+    assert not [w for w in recwarn if issubclass(w.category, UserWarning)]

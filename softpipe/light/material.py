@@ -377,7 +377,12 @@ def _check_view_matrix(view_matrix) -> np.ndarray:
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
+    with np.errstate(over="ignore", under="ignore"):
+        n = np.linalg.norm(v)
+    if not 1e-150 < n < 1e150:     # |v|² under- or overflowed (a direction of 1e-300): scale it first
+        v = v / np.max(np.abs(v))
+        n = np.linalg.norm(v)
+    return v / n
 
 
 def pack_lights(lights: Iterable[Light], view_matrix: np.ndarray) -> np.ndarray:
