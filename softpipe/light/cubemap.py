@@ -39,7 +39,16 @@ import numpy as np
 from numba import njit
 
 from softpipe.language.glsl import mix
-from softpipe.light.images import build_mipmaps, check_array, check_size, choose, load_image
+from softpipe.light.images import (
+    MAX_TEXTURE_BYTES,
+    PEAK_BYTES_PER_TEXEL,
+    build_mipmaps,
+    check_array,
+    check_size,
+    choose,
+    load_image,
+    texture_bytes,
+)
 from softpipe.light.material import MEDIA
 from softpipe.light.texture import (
     FILTER_BILINEAR,
@@ -399,6 +408,23 @@ def _as_face(source, k: int, max_bytes) -> np.ndarray:
     return check_array(a)
 
 
+def _face_size(func: str, size, max_bytes: Optional[int]) -> int:
+    """``size`` as a face width: an integer ≥ 1 whose faces fit the image budget, checked before anything
+    is allocated (:func:`softpipe.light.images.texture_bytes`, per face, as :class:`CubeMap` checks them)."""
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+        raise ValueError(f"CubeMap.{func}: size must be an integer ≥ 1 (the face width in texels), got {size!r}")
+    size = int(size)
+    limit = MAX_TEXTURE_BYTES if max_bytes is None else max_bytes
+    need = texture_bytes(size, size)
+    if need > limit:
+        raise ValueError(f"CubeMap.{func}: size={size} makes six {size}×{size} faces, each needing about "
+                         f"{need / 2**30:.1f} GiB while its mipmaps are made ({PEAK_BYTES_PER_TEXEL} bytes a texel), "
+                         f"more than the limit of {limit / 2**30:.1f} GiB a face: give a smaller size (at most "
+                         f"{math.isqrt(limit // PEAK_BYTES_PER_TEXEL)}), or raise max_bytes=... "
+                         "(softpipe.light.images.MAX_TEXTURE_BYTES)")
+    return size
+
+
 class CubeMap:
     """Six square RGBA faces with mip pyramids, sampled by direction (the module docstring has the conventions).
 
@@ -450,8 +476,9 @@ class CubeMap:
         """A cube map whose texel is ``function(d)`` at its centre's unit direction d.
 
         ``function`` takes unit directions [..., 3] and returns colors [..., 3] or [..., 4].
+        ``size`` (the face width) is checked against the image budget before any texel is made.
         """
-        d = texel_directions(int(size))
+        d = texel_directions(_face_size("from_function", size, options.get("max_bytes")))
         colors = np.asarray(function(d), np.float64)
         return cls(list(colors), **options)
 
@@ -461,14 +488,17 @@ class CubeMap:
 
         Each face texel is the panorama sampled bilinearly (wrapping in longitude,
         clamped in latitude) in the direction of the texel's centre; the mapping is the
-        module docstring's. ``size`` is the face width (default W/4, at least 1).
+        module docstring's. ``size`` is the face width (default W/4, at least 1), checked
+        against the image budget (``max_bytes``, per face) before the panorama is read.
         """
+        if size is not None:
+            size = _face_size("from_equirectangular", size, options.get("max_bytes"))
         if isinstance(image, (str, os.PathLike)):
             pano = load_image(image, options.get("max_bytes"))
         else:
             pano = check_array(image)
         h, w = pano.shape[:2]
-        size = max(1, w // 4) if size is None else int(size)
+        size = max(1, w // 4) if size is None else size
         return cls.from_function(lambda d: equirectangular_lookup(pano, d), size, **options)
 
     # ------------------------------------------------------------------ shader and Python access

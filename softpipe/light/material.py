@@ -68,6 +68,11 @@ _COLOR_FIELDS = ("ke", "ka", "kd", "ks", "kr", "kt")
 MEDIA = {"vacuum": 1.0, "air": 1.00029, "water": 1.33, "glass": 1.52, "salt": 1.54, "sapphire": 1.77,
          "diamond": 2.417}
 
+#: The indices of refraction a Material takes (FORMULAS §17): real media lie between about 1
+#: and 4. Outside this range η² (the refraction's k = 1 − η²(1 − c²), §18) overflows or
+#: underflows for values such as 1e200, and the refracted ray would be NaN.
+IOR_RANGE = (1e-3, 1e3)
+
 #: The two forms of falloff in a medium over distance d (FORMULAS §15): T^d, and Glassner's 1/(1 + a·d).
 FALLOFFS = ("power", "glassner")
 
@@ -80,7 +85,12 @@ def _ior(value) -> float:
             known = ", ".join(f"{name} {n}" for name, n in MEDIA.items())
             raise ValueError(f"Material.ior: unknown medium {value!r}; the named media (FORMULAS §17) are {known}")
         return MEDIA[key]
-    return checked("Material.ior", positive, value)
+    n = checked("Material.ior", positive, value)
+    low, high = IOR_RANGE
+    if not low <= n <= high:
+        raise ValueError(f"Material.ior must be between {low:g} and {high:g} (real media are about 1 to 4; "
+                         f"outside this range the refraction's η² overflows), got {n!r}")
+    return n
 
 
 def falloff_factor(material: "Material", d: float) -> RGB:
@@ -133,7 +143,8 @@ class Material:
     ior
         Index of refraction of the material (§17); Fresnel (§20) and Cook-Torrance
         (§26) use it, so ior = 1 means "no specular reflection" there. A name from
-        :data:`MEDIA` (``ior="glass"``) gives the notes' index.
+        :data:`MEDIA` (``ior="glass"``) gives the notes' index. Between 0.001 and
+        1000 (:data:`IOR_RANGE`).
     opacity
         Alpha of the surface (1 = opaque).
     diffuse_texture
@@ -366,7 +377,12 @@ def _check_view_matrix(view_matrix) -> np.ndarray:
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
+    with np.errstate(over="ignore", under="ignore"):
+        n = np.linalg.norm(v)
+    if not 1e-150 < n < 1e150:     # |v|² under- or overflowed (a direction of 1e-300): scale it first
+        v = v / np.max(np.abs(v))
+        n = np.linalg.norm(v)
+    return v / n
 
 
 def pack_lights(lights: Iterable[Light], view_matrix: np.ndarray) -> np.ndarray:

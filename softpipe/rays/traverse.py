@@ -41,8 +41,23 @@ from softpipe.rays.triangle import hit_sheared, ray_space
 
 __all__ = ["query", "start_row", "step", "store", "node_stack", "t_stack", "STACK_SIZE", "SLAB_PAD", "REACH_PAD"]
 
-#: The traversal's stack: a wide node's level is at most its binary depth, and a visit puts
-#: aside at most WIDTH − 1 children.
+#: The traversal's stack. Why it can never overflow, for any ray :func:`_start` lets in:
+#:
+#: - only real children are entered or put aside. An empty lane (lo = +inf, hi = −inf) is
+#:   missed by every ray with a finite origin and direction: along x, 1/dx is never NaN or 0
+#:   (±inf for dx = ±0), so the near plane gives (+inf − ox)·(1/dx) = +inf (the near row is
+#:   lo.x when 1/dx > 0, hi.x = −inf times a negative 1/dx otherwise) and the far one −inf:
+#:   the entry exceeds the exit. Rays with a NaN or infinite coordinate are refused by
+#:   :func:`_start`. Links point to wide nodes made later, so no node is entered twice.
+#: - the stack holds, bottom to top, children of ever deeper levels (a visit pushes the
+#:   children one level below the node, on top of entries no deeper than it; a pop takes
+#:   the deepest), at most WIDTH − 1 of each level 1 … L while a node of wide level L is
+#:   visited. A wide node's level is at most its binary depth, and it is an inner node,
+#:   so L ≤ MAX_DEPTH − 2 (the build keeps every leaf's depth below MAX_DEPTH).
+#:
+#: So a visit finds at most (WIDTH − 1)·L entries and writes at most WIDTH − 1 more
+#: (each child written at the top before the test that keeps it): index
+#: (WIDTH − 1)·(MAX_DEPTH − 1) − 1 at most, below this size.
 STACK_SIZE = (WIDTH - 1) * MAX_DEPTH + 1     # + 1: a child the ray misses is written, then overwritten
 
 #: 1 + 2γ(3), pbrt's padding of a box's far distance (3rd ed., §3.9): γ(n) = nu / (1 − nu),
@@ -344,7 +359,12 @@ def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
 
     Once per ray: Woop's axis permutation and shear (:func:`ray_space`), ``1/d``,
     which box planes the ray enters by, and the root's box (a ray that misses it,
-    a zero direction or an empty interval starts finished).
+    a zero direction or an empty interval starts finished). A ray with a NaN or
+    infinite coordinate in its origin or direction, or a NaN t_min or t_max, starts
+    finished too: it misses. (Why: the box tests take a NaN as "no constraint", so
+    such a ray would enter every box, the empty lanes too, whose link is the root:
+    it would loop and overflow the stack. For a finite ray an empty lane always
+    misses; see :data:`STACK_SIZE`.)
     """
     kx, ky, kz, sx, sy, sz = ray_space(dx, dy, dz)
     o3 = (ox, oy, oz)
@@ -357,7 +377,9 @@ def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
     nz = 5 if iz < 0.0 else 2
     ray = (ox, oy, oz, ix, iy, iz, nx, ny, nz, okx, oky, okz, kx, ky, kz, sx, sy, sz, t_min, t_max)
     reach = t_max + abs(t_max) * REACH_PAD   # boxes are searched a hair beyond the best t (ties)
-    live = count.shape[0] > 0 and sz != 0.0 and t_min < t_max
+    finite = (math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
+              and math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz))
+    live = count.shape[0] > 0 and finite and sz != 0.0 and t_min < t_max   # NaN t: t_min < t_max is false
     if live:
         live = _box_entry(lo, hi, 0, ox, oy, oz, ix, iy, iz, t_min, reach) != math.inf
     ref, n = 0, 0

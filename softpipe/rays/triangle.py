@@ -101,7 +101,7 @@ def ray_space(dx: float, dy: float, dz: float) -> tuple:
     dkz = d[kz]
     if dkz < 0.0:
         kx, ky = ky, kx
-    if dkz == 0.0:                           # a zero (or NaN) direction: no ray
+    if dkz == 0.0:                           # a zero direction: no ray (a NaN one gives NaN below: no hit)
         return kx, ky, kz, 0.0, 0.0, 0.0
     return kx, ky, kz, d[kx] / dkz, d[ky] / dkz, 1.0 / dkz
 

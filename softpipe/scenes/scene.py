@@ -419,10 +419,20 @@ def framed_camera(points, f: FrameSpec, azimuth: float, elevation: float, aspect
     _, _, back = basis(azimuth)
     target = centre + shift
     depth = t - rel @ back
+    if float(depth.min()) < _TOO_NEAR:
+        warnings.warn(f"the meshes are only {2 * extent:.3g} units across: the framed camera comes within "
+                      f"{float(depth.min()):.3g} of them, and the rasterizer drops points nearer the eye than "
+                      "1e-09 (softpipe.pipeline.assembly.W_MIN), so they may not be drawn at all. Scale the "
+                      "model up (a scene file's fit = 1, or transform = { scale = ... })", UserWarning, stacklevel=2)
     near = max(0.95 * float(depth.min()), 1e-3 * t)
     far = max(1.05 * float(depth.max()), 2.0 * near)
     return Camera(eye=tuple(target + t * back), target=tuple(target), up=up, fovy=f.fovy, near=near,
                   far=far)
+
+
+#: A framed camera nearer than this to the model (ten times the rasterizer's W_MIN, which clips what
+#: is nearer the eye than 1e-9) draws it partly or not at all: framed_camera warns.
+_TOO_NEAR = 1e-8
 
 
 def _frame_points(points) -> np.ndarray:

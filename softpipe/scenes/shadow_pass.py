@@ -95,11 +95,26 @@ def casters_of(objects) -> List[ShadowCaster]:
 
 # ------------------------------------------------------------------ fitting the light's frusta
 
+def _view_along(eye: np.ndarray, forward: np.ndarray, up) -> np.ndarray:
+    """look_at(eye, eye + forward, up), also where eye is so large that eye + forward rounds to eye."""
+    ahead = eye + forward
+    if np.allclose(ahead - eye, forward, rtol=1e-6, atol=0.0):
+        return look_at(eye, ahead, up)
+    view = look_at((0.0, 0.0, 0.0), forward, up)       # the same rotation, then the eye's translation
+    view[:3, 3] = -view[:3, :3] @ eye
+    return view
+
+
 def _basis_view(eye: np.ndarray, forward: np.ndarray) -> np.ndarray:
     """A view matrix at ``eye`` looking along ``forward`` (any up not parallel to it)."""
-    forward = forward / np.linalg.norm(forward)
+    with np.errstate(over="ignore", under="ignore"):
+        n = np.linalg.norm(forward)
+    if not 1e-150 < n < 1e150:     # |forward|² under- or overflowed (a direction of 1e-300): scale it first
+        forward = forward / np.max(np.abs(forward))
+        n = np.linalg.norm(forward)
+    forward = forward / n
     up = (0.0, 1.0, 0.0) if abs(forward[1]) < 0.9 else (1.0, 0.0, 0.0)
-    return look_at(eye, eye + forward, up)
+    return _view_along(eye, forward, up)
 
 
 def _in_view(view: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -155,7 +170,7 @@ def light_frusta(light: Light, settings: ShadowSettings, points: np.ndarray) -> 
     far = max(far, float(np.linalg.norm(offsets, axis=1).max()) * 1.01)
     out = []
     for forward, up in CUBE_FACES:
-        view = look_at(eye, eye + np.asarray(forward, np.float64), up)
+        view = _view_along(eye, np.asarray(forward, np.float64), up)
         out.append((view, frustum(-a * near, a * near, -a * near, a * near, near, far)))
     return out
 
@@ -360,7 +375,65 @@ class ShadowMaps:
         return (r, g, b)
 
 
-def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
+#: The most memory all of a scene's shadow maps may take together (bytes); each light's
+#: resolution is capped on its own (MAX_SHADOW_RESOLUTION), this caps their sum (300 point
+#: lights of 1024² cube maps would take 7 GiB). ``render_shadow_maps(..., max_bytes=...)``
+#: raises or lowers it for one call.
+MAX_SHADOW_MAP_BYTES = 2 << 30
+#: Bytes a map keeps per texel: its float32 depth; with transparent casters also their
+#: layer's float32 depth and RGB transmission, kept per map and packed once more for shaders.
+SHADOW_BYTES_PER_TEXEL, TRANSPARENT_BYTES_PER_TEXEL = 4, 2 * 16
+
+
+def _check_total(lighting: Lighting, planned: list, transparent: bool, max_bytes: Optional[int]) -> None:
+    """Refuse maps that together need more than ``max_bytes`` (None: MAX_SHADOW_MAP_BYTES), before any is made."""
+    limit = MAX_SHADOW_MAP_BYTES if max_bytes is None else max_bytes
+    per_texel = SHADOW_BYTES_PER_TEXEL + (TRANSPARENT_BYTES_PER_TEXEL if transparent else 0)
+    texels: Dict[int, int] = {}
+    for j, *_ in planned:
+        texels[j] = texels.get(j, 0) + lighting.lights[j].shadows.resolution ** 2
+    need = sum(texels.values()) * per_texel
+    if need <= limit:
+        return
+    j = max(texels, key=lambda k: (texels[k], -k))
+    light = lighting.lights[j]
+    maps = sum(1 for k, *_ in planned if k == j)
+    res = light.shadows.resolution
+    raise ValueError(
+        f"shadow maps: {len(texels)} light(s) ask for {len(planned)} maps, about {need / 2**30:.1f} GiB together "
+        f"({per_texel} bytes a texel), more than the limit of {limit / 2**30:.1f} GiB; the largest is light {j} "
+        f"({light.name}): {maps} map(s) of {res}×{res}. Lower the lights' shadow resolution "
+        "(ShadowSettings.resolution; 'resolution' in a scene file's shadows table), let fewer lights cast "
+        "shadows, or raise the limit (render_shadow_maps(..., max_bytes=...), "
+        "softpipe.scenes.shadow_pass.MAX_SHADOW_MAP_BYTES)")
+
+
+#: A point or spot light's shadow map tells its casters' depths apart up to this many times
+#: their size away (float32 depths over the fitted near…far); farther, it is refused.
+MAX_LIGHT_DISTANCE_RATIO = 1e6
+
+
+def _check_map_light(j: int, light: Light, points: np.ndarray) -> None:
+    """Refuse a light whose shadow map could not be made or would say nothing, naming the light and the value."""
+    if light.kind == "directional" or not len(points):
+        return
+    label = f"light {j} ({light.name})"
+    if light.kind == "spot" and light.cutoff < 1e-6:        # its map's frustum would have no width
+        raise ValueError(f"{label}: a spot with cutoff {light.cutoff!r}° lights nothing, so it has no shadow map; "
+                         "give it a cutoff in (0, 90] degrees (at least 1e-6), or no shadows")
+    eye = np.asarray(light.position, np.float64)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    size = float(np.linalg.norm(hi - lo))
+    distance = float(np.abs(points - eye).max())
+    if distance > MAX_LIGHT_DISTANCE_RATIO * size:
+        where = ", ".join(f"{v:g}" for v in eye)
+        raise ValueError(f"{label} at position ({where}) is {distance:.3g} from the shadow casters, which are "
+                         f"{size:.3g} across: its shadow map cannot tell their depths apart from farther than "
+                         f"{MAX_LIGHT_DISTANCE_RATIO:g} times their size. Move the light nearer, make it a "
+                         "directional light (a far sun), or turn its shadows off")
+
+
+def render_shadow_maps(objects, lighting: Lighting, *, max_bytes: Optional[int] = None) -> ShadowMaps:
     """Draw the shadow maps of every light of ``lighting`` whose ``shadows`` is set.
 
     Parameters
@@ -369,6 +442,9 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
         The scene's objects (those with ``cast_shadows`` false are left out), or
         casters made by :func:`casters_of`.
     lighting : Lighting
+    max_bytes : int, optional
+        The most memory the maps may take together (default :data:`MAX_SHADOW_MAP_BYTES`),
+        checked before any map is made.
 
     Returns
     -------
@@ -391,10 +467,12 @@ def render_shadow_maps(objects, lighting: Lighting) -> ShadowMaps:
                 out.rays = RayScene([o for o in objects if getattr(o, "cast_shadows", True)])
             out.light_maps[j] = (0, 0, SHADOW_RAY)
             continue
+        _check_map_light(j, light, points)
         frusta = light_frusta(light, light.shadows, points)
         out.light_maps[j] = (len(planned), len(frusta), SHADOW_MAP)
         names = CUBE_FACE_NAMES if len(frusta) == 6 else ("",)
         planned.extend((j, view, projection, face) for (view, projection), face in zip(frusta, names))
+    _check_total(lighting, planned, any(c.transmission for c in casters), max_bytes)
     # every map's depth goes straight into the one array the shaders read (ShadowMaps.uniform)
     sizes = [lighting.lights[j].shadows.resolution ** 2 for j, *_ in planned]
     depth = np.empty(sum(sizes), np.float32)
