@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple, cast
 
 import numba
 import numpy as np
@@ -398,7 +398,7 @@ def _check_total(lighting: Lighting, planned: list, transparent: bool, max_bytes
     j = max(texels, key=lambda k: (texels[k], -k))
     light = lighting.lights[j]
     maps = sum(1 for k, *_ in planned if k == j)
-    res = light.shadows.resolution
+    res = cast(ShadowSettings, light.shadows).resolution      # a planned light casts shadows
     raise ValueError(
         f"shadow maps: {len(texels)} light(s) ask for {len(planned)} maps, about {need / 2**30:.1f} GiB together "
         f"({per_texel} bytes a texel), more than the limit of {limit / 2**30:.1f} GiB; the largest is light {j} "
