@@ -21,9 +21,11 @@ demo: $(STAMP)
 # worker only). Workers share numba's on-disk cache (locked: tests/numba_cache_lock.py) and
 # softpipe's kernel cache; tests that read the wall clock run alone (tests/run_alone.py).
 # TEST_WORKERS=1 for one worker, 0 for none (the suite in pytest's own process).
+# OpenBLAS keeps one thread per worker: its threads spin-wait after each call, and two workers'
+# spinning took about a tenth of the suite's CPU time (the benchmarks keep BLAS to one thread too).
 TEST_WORKERS ?= auto
 test: $(STAMP) test-deps lint
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # ruff with the rule set in pyproject.toml ([tool.ruff]): the library, tests, examples, benchmarks.
 lint: $(STAMP)
