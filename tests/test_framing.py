@@ -75,9 +75,12 @@ def test_boxes_flat_models_and_a_point_get_a_valid_camera():
     box = framed_camera(((-1, -1, -1), (1, 1, 1)), FrameSpec(), 30.0, 20.0, 1.0)
     assert isinstance(box, Camera) and 0 < box.near < box.far
     flat = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
-    for mesh in (flat, Mesh([[2.0, 3.0, 4.0]] * 3, [[0, 1, 2]])):
-        cam = framed_camera(mesh, FrameSpec(), 0.0, 0.0, 1.0)
-        assert 0 < cam.near < cam.far and np.all(np.isfinite(cam.eye))
+    point = Mesh([[2.0, 3.0, 4.0]] * 3, [[0, 1, 2]])
+    cam = framed_camera(flat, FrameSpec(), 0.0, 0.0, 1.0)
+    assert 0 < cam.near < cam.far and np.all(np.isfinite(cam.eye))
+    with pytest.warns(UserWarning, match="the meshes are only 0 units across"):    # a point draws nothing
+        cam = framed_camera(point, FrameSpec(), 0.0, 0.0, 1.0)
+    assert 0 < cam.near < cam.far and np.all(np.isfinite(cam.eye))
     top = framed_camera(flat, FrameSpec(), 0.0, 90.0, 1.0)            # straight down: up is chosen for it
     assert top.eye[1] > 0
     with pytest.raises(ValueError, match="framing margin must be a positive number"):
