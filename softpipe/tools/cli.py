@@ -36,7 +36,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
-from typing import List, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 from softpipe.core.version import VERSION
 from softpipe.scenes.drawing import MAX_FRAMES  # softpipe turntable's limit is softpipe.turntable's
@@ -66,14 +66,21 @@ class _Parser(argparse.ArgumentParser):
 # ---------------------------------------------------------------------------- option values
 
 
-def _size(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of pixels, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number of pixels, got {v}")
-    return v
+def _positive_whole(things: str) -> Callable[[str], int]:
+    """An option type: a whole number > 0 of ``things`` ("pixels", "worker processes")."""
+    def value(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number of {things}, got {text!r}") from None
+        if v <= 0:
+            raise argparse.ArgumentTypeError(f"expected a positive number of {things}, got {v}")
+        return v
+    return value
+
+
+_size = _positive_whole("pixels")
+_worker_count = _positive_whole("worker processes")
 
 
 def _width_height(text: str) -> Tuple[int, int]:
@@ -330,16 +337,6 @@ def _demo(args) -> int:
     where = _save_image(fb, output)
     _wrote(args, output, f"wrote {where} ({args.width}×{args.height}, {time.perf_counter() - start:.2f} s)")
     return 0
-
-
-def _worker_count(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of worker processes, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number of worker processes, got {v}")
-    return v
 
 
 def _batch(args) -> int:

@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Collection, Dict, Iterator, List, Optional, Tuple, Union
 
+import numpy as np
+
 from softpipe.core.files import PathPolicyError
 from softpipe.core.runtime import keep_freed_memory
 from softpipe.core.version import VERSION
@@ -157,7 +159,6 @@ def _canonical(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [_canonical(v) for v in value]
     if hasattr(value, "dtype") and hasattr(value, "tobytes"):
-        import numpy as np
         a = np.ascontiguousarray(value)
         return {"dtype": a.dtype.str, "shape": list(a.shape), "sha256": hashlib.sha256(a.tobytes()).hexdigest()}
     if isinstance(value, float):
@@ -679,7 +680,6 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
 
 def _write_contact_sheet(job: Job, out: Path, result: BatchResult) -> Optional[Path]:
     """Every written frame, in the job's order, as labelled thumbnails (:func:`softpipe.views.pictures.contact_sheet`)."""
-    import numpy as np
     from PIL import Image
 
     from softpipe.core.files import atomic_write
