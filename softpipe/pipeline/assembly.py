@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Dict
+from typing import Dict, Optional
 
 import numba
 import numpy as np
@@ -104,6 +104,9 @@ class Primitives:
         What the rows are (:data:`KINDS`): the topology's kind, or the polygon mode's.
     size : float64 [P]
         A point's size or a line's width in pixels (clamped to [1, 255]); unused for triangles.
+    faces : Primitives or None
+        In polygon mode "line" or "point": the filled triangles whose edges or corners these
+        are (a polygon offset takes their slope, as GL's ``POLYGON_OFFSET_LINE`` does).
     """
 
     window: np.ndarray
@@ -118,6 +121,7 @@ class Primitives:
     culled_window: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
     kind: str = "triangles"
     size: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    faces: Optional["Primitives"] = None
 
     def __len__(self) -> int:
         return len(self.window)
@@ -605,6 +609,7 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
                           point_size, line_width)
         prims.primitive_id = owner[prims.primitive_id]
         prims.dropped, prims.input_count, prims.culled_window = faces.dropped, faces.input_count, faces.culled_window
+        prims.faces = faces
         return prims
     return _assemble(vout, corners, corners[:, 2], kind, viewport, cull, front_face, keep_culled, whole_list,
                      point_size, line_width)

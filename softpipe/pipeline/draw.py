@@ -224,14 +224,29 @@ class DrawCall:
         clock(None)
         fb = self.framebuffer
         setup = setup_primitives(prims, self._rect(), fb.pattern.offsets)
-        if self.polygon_offset is not None and prims.kind == "triangles":
-            apply_polygon_offset(setup, prims.window, *self.polygon_offset)
+        if self.polygon_offset is not None:
+            if prims.kind == "triangles":
+                apply_polygon_offset(setup, prims.window, *self.polygon_offset)
+            elif prims.faces is not None:
+                self._offset_polygon_mode(prims, setup)
         clock("setup")
         stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
                                                                                                record)
         for stage in stages:
             yield self._emit(stage, debug)
             clock(None)
+
+    def _offset_polygon_mode(self, prims: Primitives, setup) -> None:
+        """The polygon offset of triangles drawn as edges or corners: each takes its triangle's offset
+        (its slope, GL's ``POLYGON_OFFSET_LINE`` / ``_POINT``), added to the line's or point's depth."""
+        faces = prims.faces
+        assert faces is not None
+        face_setup = setup_primitives(faces, self._rect(), self.framebuffer.pattern.offsets)
+        before = face_setup.plane[:, 0].copy()
+        apply_polygon_offset(face_setup, faces.window, *self.polygon_offset)
+        triangles, first_row = np.unique(faces.primitive_id, return_index=True)
+        offset = (face_setup.plane[:, 0] - before)[first_row[np.searchsorted(triangles, prims.primitive_id)]]
+        setup.depth += offset[:, None] if setup.depth.ndim == 2 else offset
 
     def _rect(self) -> np.ndarray:
         """The pixels the draw may touch: the viewport within the framebuffer."""
@@ -382,7 +397,9 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     front_face : "ccw" | "cw" (default "ccw")
     viewport : Viewport, optional; the whole framebuffer by default
     polygon_offset : (factor, units), optional
-        OpenGL's ``glPolygonOffset`` (filled triangles): every triangle's depth is moved by
+        OpenGL's ``glPolygonOffset`` (for triangles, filled or in a polygon mode, whose edges
+        and corners take their triangle's offset; not for the line and point topologies):
+        every triangle's depth is moved by
         factor·DZ + units·r (:func:`softpipe.pipeline.setup.apply_polygon_offset`); a shadow
         map's depth bias.
     sample_shading : "sample" | "center" | "centroid"
