@@ -54,10 +54,12 @@ from softpipe.rays.bvh import any_hit, closest_hit
 from softpipe.rays.queries import RayScene, hit_normal
 from softpipe.tracers.montecarlo import cosine_hemisphere, triangle_point, uniform
 
-__all__ = ["pathtrace", "PathTrace", "MAX_SPP", "DIMENSIONS_PER_BOUNCE"]
+__all__ = ["pathtrace", "PathTrace", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE"]
 
 #: The most samples per pixel one call renders (a guard against a typo such as 1e9).
 MAX_SPP = 1 << 20
+#: Samples per pixel in one pass over the image (PathTrace.add renders in passes of at most this many).
+PASS_SPP = 16
 #: Random numbers one bounce draws (lobe, light, light point ×2, direction ×2, Fresnel, roulette).
 DIMENSIONS_PER_BOUNCE = 8
 _MATERIAL_COLUMNS = 13           # ke (3), kd (3), kr (3), kt (3), ior
@@ -336,9 +338,13 @@ class PathTrace:
         spp = _whole("spp", spp, 1, MAX_SPP)
         s = self._setup
         start = time.perf_counter()
-        in_bands(_render_rows, self.height, self.width, self.height, s.unproject, s.uniform, s.mats, s.light_tris,
-                 s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth, self.rr_depth, np.uint64(self.seed), self.spp, spp,
-                 self._total, self._squares, grain=1)
+        for first in range(self.spp, self.spp + spp, PASS_SPP):
+            # in passes, so that Ctrl-C is heard between them (in_bands starts no band after it); each pixel
+            # still adds its samples in order, so the sums are the same bytes as one pass
+            count = min(PASS_SPP, self.spp + spp - first)
+            in_bands(_render_rows, self.height, self.width, self.height, s.unproject, s.uniform, s.mats,
+                     s.light_tris, s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth,
+                     self.rr_depth, np.uint64(self.seed), first, count, self._total, self._squares, grain=1)
         self.spp += spp
         self.timings["trace"] = self.timings.get("trace", 0.0) + time.perf_counter() - start
         return self
