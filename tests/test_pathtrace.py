@@ -60,6 +60,18 @@ def test_an_emissive_quad_emits_from_its_front_only():
     assert np.array_equal(traced.image, np.zeros((16, 16, 3), np.float32))
 
 
+def test_the_background_is_a_uniform_sky_that_lights_the_scene():
+    """Under a sky of radiance B from every direction, a Lambert plane of albedo a facing it reflects exactly
+    a·B: every cosine-drawn direction escapes to the sky, each with weight kd/p = a. Beside it, the sky itself."""
+    sky = (0.4, 0.6, 0.8, 1.0)
+    matte = Material(kd=0.5, ks=0.0, name="matte")
+    scene = scene_of(("floor", shapes.plane(2.0, material=matte), np.eye(4)), camera=looking_down(), background=sky)
+    traced = pathtrace(scene, spp=8)
+    assert np.array_equal(traced.image, np.broadcast_to(np.float32([0.2, 0.3, 0.4]), (16, 16, 3)))
+    aside = pathtrace(scene.replace(camera=Camera(eye=(0.0, 3.0, 0.0), target=(0.0, 3.0, -1.0), near=0.01)), spp=2)
+    assert np.array_equal(aside.image, np.broadcast_to(np.float32([0.4, 0.6, 0.8]), (16, 16, 3)))
+
+
 def test_a_mirror_shows_the_lamp_times_kr():
     mirror = Material(kd=0.0, ks=0.0, kr=(0.5, 0.25, 1.0), name="mirror")
     lamp_above = compose(translate(0.0, 5.0, 0.0), rotate_x(180.0))           # facing down, behind the eye
