@@ -53,6 +53,7 @@ from softpipe.scenes.models import load_model, model_path
 from softpipe.scenes.obj import OBJError, load_obj, parse_obj
 from softpipe.scenes.scene import Scene
 from softpipe.scenes.shadow_pass import ShadowMaps, render_shadow_maps
+from softpipe.tracers.pathtrace import PathTrace, pathtrace
 
 __all__ = [
     "shading", "parse_color", "keep_freed_memory", "glsl", "DISCARD", "FragInfo", "ShaderError",
@@ -65,7 +66,7 @@ __all__ = [
     "rotate_z", "scale", "translate", "VertexOut", "run_vertex_stage", "standard_vertex", "shapes",
     "draw_mesh", "render", "render_scene", "standard_uniforms", "turntable", "Mesh", "concatenate_meshes",
     "load_model", "model_path", "OBJError", "load_obj", "parse_obj", "Scene", "ShadowMaps",
-    "render_shadow_maps", "__version__",
+    "render_shadow_maps", "PathTrace", "pathtrace", "__version__",
 ]
 
 __version__ = VERSION

@@ -81,6 +81,17 @@ def _positive_whole(things: str) -> Callable[[str], int]:
 
 _size = _positive_whole("pixels")
 _worker_count = _positive_whole("worker processes")
+_spp = _positive_whole("samples per pixel")
+
+
+def _seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to 2**64 - 1, got {text!r}") from None
+    if not 0 <= v < 2 ** 64:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to 2**64 - 1, got {v}")
+    return v
 
 
 def _width_height(text: str) -> Tuple[int, int]:
@@ -238,6 +249,13 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--raytrace", action="store_true",
                         help="ray trace the scene instead (Whitted: shadow rays, mirrors and glass, FORMULAS §11, "
                              "§16-§22) with the same camera, materials and lights")
+    render.add_argument("--pathtrace", action="store_true",
+                        help="path trace the scene instead (Monte Carlo: light from emissive surfaces, material ke, "
+                             "and the background; Lambert, mirror and glass; docs/pathtracing.md)")
+    render.add_argument("--spp", type=_spp, metavar="N", default=None,
+                        help="with --pathtrace: samples per pixel (default 64)")
+    render.add_argument("--seed", type=_seed, metavar="S", default=None,
+                        help="with --pathtrace: the random seed (default 0); the same seed gives the same image")
     render.add_argument("--rays", action="store_true",
                         help="rasterize, and let the objects drawn with mirror, glass or hall trace their reflected "
                              "and refracted rays from the fragment shader (ray queries) instead of reading an "
@@ -575,6 +593,22 @@ def _render(args) -> int:
             _progress(args, f"draw {k + 1}/{total}: {obj.name} ({obj.mesh.triangle_count} triangles)")
 
     results: list = []
+    if (args.spp is not None or args.seed is not None) and not args.pathtrace:
+        raise CLIError(f"{'--spp' if args.spp is not None else '--seed'} applies only with --pathtrace")
+    if args.pathtrace:
+        if args.raytrace or args.rays or args.stages:
+            other = "--raytrace" if args.raytrace else "--rays" if args.rays else "--stages"
+            raise CLIError(f"--pathtrace renders by paths; it does not apply with {other}")
+        from softpipe.tracers.pathtrace import pathtrace
+        spp = 64 if args.spp is None else args.spp
+        traced = pathtrace(scene, spp=spp, seed=0 if args.seed is None else args.seed)
+        for note in traced.notes:
+            _note(args, note)
+        where = _save_image(traced.framebuffer(), output)
+        _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
+                             f"path traced, {spp} samples per pixel, seed {traced.seed}, "
+                             f"{time.perf_counter() - start:.2f} s)")
+        return 0
     if args.rays:
         if args.raytrace or args.stages:
             raise CLIError(f"--rays rasterizes with rays from the shaders; it does not apply with "

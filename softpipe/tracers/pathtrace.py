@@ -1,0 +1,420 @@
+"""A Monte Carlo path tracer: the rendering equation itself, on the same BVH and scenes (FORMULAS §16–§21).
+
+The Whitted tracer (:mod:`.whitted`) solves the notes' simplified equation: point
+lights, a constant ambient term for all indirect light, a ray tree for mirrors and
+glass. This module solves the equation the notes start from,
+
+    L_o(p, ω_o) = L_e(p, ω_o) + ∫ f(p, ω_i, ω_o) L_i(p, ω_i) (N·ω_i) dω_i,
+
+by following one random path per sample from the eye, so that colour bleeding,
+soft shadows and light from emissive surfaces come out of it:
+
+- **lights** are surfaces: any triangle whose material has ``ke`` ≠ 0 emits
+  radiance ke from its front face (by its winding); a ray that leaves the scene
+  sees the scene's ``background`` as radiance from every direction. The scene's
+  point, directional and spot lights have no area and are not used (a note says so);
+- **materials** (a material may mix them; one is picked per bounce with probability
+  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a perfect
+  mirror of reflectance kr (§16); glass when kt ≠ 0: reflected with Fresnel's F_R
+  (§20, n = 1 outside, ``ior`` inside), else refracted (§18) and tinted by kt, all
+  reflected past the critical angle (§19). ks, ka and the Phong, Blinn-Phong and
+  Cook-Torrance lobes are not used yet;
+- **next-event estimation**: at a diffuse bounce a point is picked on an emissive
+  triangle (the triangle with probability ∝ area × mean ke, the point uniformly),
+  a shadow ray (§21) tests it, and its light is combined with the light that the
+  sampled direction finds by the power heuristic (multiple importance sampling);
+- **Russian roulette** ends a path from its ``rr_depth``-th bounce on with
+  probability 1 − min(0.95, strongest channel of its throughput), dividing the
+  survivors by the probability that they survived: unbiased;
+- **the pixel filter** is a box over the pixel: each sample's ray goes through a
+  uniformly jittered point of its pixel and counts only there, with weight 1/spp.
+
+Every random number is :func:`~softpipe.tracers.montecarlo.uniform` of (seed,
+pixel, sample, dimension), so the image is the same bytes on any thread count, and
+rendering N samples then N more (:meth:`PathTrace.add`) gives the same bytes as
+2N at once: the samples are the same numbers, added to the same float64 sums in
+the same order. docs/pathtracing.md walks from the equation to the code.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+import numpy as np
+from numba import njit
+
+from softpipe.core.parallel import in_bands
+from softpipe.language.glsl import reflect
+from softpipe.light.lighting import fresnel_directions
+from softpipe.pipeline.camera import Camera
+from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.rays.bvh import any_hit, closest_hit
+from softpipe.rays.queries import RayScene, hit_normal
+from softpipe.tracers.montecarlo import cosine_hemisphere, triangle_point, uniform
+
+__all__ = ["pathtrace", "PathTrace", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE"]
+
+#: The most samples per pixel one call renders (a guard against a typo such as 1e9).
+MAX_SPP = 1 << 20
+#: Samples per pixel in one pass over the image (PathTrace.add renders in passes of at most this many).
+PASS_SPP = 16
+#: Random numbers one bounce draws (lobe, light, light point ×2, direction ×2, Fresnel, roulette).
+DIMENSIONS_PER_BOUNCE = 8
+_MATERIAL_COLUMNS = 13           # ke (3), kd (3), kr (3), kt (3), ior
+_INV_PI = 1.0 / math.pi
+
+
+# ------------------------------------------------------------------ the kernel
+
+@njit(cache=True, inline="always")
+def _power_heuristic(a, b):
+    """Veach's power heuristic (β = 2): the weight a²/(a² + b²) of the strategy whose pdf is a."""
+    a2 = a * a
+    return a2 / (a2 + b * b)
+
+
+@njit(cache=True)
+def _pick_light(cdf, u):
+    """The index k with cdf[k-1] ≤ u·total < cdf[k] (binary search): a light triangle picked ∝ its weight."""
+    x = u * cdf[cdf.shape[0] - 1]
+    lo, hi = 0, cdf.shape[0] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cdf[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
+def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth, rr_depth,
+              seed, pixel, sample):
+    """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc."""
+    bvh = scene.bvh
+    eps = scene.epsilon
+    red, green, blue = 0.0, 0.0, 0.0
+    tr, tg, tb = 1.0, 1.0, 1.0                    # the path's throughput
+    prev_pdf = 0.0                                # the pdf (solid angle) the last direction was drawn with
+    prev_delta = True                             # the eye, or a mirror or glass bounce: no light sampling there
+    t_min, t_max = 0.0, t_far
+    have_lights = light_tris.shape[0] > 0
+    depth = 0
+    while True:
+        tri, t, b1, b2 = closest_hit(bvh, o, d, t_min, t_max)
+        if tri < 0:
+            red += tr * background[0]
+            green += tg * background[1]
+            blue += tb * background[2]
+            break
+        P = (o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2])
+        fn = scene.face_normals[tri]
+        length = math.sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2])
+        if length == 0.0:                         # a degenerate triangle: nothing to shade
+            break
+        ng = (fn[0] / length, fn[1] / length, fn[2] / length)
+        cos_o = ng[0] * d[0] + ng[1] * d[1] + ng[2] * d[2]
+        front = cos_o < 0.0
+        m = mats[scene.triangle_object[tri]]
+        if front and (m[0] > 0.0 or m[1] > 0.0 or m[2] > 0.0):      # emission, seen from the front
+            w = 1.0
+            if not prev_delta:                    # a direction light sampling could have drawn too
+                w = _power_heuristic(prev_pdf, light_pdf[tri] * t * t / -cos_o)
+            red += tr * m[0] * w
+            green += tg * m[1] * w
+            blue += tb * m[2] * w
+        if max_depth >= 0 and depth + 1 >= max_depth:
+            break
+        if not front:
+            ng = (-ng[0], -ng[1], -ng[2])
+        N = hit_normal(scene, tri, b1, b2)
+        if not front:
+            N = (-N[0], -N[1], -N[2])
+        if N[0] * d[0] + N[1] * d[1] + N[2] * d[2] >= 0.0:        # an interpolated normal facing away: the face's
+            N = ng
+        w_d = max(m[3], m[4], m[5])
+        w_m = max(m[6], m[7], m[8])
+        w_g = max(m[9], m[10], m[11])
+        total = w_d + w_m + w_g
+        if total <= 0.0:                          # black: absorbs everything
+            break
+        base = 2 + depth * DIMENSIONS_PER_BOUNCE
+        p_d = w_d / total
+        if w_d > 0.0 and have_lights:             # next-event estimation toward an emissive triangle
+            li = _pick_light(light_cdf, uniform(seed, pixel, sample, base + 1))
+            k = light_tris[li]
+            c = light_corners[li]
+            Q = triangle_point((c[0], c[1], c[2]), (c[3], c[4], c[5]), (c[6], c[7], c[8]),
+                               uniform(seed, pixel, sample, base + 2), uniform(seed, pixel, sample, base + 3))
+            lx, ly, lz = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
+            dist2 = lx * lx + ly * ly + lz * lz
+            dist = math.sqrt(dist2)
+            if dist > 0.0:
+                wi = (lx / dist, ly / dist, lz / dist)
+                ln = scene.face_normals[k]
+                cos_l = -(ln[0] * wi[0] + ln[1] * wi[1] + ln[2] * wi[2]) / math.sqrt(
+                    ln[0] * ln[0] + ln[1] * ln[1] + ln[2] * ln[2])
+                cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
+                cos_g = ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2]
+                if cos_l > 0.0 and cos_s > 0.0 and cos_g > 0.0 and \
+                        not any_hit(bvh, P, wi, eps, dist * (1.0 - 1e-7) - eps):
+                    pdf_l = light_pdf[k] * dist2 / cos_l
+                    pdf_b = p_d * cos_s * _INV_PI
+                    f = _power_heuristic(pdf_l, pdf_b) * cos_s * _INV_PI / pdf_l
+                    le = mats[scene.triangle_object[k]]
+                    red += tr * m[3] * le[0] * f
+                    green += tg * m[4] * le[1] * f
+                    blue += tb * m[5] * le[2] * f
+        u = uniform(seed, pixel, sample, base) * total
+        if u < w_d:                               # Lambert: f·cos/pdf = (kd/π)·cos / (p_d·cos/π) = kd/p_d
+            wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 4),
+                                          uniform(seed, pixel, sample, base + 5))
+            if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0:
+                break                             # below the surface: the interpolated normal leans too far
+            tr, tg, tb = tr * m[3] / p_d, tg * m[4] / p_d, tb * m[5] / p_d
+            prev_pdf, prev_delta = p_d * cos_s * _INV_PI, False
+        else:
+            V = (-d[0], -d[1], -d[2])
+            if u < w_d + w_m:                     # a perfect mirror (§16), weight kr
+                p = w_m / total
+                wi = reflect(d, N)
+                tr, tg, tb = tr * m[6] / p, tg * m[7] / p, tb * m[8] / p
+            else:                                 # glass: Fresnel picks reflection or refraction (§18–§20)
+                p = w_g / total
+                n1, n2 = (1.0, m[12]) if front else (m[12], 1.0)
+                R, T, F = fresnel_directions(N, V, n1, n2)
+                if uniform(seed, pixel, sample, base + 6) < F:
+                    wi = R                        # F·1 / F: the reflected share, white
+                    tr, tg, tb = tr / p, tg / p, tb / p
+                else:
+                    wi = T                        # (1 − F)·kt / (1 − F)
+                    tr, tg, tb = tr * m[9] / p, tg * m[10] / p, tb * m[11] / p
+            prev_delta = True
+            n = math.sqrt(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2])
+            if n == 0.0:
+                break
+            wi = (wi[0] / n, wi[1] / n, wi[2] / n)
+        if depth + 1 >= rr_depth:                 # Russian roulette
+            q = min(0.95, max(tr, tg, tb))
+            if uniform(seed, pixel, sample, base + 7) >= q:
+                break
+            tr, tg, tb = tr / q, tg / q, tb / q
+        o, d = P, wi
+        t_min, t_max = eps, np.inf
+        depth += 1
+    return red, green, blue
+
+
+@njit(cache=True, inline="always")
+def _unproject(M, x, y, z):
+    w = M[3, 0] * x + M[3, 1] * y + M[3, 2] * z + M[3, 3]
+    return ((M[0, 0] * x + M[0, 1] * y + M[0, 2] * z + M[0, 3]) / w,
+            (M[1, 0] * x + M[1, 1] * y + M[1, 2] * z + M[1, 3]) / w,
+            (M[2, 0] * x + M[2, 1] * y + M[2, 2] * z + M[2, 3]) / w)
+
+
+@njit(cache=True, nogil=True)
+def _render_rows(lo, hi, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf, light_pdf, background,
+                 max_depth, rr_depth, seed, first, count, total, squares):
+    """Samples first … first + count − 1 of every pixel of image rows lo:hi, added to the float64 sums in order."""
+    for j in range(lo, hi):
+        for i in range(width):
+            pixel = j * width + i
+            for s in range(first, first + count):
+                # the box filter: a uniform point of the pixel (image row j counts down from the top)
+                x = 2.0 * (i + uniform(seed, pixel, s, 0)) / width - 1.0
+                y = 1.0 - 2.0 * (j + uniform(seed, pixel, s, 1)) / height
+                near = _unproject(unproject, x, y, -1.0)
+                far = _unproject(unproject, x, y, 1.0)
+                dx, dy, dz = far[0] - near[0], far[1] - near[1], far[2] - near[2]
+                length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                d = (dx / length, dy / length, dz / length)
+                r, g, b = _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, near, d, length,
+                                    max_depth, rr_depth, seed, pixel, s)
+                total[j, i, 0] += r
+                total[j, i, 1] += g
+                total[j, i, 2] += b
+                squares[j, i, 0] += r * r
+                squares[j, i, 1] += g * g
+                squares[j, i, 2] += b * b
+
+
+# ------------------------------------------------------------------ the Python side
+
+def _whole(name: str, value, least: int, most: Optional[int] = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least or \
+            (most is not None and value > most):
+        span = f"{least}…{most}" if most is not None else f"≥ {least}"
+        raise ValueError(f"pathtrace: {name} must be a whole number {span}, got {value!r}")
+    return int(value)
+
+
+@dataclass
+class _Setup:
+    scene: RayScene
+    uniform: tuple
+    mats: np.ndarray
+    light_tris: np.ndarray
+    light_corners: np.ndarray
+    light_cdf: np.ndarray
+    light_pdf: np.ndarray
+    background: np.ndarray
+    unproject: np.ndarray
+
+
+def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
+    objects = scene.drawn_objects(camera)
+    rays = RayScene(objects)
+    uniform_ = rays.uniform()
+    mats = np.array([[*m.ke, *m.kd, *m.kr, *m.kt, m.ior] for m in (o.mesh.material for o in objects)],
+                    np.float64).reshape(-1, _MATERIAL_COLUMNS)
+    for obj in objects:
+        m = obj.mesh.material
+        if max(m.ks) > 0.0 and max(m.kr) == 0.0 and max(m.kt) == 0.0:
+            notes.append(f"{obj.name}: the path tracer has no glossy lobe yet: its ks is not used (Lambert kd only)")
+        if obj.texture is not None:
+            notes.append(f"{obj.name}: textures are not sampled by the path tracer yet; its kd is used")
+    if scene.lights is None or len(scene.lights):
+        notes.append("the scene's point, directional and spot lights have no area and do not light the path "
+                     "tracer's image: only emissive surfaces (material ke) and the background do")
+    # the lights: every triangle of an emissive object, picked ∝ area × mean ke
+    n = len(rays)
+    light_pdf = np.zeros(n, np.float64)
+    emissive = mats[rays.triangle_object, 0:3].mean(axis=1) if n else np.zeros(0)
+    area = 0.5 * np.linalg.norm(rays.face_normals, axis=1) if n else np.zeros(0)
+    weight = emissive * area
+    light_tris = np.flatnonzero(weight > 0.0).astype(np.int64)
+    if len(light_tris):
+        light_cdf = np.cumsum(weight[light_tris])
+        light_pdf[light_tris] = emissive[light_tris] / light_cdf[-1]     # (area·power/Σ) / area: per unit area
+    else:
+        light_cdf = np.zeros(1, np.float64)
+        if not np.any(np.asarray(scene.background[:3]) > 0):
+            notes.append("nothing emits light (no material has ke and the background is black): the image is black")
+    corners = np.empty((n, 9), np.float64)
+    corners[rays.bvh.order] = rays.bvh.corners          # the BVH keeps them in leaf order: back to triangle ids
+    light_corners = np.ascontiguousarray(corners[light_tris])
+    aspect = scene.width / scene.height
+    unproject = np.linalg.inv(camera.projection(aspect) @ camera.view)
+    background = np.asarray(scene.background[:3], np.float64)
+    return _Setup(rays, uniform_, mats, light_tris, light_corners, light_cdf, light_pdf, background, unproject)
+
+
+@dataclass
+class PathTrace:
+    """A progressive path-traced image of a scene (:func:`pathtrace`): render more samples with :meth:`add`.
+
+    Attributes
+    ----------
+    spp : int
+        Samples per pixel so far.
+    seed : int
+    width, height : int
+    notes : list of str
+        What the path tracer leaves out of this scene (the lights it cannot use, ks, textures).
+    timings : dict
+        "setup" (the BVH and lights) and "trace" seconds, summed over every call.
+    """
+
+    seed: int
+    width: int
+    height: int
+    max_depth: int
+    rr_depth: int
+    notes: List[str] = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    spp: int = 0
+    _setup: Optional[_Setup] = field(default=None, repr=False)
+    _total: Optional[np.ndarray] = field(default=None, repr=False)
+    _squares: Optional[np.ndarray] = field(default=None, repr=False)
+
+    def add(self, spp: int) -> "PathTrace":
+        """Render ``spp`` more samples per pixel onto the image (samples spp … spp + n − 1 of each pixel).
+
+        The result is the same bytes as rendering all the samples in one call.
+        """
+        spp = _whole("spp", spp, 1, MAX_SPP)
+        s = self._setup
+        start = time.perf_counter()
+        for first in range(self.spp, self.spp + spp, PASS_SPP):
+            # in passes, so that Ctrl-C is heard between them (in_bands starts no band after it); each pixel
+            # still adds its samples in order, so the sums are the same bytes as one pass
+            count = min(PASS_SPP, self.spp + spp - first)
+            in_bands(_render_rows, self.height, self.width, self.height, s.unproject, s.uniform, s.mats,
+                     s.light_tris, s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth,
+                     self.rr_depth, np.uint64(self.seed), first, count, self._total, self._squares, grain=1)
+        self.spp += spp
+        self.timings["trace"] = self.timings.get("trace", 0.0) + time.perf_counter() - start
+        return self
+
+    @property
+    def image(self) -> np.ndarray:
+        """Linear radiance, float32 [H, W, 3]: each pixel's mean over its samples (the box filter)."""
+        return (self._total / max(self.spp, 1)).astype(np.float32)
+
+    @property
+    def variance(self) -> np.ndarray:
+        """The variance of each pixel's mean, float32 [H, W, 3]: s²/n, s² the samples' unbiased variance.
+
+        Its square root is the pixel's standard error; inf before there are 2 samples.
+        """
+        n = self.spp
+        if n < 2:
+            return np.full(self._total.shape, np.inf, np.float32)
+        mean = self._total / n
+        s2 = np.maximum(self._squares - n * mean * mean, 0.0) / (n - 1)
+        return (s2 / n).astype(np.float32)
+
+    def framebuffer(self) -> Framebuffer:
+        """The image in a one-sample framebuffer (alpha 1), for softpipe's 8-bit conversion and ``save``."""
+        fb = Framebuffer(self.width, self.height)
+        fb.color[..., :3] = self.image
+        fb.color[..., 3] = 1.0
+        return fb
+
+    def save(self, file, **kw) -> None:
+        """Save as an image through :meth:`Framebuffer.save` (its one conversion to 8 bits)."""
+        self.framebuffer().save(file, **kw)
+
+
+def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] = None, max_depth: int = -1,
+              rr_depth: int = 5) -> PathTrace:
+    """Path trace ``scene`` (docs/pathtracing.md): ``spp`` samples per pixel, deterministic per ``seed``.
+
+    Parameters
+    ----------
+    scene : Scene
+        As :func:`softpipe.render_scene` takes it: its objects (with the ground, if
+        set), camera, size and background (the radiance of every ray that leaves).
+    spp : int
+        Samples per pixel, 1 … :data:`MAX_SPP`; :meth:`PathTrace.add` renders more.
+    seed : int
+        0 … 2⁶⁴ − 1: the image is a function of the seed (and not of the thread count).
+    camera : Camera, optional
+        Instead of the scene's (or its framing).
+    max_depth : int
+        The longest path, counted as Mitsuba's path integrator counts it: 1 sees
+        emitters only, 2 adds direct light, …; −1 (the default): no limit but
+        Russian roulette.
+    rr_depth : int
+        The bounce (≥ 1) from which Russian roulette may end a path.
+
+    Returns
+    -------
+    PathTrace
+        ``.image`` (linear radiance, float32 [H, W, 3]), ``.variance``, ``.spp``, ``.add(n)``.
+    """
+    seed = _whole("seed", seed, 0, 2 ** 64 - 1)
+    max_depth = _whole("max_depth", max_depth, -1)
+    rr_depth = _whole("rr_depth", rr_depth, 1)
+    spp = _whole("spp", spp, 1, MAX_SPP)
+    start = time.perf_counter()
+    camera = camera or scene.view_camera()
+    notes: List[str] = []
+    s = _setup(scene, camera, notes)
+    h, w = scene.height, scene.width
+    result = PathTrace(seed, w, h, max_depth, rr_depth, notes, {"setup": time.perf_counter() - start},
+                       _setup=s, _total=np.zeros((h, w, 3)), _squares=np.zeros((h, w, 3)))
+    return result.add(spp)
