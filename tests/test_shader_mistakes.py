@@ -11,6 +11,8 @@ tuples, is refused before the draw.
 import inspect
 import linecache
 import math
+import os
+import subprocess
 import sys
 import types
 
@@ -344,3 +346,78 @@ def test_a_shader_in_a_notebook_cell_is_named_as_ipython_names_the_cell(monkeypa
         f"fragment shader __main__.cell_shader cannot be compiled: np.dot() {NUMPY_WHAT}",
         "  Cell In[7], line 4, in cell_shader", "    d = np.dot(c, (1, 1, 1))", f"  (use {SH}dot(a, b))", FULL_TEXT])
     assert (info.value.file, info.value.line) == (filename, 4)
+
+
+# ------------------------------------------------------------------ the traceback ends in the user's code
+
+SCRIPT = '''\
+import numpy as np
+import softpipe as sp
+
+
+def bad(varyings, uniforms, frag):
+    return (np.dot(varyings.color, varyings.color), 0.0, 0.0, 1.0)
+
+
+fb = sp.Framebuffer(8, 8)
+sp.draw(fb, np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [0, 1, 0, 1.0]]), [0, 1, 2],
+        varyings={"color": np.ones((3, 3))}, fragment_shader=bad)
+'''
+
+
+@pytest.mark.parametrize("debug", ["", "1"])
+def test_a_script_s_traceback_ends_at_the_users_call(tmp_path, debug):
+    script = tmp_path / "scene.py"
+    script.write_text(SCRIPT)
+    env = dict(os.environ, SOFTPIPE_SHADER_DEBUG=debug)
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 1
+    frames = [line for line in run.stderr.splitlines() if line.startswith('  File "')]
+    if debug:           # every frame, softpipe's included
+        assert any(os.sep + "softpipe" + os.sep in line for line in frames), run.stderr
+        return
+    assert run.stderr.startswith(
+        "Traceback (most recent call last):\n"
+        f'  File "{script}", line 10, in <module>\n'
+        "    sp.draw(fb, np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [0, 1, 0, 1.0]]), [0, 1, 2],\n"
+        "softpipe.language.contract.ShaderError: fragment shader __main__.bad cannot be compiled: "
+        f"np.dot() {NUMPY_WHAT}\n"
+        f'  File "{script}", line 6, in bad\n'), run.stderr
+
+
+def test_in_ipython_a_shader_error_is_shown_without_softpipe_s_frames(monkeypatch):
+    """IPython's custom-exception handler gets the traceback without softpipe's frames."""
+    from softpipe.language.kernels import diagnostics
+
+    shown = {}
+
+    class TB:
+        def structured_traceback(self, etype, value, tb, tb_offset=None):
+            shown["files"] = []
+            while tb is not None:
+                shown["files"].append(tb.tb_frame.f_code.co_filename)
+                tb = tb.tb_next
+            return ["the traceback"]
+
+    class Shell:
+        custom_exceptions = ()
+        InteractiveTB = TB()
+
+        def set_custom_exc(self, types_, handler):
+            self.custom_exceptions, self.handler = types_, handler
+
+    shell = Shell()
+    monkeypatch.setitem(sys.modules, "IPython", types.SimpleNamespace(get_ipython=lambda: shell))
+    monkeypatch.delenv("SOFTPIPE_SHADER_DEBUG", raising=False)
+    diagnostics.hide_internal_frames()
+    assert shell.custom_exceptions == (ShaderError,)
+    try:
+        draw(np_dot)
+    except ShaderError as e:
+        error, tb = e, e.__traceback__
+    assert shell.handler(shell, ShaderError, error, tb) == ["the traceback"]
+    assert shown["files"] == [__file__, __file__]          # this test, then draw() above: nothing of softpipe's
+    monkeypatch.setenv("SOFTPIPE_SHADER_DEBUG", "1")
+    shell.handler(shell, ShaderError, error, tb)
+    assert any("softpipe" + os.sep + "pipeline" in f for f in shown["files"])
+

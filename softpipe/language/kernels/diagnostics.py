@@ -40,7 +40,7 @@ from softpipe.language.kernels.snapshot import helper_kind, nested_codes, reads
 
 __all__ = ["run_compiled", "plain_value", "vertex_site", "fragment_site", "visible_site", "rgba", "BadReturn", "return_error",
            "raised_error", "from_shader", "def_site",
-           "shown_file", "check_tuple_arithmetic"]
+           "shown_file", "check_tuple_arithmetic", "users_traceback", "hide_internal_frames"]
 
 
 # ------------------------------------------------------------------ return values
@@ -767,3 +767,63 @@ def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Cal
         shown = python_exc if python_exc is not None else e
         cause = from_shader(python_exc, shader) if python_exc is not None else e
         raise raised_error(kind, shader, shown, where, python_exc) from cause
+
+
+# ------------------------------------------------------------------ the traceback a user sees
+
+_SOFTPIPE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) + os.sep
+
+
+def _debugging() -> bool:
+    return os.environ.get("SOFTPIPE_SHADER_DEBUG", "") not in ("", "0")
+
+
+def users_traceback(tb: types.TracebackType | None) -> types.TracebackType | None:
+    """``tb`` without softpipe's and numba's frames: a ShaderError's traceback ends at the user's call.
+
+    The message itself names the shader's file and line; the frames between the
+    user's ``draw`` and the error are softpipe's pipeline, of no use to a shader author.
+    """
+    kept = []
+    while tb is not None:
+        filename = os.path.abspath(tb.tb_frame.f_code.co_filename)
+        if not filename.startswith((_SOFTPIPE_DIR, _NUMBA_DIR)):
+            kept.append(tb)
+        tb = tb.tb_next
+    out = None
+    for t in reversed(kept):
+        out = types.TracebackType(out, t.tb_frame, t.tb_lasti, t.tb_lineno)
+    return out
+
+
+def _ipython_shader_error(shell, etype, value, tb, tb_offset=None):
+    """IPython's custom-exception handler for ShaderError: its traceback without softpipe's frames."""
+    if not _debugging():
+        tb = users_traceback(tb) or tb
+    return shell.InteractiveTB.structured_traceback(etype, value, tb, tb_offset=tb_offset)
+
+
+def hide_internal_frames() -> None:
+    """Show a ShaderError that reaches the top (a script, a notebook cell) with softpipe's frames left out.
+
+    Wraps ``sys.excepthook`` (once) and, in IPython or Jupyter, registers a
+    handler for ShaderError (when no custom handler is set there already). Other
+    exceptions are shown as before; ``SOFTPIPE_SHADER_DEBUG=1`` shows every frame.
+    """
+    previous = sys.excepthook
+    if not getattr(previous, "__softpipe__", False):
+        def excepthook(etype, value, tb):
+            if isinstance(value, ShaderError) and not _debugging():
+                tb = users_traceback(tb) or tb
+                value.__traceback__ = tb     # Python prints the exception's own traceback
+            previous(etype, value, tb)
+
+        excepthook.__softpipe__ = True  # type: ignore[attr-defined]
+        sys.excepthook = excepthook
+    ipython = sys.modules.get("IPython")
+    try:
+        shell = ipython.get_ipython() if ipython is not None else None
+        if shell is not None and not getattr(shell, "custom_exceptions", ()):
+            shell.set_custom_exc((ShaderError,), _ipython_shader_error)
+    except Exception:           # an IPython without these: its own traceback, as before
+        pass
