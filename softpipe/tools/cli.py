@@ -175,7 +175,8 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
     g.add_argument("--program", metavar="NAME",
                    help=f"shading program, one of: {', '.join(_programs())} (default: 'textured' for a textured "
                         f"mesh when that program is registered, else 'phong' when registered, else 'normals'; "
-                        f"now: {default_program()!r}); for a scene file it replaces every mesh's program")
+                        f"now: {default_program()!r}), or module:function (file.py:function) naming a Program or a fragment "
+                        f"shader of yours; for a scene file it replaces every mesh's program")
     g.add_argument("--texture", metavar="IMAGE",
                    help="diffuse texture for an OBJ model with texture coordinates (vt), e.g. "
                         "spot_texture.png (the bundled 'spot' has its own); passed to the program as uniform "
@@ -441,9 +442,15 @@ def _check_options(args, kind: str, default_size) -> None:
     """The checks that need no file, before the (possibly slow) loading, worded for the command line."""
     from softpipe.pipeline.framebuffer import MAX_DIMENSION
     from softpipe.programs import PROGRAMS
-    if args.program is not None and args.program not in PROGRAMS:
+    if isinstance(args.program, str) and args.program not in PROGRAMS and ":" not in args.program:
         raise CLIError(f"--program: unknown program {args.program!r}; registered programs: "
-                       f"{', '.join(sorted(PROGRAMS))}")
+                       f"{', '.join(sorted(PROGRAMS))} (or module:function naming a Program or a fragment shader)")
+    if isinstance(args.program, str) and args.program not in PROGRAMS:
+        from softpipe.programs import get_program
+        try:        # module:function, imported once here: its Program is what is drawn
+            args.program = get_program(args.program)
+        except ValueError as e:
+            raise CLIError(f"--program: {e}") from None
     w, h = _frame_size(args, default_size)
     if max(w, h) > MAX_DIMENSION:
         raise CLIError(f"image size {w}×{h}: a side may be at most {MAX_DIMENSION} pixels (MAX_DIMENSION)")
@@ -490,7 +497,7 @@ def _prepare(args, default_size):
 
 def scene_program(scene) -> str:
     from softpipe.scenes.scene import program_for
-    return ", ".join(sorted({program_for(o, scene.program) for o in scene.objects}))
+    return ", ".join(sorted({getattr(p, "name", p) for p in (program_for(o, scene.program) for o in scene.objects)}))
 
 
 def _default_output(args, ext: str) -> str:
