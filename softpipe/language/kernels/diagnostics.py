@@ -474,14 +474,11 @@ def check_tuple_arithmetic(kind: str, shader: Callable) -> None:
     f = python_function(shader)
     if not isinstance(f, types.FunctionType):
         return
-    found = _TUPLE_CHECKED.get(f)
-    if found is None:
-        found = False
-        for fn, code, inst, line, seen in _loads(_user_functions(f)):
-            if inst.opname == "BINARY_OP" and inst.argrepr in ("+", "+=") and _tuple_literal_operand(seen):
-                found = _site(fn, code, line)
-                break
-        _TUPLE_CHECKED[f] = found
+    if f not in _TUPLE_CHECKED:
+        _TUPLE_CHECKED[f] = next((_site(fn, code, line) for fn, code, inst, line, seen in _loads(_user_functions(f))
+                                  if inst.opname == "BINARY_OP" and inst.argrepr in ("+", "+=")
+                                  and _tuple_literal_operand(seen)), {})
+    found: dict = _TUPLE_CHECKED[f]
     if found:
         raise ShaderError(
             f"{kind} shader {shader_name(shader)} adds a tuple with +, which joins tuples: (r, g, b) + "
