@@ -32,6 +32,7 @@ import argparse
 import math
 import os
 import re
+import stat
 import sys
 import time
 import warnings
@@ -688,8 +689,27 @@ MEMORY_HINTS = {
 }
 
 
+def _stdout_is_pipe() -> bool:
+    try:
+        return stat.S_ISFIFO(os.fstat(sys.stdout.fileno()).st_mode)
+    except (OSError, ValueError, AttributeError):       # a replaced stdout (pytest's capture) is no pipe
+        return False
+
+
+def _drop_stdout() -> None:
+    """Send what is left of stdout to the null device, so that Python's flush at exit does not
+    report the closed pipe again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 1 out of memory, 2 error, 130 interrupted)."""
+    """Run the command line; returns the exit status (0 ok, 1 out of memory, 2 error, 130 interrupted,
+    141 when the reader of its output closed the pipe, as ``softpipe programs | head`` does: quietly)."""
     from softpipe.core.runtime import keep_freed_memory
     from softpipe.language.contract import ShaderError
     from softpipe.scenes.obj import OBJError
@@ -712,7 +732,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
     keep_freed_memory()     # a program of softpipe's own: frames' large arrays reuse memory (core/runtime.py)
     try:
-        return args.run(args)
+        code = args.run(args)
+        sys.stdout.flush()      # a reader that closed the pipe (softpipe programs | head) shows here, not at exit
+        return code
+    except BrokenPipeError as e:
+        if not _stdout_is_pipe():
+            print(_printable(f"softpipe {args.command}: error: {e}"), file=sys.stderr)
+            return 2
+        _drop_stdout()
+        return 141              # as a command the closed pipe ends (128 + SIGPIPE), quietly
     except KeyboardInterrupt:
         print(f"softpipe {args.command}: interrupted", file=sys.stderr)
         return 130
