@@ -4,7 +4,8 @@ Anything with pixels is taken: a Framebuffer (its 8-bit RGB picture, what
 ``fb.save`` writes), a :class:`~softpipe.testing.Coverage` (its mask), a numpy
 array [H, W] or [H, W, C], a pillow Image, the path of an image file, or a set
 of (x, y) pixels (a set, or a list of pairs: what a student's rasterizer
-returns), compared as a mask the size of the other side.
+returns) in window coordinates, y up, as ``covered_pixels`` gives them,
+compared as a mask the size of the other side.
 Coordinates in messages are x = column from the left, y = row from the top
 (the array's own indices: ``a[y, x]``).
 """
@@ -202,8 +203,8 @@ def assert_pixels_equal(actual, expected, *, tolerance=0, mask=None,
     actual, expected : array [H, W] or [H, W, C], Framebuffer, Coverage, pillow Image, image file or pixels
         A Framebuffer is its 8-bit RGB picture (``np.asarray(fb)``); a Coverage its mask.
         A set of (x, y) pixels (a set, or a list or tuple of integer pairs) is the mask,
-        the size of the other side, True at those pixels: x the column from the left,
-        y the row from the top (image rows; a window's y-up pixel is (x, height - 1 - y)).
+        the size of the other side, True at those pixels, in window coordinates, y up,
+        as ``covered_pixels`` gives them: pixel (x, y) is the image's row height - 1 - y.
         Masks (bool) are compared with masks only.
     tolerance : number ≥ 0
         A pixel differs when any channel differs by more than this, in the

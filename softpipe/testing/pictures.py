@@ -10,7 +10,7 @@ other values through a legend ``{character: value}``.
 Framebuffer (its 8-bit RGB picture), a Coverage (its mask), an array, a pillow
 Image, an image file, or an ASCII picture (a str with line breaks); and, where
 there is an image to give it a size, a set of (x, y) pixels (a set, or a list of
-pairs), x the column from the left and y the row from the top.
+pairs) in window coordinates, y up, as ``covered_pixels`` gives them.
 """
 from __future__ import annotations
 
@@ -128,8 +128,9 @@ def from_ascii(picture: str, legend: Optional[Mapping[str, object]] = None, dtyp
 # ------------------------------------------------- pixels in any form, as arrays
 
 #: How a set of pixels is read, said in the messages about one.
-PIXELS_ORIENTATION = ("(x, y): x the column from the left, y the row from the top, as image rows a[y, x] "
-                      "(for a window's y up from the bottom, pass (x, height - 1 - y))")
+PIXELS_ORIENTATION = ("(x, y) in window coordinates, y up, as covered_pixels gives them: pixel (x, y) is "
+                      "column x, row height - 1 - y of the image (for y counted down from the top, pass "
+                      "(x, height - 1 - y))")
 
 
 def _is_pair(p) -> bool:
@@ -143,7 +144,8 @@ def pixel_set(value, name: str) -> Optional[list]:
     A set (or frozenset) is a set of pixels; so is a list or tuple whose items are
     all (x, y) pairs of integers, what a student's rasterizer returns. Such a list
     is never read as an image (a list of two pairs is not a 2×2 array): pass an
-    image as a numpy array. x is the column from the left, y the row from the top
+    image as a numpy array. The pairs are window coordinates, y up, as
+    :func:`~softpipe.testing.coverage.covered_pixels` and ``positions`` have them
     (:data:`PIXELS_ORIENTATION`).
     """
     if isinstance(value, (set, frozenset)):
@@ -158,14 +160,15 @@ def pixel_set(value, name: str) -> Optional[list]:
 
 
 def pixels_mask(pixels: list, shape, name: str) -> np.ndarray:
-    """The bool mask [H, W] (``shape``'s first two) of a set of (x, y) pixels; a pixel outside is named."""
+    """The bool mask [H, W] (``shape``'s first two) of a set of (x, y) pixels, y up (window pixel (x, y) is
+    ``mask[H - 1 - y, x]``); a pixel outside is named."""
     h, w = int(shape[0]), int(shape[1])
     mask = np.zeros((h, w), dtype=bool)
     for x, y in pixels:
         if not (0 <= x < w and 0 <= y < h):
             raise ValueError(f"{name} holds the pixel ({int(x)}, {int(y)}), outside the {w}×{h} image "
                              f"(x 0..{w - 1}, y 0..{h - 1}); pixels are {PIXELS_ORIENTATION}")
-        mask[y, x] = True
+        mask[h - 1 - y, x] = True         # window y up → image row
     return mask
 
 
