@@ -13,6 +13,7 @@ from softpipe.core.runtime import keep_freed_memory
 from softpipe.core.version import VERSION
 from softpipe.language import glsl
 from softpipe.language.contract import DISCARD, FragInfo, ShaderError, make_uniforms
+from softpipe.language.kernels.diagnostics import hide_internal_frames
 from softpipe.light import lighting
 from softpipe.light.material import Light, Lighting, LightingUniform, Material, MaterialUniform, pack_lights
 from softpipe.light.shadowmap import ShadowSettings, ShadowUniform
@@ -79,3 +80,5 @@ def __getattr__(name: str):
         from softpipe.tools import batch
         return batch
     raise AttributeError(f"module 'softpipe' has no attribute {name!r}")
+
+hide_internal_frames()     # a ShaderError's traceback ends in the user's code (SOFTPIPE_SHADER_DEBUG=1: every frame)

@@ -16,14 +16,15 @@ def test_readme_examples_run_and_draw(tmp_path, monkeypatch):
     for block in blocks:
         exec(compile(block, str(README), "exec"), namespace)
     fb = namespace["fb"]
-    assert (tmp_path / "triangle.png").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]          # nothing in the folder itself
+    assert (tmp_path / "out" / "triangle.png").exists()
     # From Python: softpipe.render and softpipe.turntable with the command line's defaults
-    with Image.open(tmp_path / "teapot.png") as teapot:
+    with Image.open(tmp_path / "out" / "teapot.png") as teapot:
         assert teapot.size == (640, 480)
     pixels = namespace["pixels"]
     assert pixels.shape == (240, 320, 3) and pixels.dtype == np.uint8
     assert tuple(pixels[0, 0]) == (255, 255, 255) and (pixels != 255).any(axis=2).sum() > 5000
-    with Image.open(tmp_path / "spin.gif") as spin:
+    with Image.open(tmp_path / "out" / "spin.gif") as spin:
         assert spin.n_frames == 12 and spin.size == (320, 240)
     # the stripes shader brightened every other 4-pixel column band of the triangle
     lit = fb.color[..., :3].sum(axis=2) > 0

@@ -165,7 +165,7 @@ def default_lighting(camera: Camera) -> Lighting:
     return Lighting(studio_lights(camera))
 
 
-def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str, Program] = "phong", *,
+def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str, Program, Callable] = "phong", *,
               model: Optional[np.ndarray] = None, lighting=None, texture=None,
               uniforms: Optional[Mapping[str, Any]] = None, cull: str = "back", front_face: str = "ccw",
               results: Optional[List[DrawResult]] = None, trace: bool = False, **state):
@@ -181,8 +181,10 @@ def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str
         faceted program (``flat``) gets ``mesh.flat_shaded()``: one normal per face. A
         mesh with several materials is drawn once per material, in order.
     camera : Camera
-    program : str or Program
-        See :data:`softpipe.programs.PROGRAMS` (``softpipe programs`` lists them).
+    program : str, Program or function
+        A registered program (:data:`softpipe.programs.PROGRAMS`; ``softpipe programs`` lists
+        them), a Program, a fragment shader function (drawn with ``standard_vertex``) or
+        ``"module:function"`` (:func:`~softpipe.programs.get_program`).
     model : array [4, 4], optional
         Model → world. A mirroring matrix (negative determinant) turns the mesh's
         winding around on the screen, so the front faces become ``front_face``'s
@@ -435,7 +437,7 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
 
 
 def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] = None,
-                  program: Optional[str] = None, texture=None, background=None, samples: Optional[str] = None,
+                  program: Union[str, Program, Callable, None] = None, texture=None, background=None, samples: Optional[str] = None,
                   msaa: bool = False, cull: Optional[str] = None, wireframe: bool = False, wire_color=None,
                   azimuth: Optional[float] = None, elevation: Optional[float] = None, fovy: Optional[float] = None,
                   default_size: Tuple[int, int] = RENDER_SIZE, allow_outside: bool = False,
@@ -451,8 +453,13 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
     width, height = _size_value("width", width), _size_value("height", height)
     azimuth, elevation = _angle_value("azimuth", azimuth), _angle_value("elevation", elevation)
     fovy = _angle_value("fovy", fovy, 0.0, 180.0)
-    if program is not None and program not in PROGRAMS:
+    if isinstance(program, str) and program not in PROGRAMS and ":" not in program:
         raise ValueError(f"program: unknown program {program!r}; registered programs: {', '.join(sorted(PROGRAMS))}")
+    if program is not None and not (isinstance(program, str) and program in PROGRAMS):
+        try:        # a Program, a shader function, "module:function": the Program itself
+            program = get_program(program)
+        except ValueError as e:
+            raise ValueError(f"program: {e}") from None
     if cull is not None and cull not in CULL_MODES:
         raise ValueError(f"cull must be one of {', '.join(CULL_MODES)}, got {cull!r}")
     if samples is not None:
@@ -510,8 +517,8 @@ def _safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-") or "draw"
 
 
-def render(model, *, width: Optional[int] = None, height: Optional[int] = None, program: Optional[str] = None,
-           texture=None, background=None, samples: Optional[str] = None, msaa: bool = False,
+def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
+           program: Union[str, Program, Callable, None] = None, texture=None, background=None, samples: Optional[str] = None, msaa: bool = False,
            cull: Optional[str] = None, wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
            elevation: Optional[float] = None, fovy: Optional[float] = None, camera: Optional[Camera] = None,
            stages=None, trace: bool = False, results: Optional[list] = None,
@@ -534,8 +541,10 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
         own settings except the ones given here.
     width, height : int, optional
         Pixels; 640×480 for a model, the scene's size for a scene.
-    program : str, optional
-        A registered program (``softpipe programs``); for a scene, every object's.
+    program : str, Program or function, optional
+        A registered program (``softpipe programs``), a :class:`~softpipe.programs.Program`, a
+        fragment shader function (drawn with ``standard_vertex``) or ``"module:function"``
+        (:func:`~softpipe.programs.get_program`); for a scene, every object's.
     texture : str, path-like or Texture2D, optional
         A diffuse texture for a model with texture coordinates.
     background, wire_color : color, optional
@@ -625,8 +634,8 @@ def gif_frame(image):
 
 
 def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Optional[int] = None,
-              height: Optional[int] = None, program: Optional[str] = None, texture=None, background=None,
-              samples: Optional[str] = None, msaa: bool = False, cull: Optional[str] = None,
+              height: Optional[int] = None, program: Union[str, Program, Callable, None] = None, texture=None,
+              background=None, samples: Optional[str] = None, msaa: bool = False, cull: Optional[str] = None,
               wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
               elevation: Optional[float] = None, fovy: Optional[float] = None,
               progress: Optional[Callable[[int, int], None]] = None, allow_outside: bool = False,

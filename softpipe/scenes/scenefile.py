@@ -46,7 +46,7 @@ from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES
 from softpipe.pipeline.sampling import pattern_named
 from softpipe.pipeline.transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
-from softpipe.programs import PROGRAMS
+from softpipe.programs import PROGRAMS, get_program
 from softpipe.scenes import shapes
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.models import MODELS, load_model, model_path, texture_path
@@ -83,11 +83,18 @@ class SceneWarning(UserWarning):
 # these know the scene's own names.
 
 
-def program_name(v: Any) -> str:
-    """A registered program's name (:data:`softpipe.programs.PROGRAMS`)."""
+def program_name(v: Any):
+    """A registered program's name (:data:`softpipe.programs.PROGRAMS`), or the Program a
+    ``"module:function"`` names (:func:`softpipe.programs.get_program`)."""
     name = string(v)
+    if ":" in name and name not in PROGRAMS:
+        try:
+            return get_program(name)
+        except ValueError as e:
+            raise BadValue(f"names {e}") from None
     if name not in PROGRAMS:
-        raise BadValue(f"names an unknown program {name!r}; registered programs: {', '.join(sorted(PROGRAMS))}")
+        raise BadValue(f"names an unknown program {name!r}; registered programs: {', '.join(sorted(PROGRAMS))} "
+                       "(or 'module:function')")
     return name
 
 

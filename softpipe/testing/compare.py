@@ -2,7 +2,10 @@
 
 Anything with pixels is taken: a Framebuffer (its 8-bit RGB picture, what
 ``fb.save`` writes), a :class:`~softpipe.testing.Coverage` (its mask), a numpy
-array [H, W] or [H, W, C], a pillow Image, or the path of an image file.
+array [H, W] or [H, W, C], a pillow Image, the path of an image file, or a set
+of (x, y) pixels (a set, or a list of pairs: what a student's rasterizer
+returns) in window coordinates, y up, as ``covered_pixels`` gives them,
+compared as a mask the size of the other side.
 Coordinates in messages are x = column from the left, y = row from the top
 (the array's own indices: ``a[y, x]``).
 """
@@ -15,7 +18,7 @@ from typing import Optional, Union
 
 import numpy as np
 
-from softpipe.testing.pictures import as_pixels
+from softpipe.testing.pictures import PIXELS_ORIENTATION, as_pixels, pixel_set
 
 __all__ = ["assert_pixels_equal", "diff_image", "to_8bit", "check_golden", "MAP_COLUMNS", "MAP_ROWS"]
 
@@ -51,7 +54,7 @@ def _span(lo: int, hi: int) -> str:
 def _check_mask(mask, shape, name="mask") -> Optional[np.ndarray]:
     if mask is None:
         return None
-    m = as_pixels(mask, name)
+    m = as_pixels(mask, name, shape)     # a set of (x, y) pixels: the mask of those
     if m.dtype != bool:
         raise TypeError(f"{name} must be a bool array [H, W] (True: compare this pixel), got dtype {m.dtype}")
     if m.shape != shape:
@@ -114,10 +117,33 @@ def _map(a, b, differs, compared, y0, y1, x0, x1) -> list:
     return lines
 
 
+def _both(actual, expected, actual_name: str, expected_name: str):
+    """(actual, expected, lines saying how a set of pixels was read) as arrays; a set of (x, y)
+    pixels is a mask the size of the other (of both sets' extent when both are sets)."""
+    pa, pb = pixel_set(actual, actual_name), pixel_set(expected, expected_name)
+    if pa is None and pb is None:
+        return as_pixels(actual, actual_name), as_pixels(expected, expected_name), []
+    if pa is not None and pb is not None:
+        xy = np.array(pa + pb, dtype=np.int64).reshape(-1, 2)
+        shape = (max(int(xy[:, 1].max()) + 1, 1), max(int(xy[:, 0].max()) + 1, 1)) if len(xy) else (1, 1)
+    else:
+        other, other_name = (expected, expected_name) if pa is not None else (actual, actual_name)
+        other_array = as_pixels(other, other_name)
+        if other_array.dtype != bool:
+            which = actual_name if pa is not None else expected_name
+            raise TypeError(f"{which} is a set of pixels and {other_name} an image ({other_array.dtype}): a set "
+                            f"of pixels is compared with a mask: a bool array [H, W], a Coverage, or an ASCII "
+                            "picture of '#' and '.'")
+        shape = other_array.shape
+    a, b = as_pixels(actual, actual_name, shape), as_pixels(expected, expected_name, shape)
+    note = [f"{name} is a set of {len(p)} pixel{'' if len(p) == 1 else 's'} {PIXELS_ORIENTATION}"
+            for name, p in ((actual_name, pa), (expected_name, pb)) if p is not None]
+    return a, b, note
+
+
 def compare(actual, expected, *, tolerance=0, mask=None, actual_name="actual", expected_name="expected"):
     """(message or None, actual array, expected array, differing pixels): the work of :func:`assert_pixels_equal`."""
-    a = as_pixels(actual, actual_name)
-    b = as_pixels(expected, expected_name)
+    a, b, note = _both(actual, expected, actual_name, expected_name)
     tolerance = _check_tolerance(tolerance)
     if a.shape != b.shape:
         raise ValueError(f"{actual_name} has shape {list(a.shape)} and {expected_name} {list(b.shape)}: "
@@ -141,7 +167,7 @@ def compare(actual, expected, *, tolerance=0, mask=None, actual_name="actual", e
     total = h * w if compared is None else int(compared.sum())
     head = f"{n} of {total} pixels differ (tolerance {tolerance:g}"
     head += f"; {h * w - total} pixels masked out)" if compared is not None else ")"
-    lines = [head,
+    lines = [head] + note + [
              f"differences in x {_span(xs.min(), xs.max())}, y {_span(ys.min(), ys.max())} "
              "(x: column from the left, y: row from the top)"]
     which = "first differing pixel" if a.dtype == bool else "worst pixel"
@@ -174,8 +200,11 @@ def assert_pixels_equal(actual, expected, *, tolerance=0, mask=None,
 
     Parameters
     ----------
-    actual, expected : array [H, W] or [H, W, C], Framebuffer, Coverage, pillow Image or image file
+    actual, expected : array [H, W] or [H, W, C], Framebuffer, Coverage, pillow Image, image file or pixels
         A Framebuffer is its 8-bit RGB picture (``np.asarray(fb)``); a Coverage its mask.
+        A set of (x, y) pixels (a set, or a list or tuple of integer pairs) is the mask,
+        the size of the other side, True at those pixels, in window coordinates, y up,
+        as ``covered_pixels`` gives them: pixel (x, y) is the image's row height - 1 - y.
         Masks (bool) are compared with masks only.
     tolerance : number ≥ 0
         A pixel differs when any channel differs by more than this, in the

@@ -8,7 +8,9 @@ other values through a legend ``{character: value}``.
 
 :func:`as_pixels` is how every function of softpipe.testing takes pixels: a
 Framebuffer (its 8-bit RGB picture), a Coverage (its mask), an array, a pillow
-Image, an image file, or an ASCII picture (a str with line breaks).
+Image, an image file, or an ASCII picture (a str with line breaks); and, where
+there is an image to give it a size, a set of (x, y) pixels (a set, or a list of
+pairs) in window coordinates, y up, as ``covered_pixels`` gives them.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-__all__ = ["ascii_picture", "from_ascii", "as_pixels", "DIGITS"]
+__all__ = ["ascii_picture", "from_ascii", "as_pixels", "DIGITS", "pixel_set", "pixels_mask", "PIXELS_ORIENTATION"]
 
 #: The characters of integer pictures: value k is DIGITS[k] (0…35); −1 (no primitive) is ".".
 DIGITS = string.digits + string.ascii_lowercase
@@ -125,11 +127,67 @@ def from_ascii(picture: str, legend: Optional[Mapping[str, object]] = None, dtyp
 
 # ------------------------------------------------- pixels in any form, as arrays
 
-def as_pixels(value, name: str) -> np.ndarray:
-    """``value`` as an array [H, W] or [H, W, C] (C ≤ 4), or a one-line error naming ``name``."""
+#: How a set of pixels is read, said in the messages about one.
+PIXELS_ORIENTATION = ("(x, y) in window coordinates, y up, as covered_pixels gives them: pixel (x, y) is "
+                      "column x, row height - 1 - y of the image (for y counted down from the top, pass "
+                      "(x, height - 1 - y))")
+
+
+def _is_pair(p) -> bool:
+    return (isinstance(p, (tuple, list)) and len(p) == 2
+            and all(isinstance(c, (int, np.integer)) and not isinstance(c, (bool, np.bool_)) for c in p))
+
+
+def pixel_set(value, name: str) -> Optional[list]:
+    """The (x, y) pairs of a set of pixels, or None for anything else.
+
+    A set (or frozenset) is a set of pixels; so is a list or tuple whose items are
+    all (x, y) pairs of integers, what a student's rasterizer returns. Such a list
+    is never read as an image (a list of two pairs is not a 2×2 array): pass an
+    image as a numpy array. The pairs are window coordinates, y up, as
+    :func:`~softpipe.testing.coverage.covered_pixels` and ``positions`` have them
+    (:data:`PIXELS_ORIENTATION`).
+    """
+    if isinstance(value, (set, frozenset)):
+        items = list(value)
+        for p in items:
+            if not _is_pair(p):
+                raise TypeError(f"{name} is a set of pixels, each an (x, y) pair of integers; it holds {p!r}")
+        return items
+    if isinstance(value, (list, tuple)) and value and all(_is_pair(p) for p in value):
+        return list(value)
+    return None
+
+
+def pixels_mask(pixels: list, shape, name: str) -> np.ndarray:
+    """The bool mask [H, W] (``shape``'s first two) of a set of (x, y) pixels, y up (window pixel (x, y) is
+    ``mask[H - 1 - y, x]``); a pixel outside is named."""
+    h, w = int(shape[0]), int(shape[1])
+    mask = np.zeros((h, w), dtype=bool)
+    for x, y in pixels:
+        if not (0 <= x < w and 0 <= y < h):
+            raise ValueError(f"{name} holds the pixel ({int(x)}, {int(y)}), outside the {w}×{h} image "
+                             f"(x 0..{w - 1}, y 0..{h - 1}); pixels are {PIXELS_ORIENTATION}")
+        mask[h - 1 - y, x] = True         # window y up → image row
+    return mask
+
+
+def as_pixels(value, name: str, shape=None) -> np.ndarray:
+    """``value`` as an array [H, W] or [H, W, C] (C ≤ 4), or a one-line error naming ``name``.
+
+    A set of (x, y) pixels (:func:`pixel_set`) becomes a bool mask of ``shape``
+    ([H, W], the image it is compared with); without ``shape`` it is refused, as
+    it says no size.
+    """
     from softpipe.pipeline.framebuffer import Framebuffer
     from softpipe.testing.coverage import Coverage
 
+    pixels = pixel_set(value, name)
+    if pixels is not None:
+        if shape is None:
+            raise ValueError(f"{name} is a set of {len(pixels)} pixels, which says no image size: compare it "
+                             "with an image or mask, or pass it as a bool mask [H, W]")
+        return pixels_mask(pixels, shape, name)
     if isinstance(value, Framebuffer):
         return np.asarray(value)
     if isinstance(value, Coverage):

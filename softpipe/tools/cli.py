@@ -32,6 +32,7 @@ import argparse
 import math
 import os
 import re
+import stat
 import sys
 import time
 import warnings
@@ -186,7 +187,8 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
     g.add_argument("--program", metavar="NAME",
                    help=f"shading program, one of: {', '.join(_programs())} (default: 'textured' for a textured "
                         f"mesh when that program is registered, else 'phong' when registered, else 'normals'; "
-                        f"now: {default_program()!r}); for a scene file it replaces every mesh's program")
+                        f"now: {default_program()!r}), or module:function (file.py:function) naming a Program or a fragment "
+                        f"shader of yours; for a scene file it replaces every mesh's program")
     g.add_argument("--texture", metavar="IMAGE",
                    help="diffuse texture for an OBJ model with texture coordinates (vt), e.g. "
                         "spot_texture.png (the bundled 'spot' has its own); passed to the program as uniform "
@@ -459,9 +461,15 @@ def _check_options(args, kind: str, default_size) -> None:
     """The checks that need no file, before the (possibly slow) loading, worded for the command line."""
     from softpipe.pipeline.framebuffer import MAX_DIMENSION
     from softpipe.programs import PROGRAMS
-    if args.program is not None and args.program not in PROGRAMS:
+    if isinstance(args.program, str) and args.program not in PROGRAMS and ":" not in args.program:
         raise CLIError(f"--program: unknown program {args.program!r}; registered programs: "
-                       f"{', '.join(sorted(PROGRAMS))}")
+                       f"{', '.join(sorted(PROGRAMS))} (or module:function naming a Program or a fragment shader)")
+    if isinstance(args.program, str) and args.program not in PROGRAMS:
+        from softpipe.programs import get_program
+        try:        # module:function, imported once here: its Program is what is drawn
+            args.program = get_program(args.program)
+        except ValueError as e:
+            raise CLIError(f"--program: {e}") from None
     w, h = _frame_size(args, default_size)
     if max(w, h) > MAX_DIMENSION:
         raise CLIError(f"image size {w}×{h}: a side may be at most {MAX_DIMENSION} pixels (MAX_DIMENSION)")
@@ -508,7 +516,7 @@ def _prepare(args, default_size):
 
 def scene_program(scene) -> str:
     from softpipe.scenes.scene import program_for
-    return ", ".join(sorted({program_for(o, scene.program) for o in scene.objects}))
+    return ", ".join(sorted({getattr(p, "name", p) for p in (program_for(o, scene.program) for o in scene.objects)}))
 
 
 def _default_output(args, ext: str) -> str:
@@ -715,8 +723,27 @@ MEMORY_HINTS = {
 }
 
 
+def _stdout_is_pipe() -> bool:
+    try:
+        return stat.S_ISFIFO(os.fstat(sys.stdout.fileno()).st_mode)
+    except (OSError, ValueError, AttributeError):       # a replaced stdout (pytest's capture) is no pipe
+        return False
+
+
+def _drop_stdout() -> None:
+    """Send what is left of stdout to the null device, so that Python's flush at exit does not
+    report the closed pipe again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 1 out of memory, 2 error, 130 interrupted)."""
+    """Run the command line; returns the exit status (0 ok, 1 out of memory, 2 error, 130 interrupted,
+    141 when the reader of its output closed the pipe, as ``softpipe programs | head`` does: quietly)."""
     from softpipe.core.runtime import keep_freed_memory
     from softpipe.language.contract import ShaderError
     from softpipe.scenes.obj import OBJError
@@ -739,7 +766,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
     keep_freed_memory()     # a program of softpipe's own: frames' large arrays reuse memory (core/runtime.py)
     try:
-        return args.run(args)
+        code = args.run(args)
+        sys.stdout.flush()      # a reader that closed the pipe (softpipe programs | head) shows here, not at exit
+        return code
+    except BrokenPipeError as e:
+        if not _stdout_is_pipe():
+            print(_printable(f"softpipe {args.command}: error: {e}"), file=sys.stderr)
+            return 2
+        _drop_stdout()
+        return 141              # as a command the closed pipe ends (128 + SIGPIPE), quietly
     except KeyboardInterrupt:
         print(f"softpipe {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -68,6 +68,16 @@ _VERDICTS = ("written", "depth-failed", "discarded")
 # ---------------------------------------------------------------------------- inputs
 
 
+def _program_name(fragment_shader) -> str:
+    """A bare Trace's program as the command line names it: the registered program whose fragment
+    shader it is (``phong``, not ``phong_fragment``), else the shader's own name."""
+    from softpipe.programs import PROGRAMS
+    for name, program in PROGRAMS.items():
+        if program.fragment is fragment_shader:
+            return name
+    return getattr(fragment_shader, "__name__", "")
+
+
 def _traces(traces_or_results) -> List[tuple]:
     """(name, program, trace) for a Trace, a DrawResult or a sequence of either."""
     items = traces_or_results
@@ -80,7 +90,7 @@ def _traces(traces_or_results) -> List[tuple]:
             raise TypeError(f"item {k}: expected a Trace or a DrawResult drawn with trace=True, got "
                             f"{type(item).__name__}")
         name = getattr(item, "name", "") or f"draw {k + 1}"
-        program = getattr(item, "program", "") or getattr(trace.fragment_shader, "__name__", "")
+        program = getattr(item, "program", "") or _program_name(trace.fragment_shader)
         out.append((name, program, trace))
     if not out:
         raise ValueError("nothing to explore: no traces")

@@ -26,6 +26,7 @@ import os
 import re
 import sys
 import types
+import weakref
 from typing import Any, Callable, Dict, Tuple
 
 import numba
@@ -38,7 +39,8 @@ from softpipe.language.kernels.generate import exec_module
 from softpipe.language.kernels.snapshot import helper_kind, nested_codes, reads
 
 __all__ = ["run_compiled", "plain_value", "vertex_site", "fragment_site", "visible_site", "rgba", "BadReturn", "return_error",
-           "raised_error", "from_shader", "def_site"]
+           "raised_error", "from_shader", "def_site",
+           "shown_file", "check_tuple_arithmetic", "users_traceback", "hide_internal_frames"]
 
 
 # ------------------------------------------------------------------ return values
@@ -170,16 +172,33 @@ def def_site(shader: Callable) -> dict:
     return {"file": code.co_filename, "line": code.co_firstlineno}
 
 
+def shown_file(file: str) -> str | None:
+    """``Cell In[n]`` for the file IPython compiled notebook cell n into (ipykernel's temporary
+    ``…/ipykernel_<pid>/<hash>.py``, the terminal's ``<ipython-input-…>``), as IPython's own
+    tracebacks name it; None for any other file (and when IPython is not running)."""
+    ipython = sys.modules.get("IPython")
+    if ipython is None:
+        return None
+    try:
+        shell = ipython.get_ipython()
+        named = shell.compile.format_code_name(file) if shell is not None else None
+    except Exception:           # an older IPython, or none running: the file's own name
+        return None
+    return " ".join(named) if named else None
+
+
 def _frame_text(file: str | None, line: int | None, name: str) -> str:
-    """A traceback's two lines for file:line: ``File "…", line N, in name`` and the source line."""
+    """A traceback's two lines for file:line: ``File "…", line N, in name`` (``Cell In[n], line N,
+    in name`` for a notebook cell) and the source line."""
     if file is None:
         return ""
-    text = f'  File "{file}", line {line}, in {name}'
+    cell = shown_file(file)
+    text = f"  {cell}, line {line}, in {name}" if cell else f'  File "{file}", line {line}, in {name}'
     source = linecache.getline(file, line).strip() if line else ""
     return text + (f"\n    {source}" if source else "")
 
 
-_LOCATION = re.compile(r'File "(?P<f1>[^"]+)", line (?P<l1>\d+)|\bat (?P<f2>[^\s<][^\n]*?) \((?P<l2>\d+)\)')
+_LOCATION = re.compile(r'File "(?P<f1>[^"]+)", line (?P<l1>\d+)|\b(?:at|from) (?P<f2>[^\s<][^\n]*?) \((?P<l2>\d+)\)')
 
 
 def _same_file(numba_path: str, filename: str) -> bool:
@@ -258,8 +277,222 @@ def _what_numba_says(text: str) -> str:
     return text.strip().splitlines()[0] if text.strip() else "(no message)"
 
 
+# ------------------------------------------------------------------ the commonest mistakes, by name
+
+_SH = "softpipe.shading."
+#: numpy's functions a shader author reaches for → softpipe.shading's function on tuples
+_NUMPY_FIXES = {
+    "dot": _SH + "dot(a, b)", "vdot": _SH + "dot(a, b)", "inner": _SH + "dot(a, b)",
+    "clip": _SH + "clamp(x, lo, hi) (saturate(x) for 0..1)",
+    "linalg.norm": _SH + "length(v) (distance(a, b) between two points; normalize(v) for the unit vector)",
+    "cross": _SH + "cross(a, b)",
+    "maximum": _SH + "vmax(a, b)", "fmax": _SH + "vmax(a, b)",
+    "minimum": _SH + "vmin(a, b)", "fmin": _SH + "vmin(a, b)",
+    "max": _SH + "max_component(v)", "amax": _SH + "max_component(v)",
+    "min": _SH + "min_component(v)", "amin": _SH + "min_component(v)",
+    "abs": _SH + "vabs(v)", "absolute": _SH + "vabs(v)", "fabs": _SH + "vabs(v)",
+    "sum": _SH + "hsum(v)", "mean": _SH + "hsum(v) / 3.0 (for a vec3)",
+    "interp": _SH + "mix(a, b, t)", "power": _SH + "pow_(x, y)",
+    "add": _SH + "add(a, b)", "subtract": _SH + "sub(a, b)",
+    "multiply": _SH + "mul(a, b) (scale(v, s) by a number)", "divide": _SH + "div(a, b)", "negative": _SH + "neg(v)",
+    "sqrt": "math.sqrt on each component: vec3(math.sqrt(v[0]), math.sqrt(v[1]), math.sqrt(v[2]))",
+    "array": "a tuple: vec3(x, y, z)", "asarray": "a tuple: vec3(x, y, z)",
+}
+_NUMPY_HINT = ("use the GLSL-like functions of softpipe.shading on tuples (dot, cross, length, normalize, clamp, "
+               "mix, …) and math's on numbers")
+#: builtins a shader author calls on a tuple → softpipe.shading's
+_BUILTIN_FIXES = {"min": _SH + "vmin(a, b) componentwise, min_component(v) for the smallest",
+                  "max": _SH + "vmax(a, b) componentwise, max_component(v) for the largest",
+                  "abs": _SH + "vabs(v)", "sum": _SH + "hsum(v)", "round": "round on each component: (round(v[0]), …)"}
+#: an operator on tuples → softpipe.shading's function (numba refuses them; + of tuples concatenates)
+_OPERATOR_FIXES = {"+": _SH + "add(a, b)", "+=": "a = " + _SH + "add(a, b)",
+                   "-": _SH + "sub(a, b)", "-=": "a = " + _SH + "sub(a, b)",
+                   "*": _SH + "scale(v, s) by a number, mul(a, b) componentwise",
+                   "*=": "v = " + _SH + "scale(v, s) by a number, v = mul(a, b) componentwise",
+                   "/": _SH + "scale(v, 1.0 / s) by a number, div(a, b) componentwise",
+                   "/=": "v = " + _SH + "scale(v, 1.0 / s)", "unary -": _SH + "neg(v)"}
+_DEBUGGERS = ("pdb", "ipdb", "pudb")
+_DEBUG_HINT = ("to step through a shader, run it as plain Python: trace.debug_fragment(x, y) on the Trace of "
+               "draw(..., trace=True) runs it on one pixel, NUMBA_DISABLE_JIT=1 runs every shader as Python")
+
+
+def _loads(functions: list):
+    """(function, code, instruction, line, the instructions before it) of every instruction of the shader
+    and its helpers, nested code included."""
+    for f in functions:
+        for code in nested_codes(f.__code__):
+            seen: list = []
+            for inst, line in _instructions(code):
+                yield f, code, inst, line, seen
+                seen.append(inst)
+
+
+def _site(f, code, line) -> dict:
+    return {"file": code.co_filename, "line": line, "function": f.__name__}
+
+
+def _numpy_calls(functions: list) -> list:
+    """(what the code says, numpy's name, site) of each numpy function the shader or a helper names:
+    ``np.linalg.norm`` → ``("np.linalg.norm", "linalg.norm", …)``; ``from numpy import clip`` too."""
+    out = []
+    for f in functions:
+        for code in nested_codes(f.__code__):
+            chain: list = []
+            for inst, line in _instructions(code):
+                if inst.opname in _GLOBAL_OPS:
+                    value = f.__globals__.get(inst.argval)
+                    if isinstance(value, types.ModuleType) and value.__name__.split(".")[0] == "numpy":
+                        chain = [inst.argval, value.__name__[len("numpy."):] if "." in value.__name__ else ""]
+                        continue
+                    if (callable(value) and not isinstance(value, type)
+                            and (getattr(value, "__module__", "") or "").split(".")[0] == "numpy"):
+                        out.append((inst.argval, inst.argval, _site(f, code, line)))
+                    chain = []
+                elif inst.opname in _ATTR_OPS and chain:
+                    chain.append(inst.argval)
+                    name = ".".join(c for c in chain[1:] if c)
+                    if name != "linalg":
+                        out.append((".".join([chain[0]] + chain[2:]), name, _site(f, code, line)))
+                        chain = []
+                elif inst.opname not in ("PUSH_NULL", "PRECALL", "CACHE", "EXTENDED_ARG"):
+                    chain = []
+    return out
+
+
+def _names_loaded(functions: list, test: Callable[[str, Any], bool]) -> dict | None:
+    """The site of the first global the shader or a helper reads for which ``test(name, value)`` holds."""
+    for f, code, inst, line, _ in _loads(functions):
+        if inst.opname in _GLOBAL_OPS and line is not None:
+            value = f.__globals__.get(inst.argval, _BUILTINS.get(inst.argval))
+            if test(inst.argval, value):
+                return dict(_site(f, code, line), name=inst.argval)
+    return None
+
+
+_BUILTINS = vars(__import__("builtins"))
+
+
+def _first_op(functions: list, opname: str) -> dict | None:
+    for f, code, inst, line, _ in _loads(functions):
+        if inst.opname == opname and line is not None:
+            return dict(_site(f, code, line), name=inst.argval)
+    return None
+
+
+def _known_mistake(text: str, functions: list) -> Tuple[str, dict | None, str] | None:
+    """(what is wrong, where, the fix) for the mistakes shader authors make most, else None.
+
+    Read from the shader's bytecode as much as from numba's text, so that the line
+    named is the user's call (numba's own text may point into its numpy code)."""
+    debugger = _names_loaded(functions, lambda n, v: n == "breakpoint" and v is _BUILTINS["breakpoint"]
+                             or isinstance(v, types.ModuleType) and v.__name__ in _DEBUGGERS)
+    imported = _first_op(functions, "IMPORT_NAME")
+    if debugger is None and imported is not None and imported["name"] in _DEBUGGERS:
+        debugger = imported
+    if debugger is not None:
+        name = "breakpoint()" if debugger["name"] == "breakpoint" else f"{debugger['name']} (a debugger)"
+        return f"{name} cannot run in compiled code", debugger, _DEBUG_HINT
+    if "STORE_GLOBAL" in text:
+        site = _first_op(functions, "STORE_GLOBAL")
+        name = site["name"] if site else "?"
+        return (f"it assigns the module global {name!r} (global {name}): compiled code cannot change a global",
+                site, "keep the value in a local variable; what a shader needs from outside, pass as a uniform")
+    if imported is not None and "IMPORT_NAME" in text:
+        return (f"it imports {imported['name']!r} inside the function: compiled code cannot import", imported,
+                f"import {imported['name']} at the top of the module")
+    site = _numba_site(text, functions)
+    calls = _numpy_calls(functions)
+    if site is not None:
+        calls = [c for c in calls if c[2]["line"] == site["line"] and c[2]["file"] == site["file"]]
+    else:       # numba's text may name only its own code (numpy.linalg's): the call it names, by name
+        calls = [c for c in calls if re.search(rf"\b{re.escape(c[1].split('.')[0])}\b", text)
+                 or "scipy" in text and c[1].startswith("linalg.")]
+        site = calls[0][2] if calls else None
+    if calls:
+        shown, name, _ = calls[-1] if len(calls) > 1 and calls[-1][1] in _NUMPY_FIXES else calls[0]
+        fix = _NUMPY_FIXES.get(name)
+        linalg = " (and numpy.linalg needs scipy)" if name.startswith("linalg.") else ""
+        return (f"{shown}() does not take a shader's values: vectors are tuples and numbers floats, "
+                f"not numpy arrays{linalg}", site,
+                _NUMPY_HINT if fix is None else f"use {fix}")
+    m = re.search(r"The use of a (?:reflected )?(list|set|dict)\b[^,]*, assigned to variable '(\w+)' in globals", text)
+    if m:
+        kind, name = m.groups()
+        return (f"the global {name!r} is a {kind}, which compiled code cannot read",
+                _name_site(functions, name, _GLOBAL_OPS),
+                f"make it a tuple ({name} = (…)) or a numpy array; a global a shader reads is fixed at each draw")
+    m = re.search(r"No implementation of function Function\(<(?:built-in )?function (\w+)[^>]*>\) found for "
+                  r"signature:\s*>>> \w+\(([^\n]*)\)", text)
+    if m and "UniTuple" in m.group(2) or m and "Tuple(" in m.group(2):
+        fn, args = m.group(1), _plain_types(m.group(2))
+        if fn in _OPERATORS:
+            op = _OPERATORS[fn]
+            fix = _OPERATOR_FIXES.get(op)
+            return (f"cannot compute {op} of ({args}): operators do not work on vectors (tuples)", site,
+                    f"use {fix}" if fix else _VECTOR_HINT)
+        if fn == "setitem":
+            return (f"a tuple cannot be changed in place (here a {args.split(',')[0]})", site,
+                    "make a new one: v = (x, v[1], v[2])")
+        if fn in _BUILTIN_FIXES:
+            return (f"{fn}() of a vector (a tuple) cannot be compiled: ({args})", site,
+                    f"use {_BUILTIN_FIXES[fn]}")
+    m = re.search(r"Unknown attribute '(\w+)' of type Module\(<module '(\w+)'", text)
+    if m:
+        attr, module = m.groups()
+        fix = {"dist": "softpipe.shading.distance(a, b)"}.get(attr, "another function")
+        return (f"{module}.{attr} is not available in compiled code", site or _name_site(functions, attr, _ATTR_OPS),
+                f"use {fix}")
+    return None
+
+
+def _tuple_literal_operand(seen: list) -> bool:
+    """Is an operand of the binary operator that follows ``seen`` (its instructions so far) a literal
+    tuple of 2 or more numbers (``c + (0.1, 0.1, 0.1)``, ``(0.1, 0.1, 0.1) + c``), the other not a slice?"""
+    def literal(inst):
+        return (inst.opname == "LOAD_CONST" and isinstance(inst.argval, tuple) and len(inst.argval) >= 2
+                and all(isinstance(c, (int, float)) for c in inst.argval))
+    if len(seen) < 2:
+        return False
+    if literal(seen[-1]):
+        return seen[-2].opname not in ("BINARY_SUBSCR", "BINARY_SLICE")
+    k = len(seen) - 1
+    while k > 0 and seen[k].opname in ("LOAD_ATTR", "LOAD_METHOD", "CACHE"):
+        k -= 1
+    return seen[k].opname in ("LOAD_FAST", "LOAD_GLOBAL", "LOAD_NAME", "LOAD_DEREF") and literal(seen[k - 1])
+
+
+_TUPLE_CHECKED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def check_tuple_arithmetic(kind: str, shader: Callable) -> None:
+    """Refuse ``+`` of a vector and a literal tuple: Python and numba concatenate tuples, so
+    ``c + (0.1, 0.1, 0.1)`` makes 6 values, not a brighter color (a silent wrong picture).
+
+    Read from the bytecode of the shader and its helpers once per function; a
+    literal of one value (``c + (1.0,)``, appending alpha) and a slice's
+    (``c[:2] + (0.0, 1.0)``) are left alone."""
+    f = python_function(shader)
+    if not isinstance(f, types.FunctionType):
+        return
+    if f not in _TUPLE_CHECKED:
+        _TUPLE_CHECKED[f] = next((_site(fn, code, line) for fn, code, inst, line, seen in _loads(_user_functions(f))
+                                  if inst.opname == "BINARY_OP" and inst.argrepr in ("+", "+=")
+                                  and _tuple_literal_operand(seen)), {})
+    found: dict = _TUPLE_CHECKED[f]
+    if found:
+        raise ShaderError(
+            f"{kind} shader {shader_name(shader)} adds a tuple with +, which joins tuples: (r, g, b) + "
+            f"(0.1, 0.1, 0.1) is 6 values, not a brighter color\n"
+            f"{_frame_text(found['file'], found['line'], found['function'])}\n"
+            "  (use softpipe.shading.add(a, b) (scale(v, s) to multiply by a number); to append a "
+            "component, write the tuple out: (c[0], c[1], c[2], 1.0))", file=found["file"], line=found["line"])
+
+
 def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dict | None, str]:
     """(what is wrong, where, a hint) from numba's message."""
+    known = _known_mistake(text, functions)
+    if known is not None:
+        return known
     m = re.search(r"Unknown attribute '(\w+)' of type ([\w.]+)", text)
     if m:
         attr, typename = m.groups()
@@ -283,8 +516,10 @@ def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dic
         function = next((f for f in functions if site and f.__name__ == site["function"]), None)
         if function is not None and name in function.__globals__:
             # numba says so of a global it has no type for, inlined into the loop
-            return (f"the global {name!r} (a {type(function.__globals__[name]).__name__}) cannot be used in "
-                    "compiled code", site, _GLOBALS_HINT)
+            value = function.__globals__[name]
+            return (f"the global {name!r} (a {type(value).__name__}) cannot be used in compiled code", site,
+                    f"make it a tuple or a numpy array, or give each value a global (or a uniform) of its own; "
+                    f"{_GLOBALS_HINT}" if isinstance(value, (dict, list, set)) else _GLOBALS_HINT)
         return (f"name {name!r} is not defined", site,
                 "define it (a plain Python function is compiled with the shader) or import it in the shader's module")
     if "linalg" in text or "scipy" in text:
@@ -506,6 +741,7 @@ def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Cal
     raised while it ran is reported with the invocation it happened on, which
     ``site`` (:func:`fragment_site`, :func:`visible_site`, :func:`vertex_site`) finds.
     """
+    check_tuple_arithmetic(kind, shader)
     try:
         if _needs_compiling(kernel):
             with COMPILE_LOCK:         # one compile at a time; a fork waits for it
@@ -528,3 +764,63 @@ def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Cal
         shown = python_exc if python_exc is not None else e
         cause = from_shader(python_exc, shader) if python_exc is not None else e
         raise raised_error(kind, shader, shown, where, python_exc) from cause
+
+
+# ------------------------------------------------------------------ the traceback a user sees
+
+_SOFTPIPE_DIR = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) + os.sep
+
+
+def _debugging() -> bool:
+    return os.environ.get("SOFTPIPE_SHADER_DEBUG", "") not in ("", "0")
+
+
+def users_traceback(tb: types.TracebackType | None) -> types.TracebackType | None:
+    """``tb`` without softpipe's and numba's frames: a ShaderError's traceback ends at the user's call.
+
+    The message itself names the shader's file and line; the frames between the
+    user's ``draw`` and the error are softpipe's pipeline, of no use to a shader author.
+    """
+    kept = []
+    while tb is not None:
+        filename = os.path.abspath(tb.tb_frame.f_code.co_filename)
+        if not filename.startswith((_SOFTPIPE_DIR, _NUMBA_DIR)):
+            kept.append(tb)
+        tb = tb.tb_next
+    out = None
+    for t in reversed(kept):
+        out = types.TracebackType(out, t.tb_frame, t.tb_lasti, t.tb_lineno)
+    return out
+
+
+def _ipython_shader_error(shell, etype, value, tb, tb_offset=None):
+    """IPython's custom-exception handler for ShaderError: its traceback without softpipe's frames."""
+    if not _debugging():
+        tb = users_traceback(tb) or tb
+    return shell.InteractiveTB.structured_traceback(etype, value, tb, tb_offset=tb_offset)
+
+
+def hide_internal_frames() -> None:
+    """Show a ShaderError that reaches the top (a script, a notebook cell) with softpipe's frames left out.
+
+    Wraps ``sys.excepthook`` (once) and, in IPython or Jupyter, registers a
+    handler for ShaderError (when no custom handler is set there already). Other
+    exceptions are shown as before; ``SOFTPIPE_SHADER_DEBUG=1`` shows every frame.
+    """
+    previous = sys.excepthook
+    if not getattr(previous, "__softpipe__", False):
+        def excepthook(etype, value, tb):
+            if isinstance(value, ShaderError) and not _debugging():
+                tb = users_traceback(tb) or tb
+                value.__traceback__ = tb     # Python prints the exception's own traceback
+            previous(etype, value, tb)
+
+        excepthook.__softpipe__ = True  # type: ignore[attr-defined]
+        sys.excepthook = excepthook
+    ipython = sys.modules.get("IPython")
+    try:
+        shell = ipython.get_ipython() if ipython is not None else None
+        if shell is not None and not getattr(shell, "custom_exceptions", ()):
+            shell.set_custom_exc((ShaderError,), _ipython_shader_error)
+    except Exception:           # an IPython without these: its own traceback, as before
+        pass
