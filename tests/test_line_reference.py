@@ -393,3 +393,39 @@ def test_property_point_is_a_square_of_floor_or_ceil_size(p, size):
     for axis in (xs, ys):
         assert len(axis) in ({int(s)} if s.denominator == 1 else {int(s), int(s) + 1})
         assert sorted(axis) == list(range(min(axis), max(axis) + 1))
+
+
+def _by_concrete_epsilon(a, b, eps=Fraction(1, 2 ** 30)):
+    """The diamond-exit rule another way: a concrete tiny ε, and the segment's least L1 distance to a centre.
+
+    The L1 distance from a centre along the segment is convex and piecewise linear in t, so its
+    least value is at t = 0, t = 1 or where x(t) or y(t) passes the centre's x or y. For these
+    1/8-pixel coordinates ε = 2⁻³⁰ is "small enough" (no constant term the ε terms could outweigh).
+    """
+    a0 = (a[0] - eps, a[1] - eps * eps)
+    b0 = (b[0] - eps, b[1] - eps * eps)
+    d = (b0[0] - a0[0], b0[1] - a0[1])
+    half = Fraction(1, 2)
+
+    def l1(t, c):
+        return abs(a0[0] + t * d[0] - c[0]) + abs(a0[1] + t * d[1] - c[1])
+
+    out = set()
+    for i in range(int(min(a[0], b[0])) - 2, int(max(a[0], b[0])) + 3):
+        for j in range(int(min(a[1], b[1])) - 2, int(max(a[1], b[1])) + 3):
+            c = (i + half, j + half)
+            ts = [Fraction(0), Fraction(1)]
+            for k in (0, 1):
+                if d[k]:
+                    t = (c[k] - a0[k]) / d[k]
+                    if 0 <= t <= 1:
+                        ts.append(t)
+            if min(l1(t, c) for t in ts) < half and not l1(Fraction(1), c) < half:
+                out.add((i, j))
+    return out
+
+
+@settings(max_examples=300, deadline=None)
+@given(point, point)
+def test_property_symbolic_epsilon_agrees_with_a_concrete_tiny_epsilon(a, b):
+    assert reference_line(a, b) == _by_concrete_epsilon(a, b)
