@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import softpipe as sp
-from softpipe.testing import reference_line, reference_point
+from softpipe.testing import reference_line, reference_line_parameter, reference_point
 
 W, H = 64, 32
 SEED = 29
@@ -68,11 +68,15 @@ def _fragments_by_primitive(trace, count):
     return out
 
 
-def _draw(positions, topology, **state):
+def _draw(positions, topology, varyings=None, depth=None, **state):
     fb = sp.Framebuffer(W, H)
     n = len(positions)
-    return sp.draw(fb, _clip_array(positions), topology=topology,
-                   varyings={"color": np.full((n, 4), 0.25, np.float32)}, depth_test=None, blend="additive",
+    clip = _clip_array(positions)
+    if depth is not None:
+        clip[:, 2] = depth
+    if varyings is None:
+        varyings = {"color": np.full((n, 4), 0.25, np.float32)}
+    return sp.draw(fb, clip, topology=topology, varyings=varyings, depth_test=None, blend="additive",
                    trace=True, **state)
 
 
@@ -188,6 +192,34 @@ def test_fractional_line_widths_round_to_the_nearest_whole_halves_up(width):
     # reference rounds k + ½ up (the spec leaves ties open): 1.5 and 2.5 test that convention
     segments = _segments("grid_1_256", 60, seed=7) + _segments("centres", 30, seed=7)
     _check(_compare_segments(segments, width), len(segments))
+
+
+def test_color_and_depth_along_a_line_follow_the_parameter_t_at_every_fragment():
+    # t = ((p_c − p_a)·(p_b − p_a)) / |p_b − p_a|² at the fragment's centre (GL 4.6 eq. 14.1), clamped
+    # to [0, 1]; the color goes 0 → 1 and the depth z_w from (z_a + 1)/2 to (z_b + 1)/2 (w = 1
+    # everywhere, so perspective-correct and linear are the same). Endpoints on the 1/256 grid: the
+    # snapped segment is the given one.
+    segments = _segments("grid_1_256", 150, seed=3) + _segments("diagonal_45", 50, seed=3)
+    rng = random.Random(f"{SEED}-depth")
+    flat = [p for s in segments for p in s]
+    n = len(flat)
+    color = np.zeros((n, 4), np.float32)
+    color[1::2] = 1.0
+    z = np.array([float(_grid(rng, Fraction(1, 64), -1, 1)) for _ in range(n)])
+    trace = _draw(flat, "lines", varyings={"color": color}, depth=z)
+    f = trace.fragments
+    prim = np.asarray(f.primitive_id).tolist()
+    bad = []
+    for k, x, row, r, d in zip(range(len(prim)), np.asarray(f.x).tolist(), np.asarray(f.y).tolist(),
+                               np.asarray(trace.shaded.color)[:, 0].tolist(), np.asarray(f.depth).tolist()):
+        a, b = segments[prim[k]]
+        t = reference_line_parameter(a, b, (x, H - 1 - row))
+        za, zb = (z[2 * prim[k]] + 1) / 2, (z[2 * prim[k] + 1] + 1) / 2
+        want_d = float((1 - t) * Fraction(za) + t * Fraction(zb))
+        if abs(r - float(t)) > 1e-6 or abs(d - want_d) > 1e-6:
+            bad.append(f"segment {prim[k]} {_fmt(a)} → {_fmt(b)} at pixel ({x}, {H - 1 - row}): t = {t} "
+                       f"({float(t):.7f}), color {r:.7f}; depth want {want_d:.7f}, softpipe {d:.7f}")
+    _check(bad, len(prim))
 
 
 # --------------------------------------------------------------------- strips and loops
