@@ -43,7 +43,9 @@ A shader is a plain Python function, written like GLSL and compiled by numba::
 ``frag``
     A :data:`FragInfo`: ``x``, ``y`` (window position of the sample, y up,
     pixel centres at +½, as ``gl_FragCoord``), ``z`` (its depth in [0, 1]),
-    ``front_facing``, ``primitive_id``.
+    ``front_facing``, ``primitive_id``, ``point_coord`` (on a point, ``gl_PointCoord``:
+    (s, t) from (0, 0) at its square's upper-left corner to (1, 1), for round points
+    and sprites; on a line, (t, 0) along it; on a triangle, the barycentrics (b1, b2)).
 ``derivatives``
     A :data:`Derivatives`: ``dx`` and ``dy``, each with every varying's exact
     screen-space derivative by name (``derivatives.dx.uv``), GLSL's ``dFdx``/``dFdy``.

@@ -10,7 +10,7 @@ of floats, and its inputs arrive as namedtuples so that they read by name
     def fragment(varyings, uniforms, frag, derivatives): # with exact dFdx / dFdy
 
 Here: :data:`FragInfo` (``x``, ``y`` as ``gl_FragCoord``, ``z``, ``front_facing``,
-``primitive_id``), :data:`DISCARD`, :class:`Derivatives`, the uniforms
+``primitive_id``, ``point_coord``), :data:`DISCARD`, :class:`Derivatives`, the uniforms
 (:func:`make_uniforms`, :func:`reads_uniforms`: GLSL's ``uniform`` declarations, so a
 compiled loop serves every draw whose other uniforms differ), the varyings' layout
 (:class:`VaryingLayout`, :data:`QUALIFIERS`) and :class:`ShaderError`.
@@ -37,8 +37,12 @@ __all__ = ["FragInfo", "DISCARD", "Derivatives", "ShaderError", "make_uniforms",
            "wants_derivatives", "reads_uniforms", "declared_uniforms",
            "check_name", "field_size", "python_function", "shader_name", "uniforms_class_field_names"]
 
-#: The fragment's fixed-function inputs (``gl_FragCoord`` and friends).
-FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id"])
+#: The fragment's fixed-function inputs (``gl_FragCoord`` and friends): ``x``, ``y``, ``z`` as
+#: ``gl_FragCoord``; ``front_facing`` (always True for points and lines); ``primitive_id``;
+#: ``point_coord``, where the fragment lies in its primitive: on a point GLSL's ``gl_PointCoord``
+#: (s, t), from (0, 0) at the square's upper-left corner to (1, 1); on a line (t, 0), t from 0 at
+#: its first end to 1 at its last; on a triangle its barycentrics (b1, b2) (b0 = 1 − b1 − b2).
+FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id", "point_coord"])
 
 #: Return this from a fragment shader to discard the fragment (GLSL ``discard``).
 #: It is the color whose alpha is NaN; the fragment stage tests for exactly that.

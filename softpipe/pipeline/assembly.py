@@ -1,8 +1,21 @@
-"""Stage 2: primitive assembly — vertices to window-space triangles.
+"""Stage 2: primitive assembly — vertices to window-space points, lines and triangles.
 
-In order: topology (lists, strips, fans; indexed or not) → drop primitives with
-non-finite positions → homogeneous clipping → perspective divide → viewport →
-face culling. Output: :class:`Primitives`.
+In order: topology (points; line lists, strips and loops; triangle lists, strips,
+fans; indexed or not) → drop primitives with non-finite positions → homogeneous
+clipping → perspective divide → viewport → face culling (triangles only: points
+and lines always face the front, as in GL). With a polygon mode of "line" or
+"point" (GL's ``glPolygonMode``), the triangles that survive culling are then
+drawn as their three edges or their three corners. Output: :class:`Primitives`.
+
+Every primitive is stored with three corners, so that the stages after setup
+treat the three kinds alike: a triangle's corners; a line's two ends and its end
+again, (a, b, b); a point's vertex three times. The fragment stage interpolates
+with barycentrics over those corners (a line fragment's are (1 − t, t, 0), a point
+fragment's (1 − s − t, s, t) with (s, t) its ``gl_PointCoord``).
+
+Points are kept or discarded whole, by their vertex: one outside the view volume
+(−w ≤ x, y, z ≤ w) is discarded, as the GL specification says (§13.7.1), so a
+wide point whose centre leaves the viewport disappears at once.
 
 Clipping happens in clip space, before the divide, against
 ``w ≥ W_MIN`` (so nothing with w ≤ 0 is ever divided), the near plane
@@ -18,13 +31,15 @@ space (which is what makes them perspective-correct afterwards),
 ``noperspective`` ones linearly in window space (the parameter is t·w_b/w_new,
 OpenGL 4.6 §13.7), ``flat`` ones carry the provoking vertex's value, which is
 copied to every corner before clipping. The provoking vertex is the last one of
-each triangle, as OpenGL's default.
+each triangle and each line (its second end; a line loop's closing line's is the
+first vertex), as OpenGL's default; in polygon mode the edges and corners of a
+triangle keep the triangle's.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Dict
+from typing import Dict, Optional
 
 import numba
 import numpy as np
@@ -34,10 +49,19 @@ from softpipe.language.contract import VaryingLayout
 from softpipe.pipeline.transforms import Viewport
 from softpipe.pipeline.vertex import VertexOut
 
-__all__ = ["Primitives", "assemble", "triangle_indices", "TOPOLOGIES", "CULL_MODES", "FRONT_FACES",
-           "GUARD_PIXELS"]
+__all__ = ["Primitives", "assemble", "triangle_indices", "primitive_indices", "primitive_kind", "TOPOLOGIES",
+           "TRIANGLE_TOPOLOGIES", "LINE_TOPOLOGIES", "POLYGON_MODES", "KINDS", "CULL_MODES", "FRONT_FACES",
+           "GUARD_PIXELS", "MAX_POINT_SIZE", "MAX_LINE_WIDTH", "check_size"]
 
-TOPOLOGIES = ("triangles", "triangle_strip", "triangle_fan")
+TRIANGLE_TOPOLOGIES = ("triangles", "triangle_strip", "triangle_fan")
+LINE_TOPOLOGIES = ("lines", "line_strip", "line_loop")
+TOPOLOGIES = ("points",) + LINE_TOPOLOGIES + TRIANGLE_TOPOLOGIES
+#: GL's glPolygonMode: triangles drawn filled, as their edges (lines) or as their corners (points).
+POLYGON_MODES = ("fill", "line", "point")
+#: What a draw's primitives are, after the topology and the polygon mode.
+KINDS = ("points", "lines", "triangles")
+#: The largest point size and line width (llvmpipe's); larger ones are clamped, as GL clamps to its range.
+MAX_POINT_SIZE = MAX_LINE_WIDTH = 255.0
 CULL_MODES = ("none", "back", "front")
 FRONT_FACES = ("ccw", "cw")
 
@@ -49,30 +73,40 @@ W_MIN = 1e-9
 
 @dataclass
 class Primitives:
-    """Post-clip triangles in window coordinates — the rasterizer's input.
+    """Post-clip primitives in window coordinates — the rasterizer's input.
 
     Attributes
     ----------
     window : float64 [P, 3, 3]
         (x_w, y_w, z_w) of each corner: OpenGL window coordinates (origin at the
-        lower-left, y up), depth in the depth range.
+        lower-left, y up), depth in the depth range. A line's corners are
+        (a, b, b), a point's (p, p, p) (the module docstring says why).
     inv_w : float64 [P, 3]
         1/w_clip of each corner (for perspective-correct interpolation).
     varyings : float64 [P, 3, K]
         The varyings of each corner, packed as ``layout`` says.
     layout : VaryingLayout
     primitive_id : int64 [P]
-        Index of the input triangle each comes from (a clipped triangle may give several).
+        Index of the input primitive each comes from (a clipped triangle may give
+        several; in polygon mode, an edge or corner has its triangle's).
     front_facing : bool [P]
+        Always True for points and lines.
     clipped : bool [P]
-        True for pieces of a triangle that clipping cut.
+        True for pieces of a primitive that clipping cut.
     dropped : dict reason → int64 array of primitive ids
-        Input triangles that produced nothing here, and why: ``"non-finite"``,
+        Input primitives that produced nothing here, and why: ``"non-finite"``,
         ``"outside"`` (entirely outside the clip volume), ``"culled"``.
     input_count : int
-        Number of triangles the topology produced.
+        Number of primitives the topology produced.
     culled_window : float64 [C, 3, 3]
         Window coordinates of the triangles culled for their facing (kept for pictures).
+    kind : "triangles" | "lines" | "points"
+        What the rows are (:data:`KINDS`): the topology's kind, or the polygon mode's.
+    size : float64 [P]
+        A point's size or a line's width in pixels (clamped to [1, 255]); unused for triangles.
+    faces : Primitives or None
+        In polygon mode "line" or "point": the filled triangles whose edges or corners these
+        are (a polygon offset takes their slope, as GL's ``POLYGON_OFFSET_LINE`` does).
     """
 
     window: np.ndarray
@@ -85,22 +119,25 @@ class Primitives:
     dropped: Dict[str, np.ndarray] = field(default_factory=dict)
     input_count: int = 0
     culled_window: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    kind: str = "triangles"
+    size: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    faces: Optional["Primitives"] = None
 
     def __len__(self) -> int:
         return len(self.window)
 
     def __repr__(self) -> str:
         drops = ", ".join(f"{k}: {len(v)}" for k, v in self.dropped.items() if len(v))
-        return (f"Primitives({len(self)} triangles from {self.input_count} input"
+        return (f"Primitives({len(self)} {self.kind} from {self.input_count} input"
                 f"{'; dropped ' + drops if drops else ''}; {int(self.clipped.sum())} clipped pieces)")
 
 
-def _check_indices(indices, n_vertices: int) -> np.ndarray:
+def _check_indices(indices, n_vertices: int, per_primitive: int = 3) -> np.ndarray:
     arr = np.asarray(indices)
     if arr.size and not np.issubdtype(arr.dtype, np.integer):
         raise TypeError(f"indices must be an integer array, got dtype {arr.dtype}")
-    if not (arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] == 3)):
-        raise ValueError(f"indices must have shape [M] or [M, 3], got {list(np.shape(indices))}")
+    if not (arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] == per_primitive)):
+        raise ValueError(f"indices must have shape [M] or [M, {per_primitive}], got {list(np.shape(indices))}")
     flat = arr.reshape(-1)
     if flat.size and flat.dtype.kind == "u" and flat.dtype.itemsize == 8 and int(flat.max()) >= n_vertices:
         # checked before the cast: a uint64 above 2^63 would turn negative in int64 (narrower
@@ -147,6 +184,31 @@ def _copy_range(flat, out):
     return lo, hi
 
 
+def primitive_kind(topology: str, polygon_mode: str = "fill") -> str:
+    """What a draw's primitives are (:data:`KINDS`): the topology's kind; triangles in a polygon mode
+    of "line" or "point" are drawn as lines or points."""
+    if topology not in TOPOLOGIES:
+        raise ValueError(f"topology must be one of {TOPOLOGIES}, got {topology!r}")
+    if polygon_mode not in POLYGON_MODES:
+        raise ValueError(f"polygon_mode must be one of {POLYGON_MODES}, got {polygon_mode!r}")
+    if topology == "points":
+        return "points"
+    if topology in LINE_TOPOLOGIES:
+        return "lines"
+    return {"fill": "triangles", "line": "lines", "point": "points"}[polygon_mode]
+
+
+def _vertex_sequence(topology: str, indices, n_vertices: int) -> np.ndarray:
+    """The vertices in the order the topology takes them: ``indices`` (checked) or 0 … n − 1."""
+    if topology not in TOPOLOGIES:
+        raise ValueError(f"topology must be one of {TOPOLOGIES}, got {topology!r}")
+    if indices is None:
+        return np.arange(n_vertices, dtype=np.int64)
+    if topology not in ("triangles", "lines") and np.ndim(indices) != 1:
+        raise ValueError(f"indices for {topology} must be 1-D, got shape {list(np.shape(indices))}")
+    return _check_indices(indices, n_vertices, 2 if topology == "lines" else 3)
+
+
 def triangle_indices(topology: str, indices, n_vertices: int) -> np.ndarray:
     """The vertex indices [T, 3] of each triangle; corner 2 is the provoking vertex.
 
@@ -154,14 +216,9 @@ def triangle_indices(topology: str, indices, n_vertices: int) -> np.ndarray:
     for odd i, so every triangle keeps the winding of the first. Fans: triangle
     i is (s_0, s_i+1, s_i+2). (OpenGL 4.6 §10.1.)
     """
-    if topology not in TOPOLOGIES:
-        raise ValueError(f"topology must be one of {TOPOLOGIES}, got {topology!r}")
-    if indices is None:
-        seq = np.arange(n_vertices, dtype=np.int64)
-    else:
-        if topology != "triangles" and np.ndim(indices) != 1:
-            raise ValueError(f"indices for a {topology} must be 1-D, got shape {list(np.shape(indices))}")
-        seq = _check_indices(indices, n_vertices)
+    if topology not in TRIANGLE_TOPOLOGIES:
+        raise ValueError(f"topology must be one of {TRIANGLE_TOPOLOGIES}, got {topology!r}")
+    seq = _vertex_sequence(topology, indices, n_vertices)
     if topology == "triangles":
         if len(seq) % 3:
             what = "positions (no indices)" if indices is None else "indices"
@@ -175,6 +232,45 @@ def triangle_indices(topology: str, indices, n_vertices: int) -> np.ndarray:
         b = np.where(odd, seq[i], seq[i + 1]) if t else seq[:0]
         return np.stack([a, b, seq[i + 2]], axis=1) if t else np.zeros((0, 3), np.int64)
     return np.stack([np.full(t, seq[0]), seq[i + 1], seq[i + 2]], axis=1) if t else np.zeros((0, 3), np.int64)
+
+
+def primitive_indices(topology: str, indices, n_vertices: int) -> np.ndarray:
+    """The vertex indices [P, 3] of each primitive's three corners; corner 2 is the provoking vertex.
+
+    Triangles as :func:`triangle_indices`. Lines (a, b, b): a list pairs the
+    vertices; a strip joins each to the next, (s_i, s_i+1); a loop adds
+    (s_n−1, s_0). Points (p, p, p), one per vertex. (OpenGL 4.6 §10.1.)
+    """
+    if topology in TRIANGLE_TOPOLOGIES:
+        return triangle_indices(topology, indices, n_vertices)
+    seq = _vertex_sequence(topology, indices, n_vertices)
+    if topology == "points":
+        return np.repeat(seq[:, None], 3, axis=1)
+    if topology == "lines":
+        if len(seq) % 2:
+            what = "positions (no indices)" if indices is None else "indices"
+            raise ValueError(f"{what}: a line list needs an even number of vertices, got {len(seq)}")
+        a, b = seq[0::2], seq[1::2]
+    elif len(seq) < 2:
+        a = b = seq[:0]
+    elif topology == "line_strip":
+        a, b = seq[:-1], seq[1:]
+    else:                                        # line_loop: back to the first vertex
+        a, b = seq, np.roll(seq, -1)
+    return np.stack([a, b, b], axis=1)
+
+
+def _polygon_mode_indices(tri: np.ndarray, kept: np.ndarray, kind: str):
+    """Triangles ``kept`` of ``tri`` as their edges (a, b), (b, c), (c, a) or corners: (corners [P, 3],
+    provoking [P], the triangle of each), the triangle's provoking vertex (c) kept for flat varyings."""
+    t = tri[kept]
+    if kind == "lines":
+        a = np.stack([t[:, 0], t[:, 1], t[:, 2]], axis=1).reshape(-1)
+        b = np.stack([t[:, 1], t[:, 2], t[:, 0]], axis=1).reshape(-1)
+        corners = np.stack([a, b, b], axis=1)
+    else:
+        corners = np.repeat(t.reshape(-1)[:, None], 3, axis=1)
+    return corners, np.repeat(t[:, 2], 3), np.repeat(kept, 3)
 
 
 def _planes(viewport: Viewport) -> np.ndarray:
@@ -235,20 +331,47 @@ def _clip_polygon(poly_pos, poly_var, planes, noperspective_cols):
                 out_var.append(poly_var[a])
             if (d[a] >= 0) != (d[b] >= 0):
                 inside, outside = (a, b) if d[a] >= 0 else (b, a)   # always from the inside end
-                t = d[inside] / (d[inside] - d[outside])
-                p_in, p_out = poly_pos[inside], poly_pos[outside]
-                pos = [p_in[c] + t * (p_out[c] - p_in[c]) for c in range(4)]
-                tf = float(t)
-                var = poly_var[inside] + tf * (poly_var[outside] - poly_var[inside])
-                if len(noperspective_cols):
-                    sw = _window_parameter(t, p_out[3], pos[3])
-                    v_in, v_out = poly_var[inside], poly_var[outside]
-                    var[noperspective_cols] = v_in[noperspective_cols] + sw * (
-                        v_out[noperspective_cols] - v_in[noperspective_cols])
-                out_pos.append(np.array(pos, dtype=object if exact else np.float64))
+                pos, var = _crossing(poly_pos[inside], poly_pos[outside], poly_var[inside], poly_var[outside],
+                                     d[inside], d[outside], noperspective_cols, exact)
+                out_pos.append(pos)
                 out_var.append(var)
         poly_pos, poly_var = out_pos, out_var
     return [np.array([float(c) for c in p]) for p in poly_pos], poly_var
+
+
+def _crossing(p_in, p_out, v_in, v_out, d_in, d_out, noperspective_cols, exact: bool):
+    """The new vertex where an edge from its inside end ``p_in`` to ``p_out`` crosses a plane (signed
+    distances ``d_in`` ≥ 0 > ``d_out``): its clip position and its varyings."""
+    t = d_in / (d_in - d_out)
+    pos = [p_in[c] + t * (p_out[c] - p_in[c]) for c in range(4)]
+    var = v_in + float(t) * (v_out - v_in)
+    if len(noperspective_cols):
+        sw = _window_parameter(t, p_out[3], pos[3])
+        var[noperspective_cols] = v_in[noperspective_cols] + sw * (v_out[noperspective_cols] - v_in[noperspective_cols])
+    return np.array(pos, dtype=object if exact else np.float64), var
+
+
+def _clip_segment(ends_pos, ends_var, planes, noperspective_cols):
+    """Clip a segment (two clip-space ends) against every plane; returns the two new ends or None.
+
+    Each plane cuts the segment at a new end computed from its inside end, as for
+    polygons (:func:`_clip_polygon`, with exact arithmetic for huge coordinates).
+    """
+    exact = max(abs(float(c)) for p in ends_pos for c in p) > EXACT_CLIP_ABOVE
+    if exact:
+        ends_pos = [[Fraction(float(c)) for c in p] for p in ends_pos]
+        planes = [[Fraction(float(c)) for c in plane] for plane in planes]
+    ends_pos, ends_var = list(ends_pos), list(ends_var)
+    for plane in planes:
+        d = [sum(plane[k] * p[k] for k in range(4)) + plane[4] for p in ends_pos]
+        if d[0] < 0 and d[1] < 0:
+            return None
+        if (d[0] >= 0) != (d[1] >= 0):
+            inside, outside = (0, 1) if d[0] >= 0 else (1, 0)
+            ends_pos[outside], ends_var[outside] = _crossing(ends_pos[inside], ends_pos[outside], ends_var[inside],
+                                                             ends_var[outside], d[inside], d[outside],
+                                                             noperspective_cols, exact)
+    return [np.array([float(c) for c in p]) for p in ends_pos], ends_var
 
 
 def _columns(layout: VaryingLayout, qualifier: str) -> np.ndarray:
@@ -319,8 +442,37 @@ def _classify(lo, hi, codes, window, tri, cull, ccw_front, status, front):
 
 
 @numba.njit(cache=True, nogil=True)
-def _emit_accepted(lo, hi, pos, var, tri, status, offset, vertex_window, flat, window, inv_w, out_var, key):
-    """Write the accepted triangles among lo:hi at their output rows (primitive order kept by ``offset``)."""
+def _classify_lines(lo, hi, codes, tri, status):
+    """Per input line: NON_FINITE, OUTSIDE (both ends outside one plane), CUT or ACCEPTED."""
+    for t in range(lo, hi):
+        a, b = tri[t, 0], tri[t, 1]
+        any_out = codes[a] | codes[b]
+        if any_out & NON_FINITE_BIT:
+            status[t] = NON_FINITE
+        elif codes[a] & codes[b]:
+            status[t] = OUTSIDE
+        else:
+            status[t] = CUT if any_out else ACCEPTED
+
+
+@numba.njit(cache=True, nogil=True)
+def _classify_points(lo, hi, pos, codes, tri, status):
+    """Per input point: NON_FINITE, OUTSIDE (its vertex is outside the view volume −w ≤ x, y, z ≤ w,
+    or behind the eye) or ACCEPTED; a point is never cut."""
+    for t in range(lo, hi):
+        v = tri[t, 0]
+        if codes[v] & NON_FINITE_BIT:
+            status[t] = NON_FINITE
+        elif codes[v] or abs(pos[v, 0]) > pos[v, 3] or abs(pos[v, 1]) > pos[v, 3]:
+            status[t] = OUTSIDE
+        else:
+            status[t] = ACCEPTED
+
+
+@numba.njit(cache=True, nogil=True)
+def _emit_accepted(lo, hi, pos, var, tri, provoking, status, offset, vertex_window, flat, window, inv_w, out_var,
+                   key):
+    """Write the accepted primitives among lo:hi at their output rows (primitive order kept by ``offset``)."""
     for t in range(lo, hi):
         if status[t] != ACCEPTED:
             continue
@@ -334,8 +486,8 @@ def _emit_accepted(lo, hi, pos, var, tri, status, offset, vertex_window, flat, w
             inv_w[o, c] = 1.0 / pos[v, 3]
             for k in range(var.shape[1]):
                 out_var[o, c, k] = var[v, k]
-            for k in flat:                       # the provoking (last) vertex's value on every corner
-                out_var[o, c, k] = var[tri[t, 2], k]
+            for k in flat:                       # the provoking vertex's value on every corner
+                out_var[o, c, k] = var[provoking[t], k]
 
 
 @numba.njit(cache=True)
@@ -383,6 +535,26 @@ def _viewport_params(viewport: Viewport) -> np.ndarray:
                      (viewport.far - viewport.near) / 2], dtype=np.float64)
 
 
+def _clip_cut_lines(vout, tri, provoking, cut_ids, planes, vp, layout, status):
+    """Clip the lines that cross a plane; returns {t: (window [1,3,3], inv_w [1,3], var [1,3,K], True)}."""
+    flat, nopersp = _columns(layout, "flat"), _columns(layout, "noperspective")
+    pieces = {}
+    for t in cut_ids:
+        a, b = tri[t, 0], tri[t, 1]
+        ends_var = [vout.varyings[a].copy(), vout.varyings[b].copy()]
+        for v in ends_var:
+            v[flat] = vout.varyings[provoking[t], flat]
+        clipped = _clip_segment([vout.position[a], vout.position[b]], ends_var, planes, nopersp)
+        if clipped is None:
+            status[t] = OUTSIDE
+            continue
+        (pa, pb), (va, vb) = clipped
+        clip = np.array([[pa, pb, pb]])                                        # [1, 3, 4]
+        win = _windows_of(clip.reshape(-1, 4), vp).reshape(-1, 3, 3)
+        pieces[int(t)] = (win, 1.0 / clip[:, :, 3], np.array([[va, vb, vb]]), True)
+    return pieces
+
+
 def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status):
     """Clip the triangles that cross a plane; returns {t: (window [n,3,3], inv_w [n,3], var [n,3,K], front)}."""
     flat, nopersp = _columns(layout, "flat"), _columns(layout, "noperspective")
@@ -410,34 +582,100 @@ def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status):
 
 def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
              viewport: Viewport, cull: str = "none", front_face: str = "ccw",
-             keep_culled: bool = True) -> Primitives:
+             keep_culled: bool = True, polygon_mode: str = "fill", point_size: float = 1.0,
+             line_width: float = 1.0) -> Primitives:
     """Primitive assembly: see the module docstring for the steps and their order.
 
     ``keep_culled`` keeps the window coordinates of culled triangles (for pictures).
+    ``polygon_mode`` draws triangles as their edges ("line") or corners ("point")
+    after culling (:data:`POLYGON_MODES`). ``point_size`` is every point's size, unless
+    the vertices carry a one-component varying ``point_size`` (GLSL's ``gl_PointSize``);
+    ``line_width`` every line's width; both in pixels, clamped to [1, 255].
     """
     if cull not in CULL_MODES:
         raise ValueError(f"cull must be one of {CULL_MODES}, got {cull!r}")
     if front_face not in FRONT_FACES:
         raise ValueError(f"front_face must be one of {FRONT_FACES}, got {front_face!r}")
-    tri = triangle_indices(topology, indices, len(vout.position))
+    point_size, line_width = check_size("point_size", point_size), check_size("line_width", line_width)
+    kind = primitive_kind(topology, polygon_mode)
+    corners = primitive_indices(topology, indices, len(vout.position))
+    whole_list = indices is None and topology == "triangles"
+    if topology in TRIANGLE_TOPOLOGIES and kind != "triangles":
+        faces = _assemble(vout, corners, corners[:, 2], "triangles", viewport, cull, front_face, keep_culled,
+                          whole_list)
+        kept = np.unique(faces.primitive_id)
+        edges, provoking, owner = _polygon_mode_indices(corners, kept, kind)
+        prims = _assemble(vout, edges, provoking, kind, viewport, cull, front_face, False, False,
+                          point_size, line_width)
+        prims.primitive_id = owner[prims.primitive_id]
+        prims.dropped, prims.input_count, prims.culled_window = faces.dropped, faces.input_count, faces.culled_window
+        prims.faces = faces
+        return prims
+    return _assemble(vout, corners, corners[:, 2], kind, viewport, cull, front_face, keep_culled, whole_list,
+                     point_size, line_width)
+
+
+def check_size(name: str, value) -> float:
+    """A draw's ``point_size`` or ``line_width``: a finite number > 0, clamped to [1, 255] (GL's range)."""
+    try:
+        size = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number of pixels, got {value!r}") from None
+    if not (np.isfinite(size) and size > 0):
+        raise ValueError(f"{name} must be a finite number of pixels > 0, got {value!r}")
+    return min(max(size, 1.0), MAX_POINT_SIZE)
+
+
+def _sizes(vout: VertexOut, corners: np.ndarray, kind: str, point_size: float, line_width: float,
+           status: np.ndarray) -> np.ndarray:
+    """Each input primitive's size: the line width, or the point size (per vertex from a varying
+    ``point_size``: clamped to [1, 255]; a point whose size is not finite is dropped as non-finite)."""
+    if kind == "lines":
+        return np.full(len(corners), line_width)
+    if kind == "triangles" or "point_size" not in vout.layout.names:
+        return np.full(len(corners), point_size)
+    column = vout.layout.slice("point_size")
+    if column.stop - column.start != 1:
+        raise ValueError(f"the varying 'point_size' (gl_PointSize) must be one number per vertex, got "
+                         f"{column.stop - column.start} components")
+    size = vout.varyings[corners[:, 0], column.start]
+    bad = ~np.isfinite(size)
+    status[bad & (status != OUTSIDE)] = NON_FINITE
+    return np.clip(np.where(bad, 1.0, size), 1.0, MAX_POINT_SIZE)
+
+
+def _assemble(vout: VertexOut, tri: np.ndarray, provoking: np.ndarray, kind: str, viewport: Viewport, cull: str,
+              front_face: str, keep_culled: bool, whole_list: bool, point_size: float = 1.0,
+              line_width: float = 1.0) -> Primitives:
+    """Assemble primitives of one kind: corners ``tri`` [n, 3] and the provoking vertex of each."""
     layout, n = vout.layout, len(tri)
     planes, vp = _planes(viewport), _viewport_params(viewport)
     cull_code, ccw_front = CULL_MODES.index(cull), front_face == "ccw"
     status = np.empty(n, np.int8)
-    front = np.zeros(n, bool)
+    front = np.zeros(n, bool) if kind == "triangles" else np.ones(n, bool)
     codes = np.empty(len(vout.position), np.uint8)
     vertex_window = np.empty((len(vout.position), 3))
     if n:
         in_bands(_vertex_codes, len(vout.position), vout.position, planes, vp, codes, vertex_window, grain=8192)
-        in_bands(_classify, n, codes, vertex_window, tri, cull_code, ccw_front, status, front, grain=8192)
-    pieces = _clip_cut(vout, tri, _ids_with(status, CUT), planes, vp, layout, cull_code, ccw_front, status)
+        if kind == "triangles":
+            in_bands(_classify, n, codes, vertex_window, tri, cull_code, ccw_front, status, front, grain=8192)
+        elif kind == "lines":
+            in_bands(_classify_lines, n, codes, tri, status, grain=8192)
+        else:
+            in_bands(_classify_points, n, vout.position, codes, tri, status, grain=8192)
+    size_in = _sizes(vout, tri, kind, point_size, line_width, status)
+    cut_ids = _ids_with(status, CUT)
+    if kind == "triangles":
+        pieces = _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull_code, ccw_front, status)
+    else:
+        pieces = _clip_cut_lines(vout, tri, provoking, cut_ids, planes, vp, layout, status)
     for t, (_, _, _, f) in pieces.items():
         front[t] = f
     offset = _output_offsets(status, np.fromiter(pieces, np.int64, len(pieces)),
                              np.array([len(p[0]) for p in pieces.values()], np.int64))
     total = int(offset[-1])
     k, flat = layout.width, _columns(layout, "flat")
-    if indices is None and topology == "triangles" and not pieces and total == n and not len(flat):
+    if whole_list and not pieces and total == n and not len(flat):
         # Every triangle kept whole, and vertex 3t + c is corner c of triangle t: the
         # per-vertex arrays already are the per-corner ones (views, not copies).
         window, inv_w = vertex_window.reshape(n, 3, 3), 1.0 / vout.position[:, 3].reshape(n, 3)
@@ -446,8 +684,8 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
         window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
         out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
         if n:
-            in_bands(_emit_accepted, n, vout.position, vout.varyings, tri, status, offset, vertex_window, flat,
-                     window, inv_w, out_var, key, grain=8192)
+            in_bands(_emit_accepted, n, vout.position, vout.varyings, tri, np.ascontiguousarray(provoking), status,
+                     offset, vertex_window, flat, window, inv_w, out_var, key, grain=8192)
     clipped = np.zeros(total, bool)
     for t, (win, iw, pv, _) in pieces.items():
         rows = slice(offset[t], offset[t] + len(win))
@@ -460,7 +698,7 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
         culled_window = _culled_windows(vout, tri, dropped["culled"], vp)
     return Primitives(window=window, inv_w=inv_w, varyings=out_var, layout=layout, primitive_id=key,
                       front_facing=front[key], clipped=clipped, dropped=dropped, input_count=n,
-                      culled_window=culled_window)
+                      culled_window=culled_window, kind=kind, size=size_in[key])
 
 
 def _culled_windows(vout, tri, culled, vp) -> np.ndarray:

@@ -40,12 +40,12 @@ import numpy as np
 
 from softpipe.core.runtime import check_memory
 from softpipe.language.contract import make_uniforms
-from softpipe.pipeline.assembly import Primitives, assemble
+from softpipe.pipeline.assembly import Primitives, assemble, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.output import MergeResult, MergeState, merge
-from softpipe.pipeline.raster import Fragments, count_fragments, rasterize
-from softpipe.pipeline.setup import SHADING_POSITIONS, apply_polygon_offset, pixel_rect, setup_triangles
+from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
+from softpipe.pipeline.setup import SHADING_POSITIONS, apply_polygon_offset, pixel_rect
 from softpipe.pipeline.transforms import Viewport
 from softpipe.pipeline.vertex import run_vertex_stage
 from softpipe.pipeline.visibility import (
@@ -140,7 +140,8 @@ class DrawCall:
                  interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
                  depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
-                 path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None):
+                 path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None,
+                 polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0):
         if not isinstance(framebuffer, Framebuffer):
             raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
         viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
@@ -156,6 +157,10 @@ class DrawCall:
         self.vertex_shader, self.fragment_shader = vertex_shader, fragment_shader
         self.uniforms = make_uniforms(uniforms)
         self.topology, self.interpolation, self.cull, self.front_face = topology, interpolation, cull, front_face
+        self.polygon_mode = polygon_mode
+        #: what the draw's primitives are: "triangles", "lines" or "points" (the topology's, or the polygon mode's)
+        self.kind = primitive_kind(topology, polygon_mode)
+        self.point_size, self.line_width = check_size("point_size", point_size), check_size("line_width", line_width)
         self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend)
         if sample_shading not in SHADING_POSITIONS:
             raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {sample_shading!r}")
@@ -178,7 +183,7 @@ class DrawCall:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
         fb = self.framebuffer
         return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
-                           keep_fragments)
+                           keep_fragments, self.kind)
 
     def steps(self, record: bool = False) -> Iterator[Stage]:
         """Run the draw one stage at a time, yielding each stage's result as it is made.
@@ -211,14 +216,19 @@ class DrawCall:
         fast = self.path_taken == "fast"
         self._check_memory(vout)
         prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
-                                           cull=self.cull, front_face=self.front_face, keep_culled=not fast)
+                                           cull=self.cull, front_face=self.front_face, keep_culled=not fast,
+                                           polygon_mode=self.polygon_mode, point_size=self.point_size,
+                                           line_width=self.line_width)
         clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
         fb = self.framebuffer
-        setup = setup_triangles(prims.window, pixel_rect(fb.width, fb.height, self.viewport), fb.pattern.offsets)
+        setup = setup_primitives(prims, self._rect(), fb.pattern.offsets)
         if self.polygon_offset is not None:
-            apply_polygon_offset(setup, prims.window, *self.polygon_offset)
+            if prims.kind == "triangles":
+                apply_polygon_offset(setup, prims.window, *self.polygon_offset)
+            elif prims.faces is not None:
+                self._offset_polygon_mode(prims, setup)
         clock("setup")
         stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
                                                                                                record)
@@ -226,10 +236,28 @@ class DrawCall:
             yield self._emit(stage, debug)
             clock(None)
 
+    def _offset_polygon_mode(self, prims: Primitives, setup) -> None:
+        """The polygon offset of triangles drawn as edges or corners: each takes its triangle's offset
+        (its slope, GL's ``POLYGON_OFFSET_LINE`` / ``_POINT``), added to the line's or point's depth."""
+        faces = prims.faces
+        assert faces is not None
+        face_setup = setup_primitives(faces, self._rect(), self.framebuffer.pattern.offsets)
+        before = face_setup.plane[:, 0].copy()
+        apply_polygon_offset(face_setup, faces.window, *self.polygon_offset)
+        triangles, first_row = np.unique(faces.primitive_id, return_index=True)
+        offset = (face_setup.plane[:, 0] - before)[first_row[np.searchsorted(triangles, prims.primitive_id)]]
+        setup.depth += offset[:, None] if setup.depth.ndim == 2 else offset
+
+    def _rect(self) -> np.ndarray:
+        """The pixels the draw may touch: the viewport within the framebuffer."""
+        return pixel_rect(self.framebuffer.width, self.framebuffer.height, self.viewport)
+
     def _check_memory(self, vout) -> None:
-        """Refuse, before assembly, a draw whose triangles cannot fit in memory (:data:`BYTES_PER_TRIANGLE`)."""
+        """Refuse, before assembly, a draw whose primitives cannot fit in memory (:data:`BYTES_PER_TRIANGLE`:
+        a line or point takes as much as a triangle)."""
         n = len(vout.position) if self.indices is None else np.size(self.indices)
-        triangles = n // 3 if self.topology == "triangles" else max(n - 2, 0)
+        per_kind = {"triangles": n // 3, "lines": n // 2, "triangle_strip": n - 2, "triangle_fan": n - 2}
+        triangles = max(per_kind.get(self.topology, n), 0) * (3 if self.polygon_mode != "fill" else 1)
         per_triangle = BYTES_PER_TRIANGLE + BYTES_PER_TRIANGLE_VARYING * vout.layout.width
         check_memory(f"drawing {triangles:,} triangles (assembly and triangle setup, {per_triangle} bytes each)",
                      triangles * per_triangle)
@@ -237,7 +265,7 @@ class DrawCall:
     def _reference_stages(self, prims, setup, clock, record: bool) -> Iterator[Stage]:
         """Rasterize, shade every fragment and merge in order, in batches of whole triangles."""
         fb = self.framebuffer
-        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, setup=setup)
+        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self._rect(), setup=setup)
         if record:
             total = int(counts.sum())
             check_memory(f"tracing {total:,} fragments ({BYTES_PER_TRACED_FRAGMENT} bytes each, kept by the trace)",
@@ -249,7 +277,7 @@ class DrawCall:
         saved = (fb.samples_color.copy(), fb.samples_depth.copy()) if len(batches) > 1 else None
         for batch, (first, last) in enumerate(batches):
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
-                              setup=setup)
+                              rect=self._rect(), setup=setup)
             clock("raster")
             yield Stage("raster", frags, batch)
             try:
@@ -327,7 +355,7 @@ class DrawCall:
 def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[Mapping[str, Any]] = None,
          vertex_shader: Optional[Callable] = None, fragment_shader: Optional[Callable] = None,
          uniforms: Optional[Mapping[str, Any]] = None, *, trace: bool = False, **state):
-    """Draw triangles into ``framebuffer``.
+    """Draw points, lines or triangles into ``framebuffer``.
 
     Parameters
     ----------
@@ -348,7 +376,18 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         Keep every stage's output and return it as a :class:`~softpipe.pipeline.trace.Trace`.
     attributes : dict name → [N, k] array, optional
         Extra vertex-shader inputs.
-    topology : "triangles" | "triangle_strip" | "triangle_fan"
+    topology : "points" | "lines" | "line_strip" | "line_loop" | "triangles" | "triangle_strip" | "triangle_fan"
+        GL's primitive types (default "triangles"); lines follow GL's diamond-exit rule
+        (:mod:`softpipe.pipeline.lines`), points GL's square (:mod:`softpipe.pipeline.points`).
+    polygon_mode : "fill" | "line" | "point"
+        GL's ``glPolygonMode``: triangles drawn filled (default), or as their edges or corners
+        (after culling; flat varyings from the triangle's provoking vertex).
+    point_size : float
+        Points' size in pixels (GL's ``glPointSize``, default 1, clamped to [1, 255]); a vertex
+        shader's varying ``point_size`` (GLSL's ``gl_PointSize``) sets it per vertex.
+    line_width : float
+        Lines' width in pixels (GL's ``glLineWidth``, default 1): a run of round(width)
+        fragments across the line's minor axis.
     interpolation : dict varying name → "smooth" | "noperspective" | "flat"
     depth_test : compare function (see :data:`softpipe.pipeline.output.DEPTH_FUNCS`) or None
         (default "less")
@@ -358,7 +397,9 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     front_face : "ccw" | "cw" (default "ccw")
     viewport : Viewport, optional; the whole framebuffer by default
     polygon_offset : (factor, units), optional
-        OpenGL's ``glPolygonOffset``: every triangle's depth is moved by
+        OpenGL's ``glPolygonOffset`` (for triangles, filled or in a polygon mode, whose edges
+        and corners take their triangle's offset; not for the line and point topologies):
+        every triangle's depth is moved by
         factor·DZ + units·r (:func:`softpipe.pipeline.setup.apply_polygon_offset`); a shadow
         map's depth bias.
     sample_shading : "sample" | "center" | "centroid"

@@ -1,4 +1,9 @@
-"""Stage 3: the rasterizer — which samples each triangle covers, and where.
+"""Stage 3: the rasterizer — which samples each primitive covers, and where.
+
+Triangles by the rules below; lines by GL's diamond-exit rule
+(:mod:`softpipe.pipeline.lines`) and points by GL's square
+(:mod:`softpipe.pipeline.points`), each set up by its own module
+(:func:`setup_primitives` picks it) and giving the same :class:`Fragments`.
 
 It answers exactly three questions per covered sample: which pixel and sample,
 which triangle, and the barycentrics (and from them the depth). Shading is a
@@ -28,12 +33,15 @@ by sample (docs/07-debugging.md).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Union
 
 import numba
 import numpy as np
 
 from softpipe.core.parallel import in_bands
 from softpipe.pipeline.assembly import Primitives
+from softpipe.pipeline.lines import LineSetup, cover_line, setup_lines
+from softpipe.pipeline.points import PointSetup, cover_point, setup_points
 from softpipe.pipeline.sampling import CENTER, SUBPIXEL, SamplePattern
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
@@ -51,7 +59,10 @@ from softpipe.pipeline.setup import (
 )
 
 __all__ = ["Fragments", "rasterize", "count_fragments", "snap", "edge_function", "owns_samples_on_edge",
-           "SHADING_POSITIONS", "pixel_rect", "TriangleSetup", "setup_triangles"]
+           "SHADING_POSITIONS", "pixel_rect", "TriangleSetup", "setup_triangles", "setup_primitives", "AnySetup"]
+
+#: The setup of any kind of primitive.
+AnySetup = Union[TriangleSetup, LineSetup, PointSetup]
 
 
 @dataclass
@@ -67,18 +78,20 @@ class Fragments:
     depth : float64 [F]
         Window-space depth at the sample.
     bary : float64 [F, 3]
-        Window-space (linear) barycentrics, w.r.t. the triangle's corners, where
+        Window-space (linear) barycentrics, w.r.t. the primitive's corners, where
         the fragment is shaded: at its sample, or (multisampling) at the pixel
         centre or the centroid of the triangle's covered samples in the pixel.
+        A line's are (1 − t, t, 0), t along the segment; a point's (1 − s − t, s, t),
+        (s, t) its ``gl_PointCoord``.
     frag_x, frag_y : float64 [F]
         That position in window coordinates (``gl_FragCoord``: y up, pixel
         centres at +½).
     triangle : int32 [F]
-        Row in :class:`~softpipe.pipeline.assembly.Primitives`.
+        Row in :class:`~softpipe.pipeline.assembly.Primitives` (a triangle, line or point).
     primitive_id : int64 [F]
-        The input primitive the triangle came from.
-    setup : TriangleSetup or None
-        The triangle setup the fragments came from (for derivatives).
+        The input primitive the row came from.
+    setup : TriangleSetup, LineSetup, PointSetup or None
+        The setup the fragments came from (for derivatives).
     """
 
     x: np.ndarray
@@ -90,13 +103,13 @@ class Fragments:
     primitive_id: np.ndarray
     frag_x: np.ndarray | None = None
     frag_y: np.ndarray | None = None
-    setup: TriangleSetup | None = None
+    setup: AnySetup | None = None
 
     def __len__(self) -> int:
         return len(self.x)
 
     def __repr__(self) -> str:
-        return f"Fragments({len(self)} covered samples from {len(np.unique(self.triangle))} triangles)"
+        return f"Fragments({len(self)} covered samples from {len(np.unique(self.triangle))} primitives)"
 
     def take(self, rows: np.ndarray) -> "Fragments":
         """The fragments at ``rows`` (same setup)."""
@@ -167,19 +180,87 @@ def _emit_kernel(lo, hi, edges, bias, plane, box, first, starts, height, offsets
             out_tri[k] = t
 
 
+@numba.njit(cache=True, nogil=True)
+def _count_lines(lo, hi, ends, width, depth, rect, height, offsets, positions, counts):
+    """The fragments of lines lo:hi (run in bands)."""
+    dummy_i, dummy_f = np.empty(0, np.int32), np.empty(0, np.float64)
+    dummy_b, dummy_p = np.empty((0, 3), np.float64), np.empty((2, 0), np.float64)
+    for t in range(lo, hi):
+        counts[t] = cover_line(ends, width, depth, t, rect, height, offsets, positions, SHADE_SAMPLE, dummy_i,
+                               dummy_i, dummy_i, dummy_f, dummy_b, dummy_p, 0, False)
+
+
+@numba.njit(cache=True, nogil=True)
+def _emit_lines(lo, hi, ends, width, depth, rect, first, starts, height, offsets, positions, mode, out_x, out_y,
+                out_s, out_depth, out_bary, out_pos, out_tri):
+    """The fragments of lines first + lo : first + hi, each at its start (run in bands)."""
+    for t in range(first + lo, first + hi):
+        begin = starts[t]
+        n = cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, out_x, out_y, out_s, out_depth,
+                       out_bary, out_pos, begin, True)
+        for k in range(begin, begin + n):
+            out_tri[k] = t
+
+
+@numba.njit(cache=True, nogil=True)
+def _count_points(lo, hi, centre, size, depth, rect, height, offsets, positions, counts):
+    """The fragments of points lo:hi (run in bands)."""
+    dummy_i, dummy_f = np.empty(0, np.int32), np.empty(0, np.float64)
+    dummy_b, dummy_p = np.empty((0, 3), np.float64), np.empty((2, 0), np.float64)
+    for t in range(lo, hi):
+        counts[t] = cover_point(centre, size, depth, t, rect, height, offsets, positions, SHADE_SAMPLE, dummy_i,
+                                dummy_i, dummy_i, dummy_f, dummy_b, dummy_p, 0, False)
+
+
+@numba.njit(cache=True, nogil=True)
+def _emit_points(lo, hi, centre, size, depth, rect, first, starts, height, offsets, positions, mode, out_x, out_y,
+                 out_s, out_depth, out_bary, out_pos, out_tri):
+    """The fragments of points first + lo : first + hi, each at its start (run in bands)."""
+    for t in range(first + lo, first + hi):
+        begin = starts[t]
+        n = cover_point(centre, size, depth, t, rect, height, offsets, positions, mode, out_x, out_y, out_s,
+                        out_depth, out_bary, out_pos, begin, True)
+        for k in range(begin, begin + n):
+            out_tri[k] = t
+
+
+def setup_primitives(prims: Primitives, rect: np.ndarray, offsets: np.ndarray) -> AnySetup:
+    """The setup of the primitives' kind: :func:`~softpipe.pipeline.setup.setup_triangles`,
+    :func:`~softpipe.pipeline.lines.setup_lines` or :func:`~softpipe.pipeline.points.setup_points`
+    (``rect`` the scissor, :func:`pixel_rect`; ``offsets`` the sample pattern's, fixed point)."""
+    if prims.kind == "lines":
+        return setup_lines(prims.window, prims.size)
+    if prims.kind == "points":
+        return setup_points(prims.window, prims.size)
+    return setup_triangles(prims.window, rect, offsets)
+
+
 def _setup_for(prims: Primitives, width: int, height: int, pattern: SamplePattern, rect, setup):
     if setup is not None:
         return setup
     rect = pixel_rect(width, height) if rect is None else rect
-    return setup_triangles(prims.window, rect, pattern.offsets)
+    return setup_primitives(prims, rect, pattern.offsets)
 
 
 def count_fragments(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
-                    rect: np.ndarray | None = None, setup: TriangleSetup | None = None) -> np.ndarray:
-    """How many samples each triangle covers (int64 [P]); the rasterizer's first pass."""
+                    rect: np.ndarray | None = None, setup: AnySetup | None = None) -> np.ndarray:
+    """How many samples each primitive covers (int64 [P]); the rasterizer's first pass.
+
+    ``rect`` is the scissor (:func:`pixel_rect`; the whole framebuffer by default): lines
+    and points are cut to it here, triangles in their setup.
+    """
+    rect = pixel_rect(width, height) if rect is None else rect
     setup = _setup_for(prims, width, height, pattern, rect, setup)
     counts = np.zeros(len(prims), dtype=np.int64)
-    if len(prims):
+    if not len(prims):
+        return counts
+    if isinstance(setup, LineSetup):
+        in_bands(_count_lines, len(prims), setup.ends, setup.width, setup.depth, rect, height, pattern.offsets,
+                 pattern.positions, counts, grain=1024)
+    elif isinstance(setup, PointSetup):
+        in_bands(_count_points, len(prims), setup.centre, setup.size, setup.depth, rect, height, pattern.offsets,
+                 pattern.positions, counts, grain=1024)
+    else:
         in_bands(_count_kernel, len(prims), setup.edges, setup.bias, setup.plane, setup.box, height,
                  pattern.offsets, pattern.positions, counts, grain=256)
     return counts
@@ -188,24 +269,26 @@ def count_fragments(prims: Primitives, width: int, height: int, pattern: SampleP
 def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern = CENTER,
               first: int = 0, last: int | None = None, counts: np.ndarray | None = None,
               shading: str = "sample", rect: np.ndarray | None = None,
-              setup: TriangleSetup | None = None) -> Fragments:
-    """The covered samples of triangles ``first:last`` (all by default), in primitive order.
+              setup: AnySetup | None = None) -> Fragments:
+    """The covered samples of primitives ``first:last`` (all by default), in primitive order.
 
     Within a triangle, fragments come row by row from the bottom of the window
     (y up), left to right, sample by sample, so the samples one triangle covers
-    in one pixel are consecutive. ``shading`` says where the barycentrics are
-    taken: at each "sample", the pixel "center", or the "centroid" of the
-    pixel's covered samples (see :data:`SHADING_POSITIONS`). ``setup`` (from
-    :func:`~softpipe.pipeline.setup.setup_triangles` with the same ``rect``) is made
-    here when not given.
+    in one pixel are consecutive; within a line, from its first end to its last;
+    within a point, row by row from the bottom. ``shading`` says where the
+    barycentrics are taken: at each "sample", the pixel "center", or the
+    "centroid" of the pixel's covered samples (see :data:`SHADING_POSITIONS`).
+    ``setup`` (from :func:`setup_primitives` with the same ``rect``) is made here
+    when not given.
     """
     if shading not in SHADING_POSITIONS:
         raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {shading!r}")
     mode = SHADING_POSITIONS.index(shading)
+    rect = pixel_rect(width, height) if rect is None else rect
     setup = _setup_for(prims, width, height, pattern, rect, setup)
     last = len(prims) if last is None else last
     if counts is None:
-        counts = count_fragments(prims, width, height, pattern, setup=setup)
+        counts = count_fragments(prims, width, height, pattern, rect=rect, setup=setup)
     starts = np.zeros(len(prims) + 1, dtype=np.int64)
     np.cumsum(counts, out=starts[1:])
     starts -= starts[first]
@@ -218,8 +301,16 @@ def rasterize(prims: Primitives, width: int, height: int, pattern: SamplePattern
     pos = np.empty((2, total), np.float64)
     tri = np.empty(total, np.int32)
     if total:
-        in_bands(_emit_kernel, last - first, setup.edges, setup.bias, setup.plane, setup.box, first, starts, height,
-                 pattern.offsets, pattern.positions, mode, x, y, s, depth, bary, pos, tri, grain=256)
+        out = (x, y, s, depth, bary, pos, tri)
+        if isinstance(setup, LineSetup):
+            in_bands(_emit_lines, last - first, setup.ends, setup.width, setup.depth, rect, first, starts, height,
+                     pattern.offsets, pattern.positions, mode, *out, grain=1024)
+        elif isinstance(setup, PointSetup):
+            in_bands(_emit_points, last - first, setup.centre, setup.size, setup.depth, rect, first, starts, height,
+                     pattern.offsets, pattern.positions, mode, *out, grain=1024)
+        else:
+            in_bands(_emit_kernel, last - first, setup.edges, setup.bias, setup.plane, setup.box, first, starts,
+                     height, pattern.offsets, pattern.positions, mode, *out, grain=256)
     return Fragments(x=x, y=y, sample=s, depth=depth, bary=bary, triangle=tri,
                      primitive_id=prims.primitive_id[tri] if total else np.zeros(0, np.int64),
                      frag_x=pos[0], frag_y=pos[1], setup=setup)

@@ -36,7 +36,7 @@ from softpipe.pipeline.sampling import SUBPIXEL
 __all__ = ["TriangleSetup", "setup_triangles", "snap", "edge_function", "owns_samples_on_edge", "edge_values",
            "inside_edge", "inside", "covers", "plane_depth", "depth_at", "apply_polygon_offset", "pixel_coverage",
            "shading_point", "SHADING_POSITIONS", "pixel_rect",
-           "SHADE_SAMPLE", "offset_bounds", "sample_depth"]
+           "SHADE_SAMPLE", "SHADE_CENTER", "SHADE_CENTROID", "offset_bounds", "sample_depth"]
 
 #: Where a fragment's barycentrics (its shading inputs) are taken: every sample on
 #: its own (ordinary and supersampled rendering), or once per pixel at its centre

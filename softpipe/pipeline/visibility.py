@@ -80,18 +80,21 @@ def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable]) ->
 
 
 def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable], samples: int,
-                keep_fragments: bool = False) -> Tuple[str, str]:
+                keep_fragments: bool = False, kind: str = "triangles") -> Tuple[str, str]:
     """Which order a draw takes, and why: ("reference" | "fast", reason).
 
     ``path`` is the draw's request (:data:`PATHS`), ``samples`` the framebuffer's
     width × height × samples per pixel, ``keep_fragments`` whether the caller
-    needs every fragment (a trace with ``path="auto"``).
+    needs every fragment (a trace with ``path="auto"``), ``kind`` what it draws
+    (points and lines take the reference path: the visibility pass walks triangles).
     """
     if path not in PATHS:
         raise ValueError(f"path must be one of {PATHS}, got {path!r}")
     if path == "reference":
         return "reference", "path='reference' was asked for"
     blocker = fast_path_blocker(state, fragment_shader)
+    if kind != "triangles":
+        blocker = f"it draws {kind} (the fast path's visibility pass walks triangles)"
     if path == "fast":
         if blocker:
             raise ValueError(f"path='fast' is not possible for this draw: {blocker}")

@@ -6,7 +6,8 @@
   the Python API, the command line and scene files draw a mesh (its material,
   lighting, texture, faceted programs, mirrored model matrices);
 - :func:`render_scene` draws a :class:`~softpipe.scenes.scene.Scene` into a new
-  framebuffer, one :func:`draw_mesh` per object, and the wireframe over it if asked;
+  framebuffer, one :func:`draw_mesh` per object, and the wireframe over it if asked
+  (:func:`draw_wireframe`: the pipeline's own lines, polygon mode "line");
 - :func:`render` and :func:`turntable` are ``softpipe render`` and ``softpipe
   turntable`` in Python (``softpipe.render("teapot")``): the command line calls
   them, so they make the same pixels, with the same defaults (size, framing, the
@@ -49,7 +50,7 @@ from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
 from softpipe.scenes.shadow_pass import render_shadow_maps
 
-__all__ = ["standard_uniforms", "draw_mesh", "render_scene", "DrawResult", "as_mesh", "prepare_scene", "render",
+__all__ = ["standard_uniforms", "draw_mesh", "render_scene", "draw_wireframe", "WIREFRAME_STATE", "DrawResult", "as_mesh", "prepare_scene", "render",
            "turntable", "input_kind", "default_lighting", "gif_frame",
            "MAX_FRAMES", "RENDER_SIZE", "TURNTABLE_SIZE", "animation_format", "frame_duration"]
 
@@ -266,7 +267,7 @@ def _texture(texture):
 def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool = False,
                  results: Optional[list] = None,
                  progress: Optional[Callable[[int, int, SceneObject], None]] = None,
-                 shadow_maps: Optional[list] = None) -> Framebuffer:
+                 shadow_maps: Optional[list] = None, wireframe: bool = True) -> Framebuffer:
     """Draw every object of ``scene`` into a new framebuffer (and the wireframe, if asked).
 
     Parameters
@@ -282,6 +283,9 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
         ``progress(k, n, object)`` is called before draw k of n.
     shadow_maps : list, optional
         Receives the :class:`~softpipe.scenes.shadow_pass.ShadowMaps` when a light casts shadows.
+    wireframe : bool
+        False leaves the edges of a scene with ``wireframe`` set to the caller, who draws them
+        later with :func:`draw_wireframe`.
 
     Returns
     -------
@@ -292,8 +296,6 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
         ``shadows`` set get their shadow maps first (:func:`softpipe.scenes.shadow_pass.render_shadow_maps`,
         from the objects whose ``cast_shadows`` is true).
     """
-    from softpipe.views.pictures import draw_wireframe
-
     camera = camera or scene.view_camera()
     fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples))
     fb.clear(scene.background)
@@ -318,9 +320,30 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
             r.name = obj.name
     if results is not None:
         results.extend(drawn)
-    if scene.wireframe:
-        draw_wireframe(fb, [r.primitives for r in drawn], scene.wireframe_color)
+    if scene.wireframe and wireframe:
+        draw_wireframe(fb, scene, camera)
     return fb
+
+
+#: The state of a wireframe's draw over a shaded surface, as GL users draw one: polygon mode
+#: "line", the depth test "lequal" against the surface, no depth written, and GL's polygon
+#: offset (factor −1, units −1) pulling each edge toward the viewer by its triangle's slope,
+#: so it wins against the faces it bounds instead of z-fighting with them.
+WIREFRAME_STATE = {"polygon_mode": "line", "depth_test": "lequal", "depth_write": False,
+                   "polygon_offset": (-1.0, -1.0)}
+
+
+def draw_wireframe(fb: Framebuffer, scene: Scene, camera: Camera) -> None:
+    """Draw the edges of every object of ``scene`` over ``fb``: the pipeline's own lines.
+
+    Each object's triangles again, in polygon mode "line" (GL's ``glPolygonMode``), with the
+    program ``unlit`` in ``scene.wireframe_color``, culled as the object is, in the state
+    :data:`WIREFRAME_STATE`: the edges on the visible surface and its silhouettes show,
+    those behind it do not.
+    """
+    for obj in scene.drawn_objects(camera):
+        draw_mesh(fb, obj.mesh, camera, "unlit", model=obj.model, uniforms={"color": scene.wireframe_color},
+                  cull=obj.cull or scene.cull, sample_shading=scene.sample_shading, **WIREFRAME_STATE)
 
 
 # ---------------------------------------------------------------------------- softpipe render / turntable in Python
@@ -556,19 +579,17 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None, 
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
                           allow_outside=allow_outside, shadows=shadows)
-    from softpipe.views.pictures import draw_wireframe
-
     camera = camera or scene.view_camera()
     drawn: List[DrawResult] = []
-    fb = render_scene(scene.replace(wireframe=False), camera=camera, trace=trace or stages is not None,
-                      results=drawn, progress=progress)
+    fb = render_scene(scene, camera=camera, trace=trace or stages is not None, results=drawn, progress=progress,
+                      wireframe=False)
     if stages is not None:   # before the wireframe: the "final" picture is the framebuffer as drawn
         folder = Path(stages)
         for k, r in enumerate(drawn):
             r.pictures = r.trace.save_pictures(folder if len(drawn) == 1 else
                                                folder / f"{k + 1:02d}-{_safe_name(r.name)}")
     if scene.wireframe:
-        draw_wireframe(fb, [r.primitives for r in drawn], scene.wireframe_color)
+        draw_wireframe(fb, scene, camera)
     if results is not None:
         results.extend(drawn)
     return fb

@@ -22,23 +22,20 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 ``shadow map k, light j`` or ``…, light j, face +x`` for a cube map
                 (its file: ``07-shadow-map-k-light-j.png``)
 
-The pictures are for looking, not for the pipeline: the wireframes use a
-simple line drawer here, not the rasterizer.
-
-:func:`draw_wireframe` draws such a picture over a rendered image: the edges of the
-triangles a draw kept, hidden where the surface covers them (``softpipe render
---wireframe`` and a scene's ``wireframe = true``).
+The outlines are drawn with the pipeline's own lines (``softpipe.draw`` with
+topology "lines", GL's diamond-exit rule), as a wireframe over a rendered image is
+(:func:`softpipe.scenes.drawing.draw_wireframe`).
 """
 from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Any, Dict, Sequence, Tuple
+from typing import Dict
 
 import numpy as np
 
-__all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "draw_wireframe", "overdraw", "PICTURES",
-           "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "cut_outlines", "id_colors", "heat_colors",
+__all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "overdraw", "PICTURES",
+           "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "draw_window_segments", "cut_outlines", "id_colors", "heat_colors",
            "WHITE", "CYAN", "ORANGE", "RED", "YELLOW"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
@@ -57,30 +54,35 @@ def _to_image_xy(window_xy: np.ndarray, height: int) -> np.ndarray:
     return out
 
 
-def draw_segments(img: np.ndarray, a: np.ndarray, b: np.ndarray, color) -> None:
-    """Draw line segments a[k]→b[k] (image coordinates, [K, 2]) into ``img``, vectorized DDA."""
-    h, w = img.shape[:2]
-    if len(a) == 0:
-        return
-    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
-    a, b = np.clip(a[ok], -4 * max(w, h), 4 * max(w, h)), np.clip(b[ok], -4 * max(w, h), 4 * max(w, h))
-    steps = np.ceil(np.abs(b - a).max(axis=1)).astype(np.int64) + 1
-    seg = np.repeat(np.arange(len(a)), steps)
-    start = np.repeat(np.cumsum(steps) - steps, steps)
-    t = (np.arange(len(seg)) - start) / np.maximum(np.repeat(steps, steps) - 1, 1)
-    p = a[seg] + (b[seg] - a[seg]) * t[:, None]
-    x, y = np.floor(p[:, 0]).astype(np.int64), np.floor(p[:, 1]).astype(np.int64)
-    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-    img[y[inside], x[inside]] = color
-
-
 def draw_triangle_outlines(img, window_tris: np.ndarray, height: int, color) -> None:
-    """Draw the outline of each window-space triangle [n, 3, ≥2] into the RGB image ``img``."""
+    """Draw the outline of each window-space triangle [n, 3, ≥2] into the RGB image ``img`` (``height``
+    rows): its three edges as the pipeline's own lines (GL's diamond-exit rule,
+    :mod:`softpipe.pipeline.lines`), so the picture shows the pixels a GL line would."""
     if len(window_tris) == 0:
         return
-    p = _to_image_xy(window_tris[:, :, :2], height)
-    for k in range(3):
-        draw_segments(img, p[:, k], p[:, (k + 1) % 3], color)
+    corners = np.asarray(window_tris, dtype=np.float64)[:, :, :2]
+    draw_window_segments(img, corners.reshape(-1, 2), np.roll(corners, -1, axis=1).reshape(-1, 2), color)
+
+
+def draw_window_segments(img: np.ndarray, a: np.ndarray, b: np.ndarray, color) -> None:
+    """Draw the segments a[k]→b[k] (window coordinates, y up, [K, 2]) into the RGB image ``img``: the
+    pixels the pipeline's lines cover (assembly and the rasterizer, topology "lines"); segments with
+    a non-finite end are left out."""
+    from softpipe.pipeline.assembly import assemble
+    from softpipe.pipeline.raster import rasterize
+    from softpipe.pipeline.transforms import Viewport
+    from softpipe.pipeline.vertex import run_vertex_stage
+
+    h, w = img.shape[:2]
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    if not ok.any():
+        return
+    ends = np.stack([a[ok], b[ok]], axis=1).reshape(-1, 2)
+    clip = np.zeros((len(ends), 4))
+    clip[:, 0], clip[:, 1], clip[:, 3] = 2.0 * ends[:, 0] / w - 1.0, 2.0 * ends[:, 1] / h - 1.0, 1.0
+    lines = assemble(run_vertex_stage(clip), "lines", viewport=Viewport(0, 0, w, h))
+    frags = rasterize(lines, w, h)
+    img[frags.y, frags.x] = color
 
 
 def id_colors(ids: np.ndarray) -> np.ndarray:
@@ -282,59 +284,3 @@ def save_stage_pictures(trace, directory) -> Dict[str, Path]:
     paths["contact-sheet"] = directory / "contact-sheet.png"
     save(contact_sheet(pics), paths["contact-sheet"])
     return paths
-
-
-# ---------------------------------------------------------------------------- a wireframe over an image
-
-
-def draw_wireframe(fb, primitives: Sequence[Any], color=(0.95, 0.95, 0.95)) -> None:
-    """Draw the edges of post-clip triangles over ``fb``, hiding those behind the surface.
-
-    Parameters
-    ----------
-    fb : Framebuffer
-        Already drawn: its depth buffer decides which edge pixels show.
-    primitives : sequence of Primitives (or None)
-        Each draw's post-clip triangles (:attr:`softpipe.scenes.drawing.DrawResult.primitives`).
-    color : RGB in 0..1, linear
-
-    Notes
-    -----
-    An edge pixel is drawn when its window depth (linear along the edge, as depth is in
-    window space) is no farther than the farthest depth in the 3×3 pixels around it,
-    so edges on the visible surface and on silhouettes show and edges behind it do not.
-    Every sample of the pixel gets the color. The edges are stepped one pixel at a
-    time along their longer axis (a DDA), not rasterized: a picture, not a primitive.
-    """
-    rgba = np.array(tuple(color)[:3] + (1.0,), dtype=np.float32)
-    h, w = fb.height, fb.width
-    depth = fb.depth
-    padded = np.pad(depth, 1, mode="edge")
-    # the farthest depth in each 3×3 neighbourhood: an edge one pixel off a silhouette still shows
-    far = np.max([padded[dy:dy + h, dx:dx + w] for dy in range(3) for dx in range(3)], axis=0)
-    for prims in primitives:
-        if prims is None or len(prims.window) == 0:
-            continue
-        tri = prims.window
-        for k in range(3):
-            x, y, z = _segment_pixels(tri[:, k], tri[:, (k + 1) % 3], w, h)
-            keep = z <= far[y, x] + 1e-6  # 1e-6: the edge's own surface passes despite rounding
-            fb.samples_color[:, y[keep], x[keep]] = rgba  # every sample plane [S, H, W, 4]
-
-
-def _segment_pixels(a: np.ndarray, b: np.ndarray, w: int, h: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixels (column, row, window depth) along window-space segments a→b, one step per pixel."""
-    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
-    a, b = a[ok], b[ok]
-    if len(a) == 0:
-        empty = np.zeros(0, np.int64)
-        return empty, empty, np.zeros(0)
-    steps = np.ceil(np.abs(b[:, :2] - a[:, :2]).max(axis=1)).astype(np.int64) + 1
-    seg = np.repeat(np.arange(len(a)), steps)
-    start = np.repeat(np.cumsum(steps) - steps, steps)
-    t = (np.arange(len(seg)) - start) / np.maximum(np.repeat(steps, steps) - 1, 1)
-    p = a[seg] + (b[seg] - a[seg]) * t[:, None]
-    x = np.floor(p[:, 0]).astype(np.int64)
-    y = np.floor(h - p[:, 1]).astype(np.int64)  # window y up → image row down
-    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-    return x[inside], y[inside], p[inside, 2]

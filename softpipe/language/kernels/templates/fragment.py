@@ -51,7 +51,7 @@ def interpolate(t, b0, b1, b2, fx, fy, z, inv_w, corner, front, prim_id, bary_gr
         r = 1.0 / qs
     VARYINGS_AT_BARYCENTRICS(t, b0, b1, b2, q0, q1, q2, r, corner)
     varyings = Varyings(VARYING_VALUES)
-    frag = FragInfo(fx, fy, z, front[t], prim_id[t])
+    frag = FragInfo(fx, fy, z, front[t], prim_id[t], (b1, b2))
     if DERIVATIVES:
         # the screen-space derivatives of every varying, from the barycentrics' gradients
         if not SMOOTH:
