@@ -9,7 +9,10 @@ inside the framebuffer, each once.
 Window ↔ clip: with w = 1, x_clip = 2·x_win/W − 1 and y_clip = 2·y_win/H − 1; W and H are
 powers of two and every window coordinate a binary fraction (k/256 or k/1024), so x_clip
 is exact in float32 and the viewport transform (x_clip + 1)·W/2 gives x_win back exactly
-(checked below). Endpoints stay inside [0, W] × [0, H], so nothing is clipped.
+(checked below). Endpoints stay inside [0, W] × [0, H], so nothing is clipped, except in
+the test of segments that leave the framebuffer (there the pixels inside must be the whole
+segment's). Ties are sought out: endpoints on pixel centres, edges, corners, diamond
+vertices and 1/256 beside them, on a 1/8 grid, and points whose square's edges fall on centres.
 
 On a mismatch the message names the primitive, its exact window endpoints (as
 Fractions), the reference's pixels and softpipe's.
@@ -128,6 +131,17 @@ def _edge_or_corner(rng):
             return x, y
 
 
+def _near_vertex(rng):
+    """A diamond vertex (one coordinate whole, the other a half: (k, j + ½) or (i + ½, k)), or 1/256 off it."""
+    whole, half = Fraction(rng.randint(0, W)), Fraction(rng.randint(0, H - 1)) + Fraction(1, 2)
+    if rng.random() < 0.5:
+        x, y = whole, half
+    else:
+        x, y = Fraction(rng.randint(0, W - 1)) + Fraction(1, 2), Fraction(rng.randint(0, H))
+    nudge = Fraction(1, 256)
+    return _clamp((x + rng.choice((-1, 0, 0, 1)) * nudge, y + rng.choice((-1, 0, 0, 1)) * nudge))
+
+
 def _clamp(p):
     return min(max(p[0], Fraction(0)), Fraction(W)), min(max(p[1], Fraction(0)), Fraction(H))
 
@@ -145,6 +159,11 @@ def _segments(kind, count, seed=SEED):
         elif kind == "grid_1_8":                       # ties with diamond vertices are common
             a = _grid(rng, Fraction(1, 8), 0, W), _grid(rng, Fraction(1, 8), 0, H)
             b = _grid(rng, Fraction(1, 8), 0, W), _grid(rng, Fraction(1, 8), 0, H)
+        elif kind == "near_vertices":                  # a diamond vertex, or 1/256 beside it, at both ends
+            a, b = _near_vertex(rng), _near_vertex(rng)
+            if rng.random() < 0.5:                     # and short ones, within two pixels
+                b = _clamp((a[0] + _grid(rng, Fraction(1, 2), -2, 2) + rng.choice((-1, 0, 1)) * Fraction(1, 256),
+                            a[1] + _grid(rng, Fraction(1, 2), -2, 2) + rng.choice((-1, 0, 1)) * Fraction(1, 256)))
         elif kind == "short":                          # within two pixels, often inside one diamond
             a = _on_1_256(rng) if rng.random() < 0.5 else (_grid(rng, Fraction(1, 8), 0, W),
                                                            _grid(rng, Fraction(1, 8), 0, H))
@@ -168,8 +187,8 @@ def _segments(kind, count, seed=SEED):
     return out
 
 
-KINDS = {"grid_1_256": 800, "centres": 400, "edges_corners": 600, "grid_1_8": 600, "short": 800,
-         "horizontal": 300, "vertical": 300, "diagonal_45": 400}
+KINDS = {"grid_1_256": 800, "centres": 400, "edges_corners": 600, "near_vertices": 600, "grid_1_8": 600,
+         "short": 800, "horizontal": 300, "vertical": 300, "diagonal_45": 400}
 
 
 @pytest.mark.parametrize("kind", list(KINDS))
@@ -178,9 +197,28 @@ def test_random_segments_match_the_diamond_exit_reference(kind):
     _check(_compare_segments(segments), len(segments))
 
 
+def test_segments_leaving_the_framebuffer_keep_the_whole_segments_rule_inside_it():
+    # clipped segments: inside the framebuffer, exactly the pixels the unclipped segment's rule gives (so a
+    # segment along pixel centres that leaves through the right edge keeps its last column: the clipped end
+    # is not a new half-open end)
+    rng = random.Random(f"{SEED}-leaving")
+    segments = []
+    for _ in range(400):
+        a = _on_1_256(rng) if rng.random() < 0.7 else _edge_or_corner(rng)
+        b = (_grid(rng, Fraction(1, 256), -16, W + 16), _grid(rng, Fraction(1, 256), -16, H + 16))
+        segments.append((a, b) if rng.random() < 0.5 else (b, a))
+    half = Fraction(1, 2)
+    segments += [((half + k, half + k), (Fraction(W + 3), half + k)) for k in range(8)]        # out the right
+    segments += [((half + k, half + k), (half + k, Fraction(H + 3))) for k in range(8)]        # out the top
+    segments += [((Fraction(-3), half + k), (half + 9 + k, half + k)) for k in range(8)]       # in from the left
+    segments += [((Fraction(W - 5) + half, half + k), (Fraction(-2), half + k)) for k in range(8)]   # out the left
+    _check(_compare_segments(segments), len(segments))
+
+
 @pytest.mark.parametrize("width", [1, 2, 3, 4, 5])
 def test_wide_lines_match_the_reference_runs_along_the_minor_axis(width):
     segments = (_segments("grid_1_256", 60, seed=width) + _segments("centres", 40, seed=width)
+                + _segments("near_vertices", 40, seed=width) + _segments("grid_1_8", 40, seed=width)
                 + _segments("edges_corners", 40, seed=width) + _segments("diagonal_45", 40, seed=width)
                 + _segments("horizontal", 20, seed=width) + _segments("vertical", 20, seed=width))
     _check(_compare_segments(segments, width), len(segments))
@@ -266,7 +304,8 @@ POINT_SIZES = [0.75, 1, 1.5, 2, 2.5, 3, 7]
 
 
 def _point_positions(rng, count):
-    makers = [_on_1_256, _centre, _edge_or_corner,
+    makers = [_on_1_256, _centre, _edge_or_corner, _near_vertex,
+              lambda r: (_grid(r, Fraction(1, 8), 0, W), _grid(r, Fraction(1, 8), 0, H)),  # square edges on centres
               lambda r: (_grid(r, Fraction(1, 1024), 0, W), _grid(r, Fraction(1, 1024), 0, H))]  # snapping
     return [rng.choice(makers)(rng) for _ in range(count)]
 
