@@ -20,6 +20,7 @@ Fractions), the reference's pixels and softpipe's.
 from __future__ import annotations
 
 import random
+import sys
 from collections import Counter
 from fractions import Fraction
 
@@ -212,6 +213,16 @@ def test_segments_leaving_the_framebuffer_keep_the_whole_segments_rule_inside_it
     segments += [((half + k, half + k), (half + k, Fraction(H + 3))) for k in range(8)]        # out the top
     segments += [((Fraction(-3), half + k), (half + 9 + k, half + k)) for k in range(8)]       # in from the left
     segments += [((Fraction(W - 5) + half, half + k), (Fraction(-2), half + k)) for k in range(8)]   # out the left
+    _check(_compare_segments(segments), len(segments))
+
+
+def test_long_segments_on_a_large_framebuffer_match_the_reference(monkeypatch):
+    # 2048×1024: snapped coordinates up to 2¹⁹, their products up to 2³⁸ (no 32-bit arithmetic may overflow)
+    monkeypatch.setattr(sys.modules[__name__], "W", 2048)
+    monkeypatch.setattr(sys.modules[__name__], "H", 1024)
+    segments = (_segments("grid_1_256", 40, seed=11) + _segments("near_vertices", 20, seed=11)
+                + _segments("diagonal_45", 20, seed=11))
+    assert max(max(a[0], b[0]) for a, b in segments) > 1024       # the segments do reach far
     _check(_compare_segments(segments), len(segments))
 
 
