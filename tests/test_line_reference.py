@@ -167,6 +167,18 @@ def test_strip_joint_through_a_corner_no_double_hit_no_gap():
     assert sorted(i for i, _ in first | second) == [0, 1, 2, 3, 4, 5]
 
 
+def test_strip_turning_90_degrees_at_a_joint_in_a_gap_hits_the_joint_pixel_twice():
+    # The spec's promise of no duplicate is for two x-major (or two y-major) segments going the same way.
+    # Left along y = 0.125 to b = (2.375, 0.125), then up: b is in the gap below (2,0)'s diamond
+    # (|−.125| + |−.375| = ½, and b' is ε + ε² farther), so the first segment, crossing (2,0)'s diamond at
+    # x = 2.5 (L1 .375), keeps it; the second, at x = 2.375 − ε, crosses it at y = .5 (L1 .125 + ε) too.
+    first = reference_line((4.5, 0.125), (2.375, 0.125))
+    second = reference_line((2.375, 0.125), (2.375, 2.5))
+    assert first == row(0, 2, 4)
+    assert second == col(2, 0, 1)          # (2,2)'s diamond holds c' = (2.375 − ε, 2.5 − ε²): left out
+    assert first & second == {(2, 0)}
+
+
 def test_closed_loop_covers_each_pixel_of_the_rectangle_outline_once():
     corners = [(0.5, 0.5), (3.5, 0.5), (3.5, 2.5), (0.5, 2.5)]
     parts = [reference_line(corners[k], corners[(k + 1) % 4]) for k in range(4)]

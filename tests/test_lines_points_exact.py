@@ -309,6 +309,16 @@ def test_closed_loop_of_pixel_centres_hits_every_pixel_once_joints_included():
     assert set(have) == outline and set(have.values()) == {1}
 
 
+def test_strip_turning_at_a_joint_in_a_gap_hits_the_joint_twice_as_the_rule_does():
+    # left, then up from a joint in the gap below (2,0)'s diamond: both segments cross that diamond
+    # (tests/test_line_reference.py works it by hand); additive blending shows the pixel twice
+    pts = [(Fraction(9, 2), Fraction(1, 8)), (Fraction(19, 8), Fraction(1, 8)), (Fraction(19, 8), Fraction(5, 2))]
+    trace = _draw(pts, "line_strip")
+    have = Counter((x, H - 1 - row) for x, row in zip(np.asarray(trace.fragments.x).tolist(),
+                                                      np.asarray(trace.fragments.y).tolist()))
+    assert have == Counter({(2, 0): 2, (3, 0): 1, (4, 0): 1, (2, 1): 1})
+
+
 # --------------------------------------------------------------------- points
 
 POINT_SIZES = [0.75, 1, 1.5, 2, 2.5, 3, 7]
