@@ -6,6 +6,9 @@
   coordinates with ``space="clip"``; result arrays are images (row 0 at the top).
 - :func:`reference_coverage`: the same, by a slow exact (Fraction) rasterizer
   written independently of softpipe's, to test a rasterizer of one's own against.
+- :func:`reference_line`, :func:`reference_point`, :func:`reference_line_parameter`:
+  the exact pixels GL's rules give a line segment (the diamond-exit rule, wide
+  lines) and a point, and the parameter t along a segment, in window coordinates.
 - :func:`assert_pixels_equal`: arrays, Framebuffers or image files, pixel by
   pixel, with a message that says how many pixels differ, where, the worst one,
   and an ASCII map; ``diff_path=`` writes a diff image.
@@ -17,8 +20,10 @@ docs/testing.md shows them at work.
 """
 from softpipe.testing.compare import assert_pixels_equal, check_golden, diff_image, to_8bit
 from softpipe.testing.coverage import Coverage, coverage, covered_pixels
+from softpipe.testing.line_reference import reference_line, reference_line_parameter, reference_point
 from softpipe.testing.pictures import ascii_picture, from_ascii
 from softpipe.testing.reference import reference_coverage
 
-__all__ = ["coverage", "covered_pixels", "Coverage", "reference_coverage", "assert_pixels_equal", "ascii_picture",
-           "from_ascii", "check_golden", "diff_image", "to_8bit"]
+__all__ = ["coverage", "covered_pixels", "Coverage", "reference_coverage", "reference_line", "reference_point",
+           "reference_line_parameter", "assert_pixels_equal", "ascii_picture", "from_ascii", "check_golden",
+           "diff_image", "to_8bit"]
