@@ -149,7 +149,8 @@ def diamond_touched(a: Tuple[int, int], b: Tuple[int, int], centre: Tuple[int, i
     # a' − centre = (a_x − x_c − ε, a_y − y_c − ε²) as (constant, ε, ε²) tuples
     qx = (a[0] - centre[0], -1, 0)
     qy = (a[1] - centre[1], 0, -1)
-    lower, upper = (Fraction(0), 0, 0), (Fraction(1), 0, 0)
+    lower: tuple = (Fraction(0), 0, 0)
+    upper: tuple = (Fraction(1), 0, 0)
     for sx in (1, -1):
         for sy in (1, -1):
             big_a = (sx * qx[0] + sy * qy[0] - HALF, sx * qx[1] + sy * qy[1], sx * qx[2] + sy * qy[2])

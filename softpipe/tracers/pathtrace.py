@@ -337,6 +337,7 @@ class PathTrace:
         """
         spp = _whole("spp", spp, 1, MAX_SPP)
         s = self._setup
+        assert s is not None and self._total is not None and self._squares is not None   # made by pathtrace()
         start = time.perf_counter()
         for first in range(self.spp, self.spp + spp, PASS_SPP):
             # in passes, so that Ctrl-C is heard between them (in_bands starts no band after it); each pixel
@@ -352,6 +353,7 @@ class PathTrace:
     @property
     def image(self) -> np.ndarray:
         """Linear radiance, float32 [H, W, 3]: each pixel's mean over its samples (the box filter)."""
+        assert self._total is not None
         return (self._total / max(self.spp, 1)).astype(np.float32)
 
     @property
@@ -361,6 +363,7 @@ class PathTrace:
         Its square root is the pixel's standard error; inf before there are 2 samples.
         """
         n = self.spp
+        assert self._total is not None and self._squares is not None
         if n < 2:
             return np.full(self._total.shape, np.inf, np.float32)
         mean = self._total / n
