@@ -45,7 +45,7 @@ from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader,
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.output import MergeResult, MergeState, merge
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
-from softpipe.pipeline.setup import SHADING_POSITIONS, apply_polygon_offset, pixel_rect
+from softpipe.pipeline.setup import SHADING_POSITIONS, TriangleSetup, apply_polygon_offset, pixel_rect, setup_triangles
 from softpipe.pipeline.transforms import Viewport
 from softpipe.pipeline.vertex import run_vertex_stage
 from softpipe.pipeline.visibility import (
@@ -227,10 +227,10 @@ class DrawCall:
         fb = self.framebuffer
         setup = setup_primitives(prims, self._rect(), fb.pattern.offsets)
         if self.polygon_offset is not None:
-            if prims.kind == "triangles":
+            if isinstance(setup, TriangleSetup):
                 apply_polygon_offset(setup, prims.window, *self.polygon_offset)
             elif prims.faces is not None:
-                self._offset_polygon_mode(prims, setup)
+                self._offset_polygon_mode(prims, setup, self.polygon_offset)
         clock("setup")
         stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
                                                                                                record)
@@ -238,14 +238,14 @@ class DrawCall:
             yield self._emit(stage, debug)
             clock(None)
 
-    def _offset_polygon_mode(self, prims: Primitives, setup) -> None:
+    def _offset_polygon_mode(self, prims: Primitives, setup, polygon_offset: Tuple[float, float]) -> None:
         """The polygon offset of triangles drawn as edges or corners: each takes its triangle's offset
         (its slope, GL's ``POLYGON_OFFSET_LINE`` / ``_POINT``), added to the line's or point's depth."""
         faces = prims.faces
         assert faces is not None
-        face_setup = setup_primitives(faces, self._rect(), self.framebuffer.pattern.offsets)
+        face_setup = setup_triangles(faces.window, self._rect(), self.framebuffer.pattern.offsets)
         before = face_setup.plane[:, 0].copy()
-        apply_polygon_offset(face_setup, faces.window, *self.polygon_offset)
+        apply_polygon_offset(face_setup, faces.window, *polygon_offset)
         triangles, first_row = np.unique(faces.primitive_id, return_index=True)
         offset = (face_setup.plane[:, 0] - before)[first_row[np.searchsorted(triangles, prims.primitive_id)]]
         setup.depth += offset[:, None] if setup.depth.ndim == 2 else offset

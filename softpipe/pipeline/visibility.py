@@ -428,7 +428,7 @@ class FragmentVisibility:
         """The rows of the Primitives that are visible at some sample, sorted."""
         return np.unique(self.vis[self.vis >= 0])
 
-    def fragments(self, prims: Primitives = None, pattern=None, shading: str = "sample") -> Fragments:
+    def fragments(self, prims: Optional[Primitives] = None, pattern=None, shading: str = "sample") -> Fragments:
         """The fragments the fast path shaded: one per visible sample, in (sample, image row, column) order."""
         return self.candidates.take(self.winner[self.winner >= 0])
 

@@ -329,7 +329,7 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
 #: "line", the depth test "lequal" against the surface, no depth written, and GL's polygon
 #: offset (factor −1, units −1) pulling each edge toward the viewer by its triangle's slope,
 #: so it wins against the faces it bounds instead of z-fighting with them.
-WIREFRAME_STATE = {"polygon_mode": "line", "depth_test": "lequal", "depth_write": False,
+WIREFRAME_STATE: Dict[str, Any] = {"polygon_mode": "line", "depth_test": "lequal", "depth_write": False,
                    "polygon_offset": (-1.0, -1.0)}
 
 
