@@ -107,9 +107,9 @@ def test_strip_indices_must_be_one_dimensional():
 # --------------------------------------------------------- fixed-function state
 
 def test_unknown_topology():
-    with pytest.raises(ValueError, match=r"topology must be one of \('triangles', 'triangle_strip', "
-                                         r"'triangle_fan'\), got 'points'"):
-        draw(topology="points")
+    with pytest.raises(ValueError, match=r"topology must be one of \('points', 'lines', 'line_strip', 'line_loop', "
+                                         r"'triangles', 'triangle_strip', 'triangle_fan'\), got 'quads'"):
+        draw(topology="quads")
 
 
 def test_unknown_depth_compare_function():

@@ -282,3 +282,54 @@ def test_a_line_on_a_multisample_framebuffer_covers_every_sample_of_its_pixels()
                     trace=True)
     assert len(trace.fragments) == 7 * 4
     assert (fb.samples_color[:, H - 1 - 3, 2:9, 0] == 1).all() and fb.samples_color[:, H - 1 - 3, 9, 0].max() == 0
+
+
+# ------------------------------------------------------------------ both paths, the same bytes
+
+def _scene_draws(path, pattern="center", shading="sample", shader=None):
+    rng = np.random.default_rng(7)
+    fb = sp.Framebuffer(W, H, pattern=pattern_named(pattern))
+    n = 42
+    pos = clip(rng.uniform(-2, W + 2, (n, 2)), rng.uniform(-0.9, 0.9, n))
+    colors = {"color": rng.uniform(0, 1, (n, 3))}
+    calls = []
+    for topology, state in (("lines", {"line_width": 2}), ("line_strip", {}), ("points", {"point_size": 3.5}),
+                            ("triangles", {"polygon_mode": "line"})):
+        call = sp.DrawCall(fb, pos, None, colors, None, shader, None, topology=topology, path=path,
+                           sample_shading=shading, **state)
+        call.run()
+        calls.append(call)
+    return fb, calls
+
+
+@pytest.mark.parametrize("pattern, shading", [("center", "sample"), ("rgss4", "sample"), ("rgss4", "center"),
+                                              ("rgss4", "centroid")])
+def test_points_and_lines_give_the_same_bytes_on_both_paths(pattern, shading):
+    fast, calls = _scene_draws("fast", pattern, shading)
+    reference, _ = _scene_draws("reference", pattern, shading)
+    assert [c.path_taken for c in calls] == ["fast"] * 4
+    assert (fast.samples_color == reference.samples_color).all()
+    assert (fast.samples_depth == reference.samples_depth).all()
+
+
+def _nan_right_of_8(v, u, frag):
+    """A NaN alpha right of x = 8 that no reading of the code sees: only the run-time check catches it."""
+    big = (frag.x - 8.0) * 1e308 * 1e308
+    return (v.color[0], v.color[1], v.color[2], big - big if frag.x > 8.0 else 1.0)
+
+
+def test_a_nan_alpha_on_the_fast_path_has_the_draw_done_again_on_the_reference_path():
+    fast, calls = _scene_draws("fast", shader=_nan_right_of_8)
+    reference, _ = _scene_draws("reference", shader=_nan_right_of_8)
+    assert calls[0].path_taken == "reference" and "NaN alpha" in calls[0].path_reason
+    assert (fast.samples_color == reference.samples_color).all()
+    assert (fast.samples_depth == reference.samples_depth).all()
+
+
+def test_a_traced_fast_draw_of_lines_keeps_the_fragments_it_shaded():
+    fb = sp.Framebuffer(W, H)
+    trace = sp.draw(fb, clip([(1.5, 1.5), (10.5, 4.5), (1.5, 4.5), (10.5, 1.5)]), topology="lines",
+                    varyings={"color": np.ones((4, 3))}, path="fast", trace=True)
+    # one fragment per pixel drawn: the ones it shaded, which are the ones written
+    assert trace.path == "fast" and len(trace.fragments) == np.count_nonzero(fb.color[..., 0]) == 18
+    assert (fb.color[trace.fragments.y, trace.fragments.x, 0] == 1).all()

@@ -42,7 +42,9 @@ __all__ = ["FragInfo", "DISCARD", "Derivatives", "ShaderError", "make_uniforms",
 #: ``point_coord``, where the fragment lies in its primitive: on a point GLSL's ``gl_PointCoord``
 #: (s, t), from (0, 0) at the square's upper-left corner to (1, 1); on a line (t, 0), t from 0 at
 #: its first end to 1 at its last; on a triangle its barycentrics (b1, b2) (b0 = 1 − b1 − b2).
-FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id", "point_coord"])
+#: (A FragInfo made in Python without ``point_coord``, for calling a shader by hand, gets (0, 0).)
+FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id", "point_coord"],
+                      defaults=((0.0, 0.0),))
 
 #: Return this from a fragment shader to discard the fragment (GLSL ``discard``).
 #: It is the color whose alpha is NaN; the fragment stage tests for exactly that.

@@ -23,6 +23,10 @@ Here:
    triangle there). Output: :class:`ShadedSamples`. A shader that raises, or returns
    a NaN alpha (:class:`DiscardOnFastPath`: the draw is then done on the reference
    path), has the draw undone.
+4. **Points and lines** (:func:`early_depth`, :func:`shade_winners`): their fragments
+   are few (a line makes one per pixel it crosses), so the rasterizer makes them all,
+   as on the reference path; the depth test runs over them in order first, and only
+   the last one written at each sample is shaded (:class:`FragmentVisibility`).
 
 The bytes are the reference's (tests/test_fast_path.py, test_fast_path_sound.py,
 test_properties.py hold them so); docs/08-fast-path.md walks through it and says why.
@@ -38,8 +42,8 @@ import numpy as np
 from softpipe.core.parallel import in_bands
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
-from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients
-from softpipe.pipeline.output import DEPTH_FUNCS, MergeState
+from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients, run_fragment_stage
+from softpipe.pipeline.output import DEPTH_FUNCS, MergeState, depth_passes
 from softpipe.pipeline.raster import Fragments
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
@@ -53,7 +57,7 @@ from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
-           "visible_loop_args"]
+           "visible_loop_args", "FragmentVisibility", "early_depth", "shade_winners"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -86,15 +90,13 @@ def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable
     ``path`` is the draw's request (:data:`PATHS`), ``samples`` the framebuffer's
     width × height × samples per pixel, ``keep_fragments`` whether the caller
     needs every fragment (a trace with ``path="auto"``), ``kind`` what it draws
-    (points and lines take the reference path: the visibility pass walks triangles).
+    (points and lines have their own visibility pass, :func:`early_depth`).
     """
     if path not in PATHS:
         raise ValueError(f"path must be one of {PATHS}, got {path!r}")
     if path == "reference":
         return "reference", "path='reference' was asked for"
     blocker = fast_path_blocker(state, fragment_shader)
-    if kind != "triangles":
-        blocker = f"it draws {kind} (the fast path's visibility pass walks triangles)"
     if path == "fast":
         if blocker:
             raise ValueError(f"path='fast' is not possible for this draw: {blocker}")
@@ -387,3 +389,98 @@ def _invocations(vis: np.ndarray, shading: str) -> int:
     for s in range(1, vis.shape[0]):
         seen[s] &= (vis[:s] != vis[s]).all(axis=0)
     return int(seen.sum())
+
+
+# ------------------------------------------------- points and lines: early depth over their fragments
+
+@dataclass
+class FragmentVisibility:
+    """The fast path's visibility pass for points and lines: which of the rasterizer's fragments was
+    written last at each sample.
+
+    Attributes
+    ----------
+    winner : int64 [S, H, W]
+        The row in ``candidates`` of the fragment written last at each sample, or −1.
+    vis : int32 [S, H, W]
+        Its primitive (row of the Primitives), or −1, as :attr:`Visibility.vis`.
+    candidates : Fragments
+        Every fragment of the draw, from the rasterizer.
+    saved_depth : float32 [S, H, W] or None
+        The framebuffer's depth before the pass, while shading may still undo the draw.
+    """
+
+    winner: np.ndarray
+    vis: np.ndarray
+    candidates: Fragments
+    saved_depth: Optional[np.ndarray] = field(default=None, repr=False)
+
+    def restore_depth(self, fb) -> None:
+        """Put back the depth the pass replaced."""
+        if self.saved_depth is not None:
+            fb.samples_depth[...] = self.saved_depth
+
+    def __repr__(self) -> str:
+        return (f"FragmentVisibility({int((self.winner >= 0).sum())} visible samples of {self.winner.size}, "
+                f"from {len(self.candidates)} fragments)")
+
+    def visible_triangles(self) -> np.ndarray:
+        """The rows of the Primitives that are visible at some sample, sorted."""
+        return np.unique(self.vis[self.vis >= 0])
+
+    def fragments(self, prims: Optional[Primitives] = None, pattern=None, shading: str = "sample") -> Fragments:
+        """The fragments the fast path shaded: one per visible sample, in (sample, image row, column) order."""
+        return self.candidates.take(self.winner[self.winner >= 0])
+
+
+@numba.njit(cache=True)
+def _early_depth(x, y, s, depth, triangle, func, depth_write, fb_depth, winner, vis):
+    """The depth test of the output merger (:func:`~softpipe.pipeline.output.depth_passes`, on the depth as
+    float32) over the fragments in order, keeping the last written at each sample."""
+    for k in range(x.shape[0]):
+        i, j, m = x[k], y[k], s[k]
+        if func >= 0:
+            z = np.float32(depth[k])
+            if not depth_passes(func, z, fb_depth[m, j, i]):
+                continue
+            if depth_write:
+                fb_depth[m, j, i] = z
+        winner[m, j, i] = k
+        vis[m, j, i] = triangle[k]
+
+
+def early_depth(frags: Fragments, fb, state: MergeState, undo: bool = True) -> FragmentVisibility:
+    """The visibility pass of points and lines: the depth test over their fragments, in primitive order;
+    the framebuffer's depth is updated. ``undo`` keeps the depth it replaces."""
+    func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
+    depth_write = bool(state.depth_write) and func >= 0
+    shape = fb.samples_depth.shape
+    winner, vis = np.full(shape, -1, np.int64), np.full(shape, -1, np.int32)
+    saved = fb.samples_depth.copy() if undo and depth_write else None
+    if len(frags):
+        _early_depth(frags.x, frags.y, frags.sample, frags.depth, frags.triangle, func, depth_write,
+                     fb.samples_depth, winner, vis)
+    return FragmentVisibility(winner, vis, frags, saved)
+
+
+def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragment_shader: Optional[Callable],
+                  uniforms, shading: str = "sample") -> ShadedSamples:
+    """Run the shader on the fragments a :class:`FragmentVisibility` kept and write their color into ``fb``.
+
+    As :func:`shade_visible`: a shader that raises has the depth put back and nothing written;
+    a NaN alpha (DISCARD) at a kept fragment raises :class:`DiscardOnFastPath` with the depth put back.
+    With multisampling at the centre or centroid, every sample of a pixel's fragment has the same
+    barycentrics, so shading each kept sample gives the color the reference path copies to them.
+    """
+    try:
+        kept = visibility.fragments()
+        shaded = run_fragment_stage(kept, prims, fragment_shader, uniforms, "sample")
+        if shaded.discarded.any():
+            raise DiscardOnFastPath("the fragment shader returned a NaN alpha (DISCARD) at a visible sample")
+    except BaseException:
+        visibility.restore_depth(fb)
+        visibility.saved_depth = None
+        raise
+    fb.samples_color[kept.sample, kept.y, kept.x] = shaded.color
+    visibility.saved_depth = None
+    return ShadedSamples(visibility, shading)  # type: ignore[arg-type]  # it reads .vis alone
