@@ -96,7 +96,7 @@ def test_a_line_list_pairs_vertices_and_a_strip_joins_them_through_indices():
 @pytest.mark.parametrize("topology, indices, message", [
     ("lines", None, "a line list needs an even number of vertices, got 3"),
     ("lines", np.array([[0, 1, 2]]), r"indices must have shape \[M\] or \[M, 2\], got \[1, 3\]"),
-    ("line_strip", np.array([[0, 1]]), r"indices for line_strip must be 1-D, got shape \[1, 2\]"),
+    ("line_strip", np.array([[0, 1]]), r"indices for a line_strip must be 1-D, got shape \[1, 2\]"),
     ("lines", np.array([0, 5]), r"indices\[1\] = 5 is out of range for 3 vertices"),
     ("quads", None, "topology must be one of"),
 ])

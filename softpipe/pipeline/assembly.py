@@ -205,7 +205,8 @@ def _vertex_sequence(topology: str, indices, n_vertices: int) -> np.ndarray:
     if indices is None:
         return np.arange(n_vertices, dtype=np.int64)
     if topology not in ("triangles", "lines") and np.ndim(indices) != 1:
-        raise ValueError(f"indices for {topology} must be 1-D, got shape {list(np.shape(indices))}")
+        what = "points" if topology == "points" else f"a {topology}"
+        raise ValueError(f"indices for {what} must be 1-D, got shape {list(np.shape(indices))}")
     return _check_indices(indices, n_vertices, 2 if topology == "lines" else 3)
 
 
