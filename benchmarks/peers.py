@@ -97,6 +97,9 @@ def _bunny_blinn(scale: float = 1.0) -> Scene:
                            "phong_fragment")
 
 
+#: softpipe's topologies with a GL peer, and GL's name (moderngl's constant) for each.
+PEER_TOPOLOGIES = {"triangles": "TRIANGLES", "lines": "LINES", "points": "POINTS"}
+
 #: The scenes with a peer, in the order they run: name → scene function.
 PEER_SCENES: Dict[str, Callable[[float], Scene]] = {
     "sphere200k-color": SCENES["sphere200k-color"],
@@ -106,6 +109,8 @@ PEER_SCENES: Dict[str, Callable[[float], Scene]] = {
     "sphere200k": SCENES["sphere200k"],
     "bunny-blinn": _bunny_blinn,
     "bunny": SCENES["bunny"],
+    "bunny-wireframe": SCENES["bunny-wireframe"],
+    "points200k": SCENES["points200k"],
 }
 
 
@@ -395,9 +400,11 @@ class LlvmpipeScene:
     def _upload(self, d: dict):
         unsupported = {k: d[k] for k in ("blend", "interpolation", "viewport", "polygon_offset", "sample_shading",
                                          "path") if d.get(k) not in (None, "sample", "auto")}
-        if d.get("topology", "triangles") != "triangles" or d.get("depth_test", "less") != "less" \
-                or not d.get("depth_write", True) or unsupported:
-            raise PeerUnsupported(f"{self.scene.name}: draw state {unsupported or d.get('topology')} has no peer")
+        topology = d.get("topology", "triangles")
+        if topology not in PEER_TOPOLOGIES or d.get("depth_test", "less") != "less" \
+                or not d.get("depth_write", True) or unsupported or d.get("line_width", 1.0) != 1.0 \
+                or d.get("polygon_mode", "fill") != "fill":
+            raise PeerUnsupported(f"{self.scene.name}: draw state {unsupported or topology} has no peer")
         vs, fs, u = d.get("vertex_shader"), d.get("fragment_shader"), d.get("uniforms") or {}
         positions = np.asarray(d["positions"], dtype=np.float64)
         if fs is not None and vs is None:
@@ -446,7 +453,7 @@ class LlvmpipeScene:
         cull = d.get("cull", "none")
         if cull not in ("none", "back", "front"):
             raise PeerUnsupported(f"{self.scene.name}: cull={cull!r}")
-        return vao, cull, d.get("front_face", "ccw")
+        return vao, cull, d.get("front_face", "ccw"), topology, float(d.get("point_size", 1.0))
 
     def frame(self) -> float:
         """Clear, draw, finish, read back: seconds."""
@@ -459,14 +466,15 @@ class LlvmpipeScene:
         ctx.depth_func = "<"
         ctx.disable(moderngl.BLEND)
         self.fbo.clear(*self.scene.clear_color, depth=1.0)
-        for vao, cull, front in self.draws:
+        for vao, cull, front, topology, point_size in self.draws:
             if cull == "none":
                 ctx.disable(moderngl.CULL_FACE)
             else:
                 ctx.enable(moderngl.CULL_FACE)
                 ctx.cull_face = cull
             ctx.front_face = front
-            vao.render(moderngl.TRIANGLES)
+            ctx.point_size = point_size
+            vao.render(getattr(moderngl, PEER_TOPOLOGIES[topology]))
         ctx.finish()
         self.fbo.read_into(self.buffer, components=4, alignment=1)
         return time.perf_counter() - start

@@ -22,6 +22,10 @@ bytes in every process.
 ``bunny-plane``      the bunny standing on a ground plane, Blinn-Phong, a sun and a spot
 ``bunny-shadows``    the same, both lights casting shadows (1024² maps, PCF r = 1, made
                      in every frame by the scene's ``prepare``; the ground casts none)
+``bunny-wireframe``  the bunny's 104,288 edges (each once) as ``lines`` at 1024², a color
+                     per vertex (issue 29)
+``points200k``       200,000 points of size 2 on and around a sphere at 1024², a color per
+                     vertex (issue 29)
 =================== ===================================================================
 
 The lit scenes use softpipe's built-in programs when they are there
@@ -87,7 +91,7 @@ class Scene:
     """One benchmark frame: clear the framebuffer, then run ``draws`` in order.
 
     ``draws`` are keyword arguments of :class:`softpipe.pipeline.draw.DrawCall` (all but
-    the framebuffer). ``triangles`` counts the triangles submitted per frame.
+    the framebuffer). ``triangles`` counts the primitives submitted per frame (lines, points).
     """
 
     name: str
@@ -477,6 +481,52 @@ def _bunny_aa(name: str, pattern_name: str, sample_shading: str) -> Callable[[fl
     return scene
 
 
+# --------------------------------------------------------------------------
+# Points and lines (issue 29)
+# --------------------------------------------------------------------------
+
+def unique_edges(triangles: np.ndarray) -> np.ndarray:
+    """Each edge of the triangles [T, 3] once, as vertex pairs [E, 2] (lower index first), sorted."""
+    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    return np.unique(np.sort(edges, axis=1), axis=0)
+
+
+def bunny_wireframe(scale: float = 1.0) -> Scene:
+    """The bunny's edges (each once) as ``lines`` at 1024², a color per vertex, depth LESS."""
+    w, h = _size(1024, 1024, scale)
+    mesh = load_obj(asset_path("stanford-bunny.obj", "bunny-wireframe"))
+    camera = Camera.frame(mesh, azimuth=20.0, elevation=15.0, fovy=35.0, margin=1.05)
+    base = standard_uniforms(camera, w / h)
+    edges = unique_edges(mesh.indices.reshape(-1, 3))
+    draws = [dict(positions=mesh.positions, indices=edges, attributes={"color": _vertex_colors(mesh.positions)},
+                  vertex_shader=color_vertex, uniforms={"mvp": compose(base["projection"], base["model_view"])},
+                  topology="lines")]
+    return Scene("bunny-wireframe", w, h, draws, len(edges),
+                 f"the bunny's {len(edges):,} edges as lines (width 1), a color per vertex", scale=scale,
+                 shading=_shader_names(color_vertex, None))
+
+
+POINT_CLOUD_SIZE = 200_000
+
+
+def points200k(scale: float = 1.0) -> Scene:
+    """200,000 points (fewer at a smaller scale) on the sphere200k sphere and in the box around it,
+    size 2, a color per vertex, depth LESS, at 1024²."""
+    w, h = _size(1024, 1024, scale)
+    n = max(1000, round(POINT_CLOUD_SIZE * scale * scale))
+    rng = np.random.default_rng(29)
+    on_sphere = rng.normal(size=(n // 2, 3))
+    on_sphere /= np.linalg.norm(on_sphere, axis=1, keepdims=True)
+    in_box = rng.uniform(-1.6, 1.6, (n - n // 2, 3))
+    positions = np.concatenate([on_sphere, in_box])
+    base = standard_uniforms(SPHERE_CAMERA, w / h)
+    draws = [dict(positions=positions, attributes={"color": _vertex_colors(positions)}, vertex_shader=color_vertex,
+                  uniforms={"mvp": compose(base["projection"], base["model_view"])}, topology="points",
+                  point_size=2.0)]
+    return Scene("points200k", w, h, draws, n, f"a cloud of {n:,} points of size 2, a color per vertex",
+                 scale=scale, shading=_shader_names(color_vertex, None))
+
+
 SCENES: Dict[str, Callable[[float], Scene]] = {
     "sphere200k": sphere200k,
     "sphere200k-color": sphere200k_color,
@@ -492,6 +542,8 @@ SCENES: Dict[str, Callable[[float], Scene]] = {
     "aa-msaa4": _bunny_aa("aa-msaa4", "rgss4", "center"),
     "bunny-plane": _bunny_on_plane("bunny-plane", shadows=False),
     "bunny-shadows": _bunny_on_plane("bunny-shadows", shadows=True),
+    "bunny-wireframe": bunny_wireframe,
+    "points200k": points200k,
 }
 
 
