@@ -61,7 +61,7 @@ class OBJWarning(UserWarning):
 class OBJReport:
     """What a loaded OBJ file contained, kept in ``Mesh.source`` for debugging.
 
-    ``counts`` are of statements in the file, by keyword (``v``, ``vt``, ``vn``, ``f``, ``l``, ``p``);
+    ``counts`` are of statements in the file, by keyword (``v``, ``vt``, ``vn``, ``f``; ``l``, ``p`` when present);
     ``triangle_lines`` is the line of each triangle's face (``segment_lines``, ``point_lines``:
     of each line segment's ``l``, each point's ``p``); ``vertex_source`` the 0-based
     (v, vt, vn) file elements of each mesh vertex, -1 where absent; the ``*_ids`` are per
@@ -504,8 +504,10 @@ class _OBJParser:
                     point_lines: np.ndarray) -> None:
         rep = self.report
         rep.counts = {k: len(data[k]) for k in ("v", "vt", "vn")}
-        for k in ("f", "l", "p"):
-            rep.counts[k] = len(self.vec[k][0])
+        rep.counts["f"] = len(self.vec["f"][0])
+        for k in ("l", "p"):    # only when present: the counts of a file of faces are as they were
+            if self.vec[k][0]:
+                rep.counts[k] = len(self.vec[k][0])
         rep.triangles = len(tri_face)
         rep.segments, rep.points = len(segment_lines), len(point_lines)
         rep.segment_lines = (segment_lines + 1).astype(np.int32)
