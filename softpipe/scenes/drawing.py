@@ -4,7 +4,8 @@
   (``model_view``, ``projection``, ``normal_matrix``, ``view``);
 - :func:`draw_mesh` draws one :class:`~softpipe.scenes.mesh.Mesh` with them: the one way
   the Python API, the command line and scene files draw a mesh (its material,
-  lighting, texture, faceted programs, mirrored model matrices);
+  lighting, texture, faceted programs, mirrored model matrices; its line segments
+  and points after the triangles, :func:`draw_lines_and_points`);
 - :func:`render_scene` draws a :class:`~softpipe.scenes.scene.Scene` into a new
   framebuffer, one :func:`draw_mesh` per object, and the wireframe over it if asked
   (:func:`draw_wireframe`: the pipeline's own lines, polygon mode "line");
@@ -39,18 +40,19 @@ import numpy as np
 
 from softpipe.core.colors import parse_color, rgba
 from softpipe.light.material import Lighting, LightingUniform
+from softpipe.pipeline.assembly import check_size
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.draw import DrawCall
 from softpipe.pipeline.framebuffer import MAX_DIMENSION, MAX_TOTAL_SAMPLES, Framebuffer
 from softpipe.pipeline.sampling import pattern_named
 from softpipe.pipeline.transforms import compose, normal_matrix
-from softpipe.programs import Program, get_program
+from softpipe.programs import PROGRAMS, Program, get_program
 from softpipe.programs.common import lighting_uniform
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
 from softpipe.scenes.shadow_pass import render_shadow_maps
 
-__all__ = ["standard_uniforms", "draw_mesh", "render_scene", "draw_wireframe", "WIREFRAME_STATE", "DrawResult", "as_mesh", "prepare_scene", "render",
+__all__ = ["standard_uniforms", "draw_mesh", "draw_lines_and_points", "render_scene", "draw_wireframe", "WIREFRAME_STATE", "DrawResult", "as_mesh", "prepare_scene", "render",
            "turntable", "input_kind", "default_lighting", "gif_frame",
            "MAX_FRAMES", "RENDER_SIZE", "TURNTABLE_SIZE", "animation_format", "frame_duration"]
 
@@ -168,7 +170,8 @@ def default_lighting(camera: Camera) -> Lighting:
 def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str, Program, Callable] = "phong", *,
               model: Optional[np.ndarray] = None, lighting=None, texture=None,
               uniforms: Optional[Mapping[str, Any]] = None, cull: str = "back", front_face: str = "ccw",
-              results: Optional[List[DrawResult]] = None, trace: bool = False, **state):
+              results: Optional[List[DrawResult]] = None, trace: bool = False, point_size: float = 1.0,
+              line_width: float = 1.0, **state):
     """Draw ``mesh`` seen by ``camera`` with a built-in ``program`` (a name or a Program).
 
     Parameters
@@ -207,6 +210,10 @@ def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str
         Receives one :class:`DrawResult` per draw (one per material).
     trace : bool
         Keep every stage's output (:class:`~softpipe.pipeline.trace.Trace`).
+    point_size, line_width : float
+        The size of the mesh's points and the width of its line segments (an OBJ's
+        ``p`` and ``l``), in pixels, as :func:`softpipe.draw` takes them; they are drawn
+        after the triangles by :func:`draw_lines_and_points` (which see for the program).
     **state
         Passed on to :class:`softpipe.DrawCall` as :func:`softpipe.draw` takes them
         (``depth_test``, ``blend``, ``sample_shading``, ``path``, ``viewport``, …).
@@ -228,8 +235,10 @@ def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str
         for _, part in mesh.by_material():
             out = draw_mesh(framebuffer, part, camera, prog, model=model, lighting=lighting, texture=texture,
                             uniforms=uniforms, cull=cull, front_face=front_face, results=results, trace=trace,
-                            **state)
+                            point_size=point_size, line_width=line_width, **state)
         return out
+    loose = mesh if mesh.segment_count or mesh.point_count else None
+    mesh = mesh.without_lines_and_points()
     if prog.faceted:
         mesh = mesh.flat_shaded()
     u = standard_uniforms(camera, framebuffer.width / framebuffer.height, model)
@@ -241,6 +250,10 @@ def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str
     if texture is not None:
         u["texture"] = _texture(texture)
     u.update(uniforms or {})
+    out = None
+    if loose is not None and mesh.triangle_count == 0:
+        return draw_lines_and_points(framebuffer, loose, prog, u, results=results, trace=trace,
+                                     point_size=point_size, line_width=line_width, **state)
     attributes = {"normal": mesh.normals if mesh.normals is not None else mesh.vertex_normals()}
     if mesh.uvs is not None:
         attributes["uv"] = mesh.uvs
@@ -255,6 +268,53 @@ def draw_mesh(framebuffer: Framebuffer, mesh, camera: Camera, program: Union[str
     if results is not None:
         primitives = out.primitives if trace else call.primitives
         results.append(DrawResult(getattr(mesh, "name", ""), prog.name, primitives, out, dict(call.timings)))
+    if loose is not None:
+        out = draw_lines_and_points(framebuffer, loose, prog, u, results=results, trace=trace,
+                                    point_size=point_size, line_width=line_width, **state) or out
+    return out
+
+
+#: State that applies to triangles only, which the draws of a mesh's lines and points leave out.
+_TRIANGLE_STATE = ("polygon_mode", "polygon_offset")
+
+
+def draw_lines_and_points(framebuffer: Framebuffer, mesh: Mesh, program: Program, uniforms: Mapping[str, Any], *,
+                          results: Optional[List[DrawResult]] = None, trace: bool = False,
+                          point_size: float = 1.0, line_width: float = 1.0, **state):
+    """Draw a single-material mesh's line segments (one ``"lines"`` draw) and then its points
+    (one ``"points"`` draw), as :func:`draw_mesh` does after its triangles.
+
+    Lines and points have no surface, so no normal to light: a built-in program
+    (:data:`softpipe.programs.PROGRAMS`: ``phong``, ``flat``, ``textured``, …) draws them as
+    ``unlit`` does, in the uniform ``color`` (the material's ``kd``), as most renderers show a
+    curve or a point cloud. A program of the caller's own (a Program not registered, a
+    fragment shader function) draws them itself, so that it can read ``frag.point_coord``
+    (round points, sprites); its ``normal`` attribute is then the constant one that faces
+    the camera (eye-space +z). Neither is culled (GL culls polygons only); the triangles'
+    polygon mode and offset do not apply. ``uniforms`` are :func:`draw_mesh`'s, complete.
+
+    Returns the last draw's Trace with ``trace=True`` (else None).
+    """
+    builtin = PROGRAMS.get(program.name) is program
+    prog = PROGRAMS["unlit"] if builtin else program
+    toward_eye = np.asarray(uniforms["model_view"], np.float64)[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    norm = float(np.linalg.norm(toward_eye))
+    normal = toward_eye / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
+    attributes = {"normal": np.tile(normal, (mesh.vertex_count, 1))}
+    if mesh.uvs is not None:
+        attributes["uv"] = mesh.uvs
+    state = {k: v for k, v in state.items() if k not in _TRIANGLE_STATE}
+    out = None
+    for topology, indices in (("lines", mesh.lines), ("points", mesh.points)):
+        if not len(indices):
+            continue
+        call = DrawCall(framebuffer, mesh.positions, indices, None, prog.vertex, prog.fragment, dict(uniforms),
+                        attributes=attributes, interpolation=dict(prog.interpolation) or None, topology=topology,
+                        point_size=point_size, line_width=line_width, **state)
+        out = call.run(trace=trace)
+        if results is not None:
+            primitives = out.primitives if trace else call.primitives
+            results.append(DrawResult(getattr(mesh, "name", ""), prog.name, primitives, out, dict(call.timings)))
     return out
 
 
@@ -317,7 +377,7 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
         first = len(drawn)
         draw_mesh(fb, obj.mesh, camera, program_for(obj, scene.program), model=obj.model, lighting=lighting,
                   texture=obj.texture, cull=obj.cull or scene.cull, sample_shading=scene.sample_shading,
-                  trace=trace, results=drawn)
+                  trace=trace, results=drawn, point_size=scene.point_size, line_width=scene.line_width)
         for r in drawn[first:]:
             r.name = obj.name
     if results is not None:
@@ -341,10 +401,10 @@ def draw_wireframe(fb: Framebuffer, scene: Scene, camera: Camera) -> None:
     Each object's triangles again, in polygon mode "line" (GL's ``glPolygonMode``), with the
     program ``unlit`` in ``scene.wireframe_color``, culled as the object is, in the state
     :data:`WIREFRAME_STATE`: the edges on the visible surface and its silhouettes show,
-    those behind it do not.
+    those behind it do not. A mesh's own line segments and points are not drawn again.
     """
     for obj in scene.drawn_objects(camera):
-        draw_mesh(fb, obj.mesh, camera, "unlit", model=obj.model, uniforms={"color": scene.wireframe_color},
+        draw_mesh(fb, obj.mesh.without_lines_and_points(), camera, "unlit", model=obj.model, uniforms={"color": scene.wireframe_color},
                   cull=obj.cull or scene.cull, sample_shading=scene.sample_shading, **WIREFRAME_STATE)
 
 
@@ -409,8 +469,8 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
             if allow_outside:   # Scene.from_model reads with the default policy (files in the OBJ's folder)
                 from softpipe.scenes.models import load_model
                 model = load_model(model, allow_outside=True)
-                if model.triangle_count == 0:
-                    raise ValueError(f"{label}: the file has no faces (f lines) to render")
+                if model.triangle_count == 0 and model.segment_count == 0 and model.point_count == 0:
+                    raise ValueError(f"{label}: the file has no faces (f), lines (l) or points (p) to render")
             return Scene.from_model(model, texture=texture, **angles, **size, path=label), True
         from softpipe.scenes.scenefile import load_scene  # the one place drawing reads a scene file: render()'s input
         scene = load_scene(path, allow_outside=allow_outside)
@@ -441,7 +501,8 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
                   msaa: bool = False, cull: Optional[str] = None, wireframe: bool = False, wire_color=None,
                   azimuth: Optional[float] = None, elevation: Optional[float] = None, fovy: Optional[float] = None,
                   default_size: Tuple[int, int] = RENDER_SIZE, allow_outside: bool = False,
-                  shadows: bool = False) -> Scene:
+                  shadows: bool = False, point_size: Optional[float] = None,
+                  line_width: Optional[float] = None) -> Scene:
     """The :class:`~softpipe.scenes.scene.Scene` that :func:`render` draws (the options of ``softpipe render``).
 
     Takes the arguments of :func:`render` (which see) and ``default_size``, the size
@@ -464,9 +525,12 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
         raise ValueError(f"cull must be one of {', '.join(CULL_MODES)}, got {cull!r}")
     if samples is not None:
         pattern_named(samples)      # an unknown pattern: its ValueError, before the model is read
+    changes: Dict[str, Any] = {}
+    for name, size in (("point_size", point_size), ("line_width", line_width)):
+        if size is not None:        # a bad size: its ValueError, before the model is read
+            changes[name] = check_size(name, size)
     if isinstance(texture, (str, os.PathLike)) and not os.path.isfile(texture):
         raise FileNotFoundError(f"texture: {os.fspath(texture)}: no such file")
-    changes: Dict[str, Any] = {}
     if background is not None:
         try:
             changes["background"] = rgba(background)
@@ -523,7 +587,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
            elevation: Optional[float] = None, fovy: Optional[float] = None, camera: Optional[Camera] = None,
            stages=None, trace: bool = False, results: Optional[list] = None,
            progress: Optional[Callable[[int, int, SceneObject], None]] = None,
-           allow_outside: bool = False, shadows: bool = False) -> Framebuffer:
+           allow_outside: bool = False, shadows: bool = False, point_size: Optional[float] = None,
+           line_width: Optional[float] = None) -> Framebuffer:
     """``softpipe render MODEL`` in Python: the same picture, as a :class:`Framebuffer`.
 
     ``softpipe.render("teapot").save("teapot.png")`` writes what ``softpipe render
@@ -577,6 +642,11 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
     shadows : bool
         Every light casts shadows (shadow maps, :mod:`softpipe.scenes.shadow_pass`); a model alone
         is stood on a floor that receives them (``--shadows``).
+    point_size, line_width : float, optional
+        Pixels: the size of the model's points and the width of its lines (an OBJ's ``p``
+        and ``l``; ``--point-size``, ``--line-width``); GL's default 1 for both (a scene
+        keeps its own). They are drawn after the faces, unlit in their material's ``kd``
+        (:func:`draw_lines_and_points`).
 
     Raises
     ------
@@ -587,7 +657,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
-                          allow_outside=allow_outside, shadows=shadows)
+                          allow_outside=allow_outside, shadows=shadows, point_size=point_size,
+                          line_width=line_width)
     camera = camera or scene.view_camera()
     drawn: List[DrawResult] = []
     fb = render_scene(scene, camera=camera, trace=trace or stages is not None, results=drawn, progress=progress,
@@ -639,7 +710,8 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
               wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
               elevation: Optional[float] = None, fovy: Optional[float] = None,
               progress: Optional[Callable[[int, int], None]] = None, allow_outside: bool = False,
-              format: Optional[str] = None, shadows: bool = False) -> Path:
+              format: Optional[str] = None, shadows: bool = False, point_size: Optional[float] = None,
+              line_width: Optional[float] = None) -> Path:
     """``softpipe turntable MODEL`` in Python: the camera circling the model, written as an animation.
 
     ``softpipe.turntable("suzanne", "spin.gif", frames=36)`` writes what ``softpipe
@@ -666,6 +738,8 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
         ``progress(i, frames)`` after frame i (from 1) is drawn.
     allow_outside, shadows : bool
         As :func:`render` takes them.
+    point_size, line_width : float, optional
+        As :func:`render` takes them.
 
     Returns
     -------
@@ -688,7 +762,8 @@ def turntable(model, path, *, frames: int = 36, fps: float = 15.0, width: Option
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
-                          default_size=TURNTABLE_SIZE, allow_outside=allow_outside, shadows=shadows)
+                          default_size=TURNTABLE_SIZE, allow_outside=allow_outside, shadows=shadows,
+                          point_size=point_size, line_width=line_width)
     base = scene.view_camera()
     first = scene.frame.azimuth
     images = []

@@ -1,4 +1,4 @@
-"""Triangle meshes: the vertex and index arrays that feed the vertex stage.
+"""Meshes: the vertex and index arrays that feed the vertex stage (triangles, and lines and points beside them).
 
 A :class:`Mesh` is plain numpy arrays plus a material:
 
@@ -11,6 +11,17 @@ A :class:`Mesh` is plain numpy arrays plus a material:
 ``material``      the :class:`~softpipe.light.material.Material` of every triangle, unless
 ``materials`` and ``material_ids`` are given: then triangle ``t`` uses
                   ``materials[material_ids[t]]`` (this is how OBJ ``usemtl`` arrives)
+``lines``         int32 ``[L, 2]``, line segments (an OBJ ``l`` polyline arrives as its
+                  segments: ``l 1 2 3`` is the rows (0, 1) and (1, 2)), drawn as one
+                  ``topology="lines"`` draw
+``points``        int32 ``[P]``, vertices drawn as points (OBJ ``p``)
+``line_material_ids``, ``point_material_ids``
+                  with ``material_ids``: the material of each segment (point), into
+                  ``materials``; without it every segment and point has ``material``
+
+Lines and points have no face, so nothing in this module (normals, areas, winding,
+volume) reads them, except that they keep their vertices: :meth:`Mesh.compacted`,
+:meth:`Mesh.flat_shaded`, :meth:`Mesh.by_material` and :func:`concatenate` carry them.
 
 Meshes are treated as values: every helper returns a new mesh and leaves its
 input alone. The dataclass is frozen, and the constructor validates every array,
@@ -64,10 +75,11 @@ def _float_rows(name: str, value: Any, width: int, rows: Optional[int]) -> np.nd
     return a
 
 
-def _index_array(name: str, value: Any, shape_text: str, ndim: int, count: int, what: str) -> np.ndarray:
+def _index_array(name: str, value: Any, shape_text: str, ndim: int, count: int, what: str,
+                 width: int = 3, row_name: str = "triangle") -> np.ndarray:
     """Validate an integer array whose values index something of length `count`."""
     a = _as_array(name, value)
-    shape_ok = a.ndim == ndim and (ndim == 1 or a.shape[1] == 3)
+    shape_ok = a.ndim == ndim and (ndim == 1 or a.shape[1] == width)
     # An empty list arrives as float64; it holds no index, so its dtype does not matter.
     if not shape_ok or (a.dtype.kind not in "iu" and a.size > 0):
         raise ValueError(f"Mesh.{name} must be an int array of shape {shape_text}, got {_describe(a)}")
@@ -75,9 +87,9 @@ def _index_array(name: str, value: Any, shape_text: str, ndim: int, count: int, 
         bad = (a < 0) | (a >= count)
         if bad.any():
             flat = int(np.argmax(bad.ravel()))
-            row = flat // (3 if ndim == 2 else 1)
+            row = flat // (width if ndim == 2 else 1)
             value_bad = int(a.ravel()[flat])
-            where = f" at triangle {row}"
+            where = f" at {row_name} {row}"
             raise ValueError(f"Mesh.{name}: index {value_bad}{where} is out of range for {count} {what}")
     return np.ascontiguousarray(a, dtype=np.int32)
 
@@ -109,6 +121,13 @@ class Mesh:
         Per-triangle index into ``materials``.
     name : str
         For messages and ``repr``.
+    lines : array_like, int [L, 2], optional
+        Line segments into ``positions`` (a polyline as its segments); none by default.
+    points : array_like, int [P], optional
+        Vertices drawn as points; none by default.
+    line_material_ids, point_material_ids : array_like, int [L] / [P], optional
+        Per segment (point) index into ``materials``; given exactly when ``material_ids``
+        is and there are segments (points).
     source : object
         Where the mesh came from (e.g. an :class:`softpipe.scenes.obj.OBJReport`); for people
         debugging, never read by the pipeline.
@@ -123,6 +142,10 @@ class Mesh:
     material_ids: Optional[np.ndarray] = None
     name: str = ""
     source: Any = field(default=None, repr=False)
+    lines: Any = None
+    points: Any = None
+    line_material_ids: Optional[np.ndarray] = None
+    point_material_ids: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
@@ -149,6 +172,25 @@ class Mesh:
                     f"got {_describe(ids)}"
                 )
             set_("material_ids", ids)
+        lines = np.zeros((0, 2), np.int32) if self.lines is None else self.lines
+        set_("lines", _index_array("lines", lines, "[L, 2]", 2, n, "positions", 2, "segment"))
+        points = np.zeros(0, np.int32) if self.points is None else self.points
+        set_("points", _index_array("points", points, "[P]", 1, n, "positions", 1, "point"))
+        for key, count, what in (("line_material_ids", self.lines.shape[0], "segment"),
+                                 ("point_material_ids", self.points.shape[0], "point")):
+            value = getattr(self, key)
+            if self.material_ids is None or count == 0:
+                if value is not None and np.size(value):
+                    raise ValueError(f"Mesh.{key} is given only with material_ids and {what}s; "
+                                     f"got {_describe(np.asarray(value))}")
+                set_(key, None)
+                continue
+            if value is None:
+                raise ValueError(f"Mesh.{key} is needed: the mesh has material_ids and {count} {what}s")
+            ids = _index_array(key, value, f"[{count}]", 1, len(materials), "materials", 1, what)
+            if ids.shape[0] != count:
+                raise ValueError(f"Mesh.{key} must have one entry per {what}: shape [{count}], got {_describe(ids)}")
+            set_(key, ids)
 
     # ------------------------------------------------------------------ basics
 
@@ -162,12 +204,44 @@ class Mesh:
         """M, the number of triangles."""
         return int(self.indices.shape[0])
 
+    @property
+    def segment_count(self) -> int:
+        """L, the number of line segments."""
+        return int(self.lines.shape[0])
+
+    @property
+    def point_count(self) -> int:
+        """P, the number of points."""
+        return int(self.points.shape[0])
+
+    def without_lines_and_points(self) -> "Mesh":
+        """A copy holding only the triangles (the same vertices)."""
+        if not self.segment_count and not self.point_count:
+            return self
+        return self.replace(lines=None, points=None, line_material_ids=None, point_material_ids=None)
+
+    def segment_material(self, s: int) -> Material:
+        """The material of line segment ``s``."""
+        if self.line_material_ids is None:
+            return self.material
+        return self.materials[int(self.line_material_ids[s])]
+
+    def point_material(self, p: int) -> Material:
+        """The material of point ``p``."""
+        if self.point_material_ids is None:
+            return self.material
+        return self.materials[int(self.point_material_ids[p])]
+
     def replace(self, **changes: Any) -> "Mesh":
         """A copy with some fields changed, validated like the constructor."""
         return dataclasses.replace(self, **changes)
 
     def __repr__(self) -> str:
         parts = [f"{self.vertex_count} vertices", f"{self.triangle_count} triangles"]
+        if self.segment_count:
+            parts.append(f"{self.segment_count} line segment{'s' if self.segment_count != 1 else ''}")
+        if self.point_count:
+            parts.append(f"{self.point_count} point{'s' if self.point_count != 1 else ''}")
         parts.append("normals" if self.normals is not None else "no normals")
         parts.append("uvs" if self.uvs is not None else "no uvs")
         if self.material_ids is not None:
@@ -368,30 +442,44 @@ class Mesh:
         """Unshared vertices: each triangle gets three of its own, with its face normal.
 
         Vertex ``3t + c`` is corner ``c`` of triangle ``t``; uvs and materials carry over.
+        The vertices of lines and points follow (in their order, normals zero: they
+        have no face), so the lines and points are kept.
         """
         corner = self.indices.ravel()
         m = self.triangle_count
+        loose = np.unique(np.concatenate([self.lines.ravel(), self.points]))
+        order = np.concatenate([corner, loose])
+        new_index = np.zeros(self.vertex_count, np.int64)
+        new_index[loose] = 3 * m + np.arange(len(loose))
         return Mesh(
-            positions=self.positions[corner],
+            positions=self.positions[order],
             indices=np.arange(3 * m, dtype=np.int32).reshape(m, 3),
-            normals=np.repeat(self.face_normals(), 3, axis=0),
-            uvs=None if self.uvs is None else self.uvs[corner],
+            normals=np.concatenate([np.repeat(self.face_normals(), 3, axis=0), np.zeros((len(loose), 3))]),
+            uvs=None if self.uvs is None else self.uvs[order],
             material=self.material,
             materials=self.materials,
             material_ids=self.material_ids,
             name=self.name,
+            lines=new_index[self.lines],
+            points=new_index[self.points],
+            line_material_ids=self.line_material_ids,
+            point_material_ids=self.point_material_ids,
         )
 
     def compacted(self) -> "Mesh":
-        """The mesh without vertices that no triangle uses, keeping their order."""
+        """The mesh without vertices that no triangle, segment or point uses, keeping their order."""
         used = np.zeros(self.vertex_count, dtype=bool)
         used[self.indices.ravel()] = True
+        used[self.lines.ravel()] = True
+        used[self.points] = True
         if used.all():
             return self
         new_index = np.cumsum(used) - 1
         return self.replace(
             positions=self.positions[used],
             indices=new_index[self.indices],
+            lines=new_index[self.lines],
+            points=new_index[self.points],
             normals=None if self.normals is None else self.normals[used],
             uvs=None if self.uvs is None else self.uvs[used],
             source=None,
@@ -405,19 +493,24 @@ class Mesh:
         if self.material_ids is None:
             return [(self.material, self)]
         out = []
+        no_lines, no_points = np.zeros(0, np.int32), np.zeros(0, np.int32)
         for k, mat in enumerate(self.materials):
             mask = self.material_ids == k
-            if mask.any():
+            line_mask = no_lines if self.line_material_ids is None else self.line_material_ids == k
+            point_mask = no_points if self.point_material_ids is None else self.point_material_ids == k
+            if mask.any() or line_mask.any() or point_mask.any():
                 sub = Mesh(
                     self.positions, self.indices[mask], self.normals, self.uvs,
                     material=mat, name=f"{self.name}[{mat.name}]" if self.name else mat.name,
+                    lines=self.lines[line_mask] if len(line_mask) else None,
+                    points=self.points[point_mask] if len(point_mask) else None,
                 )
                 out.append((mat, sub.compacted()))
         return out
 
 
 def concatenate(meshes: Iterable[Mesh], name: str = "") -> Mesh:
-    """One mesh holding all the triangles of ``meshes``.
+    """One mesh holding all the triangles (segments, points) of ``meshes``.
 
     Normals (uvs) are kept when every mesh has them and dropped when none has; a mix
     is an error, since inventing the missing ones would be a silent guess. Different
@@ -435,7 +528,7 @@ def concatenate(meshes: Iterable[Mesh], name: str = "") -> Mesh:
     offsets = np.cumsum([0] + [m.vertex_count for m in meshes])
     indices = np.concatenate([m.indices.astype(np.int64) + off for m, off in zip(meshes, offsets)])
     palette: list = []
-    ids = []
+    ids, line_ids, point_ids = [], [], []
     for m in meshes:
         local = [m.material] if m.material_ids is None else list(m.materials)
         remap = []
@@ -447,7 +540,13 @@ def concatenate(meshes: Iterable[Mesh], name: str = "") -> Mesh:
             remap.append(found[0] if found else len(palette) - 1)
         local_ids = np.zeros(m.triangle_count, np.int64) if m.material_ids is None else m.material_ids
         ids.append(np.asarray(remap, dtype=np.int64)[local_ids] if m.triangle_count else local_ids)
+        for out, count, own in ((line_ids, m.segment_count, m.line_material_ids),
+                                (point_ids, m.point_count, m.point_material_ids)):
+            local_ids = np.zeros(count, np.int64) if own is None else own
+            out.append(np.asarray(remap, dtype=np.int64)[local_ids] if count else np.zeros(0, np.int64))
     single = len(palette) == 1
+    lines = np.concatenate([m.lines.astype(np.int64) + off for m, off in zip(meshes, offsets)])
+    points = np.concatenate([m.points.astype(np.int64) + off for m, off in zip(meshes, offsets)])
     return Mesh(
         positions=np.concatenate([m.positions for m in meshes]),
         indices=indices,
@@ -457,4 +556,8 @@ def concatenate(meshes: Iterable[Mesh], name: str = "") -> Mesh:
         materials=() if single else tuple(palette),
         material_ids=None if single else np.concatenate(ids),
         name=name,
+        lines=lines,
+        points=points,
+        line_material_ids=None if single or not len(lines) else np.concatenate(line_ids),
+        point_material_ids=None if single or not len(points) else np.concatenate(point_ids),
     )

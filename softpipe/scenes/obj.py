@@ -1,10 +1,11 @@
 """Wavefront OBJ (and MTL) loading, vectorized with numpy.
 
 :func:`load_obj` reads ``v``, ``vt``, ``vn``, ``f`` (any corner form, negative
-indices, polygons fan-triangulated), ``o``/``g`` names, ``s`` smoothing groups and
+indices, polygons fan-triangulated), ``l`` polylines (as their segments, ``Mesh.lines``)
+and ``p`` points (``Mesh.points``), ``o``/``g`` names, ``s`` smoothing groups and
 materials from ``mtllib`` into a :class:`~softpipe.scenes.mesh.Mesh`, and records
 what it read in an :class:`OBJReport` (``Mesh.source``). The mesh has one vertex per
-distinct (v, vt, vn) triple a face uses, ordered by that triple. A malformed
+distinct (v, vt, vn) triple a face, line or point uses, ordered by that triple. A malformed
 statement is an :class:`OBJError` (``file:line:`` first); a missing MTL or texture
 file, or one outside the model's folder (:func:`softpipe.core.files.resolve_inside`),
 is an :class:`OBJWarning`.
@@ -60,8 +61,9 @@ class OBJWarning(UserWarning):
 class OBJReport:
     """What a loaded OBJ file contained, kept in ``Mesh.source`` for debugging.
 
-    ``counts`` are of statements in the file, by keyword (``v``, ``vt``, ``vn``, ``f``);
-    ``triangle_lines`` is the line of each triangle's face; ``vertex_source`` the 0-based
+    ``counts`` are of statements in the file, by keyword (``v``, ``vt``, ``vn``, ``f``; ``l``, ``p`` when present);
+    ``triangle_lines`` is the line of each triangle's face (``segment_lines``, ``point_lines``:
+    of each line segment's ``l``, each point's ``p``); ``vertex_source`` the 0-based
     (v, vt, vn) file elements of each mesh vertex, -1 where absent; the ``*_ids`` are per
     triangle, -1 where no ``o`` (``g``) statement came before the triangle's face.
     """
@@ -70,6 +72,8 @@ class OBJReport:
     lines: int = 0
     counts: Dict[str, int] = field(default_factory=dict)
     triangles: int = 0
+    segments: int = 0
+    points: int = 0
     skipped: Dict[str, int] = field(default_factory=dict)
     mtl_skipped: Dict[str, int] = field(default_factory=dict)
     mtllibs: Tuple[str, ...] = ()
@@ -78,6 +82,8 @@ class OBJReport:
     groups: Tuple[str, ...] = ()
     group_ids: Optional[np.ndarray] = field(default=None, repr=False)
     triangle_lines: Optional[np.ndarray] = field(default=None, repr=False)
+    segment_lines: Optional[np.ndarray] = field(default=None, repr=False)
+    point_lines: Optional[np.ndarray] = field(default=None, repr=False)
     vertex_source: Optional[np.ndarray] = field(default=None, repr=False)
     warnings: List[str] = field(default_factory=list)
 
@@ -230,6 +236,8 @@ _VECTOR_WIDTHS = {"v": (3, 4, 6), "vt": (2, 3, 1), "vn": (3,)}  # accepted count
 _VECTOR_KEEP = {"v": 3, "vt": 2, "vn": 3}
 _VECTOR_EXPECT = {"v": "3 numbers", "vt": "1 to 3 numbers (u v [w])", "vn": "3 numbers"}
 # keyword -> (what the index is, the element in singular and plural)
+# keyword -> (the corner forms it takes, the fewest vertices a statement has)
+_ELEMENTS = {"l": ("a line vertex v or v/vt", 2), "p": ("a point vertex v", 1)}
 _NOUNS = {"v": ("index", "vertex", "vertices"),
           "vt": ("texture index", "texture coordinate (vt)", "texture coordinates (vt)"),
           "vn": ("normal index", "normal (vn)", "normals (vn)")}
@@ -261,7 +269,7 @@ class _OBJParser:
 
     def scan(self) -> None:
         """One pass over the lines; the common ``v ``/``f `` prefixes skip the split."""
-        self.vec: Dict[str, Tuple[list, list]] = {k: ([], []) for k in ("v", "vt", "vn", "f")}  # keyword -> (texts, line indices)
+        self.vec: Dict[str, Tuple[list, list]] = {k: ([], []) for k in ("v", "vt", "vn", "f", "l", "p")}  # keyword -> (texts, line indices)
         self.events: Dict[str, List[Tuple[int, str]]] = {k: [] for k in ("usemtl", "o", "g", "s", "mtllib")}  # keyword -> [(index, rest)]
         skipped: Counter = Counter()
         # Bound methods: this loop runs once per line of the file.
@@ -388,19 +396,57 @@ class _OBJParser:
         values += [0] * (3 - len(values))
         return values[0], values[1], values[2]
 
+    def elements(self, keyword: str) -> Tuple[np.ndarray, np.ndarray]:
+        """Vertex counts per ``l`` (``p``) statement [S] and raw (v, vt, 0) per vertex [C, 3], 0 = absent."""
+        texts, nos = self.vec[keyword]
+        forms, least = _ELEMENTS[keyword]
+        counts, corners = [], []
+        for text, i in zip(texts, nos):
+            tokens = _strip_comment(text).split()[1:]
+            if len(tokens) < least:
+                raise self.error(i, f"expected at least {least} {'vertex' if least == 1 else 'vertices'} "
+                                    f"after {keyword!r}, got {self.quoted(i)}")
+            ints = None if any("/" in t for t in tokens) else _ints_from_string(" ".join(tokens))
+            if ints is not None and ints.size == len(tokens) and ints.all() and (np.abs(ints) <= _MAX_INDEX).all():
+                corners.append(np.column_stack([ints, np.zeros((len(ints), 2), np.int64)]))
+            else:   # the tokens one by one: the form, or the error that words what is wrong
+                corners.append(np.asarray([self.element_corner(tok, i, keyword, forms) for tok in tokens],
+                                          np.int64).reshape(-1, 3))
+            counts.append(len(tokens))
+        if not counts:
+            return np.zeros(0, np.int64), np.zeros((0, 3), np.int64)
+        return np.asarray(counts, np.int64), np.concatenate(corners)
+
+    def element_corner(self, tok: str, i: int, keyword: str, forms: str) -> Tuple[int, int, int]:
+        """(v, vt, 0) of one vertex of an ``l`` (v or v/vt) or ``p`` (v) statement."""
+        fields = tok.split("/")
+        ok = len(fields) <= (2 if keyword == "l" else 1) and all(fields)
+        try:
+            values = [int(x) for x in fields] if ok else []
+        except ValueError:
+            ok = False
+        if ok and any(abs(x) > _MAX_INDEX for x in values):
+            raise self.error(i, f"index in {excerpt(tok)} is beyond any possible vertex count "
+                                f"(at most {_MAX_INDEX}): {self.quoted(i)}")
+        if not ok:
+            raise self.error(i, f"expected {forms} after {keyword!r}, got {excerpt(tok)} in {self.quoted(i)}")
+        if 0 in values:
+            raise self.error(i, f"index 0 in {excerpt(tok)} is invalid (OBJ indices start at 1): {self.quoted(i)}")
+        return values[0], values[1] if len(values) > 1 else 0, 0
+
     # -- pass 3: indices
 
-    def resolve(self, keyword: str, raw: np.ndarray, corner_face: np.ndarray) -> np.ndarray:
+    def resolve(self, keyword: str, raw: np.ndarray, corner_line: np.ndarray) -> np.ndarray:
         """0-based indices (-1 where absent) from raw 1-based or negative ones, checked
-        against the number of elements defined before each face."""
-        face_lines = np.asarray(self.vec["f"][1], np.int64)
-        so_far = np.searchsorted(np.asarray(self.vec[keyword][1], np.int64), face_lines)[corner_face]
+        against the number of elements defined before each corner's statement (line
+        index ``corner_line``); the first bad one in the file is the error."""
+        so_far = np.searchsorted(np.asarray(self.vec[keyword][1], np.int64), corner_line)
         present = raw != 0
         index = np.where(raw > 0, raw - 1, so_far + raw)
         bad = present & ((index < 0) | (index >= so_far))
         if bad.any():
-            k = int(np.argmax(bad))
-            i = int(face_lines[corner_face[k]])
+            k = int(np.flatnonzero(bad)[np.argmin(corner_line[bad])])
+            i = int(corner_line[k])
             what, one, many = _NOUNS[keyword]
             noun = one if so_far[k] == 1 else many
             raise self.error(i, f"{what} {raw[k]} but only {so_far[k]} {noun} so far: {self.quoted(i)}")
@@ -414,16 +460,36 @@ class _OBJParser:
         data = {k: self.vectors(k) for k in ("v", "vt", "vn")}
         counts, raw = self.faces()
         corner_face = np.repeat(np.arange(len(counts)), counts)
-        idx = np.stack([self.resolve(k, raw[:, c], corner_face) for c, k in enumerate(("v", "vt", "vn"))], 1)
+        face_lines = np.asarray(self.vec["f"][1], np.int64)
+        # The corners of lines and points follow the faces' in one list, so that one
+        # vertex numbering serves all three.
+        l_counts, l_raw = self.elements("l")
+        p_counts, p_raw = self.elements("p")
+        l_lines, p_lines = (np.asarray(self.vec[k][1], np.int64) for k in ("l", "p"))
+        corner_line = np.concatenate([face_lines[corner_face], np.repeat(l_lines, l_counts), p_lines[np.repeat(
+            np.arange(len(p_counts)), p_counts)]])
+        raw = np.concatenate([raw, l_raw, p_raw])
+        idx = np.stack([self.resolve(k, raw[:, c], corner_line) for c, k in enumerate(("v", "vt", "vn"))], 1)
         tri_face, tri_corners = _fan(counts)
+        seg_statement, seg_corners = _segments(l_counts)
+        face_corners = len(corner_face)
+        seg_corners += face_corners
+        point_corners = face_corners + len(l_raw) + np.arange(len(p_raw))
         vertex_of_corner, first_corner, smoothing = self.vertices(idx, corner_face)
         used = idx[first_corner]  # (v, vt, vn) of each mesh vertex
-        positions, normals, uvs = self.attributes(data, used)
-        face_lines = np.asarray(self.vec["f"][1], np.int64)
-        material, materials, material_ids = self.materials(face_lines, tri_face)
-        self.fill_report(data, tri_face, used)
+        on_face = np.zeros(len(first_corner), bool)
+        on_face[vertex_of_corner[:face_corners]] = True
+        positions, normals, uvs = self.attributes(data, used, on_face)
+        element_lines = np.concatenate([face_lines[tri_face], l_lines[seg_statement], corner_line[point_corners]])
+        material, materials, ids = self.materials(element_lines)
+        ends = np.cumsum([len(tri_face), len(seg_statement)])
+        material_ids, line_ids, point_ids = (None, None, None) if ids is None else np.split(ids, ends)
+        self.fill_report(data, tri_face, used, element_lines[ends[0]:ends[1]], element_lines[ends[1]:])
         mesh = Mesh(positions, vertex_of_corner[tri_corners], normals, uvs, material=material,
-                    materials=materials, material_ids=material_ids, name=name, source=self.report)
+                    materials=materials, material_ids=material_ids, name=name, source=self.report,
+                    lines=vertex_of_corner[seg_corners], points=vertex_of_corner[point_corners],
+                    line_material_ids=line_ids if len(seg_statement) else None,
+                    point_material_ids=point_ids if len(point_corners) else None)
         if normals is not None and (used[:, 2] < 0).any():
             # Corners without a vn get normals from the faces (a warning said so).
             normals = np.where(used[:, 2:] < 0, mesh.vertex_normals(), normals)
@@ -434,13 +500,20 @@ class _OBJParser:
             mesh = mesh.replace(normals=mesh.vertex_normals(groups=smoothing[first_corner]))
         return mesh
 
-    def fill_report(self, data: dict, tri_face: np.ndarray, used: np.ndarray) -> None:
+    def fill_report(self, data: dict, tri_face: np.ndarray, used: np.ndarray, segment_lines: np.ndarray,
+                    point_lines: np.ndarray) -> None:
         rep = self.report
         rep.counts = {k: len(data[k]) for k in ("v", "vt", "vn")}
         rep.counts["f"] = len(self.vec["f"][0])
+        for k in ("l", "p"):    # only when present: the counts of a file of faces are as they were
+            if self.vec[k][0]:
+                rep.counts[k] = len(self.vec[k][0])
         rep.triangles = len(tri_face)
-        if rep.triangles == 0:
-            self.warn(f"{self.file}: no faces; the mesh is empty")
+        rep.segments, rep.points = len(segment_lines), len(point_lines)
+        rep.segment_lines = (segment_lines + 1).astype(np.int32)
+        rep.point_lines = (point_lines + 1).astype(np.int32)
+        if rep.triangles == 0 and rep.segments == 0 and rep.points == 0:
+            self.warn(f"{self.file}: no faces, lines or points; the mesh is empty")
         face_lines = np.asarray(self.vec["f"][1], np.int64)
         rep.triangle_lines = (face_lines[tri_face] + 1).astype(np.int32)
         rep.vertex_source = used.astype(np.int32)
@@ -454,7 +527,9 @@ class _OBJParser:
         cols = [idx[:, 0]] + [idx[:, c] for c in (1, 2) if (idx[:, c] >= 0).any()]
         smoothing = None
         if (idx[:, 2] < 0).all() and self.events["s"]:
-            smoothing = self.smoothing_key(corner_face)
+            # a line's or point's corner has no smoothing group (-1)
+            smoothing = np.concatenate([self.smoothing_key(corner_face),
+                                        np.full(len(idx) - len(corner_face), -1, np.int64)])
             cols.append(smoothing)
         return _unique_rows(cols) + (smoothing,)
 
@@ -487,26 +562,29 @@ class _OBJParser:
         key = np.where(group == 0, top + faces, np.maximum(group, 0))
         return key[corner_face]
 
-    def attributes(self, data: dict, rep_idx: np.ndarray):
-        """positions, normals (or None), uvs (or None) of the vertices."""
+    def attributes(self, data: dict, rep_idx: np.ndarray, on_face: np.ndarray):
+        """positions, normals (or None), uvs (or None) of the vertices; ``on_face``: the
+        vertices a face uses (only theirs are warned about: a line or point corner never
+        has a normal, and often no vt)."""
         positions = data["v"][rep_idx[:, 0]]
         uvs = normals = None
         has_vt, has_vn = rep_idx[:, 1] >= 0, rep_idx[:, 2] >= 0
         if has_vt.any():
-            if not has_vt.all():
+            if not has_vt[on_face].all():
                 self.warn(f"{self.file}: some face corners have no texture coordinates; they get (0, 0)")
             uvs = np.where(has_vt[:, None], data["vt"][np.maximum(rep_idx[:, 1], 0)], 0.0)
         if has_vn.any():
-            if not has_vn.all():
+            if not has_vn[on_face].all():
                 self.warn(f"{self.file}: some face corners have no normal; they get area-weighted vertex normals")
             normals = np.where(has_vn[:, None], data["vn"][np.maximum(rep_idx[:, 2], 0)], 0.0)
         return positions, normals, uvs
 
-    def materials(self, face_lines: np.ndarray, tri_face: np.ndarray):
-        """(material, materials, material_ids) for the Mesh, from usemtl/mtllib.
+    def materials(self, element_lines: np.ndarray):
+        """(material, materials, material ids) for the Mesh, from usemtl/mtllib: the ids
+        per element (triangles, segments, points), given the line index of each.
 
-        Materials are numbered in order of first use; usemtl lines naming the same
-        material share one entry, and faces before any usemtl get ``Material()``.
+        Materials are numbered in order of first use in the file; usemtl lines naming
+        the same material share one entry, and elements before any usemtl get ``Material()``.
         """
         library = self.load_libraries()
         events = self.events["usemtl"]
@@ -520,8 +598,10 @@ class _OBJParser:
                 self.warn(f"{self.file}:{i + 1}: material {excerpt(name)} is not defined {where}; using the default")
                 library[name] = Material(name=name)
             event_materials.append(library[name])
-        tri_event = _event_ids([i for i, _ in events], face_lines)[tri_face] + 1
-        used, first = np.unique(tri_event, return_index=True)
+        tri_event = _event_ids([i for i, _ in events], element_lines) + 1
+        # first use by line in the file (triangles alone come in file order already)
+        used, first = np.unique(tri_event, return_index=True) if _sorted(element_lines) else \
+            np.unique(tri_event[np.argsort(element_lines, kind="stable")], return_index=True)
         slots: Dict[str, int] = {}
         event_slot = np.zeros(len(event_materials), np.int32)
         for e in used[np.argsort(first)]:
@@ -657,6 +737,21 @@ def _unique_rows(cols: List[np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
         key, room = key * width + (c + 1), room * width
     _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
     return inverse.reshape(-1), first
+
+
+def _sorted(a: np.ndarray) -> bool:
+    return bool((a[1:] >= a[:-1]).all())
+
+
+def _segments(counts: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """A polyline's segments (c0, c1), (c1, c2), … for polylines with ``counts`` vertices,
+    laid out one after another: (polyline of each segment [S], corner numbers [S, 2])."""
+    starts = np.cumsum(counts) - counts
+    per_line = counts - 1
+    seg_line = np.repeat(np.arange(len(counts)), per_line)
+    k = np.arange(len(seg_line)) - np.repeat(np.cumsum(per_line) - per_line, per_line)
+    a = starts[seg_line] + k
+    return seg_line, np.stack([a, a + 1], 1).reshape(-1, 2)
 
 
 def _fan(counts: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:

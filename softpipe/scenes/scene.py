@@ -92,7 +92,8 @@ class Scene:
     of :func:`studio_lights`, which follows the camera. ``shadows`` true makes every
     light cast shadows (those that have no ShadowSettings of their own get the
     defaults); ``ground`` adds a floor under the objects (:func:`ground_object`) that
-    receives shadows but casts none and is left out of the framing. ``path`` names the
+    receives shadows but casts none and is left out of the framing. ``point_size`` and
+    ``line_width`` (pixels) are those of the meshes' points and line segments. ``path`` names the
     scene in error messages; ``warnings`` keeps what loading it warned about.
     """
 
@@ -110,6 +111,8 @@ class Scene:
     cull: str = "back"
     wireframe: bool = False
     wireframe_color: Tuple[float, float, float] = (0.95, 0.95, 0.95)
+    point_size: float = 1.0
+    line_width: float = 1.0
     materials: Dict[str, Material] = field(default_factory=dict)
     shadows: bool = False
     ground: bool = False
@@ -149,7 +152,7 @@ class Scene:
         Raises
         ------
         ValueError
-            An unknown bare model name, a model without faces, or a texture for a mesh
+            An unknown bare model name, a model without faces, lines or points, or a texture for a mesh
             without texture coordinates (``OBJError`` for a malformed file, ``OSError``
             for one that cannot be read).
         """
@@ -159,8 +162,8 @@ class Scene:
         if isinstance(model, Mesh):
             mesh = model
             label = mesh.name or "<mesh>"
-            if mesh.triangle_count == 0:
-                raise ValueError(f"{label}: the mesh has no triangles to render")
+            if mesh.triangle_count == 0 and mesh.segment_count == 0 and mesh.point_count == 0:
+                raise ValueError(f"{label}: the mesh has no triangles, lines or points to render")
         else:
             label = os.fspath(model)
             mesh = _read_model(model, label, caught)
@@ -317,8 +320,8 @@ def _read_model(model: Union[str, "os.PathLike[str]"], label: str, caught: List[
         except UnicodeError as e:
             raise ValueError(f"{label}: cannot read: {e}") from None
     caught.extend(str(w.message) for w in recorded)
-    if mesh.triangle_count == 0:
-        raise ValueError(f"{label}: the file has no faces (f lines) to render")
+    if mesh.triangle_count == 0 and mesh.segment_count == 0 and mesh.point_count == 0:
+        raise ValueError(f"{label}: the file has no faces (f), lines (l) or points (p) to render")
     return mesh
 
 

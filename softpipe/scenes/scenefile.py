@@ -420,8 +420,9 @@ class SceneReader(Reader):
                     raise self.error(f"key 'obj' in {t.label}: cannot read {path}: {e}", table=t.label,
                                      key="obj") from None
             self.warnings.extend(str(w.message) for w in caught)
-            if mesh.triangle_count == 0:
-                raise self.error(f"key 'obj' in {t.label}: {path} has no faces", table=t.label, key="obj")
+            if mesh.triangle_count == 0 and mesh.segment_count == 0 and mesh.point_count == 0:
+                raise self.error(f"key 'obj' in {t.label}: {path} has no faces, lines or points", table=t.label,
+                                 key="obj")
             self._objs[path] = mesh
         mesh = self._objs[path]
         self.count(t, "obj", mesh.triangle_count)

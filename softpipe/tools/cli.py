@@ -105,6 +105,17 @@ def _width_height(text: str) -> Tuple[int, int]:
     return w, h
 
 
+def _pixels(text: str) -> float:
+    """An option type: a point size or line width, a number of pixels > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a number of pixels > 0, got {text!r}")
+    return v
+
+
 def _color(text: str) -> Tuple[float, ...]:
     """--background, --wire-color: what softpipe.core.colors.parse_color reads ('0.1,0.2,0.3', '#202830', 'white')."""
     from softpipe.core.colors import parse_color
@@ -200,6 +211,10 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
     g.add_argument("--wireframe", action="store_true",
                    help="draw the triangle edges (after clipping and culling) over the image; hidden edges stay hidden")
     g.add_argument("--wire-color", type=_color, metavar="COLOR", help="wireframe color (default white)")
+    g.add_argument("--point-size", type=_pixels, metavar="PX",
+                   help="size of the model's points (OBJ 'p'), drawn unlit in their material's color (default 1)")
+    g.add_argument("--line-width", type=_pixels, metavar="PX",
+                   help="width of the model's lines (OBJ 'l'), drawn unlit in their material's color (default 1)")
     g = p.add_argument_group("camera (framed: it looks at the centre of everything and sees all of it)")
     g.add_argument("--azimuth", type=_angle, metavar="DEG",
                    help="camera angle about the vertical (y) axis, from +z toward +x (default 30)")
@@ -494,7 +509,7 @@ def _options(args) -> dict:
                 background=args.background, samples=args.samples, msaa=args.msaa, cull=args.cull,
                 wireframe=args.wireframe, wire_color=args.wire_color, azimuth=args.azimuth,
                 elevation=args.elevation, fovy=args.fovy, allow_outside=args.allow_outside_paths,
-                shadows=args.shadows)
+                shadows=args.shadows, point_size=args.point_size, line_width=args.line_width)
 
 
 def _prepare(args, default_size):
