@@ -193,14 +193,9 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
         last = p
     pics: Dict[str, np.ndarray] = {"vertices": dots}
     img = np.zeros((h, w, 3), np.uint8)                 # layer by layer across the draws, as for one
-    for t in traces:
-        P.draw_triangle_outlines(img, t.primitives.culled_window, h, P.RED)
-    for t in traces:
-        P.draw_triangle_outlines(img, P.cut_outlines(t), h, P.ORANGE)
-    for t in traces:
-        P.draw_triangle_outlines(img, t.primitives.window[~t.primitives.clipped], h, P.WHITE)
-    for t in traces:
-        P.draw_triangle_outlines(img, t.primitives.window[t.primitives.clipped], h, P.CYAN)
+    for layer in P.OUTLINE_LAYERS:
+        for t in traces:
+            P.draw_outline_layer(img, t, layer)
     pics["primitives"] = img
     img = np.zeros((h, w, 3), np.uint8)                 # the last fragment written, across the draws
     offset = 0
