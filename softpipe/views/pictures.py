@@ -100,8 +100,10 @@ def draw_primitive_outlines(img: np.ndarray, window: np.ndarray, kind: str, size
         t = f.triangle.astype(np.int64)
         lo_x, hi_x = np.full(n, 1 << 30), np.full(n, -1)
         lo_y, hi_y = np.full(n, 1 << 30), np.full(n, -1)
-        np.minimum.at(lo_x, t, f.x), np.maximum.at(hi_x, t, f.x)
-        np.minimum.at(lo_y, t, f.y), np.maximum.at(hi_y, t, f.y)
+        np.minimum.at(lo_x, t, f.x)
+        np.maximum.at(hi_x, t, f.x)
+        np.minimum.at(lo_y, t, f.y)
+        np.maximum.at(hi_y, t, f.y)
         keep = (f.x == lo_x[t]) | (f.x == hi_x[t]) | (f.y == lo_y[t]) | (f.y == hi_y[t])
     img[f.y[keep], f.x[keep]] = color
 
