@@ -71,7 +71,8 @@ class BeforeDraw:
 
     @classmethod
     def take(cls, fb, primitives) -> "_Snapshot":
-        """Copy, before the draw, the samples of the rectangle of pixels ``primitives``' triangles can reach."""
+        """Copy, before the draw, the samples of the rectangle of pixels ``primitives`` can reach (a point's
+        square and a wide line included)."""
         h, w = fb.height, fb.width
         window = np.asarray(primitives.window, dtype=np.float64)
         if len(window) == 0:
@@ -80,8 +81,10 @@ class BeforeDraw:
             x0, x1, y0, y1 = 0, w, 0, h
         else:                               # window y up → image rows; one pixel to spare on each side
             xs, ys = window[..., 0], window[..., 1]
-            x0, x1 = int(max(np.floor(xs.min()) - 1, 0)), int(min(np.ceil(xs.max()) + 2, w))
-            y0, y1 = int(max(np.floor(h - ys.max()) - 1, 0)), int(min(np.ceil(h - ys.min()) + 2, h))
+            # a point's square and a wide line's runs reach half their size past the corners
+            r = 0 if primitives.kind == "triangles" else int(np.ceil(float(np.max(primitives.size)) / 2))
+            x0, x1 = int(max(np.floor(xs.min()) - 1 - r, 0)), int(min(np.ceil(xs.max()) + 2 + r, w))
+            y0, y1 = int(max(np.floor(h - ys.max()) - 1 - r, 0)), int(min(np.ceil(h - ys.min()) + 2 + r, h))
             x1, y1 = max(x1, x0), max(y1, y0)
         need = fb.samples * (y1 - y0) * (x1 - x0) * 20
         check_memory(f"tracing a draw over {x1 - x0}×{y1 - y0} pixels ({fb.samples} sample(s), 20 bytes each: "
@@ -134,6 +137,7 @@ class PixelEvent:
     verdict: str                # "written", "depth-failed", "discarded"
     color_after: tuple          # the sample's color after this fragment
     shadow: tuple = ()          # V_j of each light at the fragment (RGB), when the draw has shadow maps
+    point_coord: tuple = ()     # of a line's or a point's fragment: frag.point_coord ((t, 0) on a line)
 
 
 class PixelHistory(list):
@@ -141,11 +145,15 @@ class PixelHistory(list):
 
     ``before`` is the pixel's color (sample 0) before the draw; None for a pixel the draw did
     not touch once the framebuffer has been written since (the trace does not keep it).
+    ``kind`` is the draw's primitives' (``Primitives.kind``): for "lines" the table names the
+    line and shows each fragment's t along it, for "points" the point and its ``gl_PointCoord``;
+    with ``polygon_mode`` (a triangle's edges or corners) the "triangle" column names the triangle.
     """
 
-    def __init__(self, x: int, y: int, events: List[PixelEvent], before: Optional[tuple]):
+    def __init__(self, x: int, y: int, events: List[PixelEvent], before: Optional[tuple], kind: str = "triangles",
+                 polygon_mode: bool = False):
         super().__init__(events)
-        self.x, self.y, self.before = x, y, before
+        self.x, self.y, self.before, self.kind, self.polygon_mode = x, y, before, kind, polygon_mode
 
     @staticmethod
     def _fmt(v) -> str:
@@ -166,8 +174,13 @@ class PixelHistory(list):
         fmt = self._fmt
         names = list(self[0].varyings._fields)
         shadow = ["shadow V_j"] if self[0].shadow else []
-        cols = ["#", "prim", "sample", "depth"] + names + shadow + ["shader output", "depth test", "color after"]
+        # a line's fragment: t along it; a point's: gl_PointCoord (none for a triangle's)
+        where = {"lines": ["t"], "points": ["point coord"]}.get(self.kind, [])
+        label = "prim" if not where else ("triangle" if self.polygon_mode else self.kind[:-1])
+        cols = (["#", label, "sample", "depth"] + where + names + shadow
+                + ["shader output", "depth test", "color after"])
         rows = [[str(e.index), str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
+                + ([fmt(e.point_coord[0]) if self.kind == "lines" else fmt(e.point_coord)] if where else [])
                 + [fmt(getattr(e.varyings, n)) for n in names]
                 + ([self._fmt_shadow(e.shadow)] if shadow else [])
                 + [fmt(e.color), str(e.verdict), fmt(e.color_after)] for e in self]
@@ -421,19 +434,23 @@ class Trace:
         f, s, m = self.fragments, self.shaded, self.merged
         assert m.color_after is not None    # a trace's merge keeps it (recorded)
         events = []
+        kind = self.primitives.kind
         for k in idx:
-            varyings = self._inputs(module, int(k))[0]
+            inputs = self._inputs(module, int(k))
+            varyings = inputs[0]
             events.append(PixelEvent(
                 index=int(k), primitive_id=int(f.primitive_id[k]), triangle=int(f.triangle[k]),
                 sample=int(f.sample[k]), depth=float(f.depth[k]), varyings=varyings,
                 color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
                 color_after=tuple(float(c) for c in m.color_after[k])))
             events[-1].shadow = self._shadow_terms(varyings)
+            if kind != "triangles":         # what the shader saw: the very frag it was given
+                events[-1].point_coord = tuple(float(c) for c in inputs[2].point_coord)
         if self.before.find(x, y, self.width) < 0 and self.call.framebuffer.writes != self.before.writes:
             before = None       # not touched, and the framebuffer has changed since: not kept (module docstring)
         else:
             before = tuple(float(c) for c in self.before_at(x, y)[0][0])
-        return PixelHistory(x, y, events, before)
+        return PixelHistory(x, y, events, before, kind, self.primitives.faces is not None)
 
     def _shadow_terms(self, varyings) -> tuple:
         """V_j of every light at the fragment's eye-space ``position`` varying (FORMULAS §21), as the lit

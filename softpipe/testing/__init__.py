@@ -1,7 +1,9 @@
 """softpipe.testing: pixel-exact tests of graphics code (a rasterizer, a shader, a renderer).
 
 - :func:`coverage`, :func:`covered_pixels`: the exact pixels (or samples)
-  triangles cover under OpenGL's rules, from softpipe's own rasterizer.
+  triangles, lines and points cover under OpenGL's rules (``topology=``,
+  ``line_width=``, ``point_size=`` as ``softpipe.draw`` takes them), from softpipe's
+  own rasterizer.
   ``positions`` are window coordinates in pixels, y up (OpenGL), or clip
   coordinates with ``space="clip"``; result arrays are images (row 0 at the top).
 - :func:`reference_coverage`: the same, by a slow exact (Fraction) rasterizer

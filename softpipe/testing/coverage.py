@@ -1,8 +1,12 @@
-"""Which pixels (or samples) triangles cover, under OpenGL's rules: :func:`coverage`.
+"""Which pixels (or samples) triangles, lines and points cover, under OpenGL's rules: :func:`coverage`.
 
-Built on softpipe's own rasterizer (the triangle setup of :mod:`softpipe.pipeline.setup`
-and :func:`softpipe.pipeline.raster.rasterize`), not a copy of it: what :func:`coverage` says is what
-``softpipe.draw`` draws.
+Built on softpipe's own rasterizer (the triangle setup of :mod:`softpipe.pipeline.setup`,
+the lines' of :mod:`softpipe.pipeline.lines`, the points' of :mod:`softpipe.pipeline.points`,
+and :func:`softpipe.pipeline.raster.rasterize`), not a copy of it: what :func:`coverage` says is
+what ``softpipe.draw`` draws. ``topology=`` takes the draw's names: a line list, strip or
+loop is drawn by GL's diamond-exit rule (``line_width=`` for wide lines), points as squares
+of ``point_size``; :func:`~softpipe.testing.reference_line` and
+:func:`~softpipe.testing.reference_point` are the exact, independent references of the same rules.
 
 Coordinates
 -----------
@@ -26,7 +30,17 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from softpipe.language.contract import VaryingLayout
-from softpipe.pipeline.assembly import CULL_MODES, FRONT_FACES, GUARD_PIXELS, Primitives, assemble, triangle_indices
+from softpipe.pipeline.assembly import (
+    CULL_MODES,
+    FRONT_FACES,
+    GUARD_PIXELS,
+    TOPOLOGIES,
+    Primitives,
+    assemble,
+    primitive_indices,
+    primitive_kind,
+)
+from softpipe.pipeline.assembly import check_size as check_primitive_size
 from softpipe.pipeline.raster import rasterize
 from softpipe.pipeline.sampling import CENTER, SamplePattern, pattern_named
 from softpipe.pipeline.transforms import Viewport
@@ -41,7 +55,7 @@ SPACES = ("window", "clip")
 
 @dataclass
 class Coverage:
-    """Which pixels (samples) a set of triangles covers.
+    """Which pixels (samples) a set of triangles, lines or points covers.
 
     Attributes
     ----------
@@ -49,20 +63,23 @@ class Coverage:
         True where covered. Row 0 is the top of the image: window pixel (x, y) is
         ``mask[H − 1 − y, x]``.
     primitive_id : int64, the shape of ``mask``
-        The input triangle covering each pixel (its index in ``positions``, or in
-        ``indices``' triangles), −1 where none does. Where several do, the last one
+        The input primitive covering each pixel (its index among the topology's
+        triangles, lines or points), −1 where none does. Where several do, the last one
         in primitive order: the one a draw without depth test leaves on top.
     count : int64, the shape of ``mask``
-        How many triangles cover each pixel (a closed mesh's interior is 1
-        everywhere: shared edges are never drawn twice).
+        How many primitives cover each pixel (a closed mesh's interior is 1
+        everywhere: shared edges are never drawn twice; a line strip's joints, likewise).
     pattern : SamplePattern or None
         The samples, when ``samples=`` was given.
+    kind : "triangles" | "lines" | "points"
+        What the primitives are (the topology's kind).
     """
 
     mask: np.ndarray
     primitive_id: np.ndarray
     count: np.ndarray
     pattern: Optional[SamplePattern] = None
+    kind: str = "triangles"
 
     @property
     def width(self) -> int:
@@ -91,7 +108,7 @@ class Coverage:
         ids = np.unique(self.primitive_id[self.primitive_id >= 0])
         unit = "samples" if self.mask.ndim == 3 else "pixels"
         return (f"Coverage({self.width}×{self.height}, {covered} {unit} covered by {len(ids)} "
-                f"triangle{'s' if len(ids) != 1 else ''})")
+                f"{self.kind[:-1]}{'s' if len(ids) != 1 else ''})")
 
 
 def check_size(width, height) -> Tuple[int, int]:
@@ -130,10 +147,13 @@ def as_pattern(samples) -> Optional[SamplePattern]:
         raise type(e)(f"samples: {e}") from None
 
 
-def _positions(positions, space: str) -> np.ndarray:
-    """``positions`` as float64 [N, k]: [N, k] as it is, [T, 3, k] flattened to [3T, k]."""
+def _positions(positions, space: str, corners: int = 3) -> np.ndarray:
+    """``positions`` as float64 [N, k]: [N, k] as it is, [T, 3, k] (a triangle list's) or [L, 2, k] (a line
+    list's, ``corners`` = 2) flattened to [3T, k] or [2L, k]."""
     ncols = (2, 3) if space == "window" else (4,)
-    want = " or ".join(f"[N, {c}]" for c in ncols) + " or [T, 3, " + "|".join(map(str, ncols)) + "]"
+    group = "T, 3" if corners == 3 else "L, 2"
+    want = " or ".join(f"[N, {c}]" for c in ncols) + (f" or [{group}, " + "|".join(map(str, ncols)) + "]"
+                                                      if corners else "")
     what = "window coordinates in pixels" if space == "window" else "clip coordinates"
     try:
         arr = np.asarray(positions)
@@ -141,7 +161,7 @@ def _positions(positions, space: str) -> np.ndarray:
         raise TypeError(f"positions must be a numeric array, got {type(positions).__name__}: {e}") from None
     if arr.dtype == bool or not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
         raise TypeError(f"positions must be a numeric array ({what}), got dtype {arr.dtype}")
-    if arr.ndim == 3 and arr.shape[1] == 3 and arr.shape[2] in ncols:
+    if corners and arr.ndim == 3 and arr.shape[1] == corners and arr.shape[2] in ncols:
         arr = arr.reshape(-1, arr.shape[2])
     if arr.ndim != 2 or arr.shape[1] not in ncols:
         raise ValueError(f"positions must have shape {want} ({what}, space={space!r}), got {list(arr.shape)}")
@@ -149,8 +169,13 @@ def _positions(positions, space: str) -> np.ndarray:
 
 
 def _window_primitives(pos: np.ndarray, tri: np.ndarray, width: int, height: int, cull: str,
-                       front_face: str) -> Primitives:
-    """Window-coordinate triangles straight to the rasterizer's input (no clipping needed, so none done)."""
+                       front_face: str, kind: str = "triangles", size: float = 1.0) -> Primitives:
+    """Window-coordinate primitives straight to the rasterizer's input (no clipping needed, so none done).
+
+    ``tri`` holds each primitive's three corners (a line's (a, b, b), a point's (p, p, p)); a point
+    whose centre lies outside the image is discarded, as a draw discards one outside the view volume
+    (assembly's rule, GL 4.6 §13.7.1), and ``size`` is the lines' width or the points' size.
+    """
     bad = ~np.isfinite(pos[:, :2]).all(axis=1)
     if bad.any():
         row = int(np.argmax(bad))
@@ -171,35 +196,53 @@ def _window_primitives(pos: np.ndarray, tri: np.ndarray, width: int, height: int
     # facing from the window-space signed area, as primitive assembly decides it
     a, b, c = window[:, 0], window[:, 1], window[:, 2]
     area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    front = area > 0 if front_face == "ccw" else area < 0
-    keep = np.ones(t, bool) if cull == "none" else (~front if cull == "front" else front)
+    if kind == "triangles":
+        front = area > 0 if front_face == "ccw" else area < 0
+        keep = np.ones(t, bool) if cull == "none" else (~front if cull == "front" else front)
+    else:                                                        # points and lines face the front (GL)
+        front = np.ones(t, bool)
+        centre = window[:, 0, :2]
+        keep = np.ones(t, bool) if kind == "lines" else (
+            (centre[:, 0] >= 0) & (centre[:, 0] <= width) & (centre[:, 1] >= 0) & (centre[:, 1] <= height))
     ids = np.nonzero(keep)[0].astype(np.int64)
     n = len(ids)
     return Primitives(window=window[ids], inv_w=np.ones((n, 3)), varyings=np.zeros((n, 3, 0)),
                       layout=VaryingLayout(), primitive_id=ids, front_facing=front[ids],
-                      clipped=np.zeros(n, bool), input_count=t)
+                      clipped=np.zeros(n, bool), input_count=t, kind=kind, size=np.full(n, size))
 
 
 def primitives_for(positions, width: int, height: int, *, indices=None, cull: str = "none",
-                   front_face: str = "ccw", space: str = "window") -> Primitives:
+                   front_face: str = "ccw", space: str = "window", topology: str = "triangles",
+                   line_width: float = 1.0, point_size: float = 1.0) -> Primitives:
     """The rasterizer's input for ``positions`` (arguments as :func:`coverage`), checked."""
     if space not in SPACES:
         raise ValueError(f"space must be one of {SPACES}, got {space!r}")
+    if topology not in TOPOLOGIES:
+        raise ValueError(f"topology must be one of {TOPOLOGIES}, got {topology!r}")
+    kind = primitive_kind(topology)
+    line_width = check_primitive_size("line_width", line_width)
+    point_size = check_primitive_size("point_size", point_size)
     if cull not in CULL_MODES:
         raise ValueError(f"cull must be one of {CULL_MODES}, got {cull!r}")
     if front_face not in FRONT_FACES:
         raise ValueError(f"front_face must be one of {FRONT_FACES}, got {front_face!r}")
-    pos = _positions(positions, space)
+    # a list's primitives may come grouped: [T, 3, k] triangles, [L, 2, k] lines
+    corners = {"triangles": 3, "lines": 2}.get(topology, 0)
+    pos = _positions(positions, space, corners)
     if space == "clip":
-        return assemble(run_vertex_stage(pos), "triangles", indices, viewport=Viewport(0, 0, width, height),
-                        cull=cull, front_face=front_face, keep_culled=False)
-    tri = triangle_indices("triangles", indices, len(pos))
-    return _window_primitives(pos, tri, width, height, cull, front_face)
+        return assemble(run_vertex_stage(pos), topology, indices, viewport=Viewport(0, 0, width, height),
+                        cull=cull, front_face=front_face, keep_culled=False, line_width=line_width,
+                        point_size=point_size)
+    tri = primitive_indices(topology, indices, len(pos))
+    return _window_primitives(pos, tri, width, height, cull, front_face, kind,
+                              line_width if kind == "lines" else point_size)
 
 
 def coverage(positions, width: int, height: int, *, indices=None, samples=None, cull: str = "none",
-             front_face: str = "ccw", space: str = "window") -> Coverage:
-    """The exact pixels (or samples) triangles cover under OpenGL's rules, as softpipe draws them.
+             front_face: str = "ccw", space: str = "window", topology: str = "triangles",
+             line_width: float = 1.0, point_size: float = 1.0) -> Coverage:
+    """The exact pixels (or samples) triangles, lines or points cover under OpenGL's rules, as softpipe
+    draws them.
 
     Parameters
     ----------
@@ -207,13 +250,14 @@ def coverage(positions, width: int, height: int, *, indices=None, samples=None, 
         Window coordinates in pixels, y up (OpenGL): pixel (x, y) is the square
         [x, x+1] × [y, y+1] with its sample at the centre (x + ½, y + ½); y = 0 is
         the bottom edge of the image. A z column is allowed and ignored. Without
-        ``indices`` every three rows are a triangle. With ``space="clip"``: clip
+        ``indices`` every three rows are a triangle (every two a line, with
+        ``topology="lines"``: [L, 2, 2|3] too). With ``space="clip"``: clip
         coordinates [N, 4] (or [T, 3, 4]), clipped and mapped by the viewport of
         the whole image, as ``softpipe.draw`` does without a vertex shader.
     width, height : int
         The image, in pixels.
     indices : int array [M, 3] or [3M], optional
-        Triangles as indices into ``positions``.
+        The topology's vertices as indices into ``positions`` (as ``softpipe.draw`` takes them).
     samples : None, SamplePattern, pattern name ("rgss4", "grid4", …) or [S, 2] positions
         None: one sample per pixel at its centre. Otherwise the result has a
         sample axis: [H, W, S].
@@ -221,6 +265,15 @@ def coverage(positions, width: int, height: int, *, indices=None, samples=None, 
     front_face : "ccw" | "cw"
         Which winding (in window coordinates, y up) faces the viewer.
     space : "window" | "clip"
+    topology : str
+        ``softpipe.draw``'s: "triangles" (the default), "triangle_strip", "triangle_fan",
+        "lines", "line_strip", "line_loop" or "points".
+    line_width, point_size : float
+        Pixels, as ``softpipe.draw`` takes them (clamped to [1, 255]): a line is drawn by GL's
+        diamond-exit rule (the last pixel left out), ⌊w + ½⌋ fragments across when wide; a
+        point is every pixel centre in the half-open square of side ``point_size`` around it,
+        and one whose centre lies outside the image is discarded whole, as a draw does.
+        On a sample pattern a line's or point's pixel covers all its samples.
 
     Returns
     -------
@@ -231,7 +284,7 @@ def coverage(positions, width: int, height: int, *, indices=None, samples=None, 
     width, height = check_size(width, height)
     pattern = as_pattern(samples)
     prims = primitives_for(positions, width, height, indices=indices, cull=cull, front_face=front_face,
-                           space=space)
+                           space=space, topology=topology, line_width=line_width, point_size=point_size)
     s = 1 if pattern is None else len(pattern)
     check_samples(width, height, s)
     frags = rasterize(prims, width, height, pattern or CENTER)
@@ -243,7 +296,7 @@ def coverage(positions, width: int, height: int, *, indices=None, samples=None, 
     ids = np.where(last >= 0, prims.primitive_id[np.maximum(last, 0)] if len(prims) else -1, -1)
     if pattern is None:
         count, ids = count[:, :, 0], ids[:, :, 0]
-    return Coverage(mask=count > 0, primitive_id=ids, count=count, pattern=pattern)
+    return Coverage(mask=count > 0, primitive_id=ids, count=count, pattern=pattern, kind=prims.kind)
 
 
 def covered_pixels(positions, width: int, height: int, **options) -> List[Tuple[int, ...]]:

@@ -29,6 +29,7 @@ pictures by one code path. Colors (``--background``, ``--wire-color``) are read 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import re
@@ -681,6 +682,19 @@ def _html_format(path: str) -> str:
     return "HTML"
 
 
+def _trace_wireframe(fb, scene, results: list) -> None:
+    """``draw_wireframe``'s draws (softpipe.scenes.drawing), traced into ``results``, named "OBJECT (wireframe)"."""
+    from softpipe.scenes.drawing import WIREFRAME_STATE, draw_mesh
+    camera = scene.view_camera()
+    for obj in scene.drawn_objects(camera):
+        first = len(results)
+        draw_mesh(fb, obj.mesh, camera, "unlit", model=obj.model, uniforms={"color": scene.wireframe_color},
+                  cull=obj.cull or scene.cull, sample_shading=scene.sample_shading, trace=True, results=results,
+                  **WIREFRAME_STATE)
+        for r in results[first:]:
+            r.name = f"{obj.name} (wireframe)"
+
+
 def _explore(args) -> int:
     from softpipe.scenes.drawing import RENDER_SIZE, render
     from softpipe.views.explorer import MAX_FRAGMENTS, write_explorer
@@ -696,7 +710,9 @@ def _explore(args) -> int:
             _progress(args, f"draw {k + 1}/{total}: {obj.name} ({obj.mesh.triangle_count} triangles)")
 
     results: list = []
-    render(scene, trace=True, results=results, progress=progress)
+    fb = render(dataclasses.replace(scene, wireframe=False), trace=True, results=results, progress=progress)
+    if scene.wireframe:     # its draws traced too, so the page shows the edges' pixels and their histories
+        _trace_wireframe(fb, scene, results)
     _progress(args, "gathering every pixel's history")
     summary = write_explorer(results, output, max_fragments=args.max_fragments or MAX_FRAGMENTS,
                              progress=lambda done, total: _progress(args, f"fragment {done}/{total}"))

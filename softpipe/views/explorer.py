@@ -13,7 +13,10 @@ Click (or hover, with "follow the mouse") a pixel of any picture: the page shows
 pixel's history (every fragment of every draw at that pixel, in order, as
 :meth:`softpipe.pipeline.trace.Trace.pixel_history` gives it), outlines the winning triangle in
 every picture in window space, and lists its three vertices in object, clip and window
-coordinates. Arrow keys move the selected pixel (Shift: by 10); the zoom shows the
+coordinates. A draw of lines or points explores alike: the winning line is drawn as its
+segment, a point as its square, the history shows each fragment's t along its line or its
+``gl_PointCoord``, and the table lists the line's two vertices or the point's one (in polygon
+mode, the three of the triangle whose edge or corner it is). Arrow keys move the selected pixel (Shift: by 10); the zoom shows the
 pixels around it with their centres, the sample positions and the triangle's edges.
 
 What the page holds
@@ -25,7 +28,11 @@ What the page holds
                  the smallest s that fits), and the page says so
 ``triangles``    for every triangle named by ``win`` or a history: its input triangle
                  (primitive id) and that triangle's three vertices in object, clip and
-                 window coordinates; and for a piece that clipping cut, its own window corners
+                 window coordinates; and for a piece that clipping cut, its own window corners.
+                 The same for a line or a point (each draw's ``kind``: "triangles" | "lines" |
+                 "points"), with its own window corners (a, b, b) or (p, p, p) always and its
+                 width or size (``t_size``); a line's or point's fragments keep their
+                 ``frag.point_coord`` (``f_pc``: (t, 0) on a line)
 
 Numbers are stored at the precision the pipeline made them where that is small: depth
 as float64, the shader's output and the color after as float32 (what the pipeline
@@ -193,14 +200,9 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
         last = p
     pics: Dict[str, np.ndarray] = {"vertices": dots}
     img = np.zeros((h, w, 3), np.uint8)                 # layer by layer across the draws, as for one
-    for t in traces:
-        P.draw_triangle_outlines(img, t.primitives.culled_window, h, P.RED)
-    for t in traces:
-        P.draw_triangle_outlines(img, P.cut_outlines(t), h, P.ORANGE)
-    for t in traces:
-        P.draw_triangle_outlines(img, t.primitives.window[~t.primitives.clipped], h, P.WHITE)
-    for t in traces:
-        P.draw_triangle_outlines(img, t.primitives.window[t.primitives.clipped], h, P.CYAN)
+    for layer in P.OUTLINE_LAYERS:
+        for t in traces:
+            P.draw_outline_layer(img, t, layer)
     pics["primitives"] = img
     img = np.zeros((h, w, 3), np.uint8)                 # the last fragment written, across the draws
     offset = 0
@@ -256,7 +258,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
                   progress=None) -> dict:
     """The page's data (see the module docstring) as a JSON-ready dict, with the pictures."""
     from softpipe.language import kernels
-    from softpipe.pipeline.assembly import triangle_indices
+    from softpipe.pipeline.assembly import primitive_indices
 
     draws = _traces(traces_or_results)
     traces = [t for _, _, t in draws]
@@ -294,6 +296,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     after = np.zeros((F, 4), np.float32)
     depth = np.zeros(F)
     verdict = np.zeros(F, np.uint8)
+    point_coord = np.full((F, 2), np.nan)                   # a line's or a point's fragments only
     prim = np.zeros(F, np.int64)
     tri = np.zeros(F, np.int64)
     sample = np.zeros(F, np.int64)
@@ -310,8 +313,12 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         color[sel], after[sel], verdict[sel] = t.shaded.color[idx], t.merged.color_after[idx], t.merged.verdict[idx]
         module = kernels.python_fragment_module(t.fragment_shader, t.primitives.layout)
         ncols = 0
+        own = t.primitives.kind != "triangles"
         for r, i in zip(sel, idx):                           # the very code pixel_history runs, per fragment
-            v = t._inputs(module, int(i))[0]
+            inputs = t._inputs(module, int(i))
+            v = inputs[0]
+            if own:
+                point_coord[r] = inputs[2].point_coord
             flat = _varyings_flat(v)
             vary[r, :len(flat)] = flat
             s = t._shadow_terms(v)
@@ -340,6 +347,8 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     t_window = np.zeros((len(gid), 3, 3))
     t_prim = np.zeros(len(gid), np.int64)
     t_clipped = np.zeros(len(gid), np.uint8)
+    t_own = np.zeros(len(gid), np.uint8)                    # its own window corners are stored (t_window)
+    t_size = np.ones(len(gid))
     t_vindex = np.zeros((len(gid), 3), np.int64)
     t_vert = np.zeros((len(gid), 3), np.int64)
     v_obj, v_clip, v_win = [], [], []
@@ -353,8 +362,11 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         t_window[sel] = p.window[local]
         t_prim[sel] = p.primitive_id[local]
         t_clipped[sel] = p.clipped[local]
+        t_own[sel] = p.clipped[local] | (p.kind != "triangles")
+        if p.kind != "triangles":
+            t_size[sel] = p.size[local]
         call = t.call
-        corners = triangle_indices(call.topology, call.indices, len(t.vertex.position))[t_prim[sel]]
+        corners = primitive_indices(call.topology, call.indices, len(t.vertex.position))[t_prim[sel]]
         t_vindex[sel] = corners
         used, inverse = np.unique(corners, return_inverse=True)
         t_vert[sel] = nv + inverse.reshape(-1, 3)
@@ -392,6 +404,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         "pattern": {"name": getattr(pattern, "name", ""), "positions": np.asarray(pattern.positions).tolist()},
         "draws": [{"name": _shown(n), "program": _shown(prog), "path": t.path, "fragments": int(len(t)),
                    "triangles": int(len(t.primitives)), "input_triangles": int(t.primitives.input_count),
+                   "kind": t.primitives.kind, "polygon_mode": t.primitives.faces is not None,
                    "tri_offset": int(tri_offset[k]), "varyings": [[a, int(b)] for a, b in layouts[k]],
                    "shadow_lights": int(shadow_cols[k]),
                    "object_space": "object" if t.call.vertex_shader is not None else "given (clip)",
@@ -409,9 +422,9 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         "f_tri": _array(tri, "u4"), "f_sample": _array(sample, "u1"), "f_depth": _array(depth, "f8"),
         "f_verdict": _array(verdict, "u1"), "f_color": _array(color, "f4"), "f_after_same": _array(same, "u1"),
         "f_after": _array(after[~same], "f4"),
-        "f_vary": _array(vary, "f4"), "f_shadow": _array(shadow, "f4"),
-        "t_id": _array(gid, "u4"), "t_window": _array(t_window[t_clipped == 1], "f4"), "t_prim": _array(t_prim, "u4"),
-        "t_clipped": _array(t_clipped, "u1"), "t_vindex": _array(t_vindex, "u4"), "t_vert": _array(t_vert, "u4"),
+        "f_vary": _array(vary, "f4"), "f_shadow": _array(shadow, "f4"), "f_pc": _array(point_coord, "f4"),
+        "t_id": _array(gid, "u4"), "t_window": _array(t_window[t_own == 1], "f4"), "t_prim": _array(t_prim, "u4"),
+        "t_clipped": _array(t_clipped, "u1"), "t_own": _array(t_own, "u1"), "t_size": _array(t_size, "f4"), "t_vindex": _array(t_vindex, "u4"), "t_vert": _array(t_vert, "u4"),
         "v_obj": _array(cat(v_obj, 4), "f4"), "v_clip": _array(cat(v_clip, 4), "f4"),
         "v_win": _array(cat(v_win, 3), "f4"),
     }
@@ -536,7 +549,11 @@ class ExplorerData:
         return k, g - 1 - offsets[k]
 
     def history(self, x: int, y: int) -> Optional[List[dict]]:
-        """The held history of pixel (x, y) (a list of dicts, one per fragment), or None if not held."""
+        """The held history of pixel (x, y) (a list of dicts, one per fragment), or None if not held.
+
+        A fragment of a line or a point has its ``point_coord`` (float32; (t, 0) on a line), a
+        triangle's ``()``, as in :class:`~softpipe.pipeline.trace.PixelEvent`.
+        """
         a = self.arrays
         p = y * self.width + x
         j = int(np.searchsorted(a["h_pixel"], p))
@@ -551,12 +568,14 @@ class ExplorerData:
                 varyings[name] = float(flat[o]) if size == 1 else tuple(float(c) for c in flat[o:o + size])
                 o += size
             shadow = tuple(tuple(float(c) for c in a["f_shadow"][r, i]) for i in range(d["shadow_lights"]))
+            pc = () if d.get("kind", "triangles") == "triangles" else tuple(float(c) for c in a["f_pc"][r])
             out.append({"draw": k, "name": d["name"], "index": int(a["f_index"][r]),
                         "primitive_id": int(a["f_prim"][r]), "triangle": int(a["f_tri"][r]),
                         "sample": int(a["f_sample"][r]), "depth": float(a["f_depth"][r]), "varyings": varyings,
                         "color": tuple(float(c) for c in a["f_color"][r]),
                         "verdict": self.meta["verdicts"][int(a["f_verdict"][r])],
                         "color_after": tuple(float(c) for c in a["f_after"][r]), "shadow": shadow,
+                        "point_coord": pc,
                         "before": tuple(float(c) for c in a["h_before"][j])})
         return out
 

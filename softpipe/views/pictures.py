@@ -6,7 +6,12 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
 ``primitives``  wireframe of the triangles that reach the rasterizer (white);
                 pieces made by clipping (cyan) over the outline of the triangle
                 they were cut from (orange); triangles culled for facing (red,
-                drawn first, so the others show over them)
+                drawn first, so the others show over them). A draw of lines shows
+                each line as the pixels the pipeline gives it (its width too), a
+                clipped one's cut-off segment under it (orange, width 1); a draw
+                of points, the outline of each point's square (the pixels at its
+                border); a draw in polygon mode ("line" or "point"), the triangles
+                whose edges or corners it drew, as a draw of triangles would
 ``coverage``    each pixel colored by the primitive id of the last fragment written there
 ``depth``       the depth buffer after the draw (near = white, cleared = black)
 ``overdraw``    how many times the pixel was covered: the samples the draw's fragments
@@ -22,7 +27,7 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 ``shadow map k, light j`` or ``…, light j, face +x`` for a cube map
                 (its file: ``07-shadow-map-k-light-j.png``)
 
-The outlines are drawn with the pipeline's own lines (``softpipe.draw`` with
+The outlines (and a line's or a point's pixels) are drawn with the pipeline's own lines (``softpipe.draw`` with
 topology "lines", GL's diamond-exit rule), as a wireframe over a rendered image is
 (:func:`softpipe.scenes.drawing.draw_wireframe`).
 """
@@ -35,7 +40,8 @@ from typing import Dict
 import numpy as np
 
 __all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "overdraw", "PICTURES",
-           "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "draw_window_segments", "cut_outlines", "id_colors", "heat_colors",
+           "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "draw_primitive_outlines", "OUTLINE_LAYERS",
+           "draw_outline_layer", "draw_window_segments", "cut_outlines", "id_colors", "heat_colors",
            "WHITE", "CYAN", "ORANGE", "RED", "YELLOW"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
@@ -62,6 +68,44 @@ def draw_triangle_outlines(img, window_tris: np.ndarray, height: int, color) -> 
         return
     corners = np.asarray(window_tris, dtype=np.float64)[:, :, :2]
     draw_window_segments(img, corners.reshape(-1, 2), np.roll(corners, -1, axis=1).reshape(-1, 2), color)
+
+
+def draw_primitive_outlines(img: np.ndarray, window: np.ndarray, kind: str, size, color) -> None:
+    """Draw window-space primitives [n, 3, ≥2] of ``kind`` ("triangles" | "lines" | "points",
+    :data:`softpipe.pipeline.assembly.KINDS`) into the RGB image ``img``: a triangle's three edges
+    (:func:`draw_triangle_outlines`); a line (a, b, b) as the pixels the rasterizer gives it at its
+    width ``size[k]`` (GL's diamond-exit rule, wide lines' runs); a point as the border pixels of its
+    square of side ``size[k]`` (all of them, for a square of one or two pixels across)."""
+    h, w = img.shape[:2]
+    if kind == "triangles":
+        draw_triangle_outlines(img, window, h, color)
+        return
+    if len(window) == 0:
+        return
+    from softpipe.language.contract import VaryingLayout
+    from softpipe.pipeline.assembly import Primitives
+    from softpipe.pipeline.raster import rasterize
+    n = len(window)
+    corners = np.zeros((n, 3, 3))
+    corners[:, :, :2] = np.asarray(window, dtype=np.float64)[:, :, :2]
+    ok = np.isfinite(corners).all(axis=(1, 2))
+    n = int(ok.sum())
+    prims = Primitives(window=corners[ok], inv_w=np.ones((n, 3)), varyings=np.zeros((n, 3, 0)),
+                       layout=VaryingLayout(), primitive_id=np.arange(n, dtype=np.int64),
+                       front_facing=np.ones(n, bool), clipped=np.zeros(n, bool), input_count=n, kind=kind,
+                       size=np.broadcast_to(np.asarray(size, dtype=np.float64), (len(window),))[ok].copy())
+    f = rasterize(prims, w, h)
+    keep = np.ones(len(f), bool)
+    if kind == "points" and len(f):            # a square's border: its first or last column or row
+        t = f.triangle.astype(np.int64)
+        lo_x, hi_x = np.full(n, 1 << 30), np.full(n, -1)
+        lo_y, hi_y = np.full(n, 1 << 30), np.full(n, -1)
+        np.minimum.at(lo_x, t, f.x)
+        np.maximum.at(hi_x, t, f.x)
+        np.minimum.at(lo_y, t, f.y)
+        np.maximum.at(hi_y, t, f.y)
+        keep = (f.x == lo_x[t]) | (f.x == hi_x[t]) | (f.y == lo_y[t]) | (f.y == hi_y[t])
+    img[f.y[keep], f.x[keep]] = color
 
 
 def draw_window_segments(img: np.ndarray, a: np.ndarray, b: np.ndarray, color) -> None:
@@ -114,7 +158,7 @@ def heat_colors(counts: np.ndarray) -> np.ndarray:
 def stage_pictures(trace) -> Dict[str, np.ndarray]:
     """The pictures listed in the module docstring, for a :class:`~softpipe.pipeline.trace.Trace`."""
     h, w = trace.height, trace.width
-    f, prims = trace.fragments, trace.primitives
+    f = trace.fragments
     fb = trace.call.framebuffer
     pics: Dict[str, np.ndarray] = {}
 
@@ -133,10 +177,8 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
     pics["vertices"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
-    draw_triangle_outlines(img, prims.culled_window, h, RED)          # under the rest: the back of a closed mesh
-    draw_triangle_outlines(img, cut_outlines(trace), h, ORANGE)
-    draw_triangle_outlines(img, prims.window[~prims.clipped], h, WHITE)
-    draw_triangle_outlines(img, prims.window[prims.clipped], h, CYAN)
+    for layer in OUTLINE_LAYERS:
+        draw_outline_layer(img, trace, layer)
     pics["primitives"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
@@ -203,14 +245,47 @@ def overdraw(trace) -> np.ndarray:
     return counts / max(int(getattr(trace.call.framebuffer, "samples", 1)), 1)
 
 
-def cut_outlines(trace) -> np.ndarray:
-    """Window coordinates of the input triangles that clipping cut, where all corners have w > 0."""
+#: The primitives picture's layers, in the order they are drawn (each over the ones before).
+OUTLINE_LAYERS = ("culled", "cut", "whole", "clipped")
+
+
+def _outlined(trace):
+    """The primitives the picture outlines: the draw's, or in polygon mode the triangles (faces)."""
     prims = trace.primitives
+    faces = getattr(prims, "faces", None)
+    return prims if faces is None else faces
+
+
+def draw_outline_layer(img: np.ndarray, trace, layer: str) -> None:
+    """Draw one of :data:`OUTLINE_LAYERS` of ``trace``'s primitives picture into ``img``: the triangles
+    culled for facing (red), the input primitives clipping cut (orange), the primitives kept whole
+    (white), the pieces clipping made (cyan); in polygon mode, of the triangles (the module docstring)."""
+    prims = _outlined(trace)
+    kind = getattr(prims, "kind", "triangles")
+    if layer == "culled":                     # under the rest: the back of a closed mesh
+        draw_triangle_outlines(img, prims.culled_window, img.shape[0], RED)
+    elif layer == "cut":
+        cut = cut_outlines(trace)
+        if kind == "lines":                   # the segment as given, width 1, under its clipped piece
+            draw_window_segments(img, cut[:, 0, :2], cut[:, 1, :2], ORANGE)
+        else:
+            draw_triangle_outlines(img, cut, img.shape[0], ORANGE)
+    else:
+        rows = prims.clipped if layer == "clipped" else ~prims.clipped
+        size = getattr(prims, "size", None)
+        size = np.ones(len(prims.window)) if size is None else np.asarray(size)
+        draw_primitive_outlines(img, prims.window[rows], kind, size[rows], CYAN if layer == "clipped" else WHITE)
+
+
+def cut_outlines(trace) -> np.ndarray:
+    """Window coordinates of the input primitives that clipping cut, where all corners have w > 0: the
+    triangles (in polygon mode, the triangles whose edges or corners were drawn), or the lines (a, b, b)."""
+    prims = _outlined(trace)
     ids = np.unique(prims.primitive_id[prims.clipped])
     if len(ids) == 0:
         return np.zeros((0, 3, 3))
-    from softpipe.pipeline.assembly import triangle_indices
-    tri = triangle_indices(trace.call.topology, trace.call.indices, len(trace.vertex.position))[ids]
+    from softpipe.pipeline.assembly import primitive_indices
+    tri = primitive_indices(trace.call.topology, trace.call.indices, len(trace.vertex.position))[ids]
     pos = trace.vertex.position[tri]
     ok = (pos[:, :, 3] > 0).all(axis=1)
     pos = pos[ok]

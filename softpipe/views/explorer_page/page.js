@@ -54,13 +54,16 @@ function historyRange(x, y) {
   if (lo < px.length && px[lo] === p) return [lo, A.h_start[lo], A.h_start[lo + 1]];
   return null;
 }
-function triWindow(r) {          // window corners of a triangle: its vertices', or a clipped piece's own
-  if (A.t_clipped[r]) { let m = 0; for (let i = 0; i < r; i++) m += A.t_clipped[i]; return row("t_window", m, 9); }
+function triWindow(r) {          // window corners: a triangle's vertices', or a clipped piece's, a line's, a point's own
+  const own = A.t_own || A.t_clipped;
+  if (own[r]) { let m = 0; for (let i = 0; i < r; i++) m += own[i]; return row("t_window", m, 9); }
   const w = new Float32Array(9);
   for (let c = 0; c < 3; c++) w.set(row("v_win", A.t_vert[r * 3 + c], 3), 3 * c);
   return w;
 }
 function winner(x, y) { const g = A.win[y * W + x]; return g ? g - 1 : -1; }
+function kindOf(k) { return META.draws[k].kind || "triangles"; }      // "triangles" | "lines" | "points"
+function primName(k) { return kindOf(k).slice(0, -1); }                  // "triangle" | "line" | "point"
 
 // ---------------------------------------------------------------- pictures and overlays
 const pics = META.pictures.map((p, k) => ({...p, img: document.getElementById("pic-" + k)}));
@@ -70,12 +73,23 @@ const SCALE = Math.max(1, Math.min(8, Math.floor(SHOW / W)));   // the canvas's 
 stage.width = W * SCALE; stage.height = H * SCALE; stage.style.maxWidth = SHOW + "px";
 const thumbs = [];
 
-function outlineTri() {          // the highlighted triangle's image-space corners, or null
+function outlineTri() {          // the highlighted primitive's image-space outline (a closed path), or null
   const g = state.picked !== null ? state.picked : (state.x >= 0 ? winner(state.x, state.y) : -1);
   if (g < 0) return null;
   const r = triRow(g); if (r < 0) return null;
-  const w = triWindow(r);
+  const w = triWindow(r), kind = kindOf(drawOf(g));
+  if (kind === "lines") return [[w[0], H - w[1]], [w[3], H - w[4]]];          // the segment a → b
+  if (kind === "points") {                 // the square of side size around the point
+    const s = A.t_size[r] / 2, x = w[0], y = H - w[1];
+    return [[x - s, y - s], [x + s, y - s], [x + s, y + s], [x - s, y + s]];
+  }
   return [[w[0], H - w[1]], [w[3], H - w[4]], [w[6], H - w[7]]];
+}
+function tracePath(ctx, t, P) {   // the outline's corners through P (image → canvas), closed unless a segment
+  ctx.beginPath(); ctx.moveTo(...P(t[0]));
+  for (let i = 1; i < t.length; i++) ctx.lineTo(...P(t[i]));
+  if (t.length > 2) ctx.closePath();
+  ctx.stroke();
 }
 function paint(ctx, pic, scale) {
   ctx.imageSmoothingEnabled = false;
@@ -83,9 +97,7 @@ function paint(ctx, pic, scale) {
   const t = outlineTri();
   if (t && pic.outline) {
     ctx.strokeStyle = "#ff3df5"; ctx.lineWidth = Math.max(1.5, scale * 1.5 > 3 ? 3 : 1.5);
-    ctx.beginPath(); ctx.moveTo(t[0][0] * scale, t[0][1] * scale);
-    ctx.lineTo(t[1][0] * scale, t[1][1] * scale); ctx.lineTo(t[2][0] * scale, t[2][1] * scale);
-    ctx.closePath(); ctx.stroke();
+    tracePath(ctx, t, q => [q[0] * scale, q[1] * scale]);
   }
   if (state.x >= 0 && pic.outline) {           // (a shadow map is the light's view: no pixel of ours)
     ctx.strokeStyle = "#f5c542"; ctx.lineWidth = 1;
@@ -157,9 +169,8 @@ function paintZoom() {
   ctx.strokeStyle = "#f5c542"; ctx.lineWidth = 2; ctx.strokeRect(half * S + 1, half * S + 1, S - 2, S - 2);
   const t = outlineTri();
   if (t) {
-    ctx.strokeStyle = "#ff3df5"; ctx.lineWidth = 2; ctx.beginPath();
-    const P = q => [(q[0] - x0) * S, (q[1] - y0) * S];
-    ctx.moveTo(...P(t[0])); ctx.lineTo(...P(t[1])); ctx.lineTo(...P(t[2])); ctx.closePath(); ctx.stroke();
+    ctx.strokeStyle = "#ff3df5"; ctx.lineWidth = 2;
+    tracePath(ctx, t, q => [(q[0] - x0) * S, (q[1] - y0) * S]);
   }
 }
 
@@ -181,7 +192,10 @@ function historyTable(x, y) {
   const vnames = [];                        // the union of the varyings of the draws here, in order
   draws.forEach(k => META.draws[k].varyings.forEach(([n, s]) => { if (!vnames.some(v => v[0] === n)) vnames.push([n, s]); }));
   const anyShadow = [...draws].some(k => META.draws[k].shadow_lights > 0);
-  const cols = ["draw", "#", "prim", "tri", "sample", "depth", ...vnames.map(v => v[0]),
+  const kinds = new Set([...draws].map(kindOf));       // a line's t, a point's gl_PointCoord
+  const where = kinds.has("lines") || kinds.has("points")
+    ? [[kinds.has("lines") && kinds.has("points") ? "t / point coord" : (kinds.has("lines") ? "t" : "point coord")]] : [];
+  const cols = ["draw", "#", "prim", "tri", "sample", "depth", ...where.map(c => c[0]), ...vnames.map(v => v[0]),
                 ...(anyShadow ? ["shadow V_j"] : []), "shader output", "depth test", "color after"];
   thead.innerHTML = "<tr>" + cols.map(c => `<th>${esc(c)}</th>`).join("") + "</tr>";
   const first = A.f_draw[r0];
@@ -196,6 +210,10 @@ function historyTable(x, y) {
     const k = A.f_draw[r], d = META.draws[k];
     const cells = [[`${k + 1}: ${d.name}`, "draw"], [A.f_index[r], "index"], [A.f_prim[r], "primitive_id"],
                    [A.f_tri[r], "triangle"], [A.f_sample[r], "sample"], [A.f_depth[r].toFixed(6), "depth"]];
+    if (where.length) {
+      const pc = A.f_pc ? row("f_pc", r, 2) : [NaN, NaN], kind = kindOf(k);
+      cells.push([kind === "lines" ? fmtG(pc[0], 4) : (kind === "points" ? tup(pc) : ""), "point_coord"]);
+    }
     const flat = row("f_vary", r, kv);
     vnames.forEach(([n]) => {
       let o = 0, hit = null;
@@ -224,13 +242,18 @@ function historyTable(x, y) {
 function triangleTable() {
   const el = document.getElementById("triangle");
   const g = state.picked !== null ? state.picked : (state.x >= 0 ? winner(state.x, state.y) : -1);
-  if (g < 0) { el.textContent = "no triangle won this pixel"; return; }
-  const r = triRow(g), k = drawOf(g), d = META.draws[k];
+  if (g < 0) { el.textContent = "nothing won this pixel"; return; }
+  const r = triRow(g), k = drawOf(g), d = META.draws[k], kind = kindOf(k), name = primName(k);
   const f3 = a => tup(a, 5);
-  let s = `<p>${state.picked !== null ? "picked" : "winning"} triangle: draw ${k + 1} (${esc(d.name)}), ` +
-    `post-clip triangle ${g - d.tri_offset}, primitive ${A.t_prim[r]}${A.t_clipped[r] ? " (a piece clipping cut)" : ""}</p>`;
+  // polygon mode: a triangle's edge (a line) or corner (a point), whose vertices are the triangle's
+  const size = kind === "lines" ? `, width ${fmtG(A.t_size[r], 4)}` : (kind === "points" ? `, size ${fmtG(A.t_size[r], 4)}` : "");
+  const of = d.polygon_mode ? `, an ${name === "line" ? "edge" : "corner"} of triangle ${A.t_prim[r]} (polygon mode)` :
+    `, primitive ${A.t_prim[r]}`;
+  let s = `<p>${state.picked !== null ? "picked" : "winning"} ${name}: draw ${k + 1} (${esc(d.name)}), ` +
+    `post-clip ${name} ${g - d.tri_offset}${of}${size}${A.t_clipped[r] ? " (a piece clipping cut)" : ""}</p>`;
   s += `<table id="vertices"><thead><tr><th>vertex</th><th>space</th><th>position</th></tr></thead><tbody>`;
-  for (let c = 0; c < 3; c++) {
+  const corners = d.polygon_mode || kind === "triangles" ? 3 : (kind === "lines" ? 2 : 1);
+  for (let c = 0; c < corners; c++) {
     const v = A.t_vert[r * 3 + c];
     const obj = Array.from(row("v_obj", v, 4)).filter(Number.isFinite);
     s += `<tr data-vertex="${c}"><td rowspan="3">${A.t_vindex[r * 3 + c]}</td><td>${esc(d.object_space)}</td>` +
@@ -239,9 +262,10 @@ function triangleTable() {
          `<tr><td>window</td><td data-space="window">${f3(row("v_win", v, 3))}</td></tr>`;
   }
   s += "</tbody></table>";
-  if (A.t_clipped[r]) {
-    const w = triWindow(r);
-    s += `<p class="muted">after clipping, window: ${[0, 1, 2].map(c => f3(w.subarray(3 * c, 3 * c + 3))).join(" ")}</p>`;
+  if (A.t_clipped[r] || d.polygon_mode) {
+    const w = triWindow(r), n = kind === "triangles" ? 3 : (kind === "lines" ? 2 : 1);
+    s += `<p class="muted">${A.t_clipped[r] ? "after clipping" : `the ${name}`}, window: ` +
+      `${[0, 1, 2].slice(0, n).map(c => f3(w.subarray(3 * c, 3 * c + 3))).join(" ")}</p>`;
   }
   el.innerHTML = s;
 }
@@ -293,7 +317,8 @@ async function main() {
   const d = META.draws;
   document.getElementById("summary").textContent = `${W}×${H}, ${META.pattern.positions.length} sample(s) per pixel` +
     ` (${META.pattern.name}); ${d.length} draw(s): ` + d.map((x, k) =>
-      `${k + 1}. ${x.name} (${x.program}, ${x.triangles} triangles after clipping and culling of ${x.input_triangles}, ` +
+      `${k + 1}. ${x.name} (${x.program}, ${x.triangles} ${x.kind || "triangles"} after clipping and culling of ` +
+      `${x.input_triangles}${x.polygon_mode ? " triangles (polygon mode)" : ""}, ` +
       `${x.fragments} fragments, ${x.path} path)`).join("; ");
   document.getElementById("held").textContent = "This page holds " + META.held.statement + ".";
   const c = document.createElement("canvas"); c.width = W; c.height = H;
