@@ -87,10 +87,13 @@ def _material(rows, k):
 
 
 @njit(cache=True)
-def _local_color(code, P, N, V, material, lighting):
-    """The object's program's lighting at P (§10, §13, §26), every light's V_j from a shadow ray."""
+def _local_color(code, P, N, V, material, lighting, entering):
+    """The object's program's lighting at P (§10, §13, §26), every light's V_j from a shadow ray.
+
+    ``entering``: the ray met a front face (the viewer outside, in air); a back face is seen from
+    inside the object, where Hall's transmitted highlight takes η = 1/ior (FORMULAS §14)."""
     if code == 2:
-        return hall_local(P, N, V, material, lighting, material.ior)
+        return hall_local(P, N, V, material, lighting, material.ior if entering else 1.0 / material.ior)
     if code == 3:
         return cook_torrance_lighting(P, N, V, material, lighting)
     if code == 4:
@@ -188,7 +191,7 @@ def _trace_tree(tracer, origin, direction, depth0, kind0, weight, far, record):
             V = (-d[0], -d[1], -d[2])
             m = _material(materials, obj)
             code = programs[obj]
-            local = _local_color(code, P, N, V, m, lighting)
+            local = _local_color(code, P, N, V, m, lighting, entering)
         red += w[0] * local[0]
         green += w[1] * local[1]
         blue += w[2] * local[2]
