@@ -269,3 +269,32 @@ def test_an_unknown_medium_is_a_clear_error_listing_the_names():
         Material(transmittance=1.2)
     with pytest.raises(ValueError, match="Material.falloff_a"):
         Material(falloff="glassner", falloff_a=-1.0)
+
+
+# ------------------------------------------------------------------ §14's η seen from inside
+
+def test_the_transmitted_highlight_seen_from_inside_uses_one_over_ior():
+    """FORMULAS §14: η = (far side)/(viewer's side), so a viewer inside glass (a back face, N flipped toward
+    the viewer) has η = 1/ior. The viewer 25° from N inside glass (ior 1.52), a directional light placed outside
+    by Snell's law (sin θ = 1.52·sin 25°, θ = 39.97°) so that its ray refracts straight toward the viewer: the
+    full lobe, k_t·I_s·(−N·H′)ⁿ′ = k_t, evaluated here in numpy — rasterized with ``hall`` and ray traced (the
+    middle pixel of a 3×3 picture looks along the camera's axis at the origin). With η = ior it was ~0."""
+    kt, ior, n_t = np.array((0.7, 0.6, 0.5)), 1.52, 50.0
+    inside = math.radians(25.0)
+    outside = math.asin(ior * math.sin(inside))
+    assert abs(math.degrees(outside) - 39.97) < 0.005
+    V = np.array((math.sin(inside), -math.cos(inside), 0.0))     # toward the viewer, below the plane
+    L = np.array((-math.sin(outside), math.cos(outside), 0.0))   # toward the light, above it, across N
+    N = np.array((0.0, -1.0, 0.0))                               # the back face's normal, flipped toward V
+    eta = 1.0 / ior                                              # air (far side) / glass (viewer's side)
+    H = (V + eta * L) / (eta - 1.0)
+    H /= np.linalg.norm(H)
+    expected = kt * max(-N @ H, 0.0) ** n_t
+    np.testing.assert_allclose(expected, kt, rtol=1e-12)        # Snell's placement: the full lobe
+    glass = Material(ka=0.0, kd=0.0, ks=0.0, kt=tuple(kt), ior=ior, transmission_shininess=n_t)
+    light = Light.directional(tuple(-L), ambient=0.0, diffuse=0.0, specular=1.0)
+    scene = Scene([SceneObject("glass", shapes.plane(4.0, material=glass), np.eye(4), program="hall")],
+                  camera=sp.Camera(eye=tuple(3.0 * V), target=(0.0, 0.0, 0.0), fovy=10.0), lights=(light,),
+                  ambient=(0.0, 0.0, 0.0), background=(0.0, 0.0, 0.0, 1.0), width=3, height=3, cull="none")
+    np.testing.assert_allclose(sp.render_scene(scene).color[1, 1, :3], expected, atol=1e-6)
+    np.testing.assert_allclose(raytrace_scene(scene).color[1, 1, :3], expected, atol=1e-6)

@@ -306,7 +306,8 @@ def transmitted_half_vector(L: Vec3, V: Vec3, eta: float) -> Vec3:
 
     η = η₂/η₁ with the view ray passing from medium η₁ (the viewer's side) into
     η₂ (the far side, where the transmitted light comes from); for a viewer in
-    air and a glass surface η = 1.5. H′ is the normal of the microfacet that
+    air and a glass surface η = 1.5; for a viewer inside the glass (a back face) η = 1/1.5.
+    H′ is the normal of the microfacet that
     refracts the light's ray (direction −L) into V, by Snell's law (§17): it
     satisfies η₂·(−L)_tangential = η₁·V_tangential. It points to the light's side,
     so the lobe is (−N·H′)₊ⁿ′. Such a facet exists only when the ray really
@@ -355,7 +356,9 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
     k_d·F_d and k_a·F_d (a coefficient times a color). I_a is the global ambient
     plus each light's ambient (times f_j), as in §10; f_j = f_att·f_spot; B′_j = 1
     for a light behind the surface (N·L_j < 0). η is as in
-    :func:`transmitted_half_vector` (``material.ior`` for a viewer in air); n′ is
+    :func:`transmitted_half_vector`, (far side)/(viewer's side): ``material.ior`` for a
+    viewer in air (a front face), 1/``material.ior`` for a viewer inside the object (a
+    back face, N flipped toward the viewer) — the caller knows which (FORMULAS §14); n′ is
     ``material.transmission_shininess``; V_j is light j's visibility
     (:func:`~softpipe.light.shadowmap.light_visibility`). The reflected and transmitted rays
     (k_r, k_t terms with T^d) belong to a ray tracer and are not included here:

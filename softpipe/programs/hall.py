@@ -7,8 +7,8 @@
       + kr·I_r·T_r^{d_r}                              reflection of other surfaces   (global)
       + kt·I_t·T_t^{d_t}                              transmission of other surfaces (global)
 
-H′_j is the transmitted half vector for η = ``material.ior`` (a viewer in air),
-n′ = ``material.transmission_shininess``; B′_j = 1 for a light *behind* the
+H′_j is the transmitted half vector for η = ``material.ior`` on a front face (a viewer
+in air) and 1/``material.ior`` on a back face (seen from inside, FORMULAS §14), n′ = ``material.transmission_shininess``; B′_j = 1 for a light *behind* the
 surface. :func:`softpipe.light.lighting.hall_local` evaluates the local terms; normals
 are interpolated and renormalized per fragment as in :mod:`softpipe.programs.phong`.
 The material's kr, kt are Hall's k_r·F_s and k_t·F_t (a coefficient times a color).
@@ -73,7 +73,8 @@ def hall_fragment(varyings, uniforms, frag):
     N = facing_normal(varyings.normal, frag.front_facing)
     V = toward_eye(P, uniforms.projection)
     m = uniforms.material
-    color = hall_local(P, N, V, m, uniforms.lighting, m.ior)
+    # §14: η = (far side)/(viewer's side): ior from air, 1/ior seen from inside (a back face)
+    color = hall_local(P, N, V, m, uniforms.lighting, m.ior if frag.front_facing else 1.0 / m.ior)
     color = add(color, hall_global(uniforms, P, N, V, m, frag.front_facing))
     return rgba(color, m.opacity)
 

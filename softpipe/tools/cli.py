@@ -86,6 +86,27 @@ _worker_count = _positive_whole("worker processes")
 _spp = _positive_whole("samples per pixel")
 
 
+def _threshold(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not v >= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a number ≥ 0 (a difference of linear color, 0..1), got {text!r}")
+    return v
+
+
+def _adaptive_depth(text: str) -> int:
+    from softpipe.tracers.whitted import MAX_ADAPTIVE_DEPTH
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if not 0 <= v <= MAX_ADAPTIVE_DEPTH:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to {MAX_ADAPTIVE_DEPTH}, got {text!r}")
+    return v
+
+
 def _seed(text: str) -> int:
     try:
         v = int(text)
@@ -266,7 +287,18 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view_options(render, "640x480")
     render.add_argument("--raytrace", action="store_true",
                         help="ray trace the scene instead (Whitted: shadow rays, mirrors and glass, FORMULAS §11, "
-                             "§16-§22) with the same camera, materials and lights")
+                             "§16-§22) with the same camera, materials and lights; --samples NAME: one ray per "
+                             "sample, the pixel their mean")
+    render.add_argument("--adaptive", action="store_true",
+                        help="with --raytrace: adaptive supersampling — the pixel centres first, then a cell split in "
+                             "four where its color differs from a neighbour's by --threshold or more, down to "
+                             "--adaptive-depth levels (docs/raytracing.md)")
+    render.add_argument("--threshold", type=_threshold, metavar="T", default=None,
+                        help="with --adaptive: the difference in some channel that splits a cell (default 0.1; "
+                             "0 splits every cell)")
+    render.add_argument("--adaptive-depth", type=_adaptive_depth, metavar="N", default=None,
+                        help="with --adaptive: the most levels of splitting, 0-3 (default 2: up to 4x4 rays "
+                             "per pixel)")
     render.add_argument("--pathtrace", action="store_true",
                         help="path trace the scene instead (Monte Carlo: light from emissive surfaces, material ke, "
                              "and the background; Lambert, mirror and glass; docs/pathtracing.md)")
@@ -610,6 +642,7 @@ def _render(args) -> int:
     output = _checked_output(args, _default_output(args, ".png"), _image_format)
     if args.stages and os.path.exists(args.stages) and not os.path.isdir(args.stages):
         raise CLIError(f"--stages: {args.stages} is a file, not a folder")
+    _check_raytrace_options(args)
     scene = _prepare(args, RENDER_SIZE)
 
     def progress(k, total, obj):
@@ -646,14 +679,22 @@ def _render(args) -> int:
     if args.raytrace:
         if args.stages:
             raise CLIError("--stages shows the rasterizer's stages; it does not apply with --raytrace")
+        from softpipe.pipeline.sampling import pattern_named
         from softpipe.tracers.whitted import raytrace_scene
         notes: list = []
-        fb = raytrace_scene(scene, notes=notes)
+        timings: dict = {}
+        fb = raytrace_scene(scene, notes=notes, timings=timings, adaptive=args.adaptive, threshold=args.threshold,
+                            adaptive_depth=args.adaptive_depth)
         for note in notes:
             _note(args, note)
         where = _save_image(fb, output)
+        if args.adaptive:
+            how = f"ray traced, adaptive: {timings['rays'] / (scene.width * scene.height):.2f} rays per pixel"
+        else:
+            pattern = pattern_named(scene.samples)
+            how = "ray traced" + (f", {len(pattern)} samples per pixel ({pattern.name})" if len(pattern) > 1 else "")
         _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
-                             f"ray traced, {time.perf_counter() - start:.2f} s)")
+                             f"{how}, {time.perf_counter() - start:.2f} s)")
         return 0
     fb = render(scene, stages=args.stages, results=results, progress=progress)
     for r in results:
@@ -664,6 +705,22 @@ def _render(args) -> int:
     _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
                          f"program {programs}, {time.perf_counter() - start:.2f} s)")
     return 0
+
+
+def _check_raytrace_options(args) -> None:
+    """The ray tracer's own options apply only with --raytrace, and --raytrace refuses the rasterizer's --msaa."""
+    if args.threshold is not None and not args.adaptive:
+        raise CLIError("--threshold applies only with --adaptive (adaptive supersampling)")
+    if args.adaptive_depth is not None and not args.adaptive:
+        raise CLIError("--adaptive-depth applies only with --adaptive (adaptive supersampling)")
+    if args.adaptive and not args.raytrace:
+        raise CLIError("--adaptive applies only with --raytrace (adaptive supersampling of the ray tracer)")
+    if args.adaptive and args.samples is not None:
+        raise CLIError("--adaptive chooses its own samples (the centres of the cells it splits); it does not apply "
+                       "with --samples")
+    if args.raytrace and args.msaa:
+        raise CLIError("--msaa shades once per pixel and triangle (the rasterizer's multisampling); it does not "
+                       "apply with --raytrace (--samples PATTERN supersamples the ray tracer)")
 
 
 def _fragment_count(text: str) -> int:

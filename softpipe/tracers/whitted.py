@@ -5,10 +5,12 @@ pixel, which triangle its ray meets first. Given the same :class:`~softpipe.scen
 — objects, camera, materials, lights — :func:`raytrace_scene` makes the picture the
 second way, so that the two can be put side by side and any pixel asked why:
 
-- :func:`raytrace_scene`: per pixel a primary ray (FORMULAS §23), the local color by
+- :func:`raytrace_scene`: per pixel a primary ray (FORMULAS §23) — or one per sample of a
+  sample pattern, the pixel their mean (§24), or adaptively more where neighbours differ —, the local color by
   the *same* functions of :mod:`softpipe.light.lighting` the rasterizer's shaders call,
   V_j by shadow rays (:func:`softpipe.rays.queries.ray_visibility`), and the ray tree
   of reflected and refracted rays (§16–§19, §22) with the falloff of §13 and §15;
+- :func:`raytrace_samples`: every sample's color before the pixel filter;
 - :func:`ray_tree`: one pixel's tree as data, printed — the ray tracer's pixel history;
 - :class:`RayTracer`, :func:`tracer_uniform`, :func:`trace_ray`: the tracer as one
   uniform, so that a rasterized fragment can be a tree's root (the programs
@@ -48,11 +50,13 @@ from softpipe.light.material import LightingUniform, MaterialUniform, pack_light
 from softpipe.light.shadowmap import SHADOW_RAY, ShadowUniform
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.sampling import CENTER, SamplePattern, pattern_named
 from softpipe.rays.bvh import closest_hit
 from softpipe.rays.queries import RayScene, direction_to_world, hit_normal, medium_falloff, point_to_world
 
-__all__ = ["raytrace_scene", "ray_tree", "primary_visibility", "tracer_uniform", "trace_ray", "RayTracer", "RayTree",
-           "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT"]
+__all__ = ["raytrace_scene", "raytrace_samples", "ray_tree", "primary_visibility", "tracer_uniform", "trace_ray",
+           "RayTracer", "RayTree", "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT",
+           "ADAPTIVE_THRESHOLD", "ADAPTIVE_DEPTH", "MAX_ADAPTIVE_DEPTH"]
 
 #: How each program's local color is computed in the ray tracer (the others: as "phong", with a note).
 PROGRAM_CODES = {"phong": 0, "gouraud": 0, "flat": 0, "textured": 0, "phong_phong_specular": 1,
@@ -62,6 +66,13 @@ PROGRAM_CODES = {"phong": 0, "gouraud": 0, "flat": 0, "textured": 0, "phong_phon
 RAY_KINDS = ("primary", "reflected", "refracted", "total internal reflection")
 #: The deepest tree allowed (2^(depth+1) rays at most per pixel).
 MAX_DEPTH_LIMIT = 12
+#: Adaptive supersampling (:func:`raytrace_scene`, ``adaptive=True``): a cell is split in four when its
+#: sample differs from a neighbour's by this much or more in some channel (linear color, 0…1) …
+ADAPTIVE_THRESHOLD = 0.1
+#: … down to this many levels (2: at most a 4×4 grid of cells, 16 rays, in a pixel) …
+ADAPTIVE_DEPTH = 2
+#: … and at most this many (3: an 8×8 grid, 64 rays = the sample patterns' MAX_SAMPLES).
+MAX_ADAPTIVE_DEPTH = 3
 _MATERIAL_COLUMNS = 28          # MaterialUniform's 23 numbers, then T (RGB), Glassner's form (0/1) and its a
 _RECORD_COLUMNS = 21
 
@@ -87,10 +98,13 @@ def _material(rows, k):
 
 
 @njit(cache=True)
-def _local_color(code, P, N, V, material, lighting):
-    """The object's program's lighting at P (§10, §13, §26), every light's V_j from a shadow ray."""
+def _local_color(code, P, N, V, material, lighting, entering):
+    """The object's program's lighting at P (§10, §13, §26), every light's V_j from a shadow ray.
+
+    ``entering``: the ray met a front face (the viewer outside, in air); a back face is seen from
+    inside the object, where Hall's transmitted highlight takes η = 1/ior (FORMULAS §14)."""
     if code == 2:
-        return hall_local(P, N, V, material, lighting, material.ior)
+        return hall_local(P, N, V, material, lighting, material.ior if entering else 1.0 / material.ior)
     if code == 3:
         return cook_torrance_lighting(P, N, V, material, lighting)
     if code == 4:
@@ -188,7 +202,7 @@ def _trace_tree(tracer, origin, direction, depth0, kind0, weight, far, record):
             V = (-d[0], -d[1], -d[2])
             m = _material(materials, obj)
             code = programs[obj]
-            local = _local_color(code, P, N, V, m, lighting)
+            local = _local_color(code, P, N, V, m, lighting, entering)
         red += w[0] * local[0]
         green += w[1] * local[1]
         blue += w[2] * local[2]
@@ -259,22 +273,137 @@ def _primary_hit(scene, cull, o, d, far):
     return -1, far, 0.0, 0.0
 
 
+@njit(cache=True)
+def _trace_sample(tracer, unproject, px, py, width, height, no_record):
+    """The color a primary ray through image point (px, py) brings back: Σ weight × local over its tree."""
+    origin, direction, far = _primary_ray(unproject, px, py, width, height)
+    r, g, b, _ = _trace_tree(tracer, origin, direction, 0, 0, (1.0, 1.0, 1.0), far, no_record)
+    return r, g, b
+
+
 @njit(cache=True, nogil=True)
-def _trace_rows(lo, hi, width, height, unproject, tracer, out):
+def _trace_rows(lo, hi, width, height, unproject, tracer, offsets, out):
+    """One ray per sample (``offsets`` [S, 2]: x right, y down from the pixel's top-left corner); the pixel is
+    their mean, summed in the pattern's order (the box filter, §24)."""
+    count = offsets.shape[0]
     no_record = np.empty((0, _RECORD_COLUMNS))
     for j in range(lo, hi):                 # image rows, top first
         for i in range(width):
-            origin, direction, far = _primary_ray(unproject, i, j, width, height)
-            r, g, b, _ = _trace_tree(tracer, origin, direction, 0, 0, (1.0, 1.0, 1.0), far, no_record)
-            out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = r, g, b, 1.0
+            red, green, blue = 0.0, 0.0, 0.0
+            for s in range(count):
+                r, g, b = _trace_sample(tracer, unproject, i + offsets[s, 0], j + offsets[s, 1], width, height,
+                                        no_record)
+                red += r
+                green += g
+                blue += b
+            out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = red / count, green / count, blue / count, 1.0
+
+
+@njit(cache=True, nogil=True)
+def _sample_rows(lo, hi, width, height, unproject, tracer, offsets, out):
+    """Every sample's color, unfiltered: ``out`` [H, W, S, 3]."""
+    no_record = np.empty((0, _RECORD_COLUMNS))
+    for j in range(lo, hi):
+        for i in range(width):
+            for s in range(offsets.shape[0]):
+                r, g, b = _trace_sample(tracer, unproject, i + offsets[s, 0], j + offsets[s, 1], width, height,
+                                        no_record)
+                out[j, i, s, 0], out[j, i, s, 1], out[j, i, s, 2] = r, g, b
 
 
 @njit(cache=True)
-def _primary_ray(unproject, i, j, width, height):
-    """The ray through the centre of pixel (i, image row j): (origin on the near plane, unit direction, the
-    distance to the far plane) — the rasterizer's view volume, so both see the same surfaces (§23)."""
-    x = 2.0 * (i + 0.5) / width - 1.0
-    y = 1.0 - 2.0 * (j + 0.5) / height
+def _differs(a, b, threshold):
+    """Whether two colors differ by ``threshold`` or more in some channel (a NaN counts as a difference)."""
+    for c in range(3):
+        if not abs(a[c] - b[c]) < threshold:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _adaptive_rows(lo, hi, width, height, unproject, tracer, centres, threshold, depth, out, rays):
+    """Adaptive supersampling (docs/raytracing.md): from the pixel centres (``centres`` [H, W, 3], traced
+    first), split a cell in four where its sample differs from a neighbour's by ``threshold`` or more — a
+    pixel's neighbours are the four pixels beside it, a smaller cell's its three siblings — down to ``depth``
+    levels, each new cell traced at its centre. The pixel is the mean over the 2^depth × 2^depth grid of the
+    finest cells, each taking the sample of the smallest traced cell that holds it (a box filter in which
+    every sample counts for its cell's area), summed in the order of the sample pattern ``grid`` (2^depth)."""
+    side = 1 << depth
+    no_record = np.empty((0, _RECORD_COLUMNS))
+    values = np.empty((depth + 1, side, side, 3))
+    traced = np.zeros((depth + 1, side, side), np.bool_)
+    split = np.zeros((depth + 1, side, side), np.bool_)
+    for j in range(lo, hi):
+        for i in range(width):
+            c = centres[j, i]
+            whole = depth == 0 or threshold > 0.0
+            if whole:
+                for dj, di in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+                    jj, ii = j + dj, i + di
+                    if 0 <= jj < height and 0 <= ii < width and _differs(c, centres[jj, ii], threshold):
+                        whole = depth == 0
+                        break
+            rays[j, i] = 1
+            if whole:                        # the centre alone: the one-sample pixel, unchanged
+                out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = c[0], c[1], c[2], 1.0
+                continue
+            traced[...] = False
+            split[...] = False
+            values[0, 0, 0, 0], values[0, 0, 0, 1], values[0, 0, 0, 2] = c[0], c[1], c[2]
+            traced[0, 0, 0] = split[0, 0, 0] = True
+            for k in range(1, depth + 1):
+                n = 1 << k
+                for b in range(n):           # rows of cells, top first
+                    for a in range(n):
+                        if not split[k - 1, b >> 1, a >> 1]:
+                            continue
+                        r, g, bl = _trace_sample(tracer, unproject, i + (a + 0.5) / n, j + (b + 0.5) / n,
+                                                 width, height, no_record)
+                        values[k, b, a, 0], values[k, b, a, 1], values[k, b, a, 2] = r, g, bl
+                        traced[k, b, a] = True
+                        rays[j, i] += 1
+                if k == depth:
+                    break
+                for b in range(n):
+                    for a in range(n):
+                        if not traced[k, b, a]:
+                            continue
+                        b0, a0 = b & ~1, a & ~1
+                        for sb in range(b0, b0 + 2):
+                            for sa in range(a0, a0 + 2):
+                                if (sb != b or sa != a) and _differs(values[k, b, a], values[k, sb, sa],
+                                                                     threshold):
+                                    split[k, b, a] = True
+            red, green, blue = 0.0, 0.0, 0.0
+            for b in range(side):
+                for a in range(side):
+                    k = depth
+                    while not traced[k, b >> (depth - k), a >> (depth - k)]:
+                        k -= 1
+                    v = values[k, b >> (depth - k), a >> (depth - k)]
+                    red += v[0]
+                    green += v[1]
+                    blue += v[2]
+            count = side * side
+            out[j, i, 0], out[j, i, 1], out[j, i, 2], out[j, i, 3] = red / count, green / count, blue / count, 1.0
+
+
+@njit(cache=True, nogil=True)
+def _centre_rows(lo, hi, width, height, unproject, tracer, out):
+    no_record = np.empty((0, _RECORD_COLUMNS))
+    for j in range(lo, hi):
+        for i in range(width):
+            out[j, i, 0], out[j, i, 1], out[j, i, 2] = _trace_sample(tracer, unproject, i + 0.5, j + 0.5,
+                                                                     width, height, no_record)
+
+
+@njit(cache=True)
+def _primary_ray(unproject, px, py, width, height):
+    """The ray through image point (px, py) — x right, y down from the image's top-left corner; a pixel's centre
+    is (i + ½, j + ½): (origin on the near plane, unit direction, the distance to the far plane) — the
+    rasterizer's view volume, so both see the same surfaces (§23, §24)."""
+    x = 2.0 * px / width - 1.0
+    y = 1.0 - 2.0 * py / height
     near = _unproject(unproject, x, y, -1.0)
     far = _unproject(unproject, x, y, 1.0)
     d = (far[0] - near[0], far[1] - near[1], far[2] - near[2])
@@ -378,9 +507,57 @@ def _air(air_transmittance) -> np.ndarray:
     return np.array(rgb, np.float64)
 
 
+def _pattern(scene, samples, adaptive: bool, notes: list) -> SamplePattern:
+    """The sample pattern the tracer uses: ``samples`` (a name or a SamplePattern), else the scene's."""
+    if samples is not None and not isinstance(samples, (str, SamplePattern)):
+        raise ValueError(f"samples must be a sample pattern's name ('grid16', 'rgss4', …) or a SamplePattern, "
+                         f"got {samples!r}")
+    if adaptive:
+        if samples is not None:
+            raise ValueError("samples does not apply with adaptive=True: adaptive supersampling chooses its own "
+                             "samples (the centres of the cells it splits); give one or the other")
+        if str(scene.samples).strip().lower() not in ("1", "center", "none"):
+            notes.append(f"the scene's samples {scene.samples!r} are not used: adaptive supersampling chooses "
+                         "its own")
+        return CENTER
+    if isinstance(samples, SamplePattern):
+        return samples
+    pattern = pattern_named(scene.samples if samples is None else samples)
+    if len(pattern) > 1 and getattr(scene, "sample_shading", "sample") != "sample":
+        notes.append(f"sample_shading {scene.sample_shading!r} (multisampling) is the rasterizer's: the ray "
+                     f"tracer traces and shades each of the {len(pattern)} samples")
+    return pattern
+
+
+def _check_adaptive(adaptive, threshold, adaptive_depth):
+    if not isinstance(adaptive, (bool, np.bool_)):
+        raise ValueError(f"adaptive must be True or False, got {adaptive!r}")
+    if not adaptive:
+        for name, value in (("threshold", threshold), ("adaptive_depth", adaptive_depth)):
+            if value is not None:
+                raise ValueError(f"{name} applies only with adaptive=True (adaptive supersampling)")
+        return None, None
+    threshold = ADAPTIVE_THRESHOLD if threshold is None else threshold
+    depth = ADAPTIVE_DEPTH if adaptive_depth is None else adaptive_depth
+    if isinstance(threshold, bool) or not isinstance(threshold, (int, float, np.integer, np.floating)) or \
+            not threshold >= 0.0:
+        raise ValueError(f"threshold must be a number ≥ 0 (a difference of linear color in some channel), "
+                         f"got {threshold!r}")
+    if isinstance(depth, bool) or not isinstance(depth, (int, np.integer)) or not 0 <= depth <= MAX_ADAPTIVE_DEPTH:
+        raise ValueError(f"adaptive_depth must be an integer in 0…{MAX_ADAPTIVE_DEPTH}, got {adaptive_depth!r}")
+    return float(threshold), int(depth)
+
+
+def _offsets(pattern: SamplePattern) -> np.ndarray:
+    """A pattern's positions as offsets from the pixel's top-left corner, x right and y down (image rows)."""
+    pos = np.asarray(pattern.positions, np.float64)
+    return np.ascontiguousarray(np.stack([pos[:, 0], 1.0 - pos[:, 1]], axis=1))
+
+
 def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5, min_weight: float = 1e-3,
                    notes: Optional[list] = None, timings: Optional[dict] = None,
-                   air_transmittance=1.0) -> Framebuffer:
+                   air_transmittance=1.0, samples=None, adaptive: bool = False,
+                   threshold: Optional[float] = None, adaptive_depth: Optional[int] = None) -> Framebuffer:
     """Ray trace ``scene`` (Whitted; docs/raytracing.md has the steps) into a new one-sample framebuffer.
 
     Parameters
@@ -397,30 +574,74 @@ def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5
     air_transmittance : float or RGB
         T per unit distance outside the objects (§15), in [0, 1]: a secondary ray
         that travels d through air keeps T^d. 1 (the default): air is clear.
+    samples : str or SamplePattern, optional
+        Supersampling (FORMULAS §24): one primary ray per sample of the pattern
+        (:func:`softpipe.pipeline.sampling.pattern_named`: ``"grid16"``, ``"rgss4"``, …,
+        the rasterizer's patterns), the pixel their mean — a box filter over the
+        pixel. Default: the scene's ``samples`` (``"1"``: one ray through the centre).
+    adaptive : bool
+        Adaptive supersampling instead: the pixel centres first, then a cell split
+        in four where its sample differs from a neighbour's by ``threshold`` or more,
+        down to ``adaptive_depth`` levels (docs/raytracing.md, "Supersampling").
+    threshold : float, optional
+        With ``adaptive``: the difference of linear color, in some channel, that
+        splits a cell (default :data:`ADAPTIVE_THRESHOLD` = 0.1; 0 splits every cell).
+    adaptive_depth : int, optional
+        With ``adaptive``: the most levels of splitting, 0…:data:`MAX_ADAPTIVE_DEPTH`
+        (default :data:`ADAPTIVE_DEPTH` = 2: at most 4×4 cells, 16 rays per pixel).
     notes : list, optional
         Receives a line for each thing the ray tracer does differently from the rasterizer.
     timings : dict, optional
-        Receives "build" (the BVH) and "trace" seconds.
+        Receives "build" (the BVH) and "trace" seconds, and "rays": the primary rays traced.
     """
+    threshold, adaptive_depth = _check_adaptive(adaptive, threshold, adaptive_depth)
+    found: list = []
+    pattern = _pattern(scene, samples, adaptive, found)
     start = time.perf_counter()
     p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
     built = time.perf_counter()
-    out = np.zeros((scene.height, scene.width, 4), np.float32)
-    in_bands(_trace_rows, scene.height, scene.width, scene.height, p.unproject, p.tracer, out, grain=8)
-    fb = Framebuffer(scene.width, scene.height)
+    h, w = scene.height, scene.width
+    out = np.zeros((h, w, 4), np.float32)
+    if adaptive:
+        centres = np.empty((h, w, 3))
+        in_bands(_centre_rows, h, w, h, p.unproject, p.tracer, centres, grain=8)
+        rays = np.zeros((h, w), np.int64)
+        in_bands(_adaptive_rows, h, w, h, p.unproject, p.tracer, centres, threshold, adaptive_depth, out, rays,
+                 grain=8)
+        traced = int(rays.sum())
+    else:
+        in_bands(_trace_rows, h, w, h, p.unproject, p.tracer, _offsets(pattern), out, grain=8)
+        traced = h * w * len(pattern)
+    fb = Framebuffer(w, h)
     fb.color[...] = out
     if notes is not None:
-        notes.extend(p.notes)
+        notes.extend(p.notes + found)
     if timings is not None:
-        timings.update(build=built - start, trace=time.perf_counter() - built)
+        timings.update(build=built - start, trace=time.perf_counter() - built, rays=traced)
     return fb
+
+
+def raytrace_samples(scene, samples, *, camera: Optional[Camera] = None, max_depth: int = 5,
+                     min_weight: float = 1e-3, air_transmittance=1.0) -> np.ndarray:
+    """Every sample's color before the pixel filter: float64 [H, W, S, 3], S the pattern's samples in its order.
+
+    The same primary rays and trees as :func:`raytrace_scene` with ``samples``, whose
+    pixel is the mean of these S colors summed in this order. For small pictures: it
+    keeps every sample (H·W·S·24 bytes). Parameters as :func:`raytrace_scene`'s.
+    """
+    pattern = samples if isinstance(samples, SamplePattern) else _pattern(scene, samples, False, [])
+    p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
+    h, w = scene.height, scene.width
+    out = np.empty((h, w, len(pattern), 3))
+    in_bands(_sample_rows, h, w, h, p.unproject, p.tracer, _offsets(pattern), out, grain=8)
+    return out
 
 
 @njit(cache=True, nogil=True)
 def _primary_rows(lo, hi, width, height, unproject, scene, cull, triangle, b):
     for j in range(lo, hi):
         for i in range(width):
-            origin, direction, far = _primary_ray(unproject, i, j, width, height)
+            origin, direction, far = _primary_ray(unproject, i + 0.5, j + 0.5, width, height)
             tri, _, b1, b2 = _primary_hit(scene, cull, origin, direction, far)
             triangle[j, i] = tri
             b[j, i, 0], b[j, i, 1] = b1, b2
@@ -496,7 +717,7 @@ def ray_tree(scene, x: int, y: int, *, camera: Optional[Camera] = None, max_dept
     if not (0 <= x < scene.width and 0 <= y < scene.height):
         raise ValueError(f"pixel ({x}, {y}) is outside the {scene.width}×{scene.height} image")
     p = _prepare(scene, camera, max_depth, min_weight, air_transmittance)
-    origin, direction, far = _primary_ray(p.unproject, x, y, scene.width, scene.height)
+    origin, direction, far = _primary_ray(p.unproject, x + 0.5, y + 0.5, scene.width, scene.height)
     record = np.zeros((1 << (max_depth + 1), _RECORD_COLUMNS))
     r, g, b, n = _trace_tree(p.tracer, origin, direction, 0, 0, (1.0, 1.0, 1.0), far, record)
     names = [o.name for o in p.scene.objects]
