@@ -23,7 +23,7 @@ def test_primary_rays_are_the_ray_tracers():
     assert o.shape == d.shape == (SIZE * SIZE, 3) and far.shape == (SIZE * SIZE,)
     unproject = np.linalg.inv(camera.projection(1.0) @ camera.view)
     for i, j in [(0, 0), (SIZE - 1, 0), (5, 17), (SIZE - 1, SIZE - 1)]:
-        near, direction, length = _primary_ray(unproject, i, j, SIZE, SIZE)
+        near, direction, length = _primary_ray(unproject, i + 0.5, j + 0.5, SIZE, SIZE)   # the pixel centre
         k = j * SIZE + i
         np.testing.assert_allclose(o[k], near, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(d[k], direction, rtol=1e-12, atol=1e-12)

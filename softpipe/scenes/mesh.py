@@ -528,7 +528,9 @@ def concatenate(meshes: Iterable[Mesh], name: str = "") -> Mesh:
     offsets = np.cumsum([0] + [m.vertex_count for m in meshes])
     indices = np.concatenate([m.indices.astype(np.int64) + off for m, off in zip(meshes, offsets)])
     palette: list = []
-    ids, line_ids, point_ids = [], [], []
+    ids: list = []
+    line_ids: list = []
+    point_ids: list = []
     for m in meshes:
         local = [m.material] if m.material_ids is None else list(m.materials)
         remap = []
