@@ -176,10 +176,10 @@ def test_corners_without_vn_or_vt_are_filled_with_a_warning():
     np.testing.assert_allclose(mesh.normals[plain], np.tile([0, 0, 1.0], (3, 1)))
 
 
-def test_a_file_without_faces_gives_an_empty_mesh_and_a_warning():
-    with pytest.warns(OBJWarning, match="pts.obj: no faces"):
+def test_a_file_of_vertices_alone_reads_as_a_point_cloud_with_a_warning():
+    with pytest.warns(OBJWarning, match="pts.obj: no faces, lines or points: its 4 vertices are read as points"):
         mesh = parse_obj(SQUARE, "pts.obj")
-    assert mesh.triangle_count == 0 and mesh.vertex_count == 0
+    assert mesh.triangle_count == 0 and mesh.vertex_count == 4 and mesh.points.tolist() == [0, 1, 2, 3]
 
 
 def test_unknown_and_unsupported_statements_are_skipped_and_counted():

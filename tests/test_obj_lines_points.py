@@ -121,14 +121,22 @@ def test_a_malformed_line_or_point_names_the_file_and_line(text, message):
     assert str(e.value) == message
 
 
-def test_a_file_without_faces_lines_or_points_is_refused_naming_it(tmp_path):
+def test_a_file_of_vertices_alone_is_a_point_cloud_and_one_without_vertices_is_refused(tmp_path):
     path = tmp_path / "cloud.obj"
-    path.write_text("v 0 0 0\nv 1 0 0\n")
-    with pytest.warns(OBJWarning, match="cloud.obj: no faces, lines or points; the mesh is empty"):
-        parse_obj(path.read_text(), "cloud.obj")
+    path.write_text("v 0 0 0\nv 1 0 0\n# a comment\nv 0 1 0\n")
+    with pytest.warns(OBJWarning, match="cloud.obj: no faces, lines or points: its 3 vertices are read as points"):
+        mesh = parse_obj(path.read_text(), "cloud.obj")
+    assert mesh.points.tolist() == [0, 1, 2] and len(mesh.lines) == 0 and mesh.triangle_count == 0
+    with pytest.warns(UserWarning, match="its 3 vertices are read as points"):     # (render passes it on)
+        img = render(path, width=16, height=16)
+    assert np.count_nonzero((img.to_uint8()[..., :3] != img.to_uint8()[0, 0, :3]).any(axis=2)) == 3
+    empty = tmp_path / "empty.obj"
+    empty.write_text("# nothing\nvt 0 0\n")
+    with pytest.warns(OBJWarning, match="empty.obj: no faces, lines or points; the mesh is empty"):
+        parse_obj(empty.read_text(), "empty.obj")
     with pytest.raises(ValueError) as e:
-        render(path, width=8, height=8)
-    assert str(e.value) == f"{path}: the file has no faces (f), lines (l) or points (p) to render"
+        render(empty, width=8, height=8)
+    assert str(e.value) == f"{empty}: the file has no faces (f), lines (l) or points (p) to render"
 
 
 def test_mesh_checks_its_line_and_point_arrays():

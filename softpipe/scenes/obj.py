@@ -456,6 +456,7 @@ class _OBJParser:
 
     def mesh(self, name: str) -> Mesh:
         self.scan()
+        self.vertices_as_points()
         self.smoothing_groups()  # checked even when the file's normals make them moot
         data = {k: self.vectors(k) for k in ("v", "vt", "vn")}
         counts, raw = self.faces()
@@ -499,6 +500,17 @@ class _OBJParser:
             # between groups (or at an `s off` face) stays, and the rest is smooth.
             mesh = mesh.replace(normals=mesh.vertex_normals(groups=smoothing[first_corner]))
         return mesh
+
+    def vertices_as_points(self) -> None:
+        """A file of vertices alone (no ``f``, ``l`` or ``p``: how many tools write a point cloud) reads as
+        if a last line ``p 1 2 … N`` named every vertex: its points, with a warning that says so."""
+        v_lines = self.vec["v"][1]
+        if not v_lines or any(self.vec[k][0] for k in ("f", "l", "p")):
+            return
+        n = len(v_lines)
+        self.vec["p"][0].append("p " + " ".join(map(str, range(1, n + 1))))
+        self.vec["p"][1].append(v_lines[-1] + 1)          # after every v: each index is defined by then
+        self.warn(f"{self.file}: no faces, lines or points: its {n:,} vertices are read as points (a point cloud)")
 
     def fill_report(self, data: dict, tri_face: np.ndarray, used: np.ndarray, segment_lines: np.ndarray,
                     point_lines: np.ndarray) -> None:
