@@ -4,13 +4,23 @@
   of global values the shader reads (:func:`~.snapshot.shader_globals_key`); the last
   few versions of a shader are kept, so a global animated per frame does not keep
   every loop it ever compiled.
-- **On disk**: softpipe's own shaders (:func:`importable_shader`) get their generated
-  module written to ``$SOFTPIPE_CACHE_DIR`` (default ``~/.cache/softpipe/kernels``)
-  so numba's on-disk cache can find it in the next process. The file's name
-  (:func:`cached_file_name`) hashes its source, softpipe's sources and loop
-  templates (:func:`package_hash`: a kernel inlines the ones and is written from
-  the others), numba's version and the shader's global values. A user's shader is compiled once per process and set of global
-  values instead: numba cannot see when a user's file changes.
+- **On disk**: a generated module is written to ``$SOFTPIPE_CACHE_DIR`` (default
+  ``~/.cache/softpipe/kernels``) so numba's on-disk cache can find it in the next
+  process; numba keys its entries by that file (its path, mtime and size), so the
+  file's name (:func:`cached_file_name`) hashes all the kernel depends on: its
+  source, softpipe's sources and loop templates (:func:`package_hash`: a kernel
+  inlines the ones and is written from the others), numba's, numpy's and Python's
+  versions, and the shader's globals. softpipe's own shaders
+  (:func:`importable_shader`) are imported by the module and keyed by their global
+  values; a user's shader (a script's ``__main__``, a notebook cell, a module of
+  theirs) is given to the module (``_shader_py``, its snapshot) and keyed by
+  :func:`~.snapshot.shader_source_key`: its code and its helpers' code, not their
+  files' names, and the values of the globals they read. A user's shader whose
+  globals no key can name (an object of the user's) is compiled once per process.
+- **Several processes at once**: each writes the module through a temporary file and
+  an atomic rename, with one fixed mtime (:data:`_FILE_MTIME`), so whichever rename
+  lands last, the stamp numba's index records is the file's; numba writes its own
+  files whole. Both processes succeed, and the cache holds one entry.
 - **One compile at a time** (:data:`COMPILE_LOCK`): two threads asking for the same
   loop build it once, and a fork waits until no thread is compiling.
 - **A damaged entry is rebuilt**: a generated module file that is not the source it
@@ -142,9 +152,9 @@ def package_hash() -> str:
 def importable_shader(shader: Callable) -> Tuple[str, str] | None:
     """(module, name) if the shader is one of softpipe's own module-level functions.
 
-    Only these are cached on disk: numba cannot see when a user's shader (or a
-    function it calls in another file) changes, so user shaders are compiled
-    once per process instead of risking a stale kernel.
+    Its generated module imports it by name (softpipe's sources are in the file's
+    key); any other shader is given to the module, keyed by its code
+    (:func:`~.snapshot.shader_source_key`).
     """
     f = python_function(shader)
     mod, name = getattr(f, "__module__", None) or "", getattr(f, "__qualname__", None) or ""
