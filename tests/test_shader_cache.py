@@ -225,3 +225,28 @@ def test_a_damaged_cache_entry_is_dropped_and_rebuilt(caches, tmp_path):
     assert any("could not be read" in w and stem in w for w in rebuilt["warnings"]), rebuilt["warnings"]
     loaded = run(caches, tmp_path, user)
     assert loaded["compiled"] == [] and loaded["pixels"] == first["pixels"]
+
+
+def _exec_shader(source: str, filename: str, module_name: str = "__main__"):
+    """The function ``shader`` of ``source``, compiled under ``filename`` into a namespace of ``module_name``."""
+    namespace = {"__name__": module_name}
+    exec(compile(textwrap.dedent(source), filename, "exec"), namespace)
+    return namespace["shader"]
+
+
+def test_the_key_names_the_code_and_values_not_the_file():
+    from softpipe.language.kernels.snapshot import shader_source_key
+    base = SHADER.format(mark=1.0, tint=0.5)
+    key = shader_source_key(_exec_shader(base, "/tmp/ipykernel_1/1.py"))
+    assert key is not None and "TINT = ('float','0.5')" in key
+    assert shader_source_key(_exec_shader(base, "/tmp/ipykernel_2/9.py")) == key          # another session
+    assert shader_source_key(_exec_shader(SHADER.format(mark=1.0, tint=0.25), "/tmp/ipykernel_1/1.py")) != key
+    assert shader_source_key(_exec_shader(base.replace("% 2", "% 3"), "/tmp/ipykernel_1/1.py")) != key
+
+
+def test_a_shader_no_key_can_name_is_compiled_per_process_not_cached():
+    from softpipe.language.kernels.snapshot import shader_source_key
+    listed = SHADER.format(mark=1.0, tint=0.5).replace("TINT = 0.5", "TINT = [0.5]")
+    assert shader_source_key(_exec_shader(listed, "scene.py")) is None               # a list global
+    # exec'd in a namespace that is no module: numba's cache could not load it by its module's name
+    assert shader_source_key(_exec_shader(SHADER.format(mark=1.0, tint=0.5), "page.md", "__page__")) is None

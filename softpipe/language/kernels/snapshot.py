@@ -224,6 +224,10 @@ def _source_parts(f: types.FunctionType, seen: set, parts: list) -> bool:
     if id(f) in seen:
         return True
     seen.add(id(f))
+    if sys.modules.get(f.__module__) is None:
+        # numba's cache names a function by its module, and loads it by importing that by name: a
+        # function exec'd in a namespace of its own (not a module of sys.modules) cannot be loaded
+        return False
     parts.append(f"def {f.__qualname__} {code_digest(f.__code__)}")
     for default in (f.__defaults__ or ()) + tuple((f.__kwdefaults__ or {}).values()):
         key = _value_key(default)
@@ -263,7 +267,8 @@ def shader_source_key(shader: Callable) -> str | None:
     arrays by their bytes) and the name of every function, class or module they read of
     softpipe, the standard library or an installed package (those follow from the
     versions the cache key holds). None when a global is something else (a list, an
-    object or a class of the user's): such a shader is compiled once per process.
+    object or a class of the user's), or a function is of no module of ``sys.modules``
+    (exec'd in a namespace of its own): such a shader is compiled once per process.
     """
     f = python_function(shader)
     if not isinstance(f, types.FunctionType):
