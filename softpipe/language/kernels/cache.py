@@ -4,13 +4,23 @@
   of global values the shader reads (:func:`~.snapshot.shader_globals_key`); the last
   few versions of a shader are kept, so a global animated per frame does not keep
   every loop it ever compiled.
-- **On disk**: softpipe's own shaders (:func:`importable_shader`) get their generated
-  module written to ``$SOFTPIPE_CACHE_DIR`` (default ``~/.cache/softpipe/kernels``)
-  so numba's on-disk cache can find it in the next process. The file's name
-  (:func:`cached_file_name`) hashes its source, softpipe's sources and loop
-  templates (:func:`package_hash`: a kernel inlines the ones and is written from
-  the others), numba's version and the shader's global values. A user's shader is compiled once per process and set of global
-  values instead: numba cannot see when a user's file changes.
+- **On disk**: a generated module is written to ``$SOFTPIPE_CACHE_DIR`` (default
+  ``~/.cache/softpipe/kernels``) so numba's on-disk cache can find it in the next
+  process; numba keys its entries by that file (its path, mtime and size), so the
+  file's name (:func:`cached_file_name`) hashes all the kernel depends on: its
+  source, softpipe's sources and loop templates (:func:`package_hash`: a kernel
+  inlines the ones and is written from the others), numba's, numpy's and Python's
+  versions, and the shader's globals. softpipe's own shaders
+  (:func:`importable_shader`) are imported by the module and keyed by their global
+  values; a user's shader (a script's ``__main__``, a notebook cell, a module of
+  theirs) is given to the module (``_shader_py``, its snapshot) and keyed by
+  :func:`~.snapshot.shader_source_key`: its code and its helpers' code, not their
+  files' names, and the values of the globals they read. A user's shader whose
+  globals no key can name (an object of the user's) is compiled once per process.
+- **Several processes at once**: each writes the module through a temporary file and
+  an atomic rename, with one fixed mtime (:data:`_FILE_MTIME`), so whichever rename
+  lands last, the stamp numba's index records is the file's; numba writes its own
+  files whole. Both processes succeed, and the cache holds one entry.
 - **One compile at a time** (:data:`COMPILE_LOCK`): two threads asking for the same
   loop build it once, and a fork waits until no thread is compiling.
 - **A damaged entry is rebuilt**: a generated module file that is not the source it
@@ -36,6 +46,7 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Tuple
 
 import numba
+import numpy as np
 
 from softpipe.core.files import atomic_write
 from softpipe.language.contract import python_function
@@ -141,9 +152,9 @@ def package_hash() -> str:
 def importable_shader(shader: Callable) -> Tuple[str, str] | None:
     """(module, name) if the shader is one of softpipe's own module-level functions.
 
-    Only these are cached on disk: numba cannot see when a user's shader (or a
-    function it calls in another file) changes, so user shaders are compiled
-    once per process instead of risking a stale kernel.
+    Its generated module imports it by name (softpipe's sources are in the file's
+    key); any other shader is given to the module, keyed by its code
+    (:func:`~.snapshot.shader_source_key`).
     """
     f = python_function(shader)
     mod, name = getattr(f, "__module__", None) or "", getattr(f, "__qualname__", None) or ""
@@ -204,25 +215,45 @@ def cached_module(base: tuple, shader: Callable, build: Callable[[tuple], Any]) 
     return module
 
 
-def cached_file_name(source: str, kind: str, globals_key: tuple) -> str:
-    """The name of the cached module file for a generated ``source`` of softpipe's own shader.
+def cached_file_name(source: str, kind: str, globals_key: tuple, user_key: str | None = None) -> str:
+    """The name of the cached module file for a generated ``source``.
 
-    It hashes the source, softpipe's sources (:func:`package_hash`), numba's
-    version and the values of the shader's globals (``globals_key``: numba reads
-    them as they are when it compiles, so a changed value is a new file).
+    It hashes the source, softpipe's sources (:func:`package_hash`), numba's,
+    numpy's and Python's versions and, for softpipe's own shader, the values of its
+    globals (``globals_key``: numba reads them as they are when it compiles, so a
+    changed value is a new file). A user's shader gives ``user_key`` instead
+    (:func:`~.snapshot.shader_source_key`: its code, its helpers' code, its globals'
+    values), and its file is named ``softpipe_user_…``.
     """
-    digest = hashlib.sha256((source + package_hash() + numba.__version__ + key_text(globals_key)).encode()
-                            ).hexdigest()[:20]
-    return f"softpipe_{kind}_{digest}"
+    key = key_text(globals_key) if user_key is None else user_key
+    digest = hashlib.sha256("\0".join((source, package_hash(), numba.__version__, np.__version__, sys.version,
+                                        key)).encode()).hexdigest()[:20]
+    return f"softpipe_{kind}_{digest}" if user_key is None else f"softpipe_user_{kind}_{digest}"
 
 
-def load_cached(source: str, module_name: str) -> types.ModuleType:
+#: The modification time every generated module file is given: numba's cache index records its
+#: file's (mtime, size), so two processes writing the same module at once must leave the same stamp.
+_FILE_MTIME = 1_000_000_000
+
+
+def _write_module(data: bytes):
+    def write(f) -> None:
+        f.write(data)
+        f.flush()
+        os.utime(f.fileno(), (_FILE_MTIME, _FILE_MTIME))
+    return write
+
+
+def load_cached(source: str, module_name: str, names: Dict[str, Any] | None = None) -> types.ModuleType:
     """The generated module ``source``, written to the cache directory as ``module_name``.py and imported.
 
     The file is written only when it is missing or differs (a damaged one is written
-    again), through a temporary file and an atomic rename; the module is run from
-    ``source`` itself (a stale or damaged ``.pyc`` beside the file is never read), and
-    goes into ``sys.modules`` so that numba's cache can find its namedtuple classes by name.
+    again), through a temporary file and an atomic rename, with a fixed modification
+    time (:data:`_FILE_MTIME`: processes writing the same module at once leave the
+    stamp numba's index records); the module is run from ``source`` itself (a stale or
+    damaged ``.pyc`` beside the file is never read), with ``names`` defined first (a
+    user's shader, ``_shader_py``, which no import can reach), and goes into
+    ``sys.modules`` so that numba's cache can find its namedtuple classes by name.
     """
     directory = _cache_dir()
     directory.mkdir(parents=True, exist_ok=True)
@@ -236,10 +267,11 @@ def load_cached(source: str, module_name: str) -> types.ModuleType:
         if not path.is_file() or path.read_bytes() != data:
             # a temporary file of our own (unique across processes and threads), then an atomic
             # rename: a concurrent writer never sees, nor truncates, half a file
-            atomic_write(path, lambda f: f.write(data))
+            atomic_write(path, _write_module(data))
         spec = importlib.util.spec_from_file_location(module_name, path)
         assert spec is not None and spec.loader is not None, path   # a .py file's spec has its loader
         module = importlib.util.module_from_spec(spec)
+        module.__dict__.update(names or {})
         sys.modules[module_name] = module   # so numba's cache can find its namedtuple classes
         try:
             # the source we checked, compiled under the file's name (numba's cache is keyed by that

@@ -39,7 +39,7 @@ import numba
 
 from softpipe.language.contract import VaryingLayout, python_function, shader_name, wants_derivatives
 from softpipe.language.kernels.cache import cached_file_name, cached_module, importable_shader, load_cached
-from softpipe.language.kernels.snapshot import shader_snapshot
+from softpipe.language.kernels.snapshot import shader_snapshot, shader_source_key
 from softpipe.language.kernels.template import template_expression, template_function
 
 __all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
@@ -70,12 +70,13 @@ _FRAGMENT_IMPORTS = "from softpipe.pipeline.setup import pixel_coverage, sample_
 def _module_source(body: str, shader: Callable, preamble: str, cached: bool) -> str:
     """The generated module: header, the shader as global ``shader``, namedtuples, then ``body``.
 
-    Functions in ``body`` are decorated ``@JIT``; the shader is imported by
-    name when the module is a cached file, and injected as ``_shader_py`` otherwise.
+    Functions in ``body`` are decorated ``@JIT`` (``cache=True`` when the module is a
+    cached file); softpipe's own shader is imported by name when the module is a cached
+    file, any other is given to the module as ``_shader_py``.
     """
     where = importable_shader(shader) if cached else None
     imp = f"from {where[0]} import {where[1]} as _shader_py\n" if where else ""
-    jit = f"JIT = numba.njit(cache={bool(where)}, nogil=True)\n"
+    jit = f"JIT = numba.njit(cache={bool(cached)}, nogil=True)\n"
     # Namedtuple classes get names of their own per module: numba's on-disk cache
     # finds a type by module and name, and two modules' "Varyings" must not meet.
     tag = hashlib.sha256((shader_name(shader) + preamble + body).encode()).hexdigest()[:12]
@@ -84,19 +85,32 @@ def _module_source(body: str, shader: Callable, preamble: str, cached: bool) -> 
 
 
 def _compile_module(body: str, shader: Callable, preamble: str, kind: str, globals_key: tuple = ()):
-    """The generated module for a shader: a cached file for softpipe's own shaders, else exec'd.
+    """The generated module for a shader: a file of the kernel cache, where numba's cache can keep it, else exec'd.
 
-    A cached file imports the shader by name, and numba reads its globals as they
-    are when it compiles; the file's name hashes their values (``globals_key``),
-    so a changed value is a new file. An exec'd module gets the shader's snapshot
-    (:func:`shader_snapshot`), unless numba is off: then it runs the user's own function.
+    softpipe's own shader is imported by name, and numba reads its globals as they
+    are when it compiles; the file's name hashes their values (``globals_key``), so a
+    changed value is a new file. A user's shader is given to the module as its
+    snapshot (:func:`shader_snapshot`), and the file's name hashes its code, its
+    helpers' and its globals' values (:func:`shader_source_key`), so a changed one is a
+    new file too; a user's shader that reads a global no key can name (an object of
+    its own) is exec'd, compiled once per process. Unless numba is off: then the
+    module runs the user's own function.
     """
-    if importable_shader(shader) is not None and not numba.config.DISABLE_JIT:
-        source = _module_source(body, shader, preamble, cached=True)
-        try:
-            return load_cached(source, cached_file_name(source, kind, globals_key))
-        except OSError:
-            pass  # an unwritable cache directory: compile in memory instead
+    if not numba.config.DISABLE_JIT:
+        cached = None
+        if importable_shader(shader) is not None:
+            source = _module_source(body, shader, preamble, cached=True)
+            cached = (cached_file_name(source, kind, globals_key), None)
+        else:
+            user_key = shader_source_key(shader)
+            if user_key is not None:
+                source = _module_source(body, shader, preamble, cached=True)
+                cached = (cached_file_name(source, kind, globals_key, user_key), {"_shader_py": shader_snapshot(shader)})
+        if cached is not None:
+            try:
+                return load_cached(source, *cached)
+            except OSError:
+                pass  # an unwritable cache directory: compile in memory instead
     source = _module_source(body, shader, preamble, cached=False)
     compiled = python_function(shader) if numba.config.DISABLE_JIT else shader_snapshot(shader)
     return exec_module(source, shader, kind, compiled=compiled)

@@ -18,7 +18,9 @@ The readers of a function's code here (:func:`reads`, :func:`helper_kind`,
 """
 from __future__ import annotations
 
+import dis
 import hashlib
+import marshal
 import os
 import sys
 import types
@@ -30,7 +32,7 @@ import numpy as np
 
 from softpipe.language.contract import python_function
 
-__all__ = ["shader_globals_key", "shader_snapshot", "key_text", "reads", "helper_kind", "is_softpipe",
+__all__ = ["shader_globals_key", "shader_snapshot", "shader_source_key", "code_digest", "key_text", "reads", "helper_kind", "is_softpipe",
            "user_module", "nested_codes"]
 
 
@@ -177,6 +179,103 @@ def key_text(key: Any) -> str:
     if isinstance(key, tuple):
         return "(" + ",".join(key_text(k) for k in key) + ")"
     return repr(key)
+
+
+# ------------------------------------------------------------------ the key of a user's kernel on disk
+
+def code_digest(code: types.CodeType) -> str:
+    """A digest of what a code object compiles to (its bytecode, names, constants, line numbers and
+    nested functions), the same in every process; its file's name is left out, which a notebook
+    cell's changes from one session to the next."""
+    def anonymous(c: types.CodeType) -> types.CodeType:
+        consts = tuple(anonymous(k) if isinstance(k, types.CodeType) else k for k in c.co_consts)
+        return c.replace(co_filename="", co_consts=consts)
+    return hashlib.sha256(marshal.dumps(anonymous(code))).hexdigest()
+
+
+_LOADS = frozenset({"LOAD_GLOBAL", "LOAD_NAME"})
+
+
+def _loaded_globals(code: types.CodeType) -> Tuple[str, ...]:
+    """The names a code object (and those nested in it) loads as globals: not ``frag.x``'s ``x``."""
+    return tuple(dict.fromkeys(ins.argval for c in nested_codes(code) for ins in dis.get_instructions(c)
+                               if ins.opname in _LOADS))
+
+
+def _library_name(value: Any) -> str | None:
+    """The name of a module, or ``module.qualname`` of a function or class of softpipe, an installed package
+    or the standard library (what it is follows from the versions in the key); else None."""
+    if isinstance(value, types.ModuleType):     # a user's: the attributes read are keyed as ``module.name``
+        return f"module {value.__name__}"
+    f = python_function(value)
+    qualname = getattr(f, "__qualname__", None)     # an object (a Material, a list) has none: its value matters
+    if not isinstance(qualname, str) or not callable(value):
+        return None
+    if is_softpipe(value):
+        return f"softpipe {f.__module__}.{qualname}"
+    module = sys.modules.get(getattr(f, "__module__", None) or "")
+    if module is None or module.__name__ == "__main__" or user_module(module):
+        return None
+    return f"library {module.__name__}.{qualname}"
+
+
+def _source_parts(f: types.FunctionType, seen: set, parts: list) -> bool:
+    """Add to ``parts`` the key of ``f`` and of what it reads, recursively; False if one cannot be keyed."""
+    if id(f) in seen:
+        return True
+    seen.add(id(f))
+    if sys.modules.get(f.__module__) is None:
+        # numba's cache names a function by its module, and loads it by importing that by name: a
+        # function exec'd in a namespace of its own (not a module of sys.modules) cannot be loaded
+        return False
+    parts.append(f"def {f.__qualname__} {code_digest(f.__code__)}")
+    for default in (f.__defaults__ or ()) + tuple((f.__kwdefaults__ or {}).values()):
+        key = _value_key(default)
+        if key is None:
+            return False
+        parts.append(f"  default {key_text(key)}")
+    loaded = set(_loaded_globals(f.__code__)) | set(f.__code__.co_freevars)
+    for name, value in reads(f):
+        if name.split(".")[0] not in loaded:          # an attribute's name (``frag.x``), not a global
+            continue
+        kind = helper_kind(value)
+        if kind is not None:
+            helper = python_function(value)
+            if not isinstance(helper, types.FunctionType):
+                return False
+            options = {k: v for k, v in getattr(value, "targetoptions", {}).items() if k in _JIT_OPTIONS}
+            parts.append(f"  {name} = {kind} function {helper.__qualname__} {sorted(options.items())!r}")
+            if not _source_parts(helper, seen, parts):
+                return False
+            continue
+        key = _value_key(value)
+        text = key_text(key) if key is not None else _library_name(value)
+        if text is None or "'?'" in text:            # an object of the user's (a list, a class…), or a tuple of them
+            if "." in name:     # ``mytools.x``: a name the shader uses as an attribute, maybe of another object
+                continue
+            return False
+        parts.append(f"  {name} = {text}")
+    return True
+
+
+def shader_source_key(shader: Callable) -> str | None:
+    """Everything of the user's a shader's compiled kernel depends on, as text the same in every process.
+
+    The code of the shader and of the plain Python and ``njit`` helpers it calls,
+    recursively (:func:`code_digest`: bytecode, constants, line numbers; not the file's
+    name), the value of every global they read (numbers, bools, strings, tuples, numpy
+    arrays by their bytes) and the name of every function, class or module they read of
+    softpipe, the standard library or an installed package (those follow from the
+    versions the cache key holds). None when a global is something else (a list, an
+    object or a class of the user's), or a function is of no module of ``sys.modules``
+    (exec'd in a namespace of its own): such a shader is compiled once per process.
+    """
+    f = python_function(shader)
+    if not isinstance(f, types.FunctionType):
+        return None
+    options = {k: v for k, v in getattr(shader, "targetoptions", {}).items() if k in _JIT_OPTIONS}
+    parts: list = [f"shader {sorted(options.items())!r}"]     # an njit'ed shader is compiled with its options
+    return "\n".join(parts) if _source_parts(f, set(), parts) else None
 
 
 def _copy_function(f: types.FunctionType, memo: dict, make: Callable) -> Callable:
