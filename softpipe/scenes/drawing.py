@@ -395,17 +395,24 @@ WIREFRAME_STATE: Dict[str, Any] = {"polygon_mode": "line", "depth_test": "lequal
                    "polygon_offset": (-1.0, -1.0)}
 
 
-def draw_wireframe(fb: Framebuffer, scene: Scene, camera: Camera) -> None:
+def draw_wireframe(fb: Framebuffer, scene: Scene, camera: Camera, *, trace: bool = False,
+                   results: Optional[list] = None) -> None:
     """Draw the edges of every object of ``scene`` over ``fb``: the pipeline's own lines.
 
     Each object's triangles again, in polygon mode "line" (GL's ``glPolygonMode``), with the
     program ``unlit`` in ``scene.wireframe_color``, culled as the object is, in the state
     :data:`WIREFRAME_STATE`: the edges on the visible surface and its silhouettes show,
     those behind it do not. A mesh's own line segments and points are not drawn again.
+    ``trace`` and ``results`` are :func:`draw_mesh`'s; each :class:`DrawResult` is named
+    "OBJECT (wireframe)".
     """
     for obj in scene.drawn_objects(camera):
-        draw_mesh(fb, obj.mesh.without_lines_and_points(), camera, "unlit", model=obj.model, uniforms={"color": scene.wireframe_color},
-                  cull=obj.cull or scene.cull, sample_shading=scene.sample_shading, **WIREFRAME_STATE)
+        first = len(results) if results is not None else 0
+        draw_mesh(fb, obj.mesh.without_lines_and_points(), camera, "unlit", model=obj.model,
+                  uniforms={"color": scene.wireframe_color}, cull=obj.cull or scene.cull,
+                  sample_shading=scene.sample_shading, trace=trace, results=results, **WIREFRAME_STATE)
+        for r in (results or [])[first:]:
+            r.name = f"{obj.name} (wireframe)"
 
 
 # ---------------------------------------------------------------------------- softpipe render / turntable in Python

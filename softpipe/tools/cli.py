@@ -739,21 +739,8 @@ def _html_format(path: str) -> str:
     return "HTML"
 
 
-def _trace_wireframe(fb, scene, results: list) -> None:
-    """``draw_wireframe``'s draws (softpipe.scenes.drawing), traced into ``results``, named "OBJECT (wireframe)"."""
-    from softpipe.scenes.drawing import WIREFRAME_STATE, draw_mesh
-    camera = scene.view_camera()
-    for obj in scene.drawn_objects(camera):
-        first = len(results)
-        draw_mesh(fb, obj.mesh, camera, "unlit", model=obj.model, uniforms={"color": scene.wireframe_color},
-                  cull=obj.cull or scene.cull, sample_shading=scene.sample_shading, trace=True, results=results,
-                  **WIREFRAME_STATE)
-        for r in results[first:]:
-            r.name = f"{obj.name} (wireframe)"
-
-
 def _explore(args) -> int:
-    from softpipe.scenes.drawing import RENDER_SIZE, render
+    from softpipe.scenes.drawing import RENDER_SIZE, draw_wireframe, render
     from softpipe.views.explorer import MAX_FRAGMENTS, write_explorer
     start = time.perf_counter()
     output = _default_output(args, ".html")
@@ -769,7 +756,7 @@ def _explore(args) -> int:
     results: list = []
     fb = render(dataclasses.replace(scene, wireframe=False), trace=True, results=results, progress=progress)
     if scene.wireframe:     # its draws traced too, so the page shows the edges' pixels and their histories
-        _trace_wireframe(fb, scene, results)
+        draw_wireframe(fb, scene, scene.view_camera(), trace=True, results=results)
     _progress(args, "gathering every pixel's history")
     summary = write_explorer(results, output, max_fragments=args.max_fragments or MAX_FRAGMENTS,
                              progress=lambda done, total: _progress(args, f"fragment {done}/{total}"))

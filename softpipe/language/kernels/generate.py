@@ -33,7 +33,7 @@ from __future__ import annotations
 import hashlib
 import re
 import types
-from typing import Callable, NamedTuple, Sequence, Tuple
+from typing import Callable, Dict, NamedTuple, Optional, Sequence, Tuple
 
 import numba
 
@@ -97,7 +97,7 @@ def _compile_module(body: str, shader: Callable, preamble: str, kind: str, globa
     module runs the user's own function.
     """
     if not numba.config.DISABLE_JIT:
-        cached = None
+        cached: Optional[Tuple[str, Optional[Dict[str, Callable]]]] = None
         if importable_shader(shader) is not None:
             source = _module_source(body, shader, preamble, cached=True)
             cached = (cached_file_name(source, kind, globals_key), None)
