@@ -382,7 +382,7 @@ def test_missing_and_bad_files(tmp_path):
     write(tmp_path, "v 0 0 0\nv 1 0 0\nf 1 2 3\n", "bad.obj")
     message = error_of('[[meshes]]\nobj = "bad.obj"\n', tmp_path)
     assert f"key 'obj' in [[meshes]] #1: {tmp_path / 'bad.obj'}:3: " in message
-    write(tmp_path, "# nothing\nv 0 0 0\n", "empty.obj")
+    write(tmp_path, "# nothing\nvt 0 0\n", "empty.obj")     # (vertices alone would be a point cloud)
     assert "empty.obj has no faces" in error_of('[[meshes]]\nobj = "empty.obj"\n', tmp_path)
     message = error_of('[materials.m]\ndiffuse_texture = "nope.png"\n[[meshes]]\nshape = "cube"\n', tmp_path)
     assert "key 'diffuse_texture' in [materials.m]: file not found:" in message
