@@ -295,49 +295,36 @@ class DrawCall:
             yield Stage("output", merged, batch)
 
     def _fast_stages(self, prims, setup, clock) -> Iterator[Stage]:
-        """Early depth: the visibility pass, then the shader on the visible samples only."""
-        if prims.kind != "triangles":
-            yield from self._fast_fragment_stages(prims, setup, clock)
-            return
+        """Early depth: the visibility pass, then the shader on the visible samples only.
+
+        Triangles: the tiled visibility pass (:func:`~softpipe.pipeline.visibility.visibility_pass`).
+        Points and lines: their fragments, made as on the reference path, then the depth test over
+        them (:func:`~softpipe.pipeline.visibility.early_depth`).
+        """
         fb = self.framebuffer
         undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
-        visibility = visibility_pass(prims, setup, fb, self.state, undo=undo)
+        visibility: Any
+        shade: Callable[..., Any]
+        if prims.kind == "triangles":
+            visibility, shade = visibility_pass(prims, setup, fb, self.state, undo=undo), shade_visible
+        else:
+            counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self._rect(), setup=setup)
+            if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
+                self.path_taken = "reference"
+                self.path_reason = (f"more than MAX_FRAGMENTS_PER_BATCH = {MAX_FRAGMENTS_PER_BATCH:,} fragments "
+                                    f"of {prims.kind}, which the reference path draws in batches")
+                yield from self._reference_stages(prims, setup, clock, record=False)
+                return
+            frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
+                              rect=self._rect(), setup=setup)
+            visibility, shade = early_depth(frags, fb, self.state, undo=undo), shade_winners
         clock("raster")
         yield Stage("visibility", visibility)
         try:
-            shaded = shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
+            shaded = shade(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
         except DiscardOnFastPath as e:
             # the depth is as it was before the draw: draw it again in the reference order (even with
             # path="fast": only the reference path can draw what a discarded fragment lets show)
-            self.path_taken = "reference"
-            self.path_reason = (f"{e} on the fast path, which then drew it again on the reference path "
-                                "(a discarded fragment lets what is behind it show)")
-            clock("fragment")
-            yield from self._reference_stages(prims, setup, clock, record=False)
-            return
-        clock("fragment")
-        yield Stage("fragment", shaded)
-
-    def _fast_fragment_stages(self, prims, setup, clock) -> Iterator[Stage]:
-        """Early depth for points and lines: their fragments, the depth test over them, then the shader on
-        the last written at each sample (:func:`~softpipe.pipeline.visibility.early_depth`)."""
-        fb = self.framebuffer
-        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self._rect(), setup=setup)
-        if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
-            self.path_taken = "reference"
-            self.path_reason = (f"more than MAX_FRAGMENTS_PER_BATCH = {MAX_FRAGMENTS_PER_BATCH:,} fragments of "
-                                f"{prims.kind}, which the reference path draws in batches")
-            yield from self._reference_stages(prims, setup, clock, record=False)
-            return
-        frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
-                          rect=self._rect(), setup=setup)
-        undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
-        visibility = early_depth(frags, fb, self.state, undo=undo)
-        clock("raster")
-        yield Stage("visibility", visibility)
-        try:
-            shaded = shade_winners(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
-        except DiscardOnFastPath as e:
             self.path_taken = "reference"
             self.path_reason = (f"{e} on the fast path, which then drew it again on the reference path "
                                 "(a discarded fragment lets what is behind it show)")
