@@ -33,6 +33,7 @@ import os
 import sys
 import time
 import types
+import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 
@@ -43,7 +44,14 @@ from softpipe.language.contract import make_uniforms
 from softpipe.pipeline.assembly import Primitives, assemble, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.pipeline.output import MergeResult, MergeState, merge
+from softpipe.pipeline.output import (
+    MergeResult,
+    MergeState,
+    NonFinite,
+    NonFiniteColorWarning,
+    merge,
+    non_finite_written,
+)
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
 from softpipe.pipeline.setup import SHADING_POSITIONS, TriangleSetup, apply_polygon_offset, pixel_rect, setup_triangles
 from softpipe.pipeline.transforms import Viewport
@@ -53,6 +61,7 @@ from softpipe.pipeline.visibility import (
     DiscardOnFastPath,
     choose_path,
     early_depth,
+    non_finite_visible,
     shade_visible,
     shade_winners,
     shading_may_fail,
@@ -180,6 +189,9 @@ class DrawCall:
         #: which path the last run took ("reference" or "fast"), and why
         self.path_taken: Optional[str] = None
         self.path_reason: Optional[str] = None
+        #: the samples the last run wrote with a NaN or infinite color (None: none), of which a
+        #: :class:`~softpipe.pipeline.output.NonFiniteColorWarning` told
+        self.non_finite: Optional[NonFinite] = None
 
     def choose_path(self, keep_fragments: bool = False) -> Tuple[str, str]:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
@@ -234,9 +246,12 @@ class DrawCall:
         clock("setup")
         stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
                                                                                                record)
+        self.non_finite = None
         for stage in stages:
             yield self._emit(stage, debug)
             clock(None)
+        if self.non_finite is not None:
+            warnings.warn(NonFiniteColorWarning(self.non_finite.message()), stacklevel=2)
 
     def _offset_polygon_mode(self, prims: Primitives, setup, polygon_offset: Tuple[float, float]) -> None:
         """The polygon offset of triangles drawn as edges or corners: each takes its triangle's offset
@@ -291,6 +306,7 @@ class DrawCall:
             clock("fragment")
             yield Stage("fragment", shaded, batch)
             merged = merge(frags, shaded, self.state, fb, record=record)
+            self._note_non_finite(non_finite_written(frags, shaded, merged))
             clock("output")
             yield Stage("output", merged, batch)
 
@@ -331,8 +347,19 @@ class DrawCall:
             clock("fragment")
             yield from self._reference_stages(prims, setup, clock, record=False)
             return
+        self._note_non_finite(non_finite_visible(fb, visibility.vis, prims.primitive_id))
         clock("fragment")
         yield Stage("fragment", shaded)
+
+    def _note_non_finite(self, found: Optional[NonFinite]) -> None:
+        """Add a batch's non-finite samples to the draw's (the first one kept)."""
+        if found is None:
+            return
+        if self.non_finite is None:
+            self.non_finite = found
+        else:
+            self.non_finite = NonFinite(self.non_finite.count + found.count, self.non_finite.x, self.non_finite.y,
+                                        self.non_finite.primitive_id)
 
     def _clock(self):
         """A stopwatch that adds the time since its last call to ``self.timings[name]`` (None: skip)."""

@@ -43,7 +43,7 @@ from softpipe.core.parallel import in_bands
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients, run_fragment_stage
-from softpipe.pipeline.output import DEPTH_FUNCS, MergeState, depth_passes
+from softpipe.pipeline.output import DEPTH_FUNCS, MergeState, NonFinite, depth_passes
 from softpipe.pipeline.raster import Fragments
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
@@ -57,7 +57,7 @@ from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
-           "visible_loop_args", "FragmentVisibility", "early_depth", "shade_winners"]
+           "visible_loop_args", "FragmentVisibility", "early_depth", "shade_winners", "non_finite_visible"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -484,3 +484,38 @@ def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragmen
     fb.samples_color[kept.sample, kept.y, kept.x] = shaded.color
     visibility.saved_depth = None
     return ShadedSamples(visibility, shading)  # type: ignore[arg-type]  # it reads .vis alone
+
+
+@numba.njit(cache=True, nogil=True)
+def _non_finite_rows(lo, hi, color, vis, found):
+    """Per image row lo:hi: how many visible samples hold a non-finite color, and the first one's column
+    and sample (found[row] = count, column, sample)."""
+    for row in range(lo, hi):
+        count, col, first = 0, -1, -1
+        for s in range(vis.shape[0]):
+            for i in range(vis.shape[2]):
+                if vis[s, row, i] >= 0:
+                    ok = True
+                    for c in range(4):
+                        v = color[s, row, i, c]
+                        if not (v - v == 0.0):            # NaN or ±inf
+                            ok = False
+                    if not ok:
+                        count += 1
+                        if col < 0 or i < col:
+                            col, first = i, s
+        found[row, 0], found[row, 1], found[row, 2] = count, col, first
+
+
+def non_finite_visible(fb, vis: np.ndarray, primitive_id: np.ndarray) -> Optional[NonFinite]:
+    """The samples the fast path wrote (``vis`` ≥ 0) whose color is NaN or infinite, or None: one pass
+    over the framebuffer in row bands."""
+    found = np.zeros((vis.shape[1], 3), np.int64)
+    in_bands(_non_finite_rows, vis.shape[1], fb.samples_color, vis, found, grain=64)
+    rows = np.flatnonzero(found[:, 0])
+    if not len(rows):
+        return None
+    row = int(rows[0])
+    col, sample = int(found[row, 1]), int(found[row, 2])
+    return NonFinite(int(found[:, 0].sum()), col, row, int(primitive_id[vis[sample, row, col]]))
+
