@@ -61,7 +61,6 @@ from softpipe.pipeline.visibility import (
     DiscardOnFastPath,
     choose_path,
     early_depth,
-    non_finite_visible,
     shade_visible,
     shade_winners,
     shading_may_fail,
@@ -347,7 +346,7 @@ class DrawCall:
             clock("fragment")
             yield from self._reference_stages(prims, setup, clock, record=False)
             return
-        self._note_non_finite(non_finite_visible(fb, visibility.vis, prims.primitive_id))
+        self._note_non_finite(shaded.non_finite)
         clock("fragment")
         yield Stage("fragment", shaded)
 
