@@ -23,7 +23,7 @@ from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.draw import DrawCall, Stage, draw
 from softpipe.pipeline.fragment import ShadedFragments
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.pipeline.output import MergeResult, MergeState
+from softpipe.pipeline.output import MergeResult, MergeState, NonFiniteColorWarning
 from softpipe.pipeline.raster import Fragments, rasterize
 from softpipe.pipeline.sampling import CENTER, SamplePattern, grid, jittered, random_pattern, rotated_grid_4x
 from softpipe.pipeline.trace import PixelHistory, Trace
@@ -57,7 +57,7 @@ from softpipe.scenes.shadow_pass import ShadowMaps, render_shadow_maps
 from softpipe.tracers.pathtrace import PathTrace, pathtrace
 
 __all__ = [
-    "shading", "parse_color", "keep_freed_memory", "glsl", "DISCARD", "FragInfo", "ShaderError",
+    "shading", "parse_color", "keep_freed_memory", "glsl", "DISCARD", "FragInfo", "ShaderError", "NonFiniteColorWarning",
     "make_uniforms", "lighting", "Light", "Lighting", "LightingUniform", "Material", "MaterialUniform",
     "pack_lights", "ShadowSettings", "ShadowUniform", "Texture2D", "TextureUniform", "Primitives", "assemble",
     "Camera", "DrawCall", "Stage", "draw", "ShadedFragments", "Framebuffer", "MergeResult", "MergeState",

@@ -33,6 +33,7 @@ import os
 import sys
 import time
 import types
+import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Mapping, Optional, Tuple, Union
 
@@ -43,7 +44,14 @@ from softpipe.language.contract import make_uniforms
 from softpipe.pipeline.assembly import Primitives, assemble, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.pipeline.output import MergeResult, MergeState, merge
+from softpipe.pipeline.output import (
+    MergeResult,
+    MergeState,
+    NonFinite,
+    NonFiniteColorWarning,
+    merge,
+    non_finite_written,
+)
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
 from softpipe.pipeline.setup import SHADING_POSITIONS, TriangleSetup, apply_polygon_offset, pixel_rect, setup_triangles
 from softpipe.pipeline.transforms import Viewport
@@ -180,6 +188,9 @@ class DrawCall:
         #: which path the last run took ("reference" or "fast"), and why
         self.path_taken: Optional[str] = None
         self.path_reason: Optional[str] = None
+        #: the samples the last run wrote with a NaN or infinite color (None: none), of which a
+        #: :class:`~softpipe.pipeline.output.NonFiniteColorWarning` told
+        self.non_finite: Optional[NonFinite] = None
 
     def choose_path(self, keep_fragments: bool = False) -> Tuple[str, str]:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
@@ -234,9 +245,12 @@ class DrawCall:
         clock("setup")
         stages = self._fast_stages(prims, setup, clock) if fast else self._reference_stages(prims, setup, clock,
                                                                                                record)
+        self.non_finite = None
         for stage in stages:
             yield self._emit(stage, debug)
             clock(None)
+        if self.non_finite is not None:
+            warnings.warn(NonFiniteColorWarning(self.non_finite.message()), stacklevel=2)
 
     def _offset_polygon_mode(self, prims: Primitives, setup, polygon_offset: Tuple[float, float]) -> None:
         """The polygon offset of triangles drawn as edges or corners: each takes its triangle's offset
@@ -291,21 +305,38 @@ class DrawCall:
             clock("fragment")
             yield Stage("fragment", shaded, batch)
             merged = merge(frags, shaded, self.state, fb, record=record)
+            self._note_non_finite(non_finite_written(frags, shaded, merged))
             clock("output")
             yield Stage("output", merged, batch)
 
     def _fast_stages(self, prims, setup, clock) -> Iterator[Stage]:
-        """Early depth: the visibility pass, then the shader on the visible samples only."""
-        if prims.kind != "triangles":
-            yield from self._fast_fragment_stages(prims, setup, clock)
-            return
+        """Early depth: the visibility pass, then the shader on the visible samples only.
+
+        Triangles: the tiled visibility pass (:func:`~softpipe.pipeline.visibility.visibility_pass`).
+        Points and lines: their fragments, made as on the reference path, then the depth test over
+        them (:func:`~softpipe.pipeline.visibility.early_depth`).
+        """
         fb = self.framebuffer
         undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
-        visibility = visibility_pass(prims, setup, fb, self.state, undo=undo)
+        visibility: Any
+        shade: Callable[..., Any]
+        if prims.kind == "triangles":
+            visibility, shade = visibility_pass(prims, setup, fb, self.state, undo=undo), shade_visible
+        else:
+            counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self._rect(), setup=setup)
+            if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
+                self.path_taken = "reference"
+                self.path_reason = (f"more than MAX_FRAGMENTS_PER_BATCH = {MAX_FRAGMENTS_PER_BATCH:,} fragments "
+                                    f"of {prims.kind}, which the reference path draws in batches")
+                yield from self._reference_stages(prims, setup, clock, record=False)
+                return
+            frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
+                              rect=self._rect(), setup=setup)
+            visibility, shade = early_depth(frags, fb, self.state, undo=undo), shade_winners
         clock("raster")
         yield Stage("visibility", visibility)
         try:
-            shaded = shade_visible(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
+            shaded = shade(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
         except DiscardOnFastPath as e:
             # the depth is as it was before the draw: draw it again in the reference order (even with
             # path="fast": only the reference path can draw what a discarded fragment lets show)
@@ -315,37 +346,19 @@ class DrawCall:
             clock("fragment")
             yield from self._reference_stages(prims, setup, clock, record=False)
             return
+        self._note_non_finite(shaded.non_finite)
         clock("fragment")
         yield Stage("fragment", shaded)
 
-    def _fast_fragment_stages(self, prims, setup, clock) -> Iterator[Stage]:
-        """Early depth for points and lines: their fragments, the depth test over them, then the shader on
-        the last written at each sample (:func:`~softpipe.pipeline.visibility.early_depth`)."""
-        fb = self.framebuffer
-        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self._rect(), setup=setup)
-        if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
-            self.path_taken = "reference"
-            self.path_reason = (f"more than MAX_FRAGMENTS_PER_BATCH = {MAX_FRAGMENTS_PER_BATCH:,} fragments of "
-                                f"{prims.kind}, which the reference path draws in batches")
-            yield from self._reference_stages(prims, setup, clock, record=False)
+    def _note_non_finite(self, found: Optional[NonFinite]) -> None:
+        """Add a batch's non-finite samples to the draw's (the first one kept)."""
+        if found is None:
             return
-        frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
-                          rect=self._rect(), setup=setup)
-        undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
-        visibility = early_depth(frags, fb, self.state, undo=undo)
-        clock("raster")
-        yield Stage("visibility", visibility)
-        try:
-            shaded = shade_winners(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
-        except DiscardOnFastPath as e:
-            self.path_taken = "reference"
-            self.path_reason = (f"{e} on the fast path, which then drew it again on the reference path "
-                                "(a discarded fragment lets what is behind it show)")
-            clock("fragment")
-            yield from self._reference_stages(prims, setup, clock, record=False)
-            return
-        clock("fragment")
-        yield Stage("fragment", shaded)
+        if self.non_finite is None:
+            self.non_finite = found
+        else:
+            self.non_finite = NonFinite(self.non_finite.count + found.count, self.non_finite.x, self.non_finite.y,
+                                        self.non_finite.primitive_id)
 
     def _clock(self):
         """A stopwatch that adds the time since its last call to ``self.timings[name]`` (None: skip)."""

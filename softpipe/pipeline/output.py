@@ -26,7 +26,7 @@ from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.raster import Fragments
 
 __all__ = ["MergeState", "MergeResult", "merge", "DEPTH_FUNCS", "BLEND_FACTORS", "VERDICTS",
-           "depth_passes"]
+           "depth_passes", "NonFiniteColorWarning", "NonFinite", "non_finite_written"]
 
 #: OpenGL's eight depth compare functions: the fragment passes if ``z_frag OP z_stored``.
 DEPTH_FUNCS = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always")
@@ -200,3 +200,38 @@ def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Fram
                       bool(state.depth_write) and func >= 0, src_f, dst_f, fb.samples_color, fb.samples_depth,
                       verdict, after)
     return MergeResult(verdict, after if record else None)
+
+
+# ------------------------------------------------------------------ colors that are not numbers
+
+class NonFiniteColorWarning(UserWarning):
+    """A draw wrote a NaN or infinite color into the framebuffer (a shader's ``math.pow`` of a negative
+    number, a division by zero, …): such a sample saves as black, so softpipe says so, once per draw."""
+
+
+@dataclass(frozen=True)
+class NonFinite:
+    """What a draw wrote that is not a finite color: how many samples, and the first (its pixel as
+    ``Trace.at`` and ``debug_fragment`` take it: column ``x``, image row ``y``; its primitive id)."""
+
+    count: int
+    x: int
+    y: int
+    primitive_id: int
+
+    def message(self) -> str:
+        return (f"the draw wrote {self.count:,} sample{'s' if self.count != 1 else ''} whose color is NaN or "
+                f"infinite, the first at pixel ({self.x}, {self.y}) (column, image row) from primitive "
+                f"{self.primitive_id}; a PNG shows them black. To see why, draw again with trace=True and call "
+                f"trace.debug_fragment({self.x}, {self.y}): it runs the fragment shader there in Python, with "
+                "math's functions giving NaN or infinity as the compiled shader's do")
+
+
+def non_finite_written(frags: Fragments, shaded: ShadedFragments, merged: MergeResult) -> Optional[NonFinite]:
+    """The fragments the merger wrote with a NaN or infinite color component, or None."""
+    bad = np.flatnonzero((merged.verdict == WRITTEN) & ~np.isfinite(shaded.color).all(axis=1))
+    if not len(bad):
+        return None
+    k = int(bad[0])
+    return NonFinite(len(bad), int(frags.x[k]), int(frags.y[k]), int(frags.primitive_id[k]))
+

@@ -33,8 +33,10 @@ are known, and those properties say so (ValueError) rather than guess.
 """
 from __future__ import annotations
 
+import math
+import types
 from dataclasses import dataclass
-from typing import Any, List, Optional, Tuple
+from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
 
@@ -46,7 +48,7 @@ from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader,
 from softpipe.pipeline.output import VERDICTS, MergeResult
 from softpipe.pipeline.raster import Fragments
 
-__all__ = ["Trace", "PixelEvent", "PixelHistory", "BeforeDraw"]
+__all__ = ["Trace", "PixelEvent", "PixelHistory", "BeforeDraw", "as_compiled_math", "COMPILED_MATH"]
 
 
 def _concat(parts, cls, fields):
@@ -412,7 +414,9 @@ class Trace:
         (the ``#`` column of :meth:`pixel_history`). Put a breakpoint
         (``breakpoint()``) in your shader: it stops here, on this fragment.
         Returns the shader's RGBA, which equals what the compiled shader
-        produced for that fragment.
+        produced for that fragment: the shader's calls of ``math`` give NaN or
+        infinity where Python's raise (``math.pow(-1, 0.5)``, ``math.exp(1000)``), as
+        compiled code does (:func:`as_compiled_math`).
         """
         if index is None:
             idx = self.at(x, y)
@@ -425,7 +429,7 @@ class Trace:
                 index = int(written[-1] if len(written) else idx[-1])
             else:
                 index = int(idx[which])
-        return python_function(self.fragment_shader)(*self.fragment_inputs(index))
+        return as_compiled_math(python_function(self.fragment_shader))(*self.fragment_inputs(index))
 
     def pixel_history(self, x: int, y: int) -> PixelHistory:
         """Every fragment that touched pixel (x, y), in order, with what happened to it."""
@@ -495,3 +499,47 @@ class Trace:
         """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""
         from softpipe.views.pictures import save_stage_pictures
         return save_stage_pictures(self, directory)
+
+
+class _CompiledMath:
+    """``math`` as compiled code has it: a function whose argument is out of its domain gives NaN, and one
+    whose result overflows gives infinity, where Python's raise ValueError or OverflowError."""
+
+    def __getattr__(self, name: str):
+        value = getattr(math, name)
+        if not callable(value):
+            return value
+
+        def call(*args):
+            try:
+                return value(*args)
+            except ValueError:
+                return math.nan
+            except OverflowError:
+                return math.inf
+        return call
+
+
+COMPILED_MATH = _CompiledMath()
+
+
+def as_compiled_math(fn: Callable) -> Callable:
+    """``fn`` (a plain function) reading :data:`COMPILED_MATH` for its module's ``math`` (and for the names
+    it imported from math), so run as Python it gives the NaN and infinity its compiled loop gives.
+
+    (Its own calls only: a helper it calls keeps Python's ``math``; and ``x ** 0.5`` of a negative
+    float is a complex number in Python, NaN compiled.)
+    """
+    globals_ = dict(fn.__globals__)
+    changed = False
+    for name, value in fn.__globals__.items():
+        if value is math:
+            globals_[name], changed = COMPILED_MATH, True
+        elif callable(value) and getattr(value, "__module__", None) == "math":
+            globals_[name], changed = getattr(COMPILED_MATH, value.__name__), True
+    if not changed:
+        return fn
+    copy = types.FunctionType(fn.__code__, globals_, fn.__name__, fn.__defaults__, fn.__closure__)
+    copy.__kwdefaults__ = fn.__kwdefaults__
+    return copy
+

@@ -43,7 +43,7 @@ from softpipe.core.parallel import in_bands
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients, run_fragment_stage
-from softpipe.pipeline.output import DEPTH_FUNCS, MergeState, depth_passes
+from softpipe.pipeline.output import DEPTH_FUNCS, MergeState, NonFinite, depth_passes
 from softpipe.pipeline.raster import Fragments
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
@@ -249,8 +249,10 @@ class ShadedSamples:
     Both are computed when first asked for (a full-frame pass each), not by every draw.
     """
 
-    def __init__(self, visibility: Visibility, shading: str):
+    def __init__(self, visibility: Visibility, shading: str, non_finite: Optional[NonFinite] = None):
         self.visibility, self.shading = visibility, shading
+        #: the samples written with a NaN or infinite color (:class:`~softpipe.pipeline.output.NonFinite`), or None
+        self.non_finite = non_finite
 
     @property
     def written(self) -> np.ndarray:
@@ -325,7 +327,7 @@ def visible_loop_args(prims: Primitives, visibility: Visibility, fb, shader: Cal
     return (visibility.vis, visibility.touched, TILE_W, TILE_H, s.edges, s.bias, s.plane, pattern.offsets,
             pattern.positions, SHADING_POSITIONS.index(shading), prims.inv_w, prims.varyings, prims.front_facing,
             prims.primitive_id, derivative_gradients(shader, s), uniforms, fb.samples_color,
-            np.empty((0, 0, 0, 4), np.float32), np.zeros(fb.height, np.bool_), np.zeros(1, np.int64))
+            np.empty((0, 0, 0, 4), np.float32), np.zeros(fb.height, np.bool_), np.zeros(1 + fb.height, np.int64))
 
 
 def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader: Optional[Callable], uniforms,
@@ -369,6 +371,7 @@ def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader
             raise
         if status[0]:
             raise DiscardOnFastPath("the fragment shader returned a NaN alpha (DISCARD) at a visible sample")
+        non_finite = _non_finite_from_rows(status[1:], fb.samples_color, visibility.vis, prims.primitive_id)
     except BaseException:
         visibility.restore_depth(fb)
         _release(visibility.saved_depth)
@@ -378,7 +381,21 @@ def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader
         _release(saved_color)
     _release(visibility.saved_depth)
     visibility.saved_depth = None          # the draw stands: nothing to undo
-    return ShadedSamples(visibility, shading)
+    return ShadedSamples(visibility, shading, non_finite)
+
+
+def _non_finite_from_rows(per_row: np.ndarray, color: np.ndarray, vis: np.ndarray,
+                          primitive_id: np.ndarray) -> Optional[NonFinite]:
+    """The non-finite samples the shading loop counted per image row: how many, and the first (the
+    lowest row holding one, its first column)."""
+    rows = np.flatnonzero(per_row)
+    if not len(rows):
+        return None
+    row = int(rows[0])
+    bad = (vis[:, row] >= 0) & ~np.isfinite(color[:, row].astype(np.float64).sum(axis=-1))
+    samples, cols = np.nonzero(bad)
+    k = int(np.argmin(cols))
+    return NonFinite(int(per_row.sum()), int(cols[k]), row, int(primitive_id[vis[samples[k], row, cols[k]]]))
 
 
 def _invocations(vis: np.ndarray, shading: str) -> int:
@@ -483,4 +500,10 @@ def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragmen
         raise
     fb.samples_color[kept.sample, kept.y, kept.x] = shaded.color
     visibility.saved_depth = None
-    return ShadedSamples(visibility, shading)  # type: ignore[arg-type]  # it reads .vis alone
+    bad = np.flatnonzero(~np.isfinite(shaded.color).all(axis=1))
+    non_finite = None
+    if len(bad):
+        first = int(bad[np.lexsort((kept.x[bad], kept.y[bad]))[0]])       # the lowest image row, then column
+        non_finite = NonFinite(len(bad), int(kept.x[first]), int(kept.y[first]), int(kept.primitive_id[first]))
+    return ShadedSamples(visibility, shading, non_finite)  # type: ignore[arg-type]  # it reads .vis alone
+

@@ -25,7 +25,14 @@ docs/08-fast-path.md (the fast path's questions and loops).
 """
 from softpipe.core.borrow import borrowed_tuple
 from softpipe.language.kernels.analysis import alpha_is_finite, may_discard, may_raise, probe_vertex_shader
-from softpipe.language.kernels.diagnostics import fragment_site, rgba, run_compiled, vertex_site, visible_site
+from softpipe.language.kernels.diagnostics import (
+                                                finite_rgba,
+                                                fragment_site,
+                                                rgba,
+                                                run_compiled,
+                                                vertex_site,
+                                                visible_site,
+)
 from softpipe.language.kernels.generate import (
                                                 fragment_kernel,
                                                 fragment_module,
@@ -39,5 +46,5 @@ from softpipe.language.kernels.generate import (
 
 __all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
            "kernel_source", "run_compiled", "vertex_site", "fragment_site", "visible_site", "may_discard",
-           "may_raise", "alpha_is_finite", "probe_vertex_shader", "borrowed_tuple", "jit_function", "rgba",
+           "may_raise", "alpha_is_finite", "probe_vertex_shader", "borrowed_tuple", "jit_function", "rgba", "finite_rgba",
            "short_repr"]

@@ -38,7 +38,7 @@ from softpipe.language.kernels.cache import COMPILE_LOCK
 from softpipe.language.kernels.generate import exec_module
 from softpipe.language.kernels.snapshot import helper_kind, nested_codes, reads
 
-__all__ = ["run_compiled", "plain_value", "vertex_site", "fragment_site", "visible_site", "rgba", "BadReturn", "return_error",
+__all__ = ["run_compiled", "plain_value", "vertex_site", "fragment_site", "visible_site", "rgba", "finite_rgba", "BadReturn", "return_error",
            "raised_error", "from_shader", "def_site",
            "shown_file", "check_tuple_arithmetic", "users_traceback", "hide_internal_frames"]
 
@@ -90,6 +90,16 @@ def _numba_type_text(ty) -> str:
     if isinstance(ty, (nt.Number, nt.Boolean)):
         return "a single number"
     return f"a value of type {ty}"
+
+
+@numba.njit(cache=True, inline="always")
+def finite_rgba(color, s, row, i):
+    """Are the four components of ``color[s, row, i]`` finite? (Their sum, in float64, is NaN or ±inf
+    exactly when one is: one test a sample.) The fast path's shading loop counts the samples it writes
+    that are not (softpipe.pipeline.visibility)."""
+    total = (np.float64(color[s, row, i, 0]) + np.float64(color[s, row, i, 1]) + np.float64(color[s, row, i, 2])
+             + np.float64(color[s, row, i, 3]))
+    return total - total == 0.0
 
 
 def rgba(color: Any) -> tuple:

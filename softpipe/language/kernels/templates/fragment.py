@@ -29,7 +29,7 @@ def JIT(function):
 
 
 shader = Varyings = FragInfo = Derivatives = borrowed_tuple = rgba = None
-pixel_coverage = shading_point = sample_depth = None
+pixel_coverage = shading_point = sample_depth = finite_rgba = None
 SMOOTH = DERIVATIVES = None
 VARYINGS_AT_BARYCENTRICS = VARYING_VALUES = DERIVATIVES_X = DERIVATIVES_Y = DX_VALUES = DY_VALUES = None
 
@@ -111,6 +111,9 @@ def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plan
     (unless it is empty) and started[row] is set; a NaN alpha (DISCARD, which the reference
     path discards) is not written: status[0] = 1 and every band stops at its next row
     (the row under way writes no copy of a color it may not have written).
+
+    status[1 + row] counts the samples of image row ``row`` written with a NaN or infinite
+    color (:func:`~softpipe.language.kernels.diagnostics.finite_rgba`), so that the draw can say so.
     """
     samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
     save = saved_color.shape[0] > 0
@@ -149,6 +152,8 @@ def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plan
                                 continue
                             for c in range(4):
                                 out_color[s, row, i, c] = out_color[earlier, row, i, c]
+                            if status[1 + row] and not finite_rgba(out_color, s, row, i):
+                                status[1 + row] += 1
                             continue
                         mask, depth_sample, count = pixel_coverage(edges, bias, t, i, j, offsets)
                     b0, b1, b2, fx, fy = shading_point(edges, plane, t, i, j, s, mask, count, offsets,
@@ -165,5 +170,7 @@ def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plan
                         out_color[s, row, i, 1] = c[1]
                         out_color[s, row, i, 2] = c[2]
                         out_color[s, row, i, 3] = c[3]
+                        if not finite_rgba(out_color, s, row, i):     # NaN or infinity written: counted per row
+                            status[1 + row] += 1
                     else:                      # NaN alpha: the reference path discards it
                         status[0] = 1

@@ -1,0 +1,88 @@
+"""No silent NaN (issue 32): a draw that writes a NaN or infinite color says so once, on both paths,
+naming how many samples, the first pixel and its primitive; debug_fragment there gives what the
+compiled shader gave (NaN), not Python's exception."""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from conftest import window_to_clip
+
+import softpipe as sp
+
+W = H = 16
+#: two triangles covering the framebuffer: the left half (x < 8) first, then the right half
+QUAD = window_to_clip(np.array([[0, 0, 0.5], [8, 0, 0.5], [8, 16, 0.5], [8, 0, 0.5], [16, 0, 0.5], [16, 16, 0.5],
+                                [0, 0, 0.5], [8, 16, 0.5], [0, 16, 0.5], [8, 0, 0.5], [16, 16, 0.5], [8, 16, 0.5]]),
+                      W, H)
+
+
+def sqrt_of_x_less_10(varyings, uniforms, frag):
+    """math.pow of a negative number where x < 10: NaN in compiled code, ValueError in Python."""
+    g = math.pow(frag.x - 10.0, 0.5)
+    return (g, 0.5, 0.5, 1.0)
+
+
+@pytest.mark.parametrize("path", ["reference", "fast"])
+def test_a_draw_that_writes_nan_says_so_once_with_the_first_pixel(path):
+    fb = sp.Framebuffer(W, H)
+    with pytest.warns(sp.NonFiniteColorWarning) as record:
+        call = sp.DrawCall(fb, QUAD, fragment_shader=sqrt_of_x_less_10, path=path)
+        call.run()
+    assert len(record) == 1
+    # pixels x = 0 … 9 have centres x + ½ < 10: 10 columns × 16 rows
+    assert call.non_finite.count == 160
+    message = str(record[0].message)
+    assert message.startswith("the draw wrote 160 samples whose color is NaN or infinite, the first at pixel (0, ")
+    assert "trace.debug_fragment(0, " in message
+    assert np.isnan(fb.color[:, :10, 0]).all() and np.isfinite(fb.color[:, 10:]).all()
+
+
+def test_the_first_pixel_named_is_the_first_row_and_column_and_its_primitive():
+    fb = sp.Framebuffer(W, H)
+    with pytest.warns(sp.NonFiniteColorWarning):
+        call = sp.DrawCall(fb, QUAD, fragment_shader=sqrt_of_x_less_10, path="reference")
+        call.run()
+    # the reference path names its first such fragment: primitive 0, (0,0)-(8,0)-(8,16), walks from the
+    # bottom window row (image row 15) left to right, and covers pixel 0 there (centre 0.5 > 0.25)
+    nf = call.non_finite
+    assert (nf.x, nf.y, nf.primitive_id) == (0, 15, 0)
+    fast = sp.Framebuffer(W, H)
+    with pytest.warns(sp.NonFiniteColorWarning):
+        call = sp.DrawCall(fast, QUAD, fragment_shader=sqrt_of_x_less_10, path="fast")
+        call.run()
+    assert (call.non_finite.x, call.non_finite.y) == (0, 0)          # the fast path: image row 0 first
+    assert call.non_finite.primitive_id == 2                        # the top-left triangle holds (0, 0)
+
+
+def test_a_finite_draw_says_nothing():
+    fb = sp.Framebuffer(W, H)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sp.NonFiniteColorWarning)
+        call = sp.DrawCall(fb, QUAD, varyings={"color": np.ones((12, 3))})
+        call.run()
+    assert call.non_finite is None
+
+
+def test_debug_fragment_gives_the_nan_the_compiled_shader_gave():
+    fb = sp.Framebuffer(W, H)
+    with pytest.warns(sp.NonFiniteColorWarning):
+        trace = sp.draw(fb, QUAD, fragment_shader=sqrt_of_x_less_10, trace=True)
+    r, g, b, a = trace.debug_fragment(3, 5)
+    assert math.isnan(r) and (g, b, a) == (0.5, 0.5, 1.0)
+    assert trace.debug_fragment(12, 5)[0] == pytest.approx(math.sqrt(12.5 - 10.0))
+    # the shader itself, called as Python, still raises: only debug_fragment runs it as compiled
+    with pytest.raises(ValueError):
+        sqrt_of_x_less_10(None, None, sp.FragInfo(3.5, 5.5, 0.5, True, 0))
+
+
+def test_an_overflow_is_infinity_in_debug_fragment_as_compiled():
+    def overflow(varyings, uniforms, frag):
+        return (math.exp(frag.x * 1000.0), 0.0, 0.0, 1.0)
+
+    fb = sp.Framebuffer(W, H)
+    with pytest.warns(sp.NonFiniteColorWarning, match="the draw wrote 256 samples"):
+        trace = sp.draw(fb, QUAD, fragment_shader=overflow, trace=True)
+    assert trace.debug_fragment(4, 4)[0] == math.inf
