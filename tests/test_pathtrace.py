@@ -195,9 +195,11 @@ def test_notes_say_what_the_path_tracer_leaves_out(box):
                      "tracer's image: only emissive surfaces (material ke) and the background do"]
     shiny = Material(ks=0.5, name="shiny")
     scene = scene_of(("ball", shapes.icosphere(1.0, 1, material=shiny), np.eye(4)), camera=looking_down())
-    assert pathtrace(scene, spp=1).notes == [
-        "ball: the path tracer has no glossy lobe yet: its ks is not used (Lambert kd only)",
+    assert pathtrace(scene, spp=1).notes == [       # ks is a Blinn-Phong lobe now (test_pathtrace_lobes.py)
         "nothing emits light (no material has ke and the background is black): the image is black"]
+    dull = [SceneObject("ball", shapes.icosphere(1.0, 1, material=shiny), np.eye(4), program="cook_torrance")]
+    assert pathtrace(scene.replace(objects=dull), spp=1).notes[0] == \
+        "ball: Cook-Torrance with ior 1 reflects nothing (Fresnel's F is 0): its ks lobe is black"
 
 
 def test_the_top_level_api_and_the_framebuffer(box, tmp_path):

@@ -14,15 +14,19 @@ soft shadows and light from emissive surfaces come out of it:
   sees the scene's ``background`` as radiance from every direction. The scene's
   point, directional and spot lights have no area and are not used (a note says so);
 - **materials** (a material may mix them; one is picked per bounce with probability
-  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a perfect
-  mirror of reflectance kr (§16); glass when kt ≠ 0: reflected with Fresnel's F_R
-  (§20, n = 1 outside, ``ior`` inside), else refracted (§18) and tinted by kt, all
-  reflected past the critical angle (§19). ks, ka and the Phong, Blinn-Phong and
-  Cook-Torrance lobes are not used yet;
-- **next-event estimation**: at a diffuse bounce a point is picked on an emissive
-  triangle (the triangle with probability ∝ area × mean ke, the point uniformly),
-  a shadow ray (§21) tests it, and its light is combined with the light that the
-  sampled direction finds by the power heuristic (multiple importance sampling);
+  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a glossy lobe of
+  reflectance ks, normalized to conserve energy and sampled by its own density
+  (:mod:`.lobes`, FORMULAS §27): Blinn-Phong, Phong or Cook-Torrance (§26) as the
+  object's program says; a perfect mirror of reflectance kr (§16); glass when
+  kt ≠ 0: reflected with Fresnel's F_R (§20, n = 1 outside, ``ior`` inside), else
+  refracted (§18) and tinted by kt, all reflected past the critical angle (§19).
+  ka is not used (the path tracer computes the light it stands in for);
+- **next-event estimation**: at a diffuse or glossy bounce a point is picked on an
+  emissive triangle (the triangle with probability ∝ area × mean ke, the point
+  uniformly), a shadow ray (§21) tests it, and its light is combined with the
+  light that the sampled direction finds by the power heuristic (multiple
+  importance sampling), lobe by lobe: each lobe's share of the light sample is
+  weighted against the density with which that lobe draws the same direction;
 - **Russian roulette** ends a path from its ``rr_depth``-th bounce on with
   probability 1 − min(0.95, strongest channel of its throughput), dividing the
   survivors by the probability that they survived: unbiased;
@@ -52,17 +56,21 @@ from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.rays.bvh import any_hit, closest_hit
 from softpipe.rays.queries import RayScene, hit_normal
+from softpipe.tracers.lobes import COOK_TORRANCE_LOBE, NO_LOBE, lobe_code, lobe_eval, lobe_sample
 from softpipe.tracers.montecarlo import cosine_hemisphere, triangle_point, uniform
 
-__all__ = ["pathtrace", "PathTrace", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE"]
+__all__ = ["pathtrace", "PathTrace", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE", "STRATEGIES"]
 
 #: The most samples per pixel one call renders (a guard against a typo such as 1e9).
 MAX_SPP = 1 << 20
 #: Samples per pixel in one pass over the image (PathTrace.add renders in passes of at most this many).
 PASS_SPP = 16
+#: How light is found (:func:`pathtrace`'s ``strategy``): both sampling strategies weighted by MIS, the
+#: sampled direction alone (BSDF sampling), or the light sample alone at a non-delta bounce.
+STRATEGIES = ("mis", "bsdf", "light")
 #: Random numbers one bounce draws (lobe, light, light point ×2, direction ×2, Fresnel, roulette).
 DIMENSIONS_PER_BOUNCE = 8
-_MATERIAL_COLUMNS = 13           # ke (3), kd (3), kr (3), kt (3), ior
+_MATERIAL_COLUMNS = 19           # ke (3), kd (3), kr (3), kt (3), ior, ks (3), shininess, roughness, lobe code
 _INV_PI = 1.0 / math.pi
 
 
@@ -91,7 +99,7 @@ def _pick_light(cdf, u):
 
 @njit(cache=True)
 def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth, rr_depth,
-              seed, pixel, sample):
+              seed, pixel, sample, strategy):
     """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc."""
     bvh = scene.bvh
     eps = scene.epsilon
@@ -121,7 +129,10 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
         if front and (m[0] > 0.0 or m[1] > 0.0 or m[2] > 0.0):      # emission, seen from the front
             w = 1.0
             if not prev_delta:                    # a direction light sampling could have drawn too
-                w = _power_heuristic(prev_pdf, light_pdf[tri] * t * t / -cos_o)
+                if strategy == 0:
+                    w = _power_heuristic(prev_pdf, light_pdf[tri] * t * t / -cos_o)
+                elif strategy == 2:               # light sampling alone: it counts this light
+                    w = 0.0
             red += tr * m[0] * w
             green += tg * m[1] * w
             blue += tb * m[2] * w
@@ -134,15 +145,19 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
             N = (-N[0], -N[1], -N[2])
         if N[0] * d[0] + N[1] * d[1] + N[2] * d[2] >= 0.0:        # an interpolated normal facing away: the face's
             N = ng
+        V = (-d[0], -d[1], -d[2])
+        lobe = int(m[18])
         w_d = max(m[3], m[4], m[5])
+        w_s = max(m[13], m[14], m[15]) if lobe != NO_LOBE else 0.0
         w_m = max(m[6], m[7], m[8])
         w_g = max(m[9], m[10], m[11])
-        total = w_d + w_m + w_g
+        total = w_d + w_s + w_m + w_g
         if total <= 0.0:                          # black: absorbs everything
             break
         base = 2 + depth * DIMENSIONS_PER_BOUNCE
         p_d = w_d / total
-        if w_d > 0.0 and have_lights:             # next-event estimation toward an emissive triangle
+        p_s = w_s / total
+        if (w_d > 0.0 or w_s > 0.0) and have_lights and strategy != 1:    # next-event estimation toward an emissive triangle
             li = _pick_light(light_cdf, uniform(seed, pixel, sample, base + 1))
             k = light_tris[li]
             c = light_corners[li]
@@ -162,11 +177,18 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
                         not any_hit(bvh, P, wi, eps, dist * (1.0 - 1e-7) - eps):
                     pdf_l = light_pdf[k] * dist2 / cos_l
                     pdf_b = p_d * cos_s * _INV_PI
-                    f = _power_heuristic(pdf_l, pdf_b) * cos_s * _INV_PI / pdf_l
+                    f = (_power_heuristic(pdf_l, pdf_b) if strategy == 0 else 1.0) * cos_s * _INV_PI / pdf_l
                     le = mats[scene.triangle_object[k]]
                     red += tr * m[3] * le[0] * f
                     green += tg * m[4] * le[1] * f
                     blue += tb * m[5] * le[2] * f
+                    if w_s > 0.0:                 # the glossy lobe's share, weighted against its own sampling
+                        fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
+                        if fs > 0.0:
+                            g = (_power_heuristic(pdf_l, p_s * pdf_s) if strategy == 0 else 1.0) * fs * cos_s / pdf_l
+                            red += tr * m[13] * le[0] * g
+                            green += tg * m[14] * le[1] * g
+                            blue += tb * m[15] * le[2] * g
         u = uniform(seed, pixel, sample, base) * total
         if u < w_d:                               # Lambert: f·cos/pdf = (kd/π)·cos / (p_d·cos/π) = kd/p_d
             wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 4),
@@ -175,9 +197,20 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
                 break                             # below the surface: the interpolated normal leans too far
             tr, tg, tb = tr * m[3] / p_d, tg * m[4] / p_d, tb * m[5] / p_d
             prev_pdf, prev_delta = p_d * cos_s * _INV_PI, False
+        elif u < w_d + w_s:                       # the glossy lobe: f·cos/(p_s·pdf), ks times the lobe's weight
+            wi = lobe_sample(lobe, N, V, m[16], m[17], uniform(seed, pixel, sample, base + 4),
+                             uniform(seed, pixel, sample, base + 5))
+            cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
+            if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0:
+                break                             # below the surface: f = 0 there
+            fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
+            if fs <= 0.0 or pdf_s <= 0.0:
+                break
+            k = fs * cos_s / (p_s * pdf_s)
+            tr, tg, tb = tr * m[13] * k, tg * m[14] * k, tb * m[15] * k
+            prev_pdf, prev_delta = p_s * pdf_s, False
         else:
-            V = (-d[0], -d[1], -d[2])
-            if u < w_d + w_m:                     # a perfect mirror (§16), weight kr
+            if u < w_d + w_s + w_m:                     # a perfect mirror (§16), weight kr
                 p = w_m / total
                 wi = reflect(d, N)
                 tr, tg, tb = tr * m[6] / p, tg * m[7] / p, tb * m[8] / p
@@ -217,7 +250,7 @@ def _unproject(M, x, y, z):
 
 @njit(cache=True, nogil=True)
 def _render_rows(lo, hi, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf, light_pdf, background,
-                 max_depth, rr_depth, seed, first, count, total, squares):
+                 max_depth, rr_depth, seed, first, count, total, squares, strategy):
     """Samples first … first + count − 1 of every pixel of image rows lo:hi, added to the float64 sums in order."""
     for j in range(lo, hi):
         for i in range(width):
@@ -232,7 +265,7 @@ def _render_rows(lo, hi, width, height, unproject, scene, mats, light_tris, ligh
                 length = math.sqrt(dx * dx + dy * dy + dz * dz)
                 d = (dx / length, dy / length, dz / length)
                 r, g, b = _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, near, d, length,
-                                    max_depth, rr_depth, seed, pixel, s)
+                                    max_depth, rr_depth, seed, pixel, s, strategy)
                 total[j, i, 0] += r
                 total[j, i, 1] += g
                 total[j, i, 2] += b
@@ -268,12 +301,14 @@ def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
     objects = scene.drawn_objects(camera)
     rays = RayScene(objects)
     uniform_ = rays.uniform()
-    mats = np.array([[*m.ke, *m.kd, *m.kr, *m.kt, m.ior] for m in (o.mesh.material for o in objects)],
+    mats = np.array([[*m.ke, *m.kd, *m.kr, *m.kt, m.ior, *m.ks, m.shininess, m.roughness,
+                      lobe_code(scene.program_of(o))] for o, m in ((o, o.mesh.material) for o in objects)],
                     np.float64).reshape(-1, _MATERIAL_COLUMNS)
     for obj in objects:
         m = obj.mesh.material
-        if max(m.ks) > 0.0 and max(m.kr) == 0.0 and max(m.kt) == 0.0:
-            notes.append(f"{obj.name}: the path tracer has no glossy lobe yet: its ks is not used (Lambert kd only)")
+        if max(m.ks) > 0.0 and m.ior == 1.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
+            notes.append(f"{obj.name}: Cook-Torrance with ior 1 reflects nothing (Fresnel's F is 0): its ks "
+                         f"lobe is black")
         if obj.texture is not None:
             notes.append(f"{obj.name}: textures are not sampled by the path tracer yet; its kd is used")
     if scene.lights is None or len(scene.lights):
@@ -313,7 +348,9 @@ class PathTrace:
     seed : int
     width, height : int
     notes : list of str
-        What the path tracer leaves out of this scene (the lights it cannot use, ks, textures).
+        What the path tracer leaves out of this scene (the lights it cannot use, textures).
+    strategy : str
+        How light is found: one of :data:`STRATEGIES` (:func:`pathtrace`).
     timings : dict
         "setup" (the BVH and lights) and "trace" seconds, summed over every call.
     """
@@ -324,6 +361,7 @@ class PathTrace:
     max_depth: int
     rr_depth: int
     notes: List[str] = field(default_factory=list)
+    strategy: str = "mis"
     timings: dict = field(default_factory=dict)
     spp: int = 0
     _setup: Optional[_Setup] = field(default=None, repr=False)
@@ -345,7 +383,8 @@ class PathTrace:
             count = min(PASS_SPP, self.spp + spp - first)
             in_bands(_render_rows, self.height, self.width, self.height, s.unproject, s.uniform, s.mats,
                      s.light_tris, s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth,
-                     self.rr_depth, np.uint64(self.seed), first, count, self._total, self._squares, grain=1)
+                     self.rr_depth, np.uint64(self.seed), first, count, self._total, self._squares,
+                     STRATEGIES.index(self.strategy), grain=1)
         self.spp += spp
         self.timings["trace"] = self.timings.get("trace", 0.0) + time.perf_counter() - start
         return self
@@ -383,7 +422,7 @@ class PathTrace:
 
 
 def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] = None, max_depth: int = -1,
-              rr_depth: int = 5) -> PathTrace:
+              rr_depth: int = 5, strategy: str = "mis") -> PathTrace:
     """Path trace ``scene`` (docs/pathtracing.md): ``spp`` samples per pixel, deterministic per ``seed``.
 
     Parameters
@@ -403,6 +442,13 @@ def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] =
         Russian roulette.
     rr_depth : int
         The bounce (≥ 1) from which Russian roulette may end a path.
+    strategy : str
+        "mis" (the default): next-event estimation and BSDF sampling weighted by the
+        power heuristic; "bsdf": the sampled directions alone (no light sample);
+        "light": the light sample alone wherever one is taken (a light that a
+        sampled direction hits counts only after a mirror or glass bounce, or seen
+        directly). All three estimate the same image; the last two are noisier, and
+        comparing them checks that the lobes' densities match their sampling.
 
     Returns
     -------
@@ -413,11 +459,13 @@ def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] =
     max_depth = _whole("max_depth", max_depth, -1)
     rr_depth = _whole("rr_depth", rr_depth, 1)
     spp = _whole("spp", spp, 1, MAX_SPP)
+    if strategy not in STRATEGIES:
+        raise ValueError(f"pathtrace: strategy must be one of {', '.join(map(repr, STRATEGIES))}, got {strategy!r}")
     start = time.perf_counter()
     camera = camera or scene.view_camera()
     notes: List[str] = []
     s = _setup(scene, camera, notes)
     h, w = scene.height, scene.width
-    result = PathTrace(seed, w, h, max_depth, rr_depth, notes, {"setup": time.perf_counter() - start},
+    result = PathTrace(seed, w, h, max_depth, rr_depth, notes, strategy, {"setup": time.perf_counter() - start},
                        _setup=s, _total=np.zeros((h, w, 3)), _squares=np.zeros((h, w, 3)))
     return result.add(spp)
