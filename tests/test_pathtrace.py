@@ -228,6 +228,11 @@ def test_cli_pathtrace_writes_the_same_picture_as_python(box, capsys, tmp_path):
     (["--pathtrace", "--raytrace"], "--pathtrace renders by paths; it does not apply with --raytrace"),
     (["--pathtrace", "--spp", "0"], "expected a positive number of samples per pixel, got 0"),
     (["--pathtrace", "--seed", "-3"], "expected a whole number from 0 to 2**64 - 1, got -3"),
+    (["--pathtrace", "--samples", "grid16"], "--samples picks the rasterizer's and the ray tracer's sample pattern; "
+     "it does not apply with --pathtrace, whose samples are jittered over each pixel (a box filter): use --spp N for "
+     "its samples per pixel"),
+    (["--pathtrace", "--msaa"], "--msaa is the rasterizer's multisampling; it does not apply with --pathtrace (use "
+     "--spp N for the path tracer's samples per pixel)"),
 ])
 def test_cli_pathtrace_option_errors(argv, message, capsys, tmp_path):
     scene = CORNELL
