@@ -126,6 +126,7 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
         if tri < 0:
             if row >= 0:
                 record[row, 0:2] = (float(_MISS), float(depth))
+                record[row, 13:16] = (tr, tg, tb)         # the throughput the ray carried out of the scene
                 record[row, 32:35] = (tr * background[0], tg * background[1], tb * background[2])
                 record[row, 38] = _END_MISS
             red += tr * background[0]
@@ -428,7 +429,8 @@ class Bounce:
     ``f`` is the BRDF of the lobe chosen toward ``direction`` (for a delta lobe: its tint, kr,
     Fresnel's F or (1 − F)·kt), ``pdf`` the density that direction was drawn with, the
     probability of picking the lobe included (for a delta lobe: that probability), and
-    ``throughput`` the path's after this bounce (and after the roulette, if it survived).
+    ``throughput`` the path's after this bounce (and after the roulette, if it survived); for a ray that
+    left the scene, the throughput it carried.
     """
 
     depth: int
