@@ -195,9 +195,11 @@ def test_notes_say_what_the_path_tracer_leaves_out(box):
                      "tracer's image: only emissive surfaces (material ke) and the background do"]
     shiny = Material(ks=0.5, name="shiny")
     scene = scene_of(("ball", shapes.icosphere(1.0, 1, material=shiny), np.eye(4)), camera=looking_down())
-    assert pathtrace(scene, spp=1).notes == [
-        "ball: the path tracer has no glossy lobe yet: its ks is not used (Lambert kd only)",
+    assert pathtrace(scene, spp=1).notes == [       # ks is a Blinn-Phong lobe now (test_pathtrace_lobes.py)
         "nothing emits light (no material has ke and the background is black): the image is black"]
+    dull = [SceneObject("ball", shapes.icosphere(1.0, 1, material=shiny), np.eye(4), program="cook_torrance")]
+    assert pathtrace(scene.replace(objects=dull), spp=1).notes[0] == \
+        "ball: Cook-Torrance with ior 1 reflects nothing (Fresnel's F is 0): its ks lobe is black"
 
 
 def test_the_top_level_api_and_the_framebuffer(box, tmp_path):
@@ -226,6 +228,11 @@ def test_cli_pathtrace_writes_the_same_picture_as_python(box, capsys, tmp_path):
     (["--pathtrace", "--raytrace"], "--pathtrace renders by paths; it does not apply with --raytrace"),
     (["--pathtrace", "--spp", "0"], "expected a positive number of samples per pixel, got 0"),
     (["--pathtrace", "--seed", "-3"], "expected a whole number from 0 to 2**64 - 1, got -3"),
+    (["--pathtrace", "--samples", "grid16"], "--samples picks the rasterizer's and the ray tracer's sample pattern; "
+     "it does not apply with --pathtrace, whose samples are jittered over each pixel (a box filter): use --spp N for "
+     "its samples per pixel"),
+    (["--pathtrace", "--msaa"], "--msaa is the rasterizer's multisampling; it does not apply with --pathtrace (use "
+     "--spp N for the path tracer's samples per pixel)"),
 ])
 def test_cli_pathtrace_option_errors(argv, message, capsys, tmp_path):
     scene = CORNELL

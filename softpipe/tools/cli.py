@@ -656,6 +656,13 @@ def _render(args) -> int:
         if args.raytrace or args.rays or args.stages:
             other = "--raytrace" if args.raytrace else "--rays" if args.rays else "--stages"
             raise CLIError(f"--pathtrace renders by paths; it does not apply with {other}")
+        if args.samples is not None:
+            raise CLIError("--samples picks the rasterizer's and the ray tracer's sample pattern; it does not apply "
+                           "with --pathtrace, whose samples are jittered over each pixel (a box filter): use --spp N "
+                           "for its samples per pixel")
+        if args.msaa:
+            raise CLIError("--msaa is the rasterizer's multisampling; it does not apply with --pathtrace (use --spp N "
+                           "for the path tracer's samples per pixel)")
         from softpipe.tracers.pathtrace import pathtrace
         spp = 64 if args.spp is None else args.spp
         traced = pathtrace(scene, spp=spp, seed=0 if args.seed is None else args.seed)

@@ -14,15 +14,19 @@ soft shadows and light from emissive surfaces come out of it:
   sees the scene's ``background`` as radiance from every direction. The scene's
   point, directional and spot lights have no area and are not used (a note says so);
 - **materials** (a material may mix them; one is picked per bounce with probability
-  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a perfect
-  mirror of reflectance kr (§16); glass when kt ≠ 0: reflected with Fresnel's F_R
-  (§20, n = 1 outside, ``ior`` inside), else refracted (§18) and tinted by kt, all
-  reflected past the critical angle (§19). ks, ka and the Phong, Blinn-Phong and
-  Cook-Torrance lobes are not used yet;
-- **next-event estimation**: at a diffuse bounce a point is picked on an emissive
-  triangle (the triangle with probability ∝ area × mean ke, the point uniformly),
-  a shadow ray (§21) tests it, and its light is combined with the light that the
-  sampled direction finds by the power heuristic (multiple importance sampling);
+  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a glossy lobe of
+  reflectance ks, normalized to conserve energy and sampled by its own density
+  (:mod:`.lobes`, FORMULAS §27): Blinn-Phong, Phong or Cook-Torrance (§26) as the
+  object's program says; a perfect mirror of reflectance kr (§16); glass when
+  kt ≠ 0: reflected with Fresnel's F_R (§20, n = 1 outside, ``ior`` inside), else
+  refracted (§18) and tinted by kt, all reflected past the critical angle (§19).
+  ka is not used (the path tracer computes the light it stands in for);
+- **next-event estimation**: at a diffuse or glossy bounce a point is picked on an
+  emissive triangle (the triangle with probability ∝ area × mean ke, the point
+  uniformly), a shadow ray (§21) tests it, and its light is combined with the
+  light that the sampled direction finds by the power heuristic (multiple
+  importance sampling), lobe by lobe: each lobe's share of the light sample is
+  weighted against the density with which that lobe draws the same direction;
 - **Russian roulette** ends a path from its ``rr_depth``-th bounce on with
   probability 1 − min(0.95, strongest channel of its throughput), dividing the
   survivors by the probability that they survived: unbiased;
@@ -52,18 +56,28 @@ from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.rays.bvh import any_hit, closest_hit
 from softpipe.rays.queries import RayScene, hit_normal
+from softpipe.tracers.lobes import COOK_TORRANCE_LOBE, LOBE_NAMES, NO_LOBE, lobe_code, lobe_eval, lobe_sample
 from softpipe.tracers.montecarlo import cosine_hemisphere, triangle_point, uniform
 
-__all__ = ["pathtrace", "PathTrace", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE"]
+__all__ = ["pathtrace", "PathTrace", "PathStory", "PathSample", "Bounce", "MAX_STORY_BOUNCES", "STORY_COLUMNS", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE", "STRATEGIES"]
 
 #: The most samples per pixel one call renders (a guard against a typo such as 1e9).
 MAX_SPP = 1 << 20
 #: Samples per pixel in one pass over the image (PathTrace.add renders in passes of at most this many).
 PASS_SPP = 16
+#: How light is found (:func:`pathtrace`'s ``strategy``): both sampling strategies weighted by MIS, the
+#: sampled direction alone (BSDF sampling), or the light sample alone at a non-delta bounce.
+STRATEGIES = ("mis", "bsdf", "light")
 #: Random numbers one bounce draws (lobe, light, light point ×2, direction ×2, Fresnel, roulette).
 DIMENSIONS_PER_BOUNCE = 8
-_MATERIAL_COLUMNS = 13           # ke (3), kd (3), kr (3), kt (3), ior
+_MATERIAL_COLUMNS = 19           # ke (3), kd (3), kr (3), kt (3), ior, ks (3), shininess, roughness, lobe code
 _INV_PI = 1.0 / math.pi
+#: A path story's row (PathTrace.path_story): kind, depth, P (3), triangle, object, lobe, f (3), cos, pdf,
+#: throughput (3) after the bounce (and the roulette), roulette q, spare, emission (3) and its MIS weight, NEE Lambert (3), NEE glossy (3),
+#: their MIS weights (2), light triangle, NEE outcome, background (3), direction (3), why the path ended.
+STORY_COLUMNS = 39
+_HIT, _MISS = 0, 1
+_END_MORE, _END_DEPTH, _END_BLACK, _END_BELOW, _END_ROULETTE, _END_MISS, _END_DEGENERATE = 0, 1, 2, 3, 4, 5, 6
 
 
 # ------------------------------------------------------------------ the kernel
@@ -91,8 +105,12 @@ def _pick_light(cdf, u):
 
 @njit(cache=True)
 def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth, rr_depth,
-              seed, pixel, sample):
-    """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc."""
+              seed, pixel, sample, strategy, record):
+    """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc.
+
+    ``record`` [rows, STORY_COLUMNS] (rows 0 when rendering) gets one row per bounce, row k for the k-th
+    ray of the path, as :meth:`PathTrace.path_story` reads it; recording changes no arithmetic.
+    """
     bvh = scene.bvh
     eps = scene.epsilon
     red, green, blue = 0.0, 0.0, 0.0
@@ -103,8 +121,14 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
     have_lights = light_tris.shape[0] > 0
     depth = 0
     while True:
+        row = depth if depth < record.shape[0] else -1
         tri, t, b1, b2 = closest_hit(bvh, o, d, t_min, t_max)
         if tri < 0:
+            if row >= 0:
+                record[row, 0:2] = (float(_MISS), float(depth))
+                record[row, 13:16] = (tr, tg, tb)         # the throughput the ray carried out of the scene
+                record[row, 32:35] = (tr * background[0], tg * background[1], tb * background[2])
+                record[row, 38] = _END_MISS
             red += tr * background[0]
             green += tg * background[1]
             blue += tb * background[2]
@@ -112,7 +136,12 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
         P = (o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2])
         fn = scene.face_normals[tri]
         length = math.sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2])
+        if row >= 0:
+            record[row, 0:8] = (float(_HIT), float(depth), P[0], P[1], P[2], float(tri),
+                                 float(scene.triangle_object[tri]), -1.0)
         if length == 0.0:                         # a degenerate triangle: nothing to shade
+            if row >= 0:
+                record[row, 38] = _END_DEGENERATE
             break
         ng = (fn[0] / length, fn[1] / length, fn[2] / length)
         cos_o = ng[0] * d[0] + ng[1] * d[1] + ng[2] * d[2]
@@ -121,11 +150,18 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
         if front and (m[0] > 0.0 or m[1] > 0.0 or m[2] > 0.0):      # emission, seen from the front
             w = 1.0
             if not prev_delta:                    # a direction light sampling could have drawn too
-                w = _power_heuristic(prev_pdf, light_pdf[tri] * t * t / -cos_o)
+                if strategy == 0:
+                    w = _power_heuristic(prev_pdf, light_pdf[tri] * t * t / -cos_o)
+                elif strategy == 2:               # light sampling alone: it counts this light
+                    w = 0.0
+            if row >= 0:
+                record[row, 18:22] = (tr * m[0] * w, tg * m[1] * w, tb * m[2] * w, w)
             red += tr * m[0] * w
             green += tg * m[1] * w
             blue += tb * m[2] * w
         if max_depth >= 0 and depth + 1 >= max_depth:
+            if row >= 0:
+                record[row, 38] = _END_DEPTH
             break
         if not front:
             ng = (-ng[0], -ng[1], -ng[2])
@@ -134,20 +170,28 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
             N = (-N[0], -N[1], -N[2])
         if N[0] * d[0] + N[1] * d[1] + N[2] * d[2] >= 0.0:        # an interpolated normal facing away: the face's
             N = ng
+        V = (-d[0], -d[1], -d[2])
+        lobe = int(m[18])
         w_d = max(m[3], m[4], m[5])
+        w_s = max(m[13], m[14], m[15]) if lobe != NO_LOBE else 0.0
         w_m = max(m[6], m[7], m[8])
         w_g = max(m[9], m[10], m[11])
-        total = w_d + w_m + w_g
+        total = w_d + w_s + w_m + w_g
         if total <= 0.0:                          # black: absorbs everything
+            if row >= 0:
+                record[row, 38] = _END_BLACK
             break
         base = 2 + depth * DIMENSIONS_PER_BOUNCE
         p_d = w_d / total
-        if w_d > 0.0 and have_lights:             # next-event estimation toward an emissive triangle
+        p_s = w_s / total
+        if (w_d > 0.0 or w_s > 0.0) and have_lights and strategy != 1:    # next-event estimation toward an emissive triangle
             li = _pick_light(light_cdf, uniform(seed, pixel, sample, base + 1))
             k = light_tris[li]
             c = light_corners[li]
             Q = triangle_point((c[0], c[1], c[2]), (c[3], c[4], c[5]), (c[6], c[7], c[8]),
                                uniform(seed, pixel, sample, base + 2), uniform(seed, pixel, sample, base + 3))
+            if row >= 0:
+                record[row, 30:32] = (float(k), 1.0)            # 1: in shadow or facing away, until found lit
             lx, ly, lz = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
             dist2 = lx * lx + ly * ly + lz * lz
             dist = math.sqrt(dist2)
@@ -162,25 +206,63 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
                         not any_hit(bvh, P, wi, eps, dist * (1.0 - 1e-7) - eps):
                     pdf_l = light_pdf[k] * dist2 / cos_l
                     pdf_b = p_d * cos_s * _INV_PI
-                    f = _power_heuristic(pdf_l, pdf_b) * cos_s * _INV_PI / pdf_l
+                    w_l = _power_heuristic(pdf_l, pdf_b) if strategy == 0 else 1.0
+                    f = w_l * cos_s * _INV_PI / pdf_l
                     le = mats[scene.triangle_object[k]]
+                    if row >= 0:
+                        record[row, 22:25] = (tr * m[3] * le[0] * f, tg * m[4] * le[1] * f, tb * m[5] * le[2] * f)
+                        record[row, 28] = w_l
+                        record[row, 31] = 2.0
                     red += tr * m[3] * le[0] * f
                     green += tg * m[4] * le[1] * f
                     blue += tb * m[5] * le[2] * f
+                    if w_s > 0.0:                 # the glossy lobe's share, weighted against its own sampling
+                        fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
+                        if fs > 0.0:
+                            w_l = _power_heuristic(pdf_l, p_s * pdf_s) if strategy == 0 else 1.0
+                            g = w_l * fs * cos_s / pdf_l
+                            if row >= 0:
+                                record[row, 25:28] = (tr * m[13] * le[0] * g, tg * m[14] * le[1] * g,
+                                                      tb * m[15] * le[2] * g)
+                                record[row, 29] = w_l
+                            red += tr * m[13] * le[0] * g
+                            green += tg * m[14] * le[1] * g
+                            blue += tb * m[15] * le[2] * g
         u = uniform(seed, pixel, sample, base) * total
         if u < w_d:                               # Lambert: f·cos/pdf = (kd/π)·cos / (p_d·cos/π) = kd/p_d
             wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 4),
                                           uniform(seed, pixel, sample, base + 5))
+            if row >= 0:
+                record[row, 7:13] = (0.0, m[3] * _INV_PI, m[4] * _INV_PI, m[5] * _INV_PI, cos_s, p_d * cos_s * _INV_PI)
+                record[row, 35:38] = wi
             if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0:
+                if row >= 0:
+                    record[row, 38] = _END_BELOW
                 break                             # below the surface: the interpolated normal leans too far
             tr, tg, tb = tr * m[3] / p_d, tg * m[4] / p_d, tb * m[5] / p_d
             prev_pdf, prev_delta = p_d * cos_s * _INV_PI, False
+        elif u < w_d + w_s:                       # the glossy lobe: f·cos/(p_s·pdf), ks times the lobe's weight
+            wi = lobe_sample(lobe, N, V, m[16], m[17], uniform(seed, pixel, sample, base + 4),
+                             uniform(seed, pixel, sample, base + 5))
+            cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
+            fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
+            if row >= 0:
+                record[row, 7:13] = (1.0, m[13] * fs, m[14] * fs, m[15] * fs, cos_s, p_s * pdf_s)
+                record[row, 35:38] = wi
+            if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0 or fs <= 0.0 or pdf_s <= 0.0:
+                if row >= 0:
+                    record[row, 38] = _END_BELOW
+                break                             # below the surface: f = 0 there
+            k = fs * cos_s / (p_s * pdf_s)
+            tr, tg, tb = tr * m[13] * k, tg * m[14] * k, tb * m[15] * k
+            prev_pdf, prev_delta = p_s * pdf_s, False
         else:
-            V = (-d[0], -d[1], -d[2])
-            if u < w_d + w_m:                     # a perfect mirror (§16), weight kr
+            if u < w_d + w_s + w_m:                     # a perfect mirror (§16), weight kr
                 p = w_m / total
                 wi = reflect(d, N)
                 tr, tg, tb = tr * m[6] / p, tg * m[7] / p, tb * m[8] / p
+                if row >= 0:
+                    record[row, 7:13] = (2.0, m[6], m[7], m[8], 1.0, p)
             else:                                 # glass: Fresnel picks reflection or refraction (§18–§20)
                 p = w_g / total
                 n1, n2 = (1.0, m[12]) if front else (m[12], 1.0)
@@ -188,19 +270,36 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
                 if uniform(seed, pixel, sample, base + 6) < F:
                     wi = R                        # F·1 / F: the reflected share, white
                     tr, tg, tb = tr / p, tg / p, tb / p
+                    if row >= 0:
+                        record[row, 7:13] = (3.0, F, F, F, 1.0, p * F)
                 else:
                     wi = T                        # (1 − F)·kt / (1 − F)
                     tr, tg, tb = tr * m[9] / p, tg * m[10] / p, tb * m[11] / p
+                    if row >= 0:
+                        record[row, 7:13] = (4.0, (1.0 - F) * m[9], (1.0 - F) * m[10], (1.0 - F) * m[11], 1.0,
+                                             p * (1.0 - F))
             prev_delta = True
             n = math.sqrt(wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2])
             if n == 0.0:
+                if row >= 0:
+                    record[row, 38] = _END_DEGENERATE
                 break
             wi = (wi[0] / n, wi[1] / n, wi[2] / n)
+            if row >= 0:
+                record[row, 35:38] = wi
+        if row >= 0:
+            record[row, 13:17] = (tr, tg, tb, 1.0)
         if depth + 1 >= rr_depth:                 # Russian roulette
             q = min(0.95, max(tr, tg, tb))
+            if row >= 0:
+                record[row, 16] = q
             if uniform(seed, pixel, sample, base + 7) >= q:
+                if row >= 0:
+                    record[row, 38] = _END_ROULETTE
                 break
             tr, tg, tb = tr / q, tg / q, tb / q
+            if row >= 0:
+                record[row, 13:16] = (tr, tg, tb)
         o, d = P, wi
         t_min, t_max = eps, np.inf
         depth += 1
@@ -216,23 +315,32 @@ def _unproject(M, x, y, z):
 
 
 @njit(cache=True, nogil=True)
+def _sample(i, j, s, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf, light_pdf, background,
+            max_depth, rr_depth, seed, strategy, record):
+    """Sample s of pixel (i, image row j): its ray through a jittered point of the pixel, and the radiance it brings."""
+    pixel = j * width + i
+    # the box filter: a uniform point of the pixel (image row j counts down from the top)
+    x = 2.0 * (i + uniform(seed, pixel, s, 0)) / width - 1.0
+    y = 1.0 - 2.0 * (j + uniform(seed, pixel, s, 1)) / height
+    near = _unproject(unproject, x, y, -1.0)
+    far = _unproject(unproject, x, y, 1.0)
+    dx, dy, dz = far[0] - near[0], far[1] - near[1], far[2] - near[2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    d = (dx / length, dy / length, dz / length)
+    return _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, near, d, length,
+                     max_depth, rr_depth, seed, pixel, s, strategy, record)
+
+
+@njit(cache=True, nogil=True)
 def _render_rows(lo, hi, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf, light_pdf, background,
-                 max_depth, rr_depth, seed, first, count, total, squares):
+                 max_depth, rr_depth, seed, first, count, total, squares, strategy):
     """Samples first … first + count − 1 of every pixel of image rows lo:hi, added to the float64 sums in order."""
+    no_record = np.zeros((0, STORY_COLUMNS))
     for j in range(lo, hi):
         for i in range(width):
-            pixel = j * width + i
             for s in range(first, first + count):
-                # the box filter: a uniform point of the pixel (image row j counts down from the top)
-                x = 2.0 * (i + uniform(seed, pixel, s, 0)) / width - 1.0
-                y = 1.0 - 2.0 * (j + uniform(seed, pixel, s, 1)) / height
-                near = _unproject(unproject, x, y, -1.0)
-                far = _unproject(unproject, x, y, 1.0)
-                dx, dy, dz = far[0] - near[0], far[1] - near[1], far[2] - near[2]
-                length = math.sqrt(dx * dx + dy * dy + dz * dz)
-                d = (dx / length, dy / length, dz / length)
-                r, g, b = _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, near, d, length,
-                                    max_depth, rr_depth, seed, pixel, s)
+                r, g, b = _sample(i, j, s, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf,
+                                  light_pdf, background, max_depth, rr_depth, seed, strategy, no_record)
                 total[j, i, 0] += r
                 total[j, i, 1] += g
                 total[j, i, 2] += b
@@ -268,12 +376,14 @@ def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
     objects = scene.drawn_objects(camera)
     rays = RayScene(objects)
     uniform_ = rays.uniform()
-    mats = np.array([[*m.ke, *m.kd, *m.kr, *m.kt, m.ior] for m in (o.mesh.material for o in objects)],
+    mats = np.array([[*m.ke, *m.kd, *m.kr, *m.kt, m.ior, *m.ks, m.shininess, m.roughness,
+                      lobe_code(scene.program_of(o))] for o, m in ((o, o.mesh.material) for o in objects)],
                     np.float64).reshape(-1, _MATERIAL_COLUMNS)
     for obj in objects:
         m = obj.mesh.material
-        if max(m.ks) > 0.0 and max(m.kr) == 0.0 and max(m.kt) == 0.0:
-            notes.append(f"{obj.name}: the path tracer has no glossy lobe yet: its ks is not used (Lambert kd only)")
+        if max(m.ks) > 0.0 and m.ior == 1.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
+            notes.append(f"{obj.name}: Cook-Torrance with ior 1 reflects nothing (Fresnel's F is 0): its ks "
+                         f"lobe is black")
         if obj.texture is not None:
             notes.append(f"{obj.name}: textures are not sampled by the path tracer yet; its kd is used")
     if scene.lights is None or len(scene.lights):
@@ -301,6 +411,115 @@ def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
     background = np.asarray(scene.background[:3], np.float64)
     return _Setup(rays, uniform_, mats, light_tris, light_corners, light_cdf, light_pdf, background, unproject)
 
+#: The most bounces a path's story records (a longer path's story is cut there, and says so).
+MAX_STORY_BOUNCES = 1024
+_LOBES = ("Lambert", "", "mirror", "glass, reflected", "glass, refracted")
+_ENDS = ("", "max_depth reached", "black: absorbs everything", "drawn below the surface", "Russian roulette",
+         "left the scene", "degenerate triangle or direction")
+_NEE = ("no light sample", "light sample in shadow or facing away", "light sample lit it")
+
+
+@dataclass
+class Bounce:
+    """One ray of a sampled path and what happened where it ended (:meth:`PathTrace.path_story`).
+
+    The light it collected is ``emitted`` (the surface's ke seen along this ray, times the
+    throughput and its MIS weight), ``nee_lambert`` and ``nee_glossy`` (the light sample's
+    share through each lobe, with their MIS weights) and ``background`` (a ray that left).
+    ``f`` is the BRDF of the lobe chosen toward ``direction`` (for a delta lobe: its tint, kr,
+    Fresnel's F or (1 − F)·kt), ``pdf`` the density that direction was drawn with, the
+    probability of picking the lobe included (for a delta lobe: that probability), and
+    ``throughput`` the path's after this bounce (and after the roulette, if it survived); for a ray that
+    left the scene, the throughput it carried.
+    """
+
+    depth: int
+    object: str                  # "" for a ray that left the scene
+    triangle: int                # −1: nothing
+    point: tuple
+    lobe: str                    # "" when the path ended before choosing one
+    direction: tuple
+    f: tuple
+    cos: float
+    pdf: float
+    throughput: tuple
+    roulette: float              # the survival probability q, 1 before rr_depth
+    emitted: tuple
+    emission_weight: float
+    light: int                   # the light triangle sampled, −1 for none
+    nee: str
+    nee_lambert: tuple
+    nee_lambert_weight: float
+    nee_glossy: tuple
+    nee_glossy_weight: float
+    background: tuple
+    end: str                     # why the path ended here ("" if it went on)
+
+    @property
+    def contribution(self) -> tuple:
+        """The light this bounce added to the sample, RGB (emitted + NEE + background)."""
+        return tuple(a + b + c + d for a, b, c, d in zip(self.emitted, self.nee_lambert, self.nee_glossy,
+                                                         self.background))
+
+
+@dataclass
+class PathSample:
+    """One sample of a pixel: its bounces and the value (RGB, float64) it added to the pixel's sum."""
+
+    sample: int
+    value: tuple
+    bounces: List[Bounce]
+    truncated: bool = False      # longer than MAX_STORY_BOUNCES: the story stops there
+
+    def total(self) -> tuple:
+        """The bounces' collected light summed in the kernel's order: equal to ``value``, to the last bit."""
+        acc = [0.0, 0.0, 0.0]
+        for b in self.bounces:
+            for part in (b.emitted, b.nee_lambert, b.nee_glossy, b.background):
+                for c in range(3):
+                    acc[c] += part[c]
+        return tuple(acc)
+
+
+class PathStory(list):
+    """A pixel's sampled paths (:class:`PathSample`), in sample order; prints as one block per path."""
+
+    def __init__(self, x: int, y: int, samples: List[PathSample]):
+        super().__init__(samples)
+        self.x, self.y = x, y
+
+    def __str__(self) -> str:
+        f = lambda v: "(" + ", ".join(f"{c:.4g}" for c in v) + ")"  # noqa: E731
+        lines = [f"pixel ({self.x}, {self.y}): {len(self)} sampled path(s)"]
+        for ps in self:
+            lines.append(f"sample {ps.sample}: value {f(ps.value)} = Σ collected light over {len(ps.bounces)} "
+                         f"ray(s)" + (" (cut at MAX_STORY_BOUNCES)" if ps.truncated else ""))
+            for b in ps.bounces:
+                pad = "    " * (b.depth + 1)
+                if b.triangle < 0:
+                    lines.append(f"{pad}#{b.depth} left the scene: background {f(b.background)}")
+                    continue
+                text = f"{pad}#{b.depth} hits {b.object} (triangle {b.triangle}) at {f(b.point)}"
+                if any(b.emitted):
+                    text += f"; emitted {f(b.emitted)} (MIS weight {b.emission_weight:.4g})"
+                if b.light >= 0:
+                    text += f"; {b.nee} (triangle {b.light})"
+                    if any(b.nee_lambert) or any(b.nee_glossy):
+                        text += f": Lambert {f(b.nee_lambert)} (w {b.nee_lambert_weight:.4g})"
+                    if any(b.nee_glossy):
+                        text += f", glossy {f(b.nee_glossy)} (w {b.nee_glossy_weight:.4g})"
+                if b.lobe:
+                    text += f"; {b.lobe}: f {f(b.f)}, cos {b.cos:.4g}, pdf {b.pdf:.4g}, throughput {f(b.throughput)}"
+                    if b.roulette < 1.0:
+                        text += f" (roulette q {b.roulette:.4g})"
+                if b.end:
+                    text += f"; ends: {b.end}"
+                lines.append(text)
+        return "\n".join(lines)
+
+    def _repr_pretty_(self, p, cycle):
+        p.text(str(self))
+
 
 @dataclass
 class PathTrace:
@@ -313,7 +532,9 @@ class PathTrace:
     seed : int
     width, height : int
     notes : list of str
-        What the path tracer leaves out of this scene (the lights it cannot use, ks, textures).
+        What the path tracer leaves out of this scene (the lights it cannot use, textures).
+    strategy : str
+        How light is found: one of :data:`STRATEGIES` (:func:`pathtrace`).
     timings : dict
         "setup" (the BVH and lights) and "trace" seconds, summed over every call.
     """
@@ -324,6 +545,7 @@ class PathTrace:
     max_depth: int
     rr_depth: int
     notes: List[str] = field(default_factory=list)
+    strategy: str = "mis"
     timings: dict = field(default_factory=dict)
     spp: int = 0
     _setup: Optional[_Setup] = field(default=None, repr=False)
@@ -345,7 +567,8 @@ class PathTrace:
             count = min(PASS_SPP, self.spp + spp - first)
             in_bands(_render_rows, self.height, self.width, self.height, s.unproject, s.uniform, s.mats,
                      s.light_tris, s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth,
-                     self.rr_depth, np.uint64(self.seed), first, count, self._total, self._squares, grain=1)
+                     self.rr_depth, np.uint64(self.seed), first, count, self._total, self._squares,
+                     STRATEGIES.index(self.strategy), grain=1)
         self.spp += spp
         self.timings["trace"] = self.timings.get("trace", 0.0) + time.perf_counter() - start
         return self
@@ -377,13 +600,68 @@ class PathTrace:
         fb.color[..., 3] = 1.0
         return fb
 
+    def path_story(self, x: int, y: int, sample: Optional[int] = None) -> PathStory:
+        """The sampled paths through pixel (x, image row y), bounce by bounce, as the kernel traced them.
+
+        Parameters
+        ----------
+        x, y : int
+            The pixel (y counts image rows down from the top).
+        sample : int, optional
+            One sample (0 … MAX_SPP − 1, rendered yet or not); None: samples 0 … spp − 1.
+
+        Returns
+        -------
+        PathStory
+            A list of :class:`PathSample`, each with its :class:`Bounce` s: the same random
+            numbers and the same float operations as the render, so each sample's ``value``
+            is what it added to the pixel's sum, and ``total()`` of its bounces equals it.
+        """
+        if isinstance(x, bool) or isinstance(y, bool) or not isinstance(x, (int, np.integer)) or \
+                not isinstance(y, (int, np.integer)) or not (0 <= x < self.width and 0 <= y < self.height):
+            raise ValueError(f"path_story: pixel ({x!r}, {y!r}) is outside the {self.width}×{self.height} image")
+        samples = range(self.spp) if sample is None else [_whole("sample", sample, 0, MAX_SPP - 1)]
+        s = self._setup
+        assert s is not None
+        names = [o.name for o in s.scene.objects]
+        record = np.empty((MAX_STORY_BOUNCES, STORY_COLUMNS))
+        out = []
+        for k in samples:
+            record.fill(np.nan)
+            record[:, 13:38] = 0.0
+            record[:, 16] = 1.0
+            record[:, 30] = -1.0
+            record[:, 38] = _END_MORE
+            value = _sample(int(x), int(y), k, self.width, self.height, s.unproject, s.uniform, s.mats, s.light_tris,
+                            s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth, self.rr_depth,
+                            np.uint64(self.seed), STRATEGIES.index(self.strategy), record)
+            bounces = []
+            for row in record:
+                if np.isnan(row[0]):
+                    break
+                hit = int(row[0]) == _HIT
+                obj, code = int(row[6]) if hit else -1, int(row[7]) if hit else -1
+                lobe = "" if code < 0 else (_LOBES[code] or LOBE_NAMES[int(s.mats[obj, 18])])
+                bounces.append(Bounce(
+                    depth=int(row[1]), object=names[obj] if hit else "", triangle=int(row[5]) if hit else -1,
+                    point=tuple(row[2:5]) if hit else (), lobe=lobe, direction=tuple(row[35:38]) if lobe else (),
+                    f=tuple(row[8:11]) if lobe else (), cos=float(row[11]) if lobe else 0.0,
+                    pdf=float(row[12]) if lobe else 0.0, throughput=tuple(row[13:16]), roulette=float(row[16]),
+                    emitted=tuple(row[18:21]), emission_weight=float(row[21]) if hit and not np.isnan(row[21]) else 0.0,
+                    light=int(row[30]), nee=_NEE[0 if int(row[30]) < 0 else int(row[31])],
+                    nee_lambert=tuple(row[22:25]), nee_lambert_weight=float(row[28]), nee_glossy=tuple(row[25:28]),
+                    nee_glossy_weight=float(row[29]), background=tuple(row[32:35]), end=_ENDS[int(row[38])]))
+            truncated = len(bounces) == MAX_STORY_BOUNCES and not bounces[-1].end
+            out.append(PathSample(k, tuple(float(v) for v in value), bounces, truncated))
+        return PathStory(int(x), int(y), out)
+
     def save(self, file, **kw) -> None:
         """Save as an image through :meth:`Framebuffer.save` (its one conversion to 8 bits)."""
         self.framebuffer().save(file, **kw)
 
 
 def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] = None, max_depth: int = -1,
-              rr_depth: int = 5) -> PathTrace:
+              rr_depth: int = 5, strategy: str = "mis") -> PathTrace:
     """Path trace ``scene`` (docs/pathtracing.md): ``spp`` samples per pixel, deterministic per ``seed``.
 
     Parameters
@@ -403,6 +681,13 @@ def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] =
         Russian roulette.
     rr_depth : int
         The bounce (≥ 1) from which Russian roulette may end a path.
+    strategy : str
+        "mis" (the default): next-event estimation and BSDF sampling weighted by the
+        power heuristic; "bsdf": the sampled directions alone (no light sample);
+        "light": the light sample alone wherever one is taken (a light that a
+        sampled direction hits counts only after a mirror or glass bounce, or seen
+        directly). All three estimate the same image; the last two are noisier, and
+        comparing them checks that the lobes' densities match their sampling.
 
     Returns
     -------
@@ -413,11 +698,13 @@ def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] =
     max_depth = _whole("max_depth", max_depth, -1)
     rr_depth = _whole("rr_depth", rr_depth, 1)
     spp = _whole("spp", spp, 1, MAX_SPP)
+    if strategy not in STRATEGIES:
+        raise ValueError(f"pathtrace: strategy must be one of {', '.join(map(repr, STRATEGIES))}, got {strategy!r}")
     start = time.perf_counter()
     camera = camera or scene.view_camera()
     notes: List[str] = []
     s = _setup(scene, camera, notes)
     h, w = scene.height, scene.width
-    result = PathTrace(seed, w, h, max_depth, rr_depth, notes, {"setup": time.perf_counter() - start},
+    result = PathTrace(seed, w, h, max_depth, rr_depth, notes, strategy, {"setup": time.perf_counter() - start},
                        _setup=s, _total=np.zeros((h, w, 3)), _squares=np.zeros((h, w, 3)))
     return result.add(spp)
