@@ -110,7 +110,8 @@ def test_nan_becomes_0_without_a_warning_on_both_paths(tmp_path):
     pictures = []
     for path in ("fast", "reference"):
         fb = sp.Framebuffer(12, 10)
-        sp.draw(fb, TRIANGLE, fragment_shader=nan_green, uniforms={"red": np.nan}, path=path)
+        with pytest.warns(sp.NonFiniteColorWarning, match="NaN or infinite"):   # the draw says so (issue 32)
+            sp.draw(fb, TRIANGLE, fragment_shader=nan_green, uniforms={"red": np.nan}, path=path)
         assert np.isnan(fb.color[..., 0]).any()
         with warnings.catch_warnings():
             warnings.simplefilter("error")                      # numpy's "invalid value encountered in cast"

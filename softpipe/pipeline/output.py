@@ -222,7 +222,7 @@ class NonFinite:
     def message(self) -> str:
         return (f"the draw wrote {self.count:,} sample{'s' if self.count != 1 else ''} whose color is NaN or "
                 f"infinite, the first at pixel ({self.x}, {self.y}) (column, image row) from primitive "
-                f"{self.primitive_id}; a PNG shows them black. To see why, draw again with trace=True and call "
+                f"{self.primitive_id}; a PNG shows a NaN as 0 (black). To see why, draw again with trace=True and call "
                 f"trace.debug_fragment({self.x}, {self.y}): it runs the fragment shader there in Python, with "
                 "math's functions giving NaN or infinity as the compiled shader's do")
 

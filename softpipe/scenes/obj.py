@@ -252,6 +252,8 @@ class _OBJParser:
         self.allow_outside = allow_outside
         self.lines = _split_lines(text)
         self.report = OBJReport(path=file, lines=len(self.lines))
+        #: vertices read as points, in a file of vertices alone (0: none)
+        self.cloud = 0
 
     # -- messages
 
@@ -499,6 +501,9 @@ class _OBJParser:
             # No vn but smoothing groups: welded normals within each group, so a crease
             # between groups (or at an `s off` face) stays, and the rest is smooth.
             mesh = mesh.replace(normals=mesh.vertex_normals(groups=smoothing[first_corner]))
+        if self.cloud:
+            self.warn(f"{self.file}: no faces, lines or points: its {self.cloud:,} vertices are read as points "
+                      "(a point cloud)")
         return mesh
 
     def vertices_as_points(self) -> None:
@@ -510,7 +515,7 @@ class _OBJParser:
         n = len(v_lines)
         self.vec["p"][0].append("p " + " ".join(map(str, range(1, n + 1))))
         self.vec["p"][1].append(v_lines[-1] + 1)          # after every v: each index is defined by then
-        self.warn(f"{self.file}: no faces, lines or points: its {n:,} vertices are read as points (a point cloud)")
+        self.cloud = n                                    # said once the file has read without an error
 
     def fill_report(self, data: dict, tri_face: np.ndarray, used: np.ndarray, segment_lines: np.ndarray,
                     point_lines: np.ndarray) -> None:
