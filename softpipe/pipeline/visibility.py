@@ -417,10 +417,10 @@ class FragmentVisibility:
 
     Attributes
     ----------
-    winner : int64 [S, H, W]
+    winner : int32 [S, H, W]
         The row in ``candidates`` of the fragment written last at each sample, or −1.
-    vis : int32 [S, H, W]
-        Its primitive (row of the Primitives), or −1, as :attr:`Visibility.vis`.
+    kept : int64 [K]
+        Those rows, each once, in primitive order (the fragments to shade).
     candidates : Fragments
         Every fragment of the draw, from the rasterizer.
     saved_depth : float32 [S, H, W] or None
@@ -428,9 +428,18 @@ class FragmentVisibility:
     """
 
     winner: np.ndarray
-    vis: np.ndarray
+    kept: np.ndarray
     candidates: Fragments
     saved_depth: Optional[np.ndarray] = field(default=None, repr=False)
+
+    @property
+    def vis(self) -> np.ndarray:
+        """int32 [S, H, W]: the primitive (row of the Primitives) written last at each sample, or −1, as
+        :attr:`Visibility.vis` (made when asked for)."""
+        shown = self.winner >= 0
+        vis = np.full(self.winner.shape, -1, np.int32)
+        vis[shown] = self.candidates.triangle[self.winner[shown]]
+        return vis
 
     def restore_depth(self, fb) -> None:
         """Put back the depth the pass replaced."""
@@ -438,20 +447,20 @@ class FragmentVisibility:
             fb.samples_depth[...] = self.saved_depth
 
     def __repr__(self) -> str:
-        return (f"FragmentVisibility({int((self.winner >= 0).sum())} visible samples of {self.winner.size}, "
+        return (f"FragmentVisibility({len(self.kept)} visible samples of {self.winner.size}, "
                 f"from {len(self.candidates)} fragments)")
 
     def visible_triangles(self) -> np.ndarray:
         """The rows of the Primitives that are visible at some sample, sorted."""
-        return np.unique(self.vis[self.vis >= 0])
+        return np.unique(self.candidates.triangle[self.kept])
 
     def fragments(self, prims: Optional[Primitives] = None, pattern=None, shading: str = "sample") -> Fragments:
-        """The fragments the fast path shaded: one per visible sample, in (sample, image row, column) order."""
-        return self.candidates.take(self.winner[self.winner >= 0])
+        """The fragments the fast path shaded: one per visible sample, in primitive order."""
+        return self.candidates.take(self.kept)
 
 
 @numba.njit(cache=True)
-def _early_depth(x, y, s, depth, triangle, func, depth_write, fb_depth, winner, vis):
+def _early_depth(x, y, s, depth, func, depth_write, fb_depth, winner):
     """The depth test of the output merger (:func:`~softpipe.pipeline.output.depth_passes`, on the depth as
     float32) over the fragments in order, keeping the last written at each sample."""
     for k in range(x.shape[0]):
@@ -463,7 +472,26 @@ def _early_depth(x, y, s, depth, triangle, func, depth_write, fb_depth, winner, 
             if depth_write:
                 fb_depth[m, j, i] = z
         winner[m, j, i] = k
-        vis[m, j, i] = triangle[k]
+
+
+@numba.njit(cache=True)
+def _kept_rows(winner, n):
+    """The fragments some sample kept, each once, in increasing order (so that reading them is in order)."""
+    keep = np.zeros(n, np.bool_)
+    flat = winner.reshape(-1)
+    count = 0
+    for k in range(flat.shape[0]):
+        w = flat[k]
+        if w >= 0 and not keep[w]:
+            keep[w] = True
+            count += 1
+    rows = np.empty(count, np.int64)
+    r = 0
+    for k in range(n):
+        if keep[k]:
+            rows[r] = k
+            r += 1
+    return rows
 
 
 def early_depth(frags: Fragments, fb, state: MergeState, undo: bool = True) -> FragmentVisibility:
@@ -471,13 +499,25 @@ def early_depth(frags: Fragments, fb, state: MergeState, undo: bool = True) -> F
     the framebuffer's depth is updated. ``undo`` keeps the depth it replaces."""
     func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
     depth_write = bool(state.depth_write) and func >= 0
-    shape = fb.samples_depth.shape
-    winner, vis = np.full(shape, -1, np.int64), np.full(shape, -1, np.int32)
+    winner = np.full(fb.samples_depth.shape, -1, np.int32)
     saved = fb.samples_depth.copy() if undo and depth_write else None
     if len(frags):
-        _early_depth(frags.x, frags.y, frags.sample, frags.depth, frags.triangle, func, depth_write,
-                     fb.samples_depth, winner, vis)
-    return FragmentVisibility(winner, vis, frags, saved)
+        _early_depth(frags.x, frags.y, frags.sample, frags.depth, func, depth_write, fb.samples_depth, winner)
+    return FragmentVisibility(winner, _kept_rows(winner, len(frags)), frags, saved)
+
+
+@numba.njit(cache=True)
+def _write_kept(x, y, s, color, fb_color):
+    """Write the kept fragments' colors at their samples; returns how many are not finite."""
+    bad = 0
+    for k in range(x.shape[0]):
+        total = 0.0
+        for c in range(4):
+            fb_color[s[k], y[k], x[k], c] = color[k, c]
+            total += np.float64(color[k, c])
+        if not (total - total == 0.0):
+            bad += 1
+    return bad
 
 
 def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragment_shader: Optional[Callable],
@@ -498,11 +538,10 @@ def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragmen
         visibility.restore_depth(fb)
         visibility.saved_depth = None
         raise
-    fb.samples_color[kept.sample, kept.y, kept.x] = shaded.color
     visibility.saved_depth = None
-    bad = np.flatnonzero(~np.isfinite(shaded.color).all(axis=1))
     non_finite = None
-    if len(bad):
+    if _write_kept(kept.x, kept.y, kept.sample, shaded.color, fb.samples_color):
+        bad = np.flatnonzero(~np.isfinite(shaded.color).all(axis=1))
         first = int(bad[np.lexsort((kept.x[bad], kept.y[bad]))[0]])       # the lowest image row, then column
         non_finite = NonFinite(len(bad), int(kept.x[first]), int(kept.y[first]), int(kept.primitive_id[first]))
     return ShadedSamples(visibility, shading, non_finite)  # type: ignore[arg-type]  # it reads .vis alone
