@@ -86,3 +86,16 @@ def test_an_overflow_is_infinity_in_debug_fragment_as_compiled():
     with pytest.warns(sp.NonFiniteColorWarning, match="the draw wrote 256 samples"):
         trace = sp.draw(fb, QUAD, fragment_shader=overflow, trace=True)
     assert trace.debug_fragment(4, 4)[0] == math.inf
+
+
+def test_the_stage_pictures_mark_the_non_finite_pixels_only_when_there_are_some():
+    from softpipe.views.pictures import stage_pictures
+    fb = sp.Framebuffer(W, H)
+    with pytest.warns(sp.NonFiniteColorWarning):
+        trace = sp.draw(fb, QUAD, fragment_shader=sqrt_of_x_less_10, trace=True)
+    pics = stage_pictures(trace)
+    marked = (pics["non-finite"] == (255, 0, 255)).all(axis=2)
+    assert marked[:, :10].all() and not marked[:, 10:].any()           # the columns whose centre x < 10
+    assert (pics["non-finite"][:, 10:] == pics["final"][:, 10:]).all()
+    finite = sp.draw(sp.Framebuffer(W, H), QUAD, varyings={"color": np.ones((12, 3))}, trace=True)
+    assert "non-finite" not in stage_pictures(finite)

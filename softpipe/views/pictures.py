@@ -21,6 +21,8 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 alike; at an edge it covers half of, 0.5 (and two triangles sharing the
                 edge, 1)
 ``final``       the color buffer after the draw
+``non-finite``  only when the framebuffer holds a NaN or infinite color: the final picture
+                with those pixels magenta (a PNG would show them as 0, black)
 ``shadow map k``  when the draw's ``lighting`` uniform carries shadow maps, each map's
                 depth as the light saw it (near dark, far light, no caster white;
                 :mod:`softpipe.scenes.shadow_pass`), scaled to the framebuffer's height; named
@@ -42,7 +44,7 @@ import numpy as np
 __all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "overdraw", "PICTURES",
            "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "draw_primitive_outlines", "OUTLINE_LAYERS",
            "draw_outline_layer", "draw_window_segments", "cut_outlines", "id_colors", "heat_colors",
-           "WHITE", "CYAN", "ORANGE", "RED", "YELLOW"]
+           "WHITE", "CYAN", "ORANGE", "RED", "YELLOW", "MAGENTA", "non_finite_pixels"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
 
@@ -51,6 +53,7 @@ CYAN = (60, 200, 230)
 ORANGE = (250, 150, 40)
 RED = (230, 50, 50)
 YELLOW = (250, 230, 80)
+MAGENTA = (255, 0, 255)
 
 
 def _to_image_xy(window_xy: np.ndarray, height: int) -> np.ndarray:
@@ -197,8 +200,19 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
     pics["overdraw"] = heat_colors(overdraw(trace))
 
     pics["final"] = fb.to_uint8(alpha=False)
+    bad = non_finite_pixels(fb)
+    if bad.any():                                      # only then: a draw of finite colors has its usual sheet
+        marked = pics["final"].copy()
+        marked[bad] = MAGENTA
+        pics["non-finite"] = marked
     pics.update(shadow_map_pictures(trace.call.uniforms, h, w))
     return pics
+
+
+def non_finite_pixels(fb) -> np.ndarray:
+    """bool [H, W]: the pixels with a sample whose color is NaN or infinite (what a PNG shows as 0, and a
+    draw warns of: softpipe.NonFiniteColorWarning)."""
+    return ~np.isfinite(fb.samples_color).all(axis=(0, 3))
 
 
 def shadow_map_pictures(uniforms, height: int, width: int) -> Dict[str, np.ndarray]:
