@@ -406,6 +406,11 @@ def test_in_ipython_a_shader_error_is_shown_without_softpipe_s_frames(monkeypatc
         def set_custom_exc(self, types_, handler):
             self.custom_exceptions, self.handler = types_, handler
 
+        def _showtraceback(self, etype, value, stb):
+            # IPython shows nothing a custom handler returns: the handler must show it (a Jupyter
+            # kernel's _showtraceback sends it to the notebook)
+            shown["displayed"] = stb
+
     shell = Shell()
     monkeypatch.setitem(sys.modules, "IPython", types.SimpleNamespace(get_ipython=lambda: shell))
     monkeypatch.delenv("SOFTPIPE_SHADER_DEBUG", raising=False)
@@ -416,6 +421,7 @@ def test_in_ipython_a_shader_error_is_shown_without_softpipe_s_frames(monkeypatc
     except ShaderError as e:
         error, tb = e, e.__traceback__
     assert shell.handler(shell, ShaderError, error, tb) == ["the traceback"]
+    assert shown["displayed"] == ["the traceback"]
     assert shown["files"] == [__file__, __file__]          # this test, then draw() above: nothing of softpipe's
     monkeypatch.setenv("SOFTPIPE_SHADER_DEBUG", "1")
     shell.handler(shell, ShaderError, error, tb)

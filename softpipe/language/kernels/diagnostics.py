@@ -804,10 +804,17 @@ def users_traceback(tb: types.TracebackType | None) -> types.TracebackType | Non
 
 
 def _ipython_shader_error(shell, etype, value, tb, tb_offset=None):
-    """IPython's custom-exception handler for ShaderError: its traceback without softpipe's frames."""
+    """IPython's custom-exception handler for ShaderError: shows its traceback without softpipe's frames.
+
+    It shows it itself (``shell._showtraceback``, which a Jupyter kernel sends to the notebook):
+    IPython does not show what a custom handler returns (IPython 8 and 9 call it and drop the
+    result), so a handler that only returned it left a notebook cell's error blank.
+    """
     if not _debugging():
         tb = users_traceback(tb) or tb
-    return shell.InteractiveTB.structured_traceback(etype, value, tb, tb_offset=tb_offset)
+    stb = shell.InteractiveTB.structured_traceback(etype, value, tb, tb_offset=tb_offset)
+    shell._showtraceback(etype, value, stb)
+    return stb
 
 
 def hide_internal_frames() -> None:
