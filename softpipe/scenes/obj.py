@@ -382,6 +382,11 @@ class _OBJParser:
         fields = tok.split("/")
         # v, v/vt, v//vn, v/vt/vn: only vt may be empty, and only in the three-field form.
         ok = 1 <= len(fields) <= 3 and fields[0] != "" and fields[-1] != ""
+        return self.corner_values(tok, i, fields, ok, "a face corner v, v/vt, v//vn or v/vt/vn")
+
+    def corner_values(self, tok: str, i: int, fields: List[str], ok: bool, expected: str) -> Tuple[int, int, int]:
+        """(v, vt, vn) of a corner split into ``fields`` (0 where empty or absent), whose form is ``ok``:
+        else, or for an index too large or 0, the error of line ``i`` (``expected`` words the form)."""
         try:
             values = [int(x) if x else 0 for x in fields] if ok else []
         except ValueError:
@@ -390,9 +395,7 @@ class _OBJParser:
             raise self.error(i, f"index in {excerpt(tok)} is beyond any possible vertex count "
                                 f"(at most {_MAX_INDEX}): {self.quoted(i)}")
         if not ok:
-            raise self.error(
-                i, f"expected a face corner v, v/vt, v//vn or v/vt/vn, got {excerpt(tok)} in {self.quoted(i)}"
-            )
+            raise self.error(i, f"expected {expected}, got {excerpt(tok)} in {self.quoted(i)}")
         if any(x == 0 for x, s in zip(values, fields) if s):
             raise self.error(i, f"index 0 in {excerpt(tok)} is invalid (OBJ indices start at 1): {self.quoted(i)}")
         values += [0] * (3 - len(values))
@@ -423,18 +426,7 @@ class _OBJParser:
         """(v, vt, 0) of one vertex of an ``l`` (v or v/vt) or ``p`` (v) statement."""
         fields = tok.split("/")
         ok = len(fields) <= (2 if keyword == "l" else 1) and all(fields)
-        try:
-            values = [int(x) for x in fields] if ok else []
-        except ValueError:
-            ok = False
-        if ok and any(abs(x) > _MAX_INDEX for x in values):
-            raise self.error(i, f"index in {excerpt(tok)} is beyond any possible vertex count "
-                                f"(at most {_MAX_INDEX}): {self.quoted(i)}")
-        if not ok:
-            raise self.error(i, f"expected {forms} after {keyword!r}, got {excerpt(tok)} in {self.quoted(i)}")
-        if 0 in values:
-            raise self.error(i, f"index 0 in {excerpt(tok)} is invalid (OBJ indices start at 1): {self.quoted(i)}")
-        return values[0], values[1] if len(values) > 1 else 0, 0
+        return self.corner_values(tok, i, fields, ok, f"{forms} after {keyword!r}")
 
     # -- pass 3: indices
 
