@@ -222,6 +222,13 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
     z_a, z_b = depth[t, 0], depth[t, 1]
     lo_major, hi_major = min(ma, mb), max(ma, mb)
     samples = offsets.shape[0]
+    # the centroid of all the samples (every one is covered): their mean offset and position, once
+    mx, my, px, py = 0.0, 0.0, 0.0, 0.0
+    for m in range(samples):
+        mx += offsets[m, 0]
+        my += offsets[m, 1]
+        px += positions[m, 0]
+        py += positions[m, 1]
     n = 0
     for major in range(first, last + step, step):
         minor_at = na + (major * SUBPIXEL - ma) * nd / md        # the line's minor coordinate here
@@ -255,12 +262,6 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
                     elif mode == SHADE_CENTER:
                         tb, fx, fy = _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL, j * SUBPIXEL), pi + 0.5, pj + 0.5
                     else:                # the centroid of the covered samples: all of them
-                        mx, my, px, py = 0.0, 0.0, 0.0, 0.0
-                        for m in range(samples):
-                            mx += offsets[m, 0]
-                            my += offsets[m, 1]
-                            px += positions[m, 0]
-                            py += positions[m, 1]
                         tb = _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL + mx / samples,
                                         j * SUBPIXEL + my / samples)
                         fx, fy = pi + px / samples, pj + py / samples

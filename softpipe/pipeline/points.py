@@ -106,6 +106,10 @@ def cover_point(centre, size, depth, t, rect, height, offsets, positions, mode, 
     # the point's position in window coordinates (pixel centres at +½), for gl_PointCoord
     x, y = cx / SUBPIXEL + 0.5, cy / SUBPIXEL + 0.5
     samples = offsets.shape[0]
+    px, py = 0.0, 0.0                    # the centroid of all the samples (every one is covered), once
+    for m in range(samples):
+        px += positions[m, 0]
+        py += positions[m, 1]
     n = 0
     for j in range(j0, j1 + 1):
         if not in_square(j * SUBPIXEL - cy, half):
@@ -123,10 +127,6 @@ def cover_point(centre, size, depth, t, rect, height, offsets, positions, mode, 
                 elif mode == SHADE_CENTER:
                     fx, fy = i + 0.5, j + 0.5
                 else:                    # the centroid of the covered samples: all of them
-                    px, py = 0.0, 0.0
-                    for m in range(samples):
-                        px += positions[m, 0]
-                        py += positions[m, 1]
                     fx, fy = i + px / samples, j + py / samples
                 ps = 0.5 + (fx - x) / side
                 pt = 0.5 - (fy - y) / side
