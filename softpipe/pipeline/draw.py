@@ -196,7 +196,7 @@ class DrawCall:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
         fb = self.framebuffer
         return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
-                           keep_fragments, self.kind)
+                           keep_fragments)
 
     def steps(self, record: bool = False) -> Iterator[Stage]:
         """Run the draw one stage at a time, yielding each stage's result as it is made.

@@ -84,13 +84,13 @@ def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable]) ->
 
 
 def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable], samples: int,
-                keep_fragments: bool = False, kind: str = "triangles") -> Tuple[str, str]:
+                keep_fragments: bool = False) -> Tuple[str, str]:
     """Which order a draw takes, and why: ("reference" | "fast", reason).
 
     ``path`` is the draw's request (:data:`PATHS`), ``samples`` the framebuffer's
     width × height × samples per pixel, ``keep_fragments`` whether the caller
-    needs every fragment (a trace with ``path="auto"``), ``kind`` what it draws
-    (points and lines have their own visibility pass, :func:`early_depth`).
+    needs every fragment (a trace with ``path="auto"``). The same for every kind of
+    primitive (points and lines have a visibility pass of their own, :func:`early_depth`).
     """
     if path not in PATHS:
         raise ValueError(f"path must be one of {PATHS}, got {path!r}")
