@@ -41,7 +41,7 @@ import numpy as np
 
 from softpipe.core.runtime import check_memory
 from softpipe.language.contract import make_uniforms
-from softpipe.pipeline.assembly import Primitives, assemble, check_size, primitive_kind
+from softpipe.pipeline.assembly import Primitives, assemble, check_clip_planes, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.output import (
@@ -151,7 +151,8 @@ class DrawCall:
                  depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
                  path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None,
-                 polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0):
+                 polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0,
+                 clip_planes=None, depth_clamp: bool = False):
         if not isinstance(framebuffer, Framebuffer):
             raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
         viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
@@ -171,6 +172,7 @@ class DrawCall:
         #: what the draw's primitives are: "triangles", "lines" or "points" (the topology's, or the polygon mode's)
         self.kind = primitive_kind(topology, polygon_mode)
         self.point_size, self.line_width = check_size("point_size", point_size), check_size("line_width", line_width)
+        self.clip_planes, self.depth_clamp = check_clip_planes(clip_planes), depth_clamp
         self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend)
         if sample_shading not in SHADING_POSITIONS:
             raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {sample_shading!r}")
@@ -231,7 +233,8 @@ class DrawCall:
         prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
                                            cull=self.cull, front_face=self.front_face, keep_culled=not fast,
                                            polygon_mode=self.polygon_mode, point_size=self.point_size,
-                                           line_width=self.line_width)
+                                           line_width=self.line_width, clip_planes=self.clip_planes,
+                                           depth_clamp=self.depth_clamp)
         clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
@@ -435,6 +438,8 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     line_width : float
         Lines' width in pixels (GL's ``glLineWidth``, default 1): a run of round(width)
         fragments across the line's minor axis.
+    clip_planes, depth_clamp : [[a, b, c, d], ...] (at most 8), bool (default None, False)
+        User clip planes, kept where a·x+b·y+c·z+d·w ≥ 0 (a varying ``clip_distance`` too); GL_DEPTH_CLAMP.
     interpolation : dict varying name → "smooth" | "noperspective" | "flat"
     depth_test : compare function (see :data:`softpipe.pipeline.output.DEPTH_FUNCS`) or None
         (default "less")
