@@ -28,12 +28,12 @@ vertex on a clipped edge is always computed from the edge's inside end, so two
 triangles sharing the edge get the same new vertex (no cracks).
 
 User clip planes (``clip_planes``: rows (a, b, c, d), kept where
-a·x + b·y + c·z + d·w ≥ 0) and the components of the varyings ``clip_distance`` and
-``clip_distance2`` (GLSL's ``gl_ClipDistance``: kept where ≥ 0) are clipped against after those, by
-the same clipper: a vertex's distances ride beside its clip position as extra
-coordinates, interpolated with it, so a distance plane is the row selecting its
-coordinate. With ``depth_clamp`` (GL_DEPTH_CLAMP) the near and far planes are not
-clipped against (OpenGL 4.6 §13.7.1); window depths may then leave the depth
+a·x + b·y + c·z + d·w ≥ 0) and the components of the varyings ``clip_distance``
+and ``clip_distance2`` (GLSL's ``gl_ClipDistance``: kept where ≥ 0) are clipped
+against after those, by the same clipper: a vertex's distances ride beside its
+clip position as extra coordinates, interpolated with it, so a distance's plane
+is the row selecting its coordinate. With ``depth_clamp`` (GL_DEPTH_CLAMP) the near and far planes are not
+clipped against (OpenGL 4.6 §13.7); window depths may then leave the depth
 range, and the rasterizer's depth clamps them to [0, 1].
 
 Varyings at a new vertex: ``smooth`` ones are interpolated linearly in clip
@@ -80,8 +80,8 @@ FRONT_FACES = ("ccw", "cw")
 GUARD_PIXELS = 32768.0
 #: The clip plane w ≥ W_MIN: vertices at or behind the eye never reach the divide.
 W_MIN = 1e-9
-#: GL's minimum MAX_CLIP_DISTANCES: the most user clip planes, and the most components of a
-#: ``clip_distance`` varying, a draw may have.
+#: GL's minimum MAX_CLIP_DISTANCES: the most user clip planes a draw may have, and the most clip
+#: distances (the components of :data:`CLIP_DISTANCE_VARYINGS`, four each).
 MAX_CLIP_DISTANCES = 8
 
 
