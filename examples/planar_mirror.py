@@ -82,10 +82,19 @@ def _changes_nearby(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def edge_band(s: Scene, stencil: np.ndarray) -> np.ndarray:
-    """The pixels within one pixel of an edge: the mirror's outline (``stencil``'s) or a silhouette (:func:`id_scene`)."""
+def object_ids(s: Scene) -> np.ndarray:
+    """[H, W] int: which object each pixel's (reflected) ray meets, as a packed color of :func:`id_scene`."""
     ids = render_planar_mirror(id_scene(s)).to_uint8(alpha=False).astype(np.int64)
-    key = (ids[..., 0] << 16) | (ids[..., 1] << 8) | ids[..., 2]
+    return (ids[..., 0] << 16) | (ids[..., 1] << 8) | ids[..., 2]
+
+
+#: :func:`object_ids` where a ray meets nothing (id_scene's background, 0.5 gray).
+NOTHING = (128 << 16) | (128 << 8) | 128
+
+
+def edge_band(s: Scene, stencil: np.ndarray, ids=None) -> np.ndarray:
+    """The pixels within one pixel of an edge: the mirror's outline (``stencil``'s) or a silhouette (:func:`id_scene`)."""
+    key = object_ids(s) if ids is None else ids
     return _changes_nearby(key) | _changes_nearby(stencil == 1)
 
 
@@ -97,7 +106,8 @@ def measure(s: Scene, cube_size: int = 128) -> dict:
     cube = render_with_environments(s, dynamic_environments(s, cube_size))
     a, b, c = (fb.to_uint8(alpha=False).astype(np.int64) for fb in (stencil, traced, cube))
     inside = steps["stencil"] == 1
-    band = edge_band(s, steps["stencil"])
+    ids = object_ids(s)
+    band = edge_band(s, steps["stencil"], ids)
     out = {"steps": steps, "stencil": a, "traced": b, "cube": c, "inside": inside, "band": band}
     for name, other in (("traced", b), ("cube", c)):
         d = np.abs(a - other).max(axis=-1)
@@ -107,11 +117,16 @@ def measure(s: Scene, cube_size: int = 128) -> dict:
         out[f"{name}_max"] = int(d[inside].max())
         out[f"{name}_max_off_band"] = int(d[inside & ~band].max())
         out[f"{name}_outside"] = int((d[~inside] > 1).sum())
-    out["by_distance"] = parallax(s, out["diff_cube"], inside)
+    sky = inside & ~band & (ids == NOTHING)          # the reflected ray meets nothing: the sky, infinitely far
+    near = inside & ~band & (ids != NOTHING)         # it meets an object, 1 to 3 units away
+    d = out["diff_cube"]
+    out["cube_sky"], out["cube_sky_differ"] = int(sky.sum()), int((d[sky] > 1).sum())
+    out["cube_near"], out["cube_near_differ"] = int(near.sum()), int((d[near] > 1).sum())
+    out["by_distance"] = parallax(s, d, inside)
     return out
 
 
-def parallax(s: Scene, diff: np.ndarray, inside: np.ndarray, rings=(0.0, 0.5, 1.0, 1.5, 2.0, 3.0)):
+def parallax(s: Scene, diff: np.ndarray, inside: np.ndarray, rings=(0.0, 0.1, 0.25, 0.5, 1.0, 2.0, 3.0)):
     """The cube map's error against the distance of the mirror point (where the pixel's ray meets the
     mirror) from the map's centre (the mirror's centre): [(from, to, pixels, share differing by > 1/255, mean)]."""
     cam = s.camera
@@ -162,13 +177,15 @@ def report(m: dict) -> str:
         lines.append(f"{name}: {m[f'{name}_inside']} mirror pixels differ by > 1/255 (at most "
                      f"{m[f'{name}_max']}/255); off the edge band {m[f'{name}_off_band']} (at most "
                      f"{m[f'{name}_max_off_band']}/255); outside the mirror {m[f'{name}_outside']}")
+    lines.append(f"cube map off the edge band: where the reflection is the sky {m['cube_sky_differ']} of "
+                 f"{m['cube_sky']} pixels differ; where it is an object {m['cube_near_differ']} of {m['cube_near']}")
     for lo, hi, n, share, mean in m["by_distance"]:
         lines.append(f"cube map, mirror points {lo:g}-{hi:g} from its centre: {n} pixels, {100 * share:.0f} % "
                      f"differ, mean {mean:.1f}/255")
     return "\n".join(lines)
 
 
-def write_docs_pictures(size=(240, 180)):
+def write_docs_pictures(size=(160, 120)):
     """docs/images/planar-mirror/steps.png (a–d) and methods.png (d–h); prints the numbers."""
     found = {}
     pictures = sheet(size, found)
