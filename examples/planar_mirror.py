@@ -163,7 +163,7 @@ def sheet(size=(160, 120), found=None):
     stencil = np.repeat((m["steps"]["stencil"] == 1)[..., None] * np.uint8(255), 3, axis=-1)
     return {"(a) 1: stencil = 1 on the mirror": stencil,
             "(b) 2: reflected scene, stencil = 1": m["steps"]["reflection"],
-            "(c) 3: mirror, src + kr × dst": m["steps"]["mirror"],
+            "(c) 3: mirror, src + kr * dst": m["steps"]["mirror"],
             "(d) 4: the scene: stencil mirror": m["steps"]["scene"],
             "(e) ray traced (Whitted)": m["traced"].astype(np.uint8),
             "(f) mirror program, cube map": m["cube"].astype(np.uint8),

@@ -238,7 +238,8 @@ def render_planar_mirror(scene: Scene, camera: Optional[Camera] = None, *, mirro
         return maps.lighting_uniform(lights, view) if maps is not None else lights.uniform(view)
 
     def state(o):
-        return dict(texture=o.texture, cull=o.cull or scene.cull, sample_shading=scene.sample_shading)
+        return dict(texture=o.texture, cull=o.cull or scene.cull, sample_shading=scene.sample_shading,
+                    point_size=scene.point_size, line_width=scene.line_width)
 
     # 1. the mirror's samples get stencil 1; no color, no depth (the reflection lies behind it)
     draw_mesh(fb, obj.mesh, camera, "phong", model=obj.model, lighting=lighting(camera.view), stencil=MARK,
