@@ -165,12 +165,13 @@ def depth_peel(scene: Scene, *, layers: int = 4, camera: Optional[Camera] = None
         ``layers`` out of range or not a whole number; a scene of more than one sample a pixel.
     """
     layers = _check_layers(layers)
+    count = len(pattern_named(scene.samples))
+    if count != 1:
+        raise ValueError(f"depth_peel draws one sample a pixel (its shader reads the previous layer's depth by "
+                         f"pixel); the scene's samples {scene.samples!r} has {count}: give the scene "
+                         "samples=\"1\"")
     base = opaque_pass(scene, camera)
     fb = base.framebuffer
-    if fb.samples != 1:
-        raise ValueError(f"depth_peel draws one sample a pixel (its shader reads the previous layer's depth by "
-                         f"pixel); the scene's samples {scene.samples!r} has {fb.samples}: give the scene "
-                         "samples=\"1\"")
     previous = np.full((fb.height, fb.width), -np.inf)          # nothing is in front of layer 0
     under = np.zeros((fb.height, fb.width, 4))                  # premultiplied color and alpha so far
     for _ in range(layers):
