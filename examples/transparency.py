@@ -13,7 +13,8 @@ wall, and an opaque ball pokes through them. Drawn
   approximate wherever panes overlap;
 
 beside the exact composite (``softpipe.testing.sorted_composite``: every fragment of the
-reference path sorted per pixel) and each method's difference from it, ×4.
+reference path sorted per pixel) and each method's difference from it, ×4 (dark gray where
+a pane is and the method is exact).
 """
 import sys
 
@@ -55,9 +56,16 @@ def scene(size):
 
 
 def exact(s):
-    """The exact composite of scene ``s``: the reference path's fragments sorted per pixel."""
+    """The exact composite of scene ``s`` (the reference path's fragments sorted per pixel), and the
+    pixels where a transparent surface is in front of the opaque one."""
     base, traces = transparent_traces(s)
-    return sorted_composite(traces, base.framebuffer)
+    fb = base.framebuffer
+    covered = np.zeros((fb.height, fb.width), bool)
+    for t in traces:
+        f = t.fragments
+        front = f.depth.astype(np.float32) < fb.depth[f.y, f.x]
+        covered[f.y[front], f.x[front]] = True
+    return sorted_composite(traces, fb), covered
 
 
 def difference(a, b):
@@ -69,7 +77,8 @@ def difference(a, b):
 def pictures(size=240):
     """The three methods, the exact composite, each method's difference from it; and the numbers."""
     s = scene(size)
-    reference = exact(s).to_uint8(alpha=False)
+    composite, covered = exact(s)
+    reference = composite.to_uint8(alpha=False)
     methods = {"sorted by object": sp.render_scene(s).to_uint8(alpha=False),
                f"depth peeling, {LAYERS} layers": depth_peel(s, layers=LAYERS).to_uint8(alpha=False),
                "weighted blended OIT": weighted_oit(s).to_uint8(alpha=False)}
@@ -78,8 +87,9 @@ def pictures(size=240):
     numbers = {}
     for name, picture in methods.items():
         numbers[name] = difference(picture, reference)
-        gap = np.abs(picture.astype(np.int16) - reference.astype(np.int16)) * 4
-        shown[f"|{name.split(',')[0]} - exact| x4"] = np.clip(gap, 0, 255).astype(np.uint8)
+        gap = np.clip(np.abs(picture.astype(np.int16) - reference.astype(np.int16)) * 4, 0, 255).astype(np.uint8)
+        gap[covered & (gap.max(axis=-1) == 0)] = 40      # dark gray: a pane is there, and no difference
+        shown[f"|{name.split(',')[0]} - exact| x4"] = gap
     return shown, numbers
 
 
