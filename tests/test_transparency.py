@@ -67,6 +67,8 @@ def test_render_scene_draws_the_transparent_objects_after_the_opaque_ones_back_t
     centre = fb.color[16, 20, :3]
     expected = over(RED, 0.5, over(GREEN, 0.75, BLUE))
     np.testing.assert_allclose(centre, expected, rtol=0, atol=1e-6)
+    # alpha by A ← α + (1 − α)·A (separate alpha factors): 1 over the opaque wall, 0.5 over green over a clear framebuffer
+    assert fb.color[16, 20, 3] == 1.0
     assert tuple(fb.to_uint8(alpha=False)[16, 20]) == tuple(int(v) for v in np.round(expected * 255))
     # the wall alone at the corner, and only the green square's edge strip right of the red one
     np.testing.assert_allclose(fb.color[1, 1, :3], BLUE, rtol=0, atol=1e-7)

@@ -331,10 +331,12 @@ def _texture(texture):
 
 
 #: The state :func:`render_scene` draws a transparent object in (:func:`is_transparent`): blended
-#: "over" what is behind it (``blend="alpha"``: src·α + dst·(1 − α)) and tested against the depth
-#: buffer without writing it, so a transparent surface hides neither the opaque ones (drawn
-#: before it) nor the transparent ones drawn after it.
-TRANSPARENT_STATE: Dict[str, Any] = {"blend": "alpha", "depth_write": False}
+#: "over" what is behind it, color src·α + dst·(1 − α) (as ``blend="alpha"``) and alpha
+#: α + A·(1 − α) (separate alpha factors, so the picture's alpha is the coverage, not α² + …),
+#: and tested against the depth buffer without writing it, so a transparent surface hides
+#: neither the opaque ones (drawn before it) nor the transparent ones drawn after it.
+TRANSPARENT_STATE: Dict[str, Any] = {"blend": ("src_alpha", "one_minus_src_alpha", "one", "one_minus_src_alpha"),
+                                     "depth_write": False}
 
 
 def is_transparent(obj: SceneObject) -> bool:
