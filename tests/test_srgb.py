@@ -262,3 +262,13 @@ def test_cli_srgb_writes_an_encoded_png(capsys, tmp_path):
                 for row in linear.color]
     assert srgb.tolist() == expected
     assert (srgb != plain).any(axis=2).all()
+
+
+def test_ray_tracer_renders_into_the_scenes_srgb_framebuffer(tmp_path):
+    from softpipe.scenes.drawing import prepare_scene, render_scene
+    from softpipe.tracers.whitted import raytrace_scene
+    obj = _textured_obj(tmp_path)
+    scene = prepare_scene(obj, width=6, height=6, background=(0.5, 0.5, 0.5), srgb=True)
+    traced, drawn = raytrace_scene(scene), render_scene(scene)
+    assert traced.srgb is True and drawn.srgb is True
+    assert traced.to_uint8()[0, 0].tolist() == drawn.to_uint8()[0, 0].tolist() == [188, 188, 188, 255]
