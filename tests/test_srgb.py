@@ -272,3 +272,17 @@ def test_ray_tracer_renders_into_the_scenes_srgb_framebuffer(tmp_path):
     traced, drawn = raytrace_scene(scene), render_scene(scene)
     assert traced.srgb is True and drawn.srgb is True
     assert traced.to_uint8()[0, 0].tolist() == drawn.to_uint8()[0, 0].tolist() == [188, 188, 188, 255]
+
+
+def test_transparency_methods_keep_the_scenes_srgb(tmp_path):
+    """The opaque pass (depth peeling and weighted OIT composite into it) and the exact composite
+    are sRGB framebuffers when the scene's or the background's is."""
+    from softpipe.scenes.drawing import prepare_scene
+    from softpipe.scenes.transparency import opaque_pass
+    from softpipe.testing.composite import sorted_composite
+    scene = prepare_scene(_textured_obj(tmp_path), width=4, height=4, background=(0.5, 0.5, 0.5), srgb=True)
+    base = opaque_pass(scene).framebuffer
+    assert base.srgb is True and base.to_uint8()[0, 0].tolist() == [188, 188, 188, 255]
+    exact = sorted_composite([], base)
+    assert exact.srgb is True and exact.to_uint8().tolist() == base.to_uint8().tolist()
+    assert sorted_composite([], Framebuffer(2, 2)).srgb is False
