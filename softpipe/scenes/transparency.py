@@ -264,11 +264,10 @@ def weighted_oit(scene: Scene, *, camera: Optional[Camera] = None,
     accum, reveal = _layer(fb, (0.0, 0.0, 0.0, 0.0)), _layer(fb, (1.0, 1.0, 1.0, 1.0))
     for obj in base.transparent:
         program = get_program(program_for(obj, scene.program))
-        state = {"depth_test": "less", "depth_write": False}
         draw_object(accum, scene, obj, base.camera, base.lighting, program=_weighted(program), blend=("one", "one"),
-                    **state)
+                    depth_test="less", depth_write=False)
         draw_object(reveal, scene, obj, base.camera, base.lighting, program=_revealage(program),
-                    blend=("zero", "one_minus_src_color"), **state)
+                    blend=("zero", "one_minus_src_color"), depth_test="less", depth_write=False)
     if buffers is not None:
         buffers.update(accum=accum, revealage=reveal)
     out = oit_resolve(accum.samples_color, reveal.samples_color[..., 0], fb.samples_color)
