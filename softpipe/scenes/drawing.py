@@ -436,7 +436,7 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
         objects whose ``cast_shadows`` is true).
     """
     camera = camera or scene.view_camera()
-    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples))
+    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples), srgb=scene.srgb)
     fb.clear(scene.background)
     objects = scene.drawn_objects(camera)
     lighting = scene_lighting(scene, camera, objects, shadow_maps)
@@ -525,7 +525,7 @@ def input_kind(model) -> str:
 
 
 def _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy,
-                allow_outside: bool = False) -> Tuple[Scene, bool]:
+                allow_outside: bool = False, srgb_textures: bool = False) -> Tuple[Scene, bool]:
     """The Scene for a model name, an OBJ or TOML path, a mesh or a Scene; and whether it is one model."""
     size = {"width": width or default_size[0], "height": height or default_size[1]}
     angles = {"azimuth": 30.0 if azimuth is None else azimuth, "elevation": 20.0 if elevation is None else elevation,
@@ -533,7 +533,7 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
     if isinstance(model, Scene) or not isinstance(model, (str, os.PathLike)):
         if not isinstance(model, Scene):
             mesh = as_mesh(model)
-            return Scene.from_model(mesh, texture=texture, **angles, **size), True
+            return Scene.from_model(mesh, texture=texture, srgb_textures=srgb_textures, **angles, **size), True
         scene = model
     else:
         from softpipe.scenes.models import model_path
@@ -545,7 +545,8 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
                 model = load_model(model, allow_outside=True)
                 if model.triangle_count == 0 and model.segment_count == 0 and model.point_count == 0:
                     raise ValueError(f"{label}: the file has no faces (f), lines (l) or points (p) to render")
-            return Scene.from_model(model, texture=texture, **angles, **size, path=label), True
+            return Scene.from_model(model, texture=texture, srgb_textures=srgb_textures, **angles, **size,
+                                    path=label), True
         from softpipe.scenes.scenefile import load_scene  # the one place drawing reads a scene file: render()'s input
         scene = load_scene(path, allow_outside=allow_outside)
     # a scene (file or object): its own settings, changed only by what is given
@@ -576,7 +577,7 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
                   azimuth: Optional[float] = None, elevation: Optional[float] = None, fovy: Optional[float] = None,
                   default_size: Tuple[int, int] = RENDER_SIZE, allow_outside: bool = False,
                   shadows: bool = False, point_size: Optional[float] = None,
-                  line_width: Optional[float] = None) -> Scene:
+                  line_width: Optional[float] = None, srgb: bool = False) -> Scene:
     """The :class:`~softpipe.scenes.scene.Scene` that :func:`render` draws (the options of ``softpipe render``).
 
     Takes the arguments of :func:`render` (which see) and ``default_size``, the size
@@ -605,6 +606,8 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
             changes[name] = check_size(name, size)
     if isinstance(texture, (str, os.PathLike)) and not os.path.isfile(texture):
         raise FileNotFoundError(f"texture: {os.fspath(texture)}: no such file")
+    if not isinstance(srgb, (bool, np.bool_)):
+        raise TypeError(f"srgb must be True or False, got {type(srgb).__name__} {srgb!r}")
     if background is not None:
         try:
             changes["background"] = rgba(background)
@@ -616,7 +619,7 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
         except (TypeError, ValueError) as e:
             raise ValueError(f"wire_color: {e}") from None
     scene, one_model = _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy,
-                                   allow_outside)
+                                   allow_outside, srgb_textures=bool(srgb))
     samples = samples or ("rgss4" if msaa and scene.samples in ("1", "center", "none") else None)
     if samples:
         changes["samples"] = samples
@@ -631,6 +634,8 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
         objects = [dataclasses.replace(o, cull=None) for o in objects]
     if wireframe:
         changes["wireframe"] = True
+    if srgb:
+        changes["srgb"] = True
     if shadows:
         changes["shadows"] = True
         if one_model:   # a model alone has nothing to throw its shadow on: stand it on a floor
@@ -662,7 +667,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
            stages=None, trace: bool = False, results: Optional[list] = None,
            progress: Optional[Callable[[int, int, SceneObject], None]] = None,
            allow_outside: bool = False, shadows: bool = False, point_size: Optional[float] = None,
-           line_width: Optional[float] = None) -> Framebuffer:
+           line_width: Optional[float] = None, srgb: bool = False) -> Framebuffer:
     """``softpipe render MODEL`` in Python: the same picture, as a :class:`Framebuffer`.
 
     ``softpipe.render("teapot").save("teapot.png")`` writes what ``softpipe render
@@ -721,6 +726,12 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
         and ``l``; ``--point-size``, ``--line-width``); GL's default 1 for both (a scene
         keeps its own). They are drawn after the faces, unlit in their material's ``kd``
         (:func:`draw_lines_and_points`).
+    srgb : bool
+        Render into an sRGB framebuffer (``--srgb``; FORMULAS §28, docs/gamma.md): shaded in
+        linear light and encoded as the picture becomes bytes. A model's texture files (the
+        ``texture`` path, its MTL's ``map_Kd``) are then read as sRGB too (decoded to linear
+        when loaded); a scene file says that of its textures itself (``[render]
+        srgb_textures``), and a scene's ``srgb = true`` is kept when this is False.
 
     Raises
     ------
@@ -732,7 +743,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
                           allow_outside=allow_outside, shadows=shadows, point_size=point_size,
-                          line_width=line_width)
+                          line_width=line_width, srgb=srgb)
     camera = camera or scene.view_camera()
     drawn: List[DrawResult] = []
     fb = render_scene(scene, camera=camera, trace=trace or stages is not None, results=drawn, progress=progress,

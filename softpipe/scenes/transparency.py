@@ -82,7 +82,7 @@ def opaque_pass(scene: Scene, camera: Optional[Camera] = None) -> OpaquePass:
     """Draw ``scene``'s opaque objects (and the ground) as :func:`~softpipe.scenes.drawing.render_scene` does;
     keep the transparent ones for later. The wireframe is not drawn."""
     camera = camera or scene.view_camera()
-    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples))
+    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples), srgb=scene.srgb)
     fb.clear(scene.background)
     objects = scene.drawn_objects(camera)
     lighting = scene_lighting(scene, camera, objects)

@@ -69,7 +69,7 @@ def sorted_composite(traces: Sequence, background: Framebuffer) -> Framebuffer:
         parts.append((np.asarray(f.sample, np.int64), np.asarray(f.y, np.int64), np.asarray(f.x, np.int64),
                       np.asarray(f.depth, np.float64).astype(np.float32), np.asarray(sh.color, np.float64),
                       np.asarray(sh.discarded, bool)))
-    out = Framebuffer(W, H, background.pattern)
+    out = Framebuffer(W, H, background.pattern, srgb=background.srgb)      # its bytes encoded as the background's
     color = background.samples_color.astype(np.float64)
     depth = background.samples_depth
     if parts:
