@@ -23,12 +23,14 @@ from common import REPO, picture_size, save_docs_sheet, save_sheet
 from softpipe.light.material import Light, Material
 from softpipe.light.shadowmap import ShadowSettings
 from softpipe.pipeline.camera import Camera
-from softpipe.pipeline.transforms import compose, rotate_y, scale, translate
+from softpipe.pipeline.draw import DrawCall
+from softpipe.pipeline.transforms import compose, perspective_infinite, rotate_y, scale, translate
 from softpipe.scenes import shapes
-from softpipe.scenes.drawing import render_scene
+from softpipe.scenes.drawing import render_scene, standard_uniforms
 from softpipe.scenes.scene import Scene, SceneObject
 from softpipe.scenes.shadow_masks import compare_masks, shadow_mask
-from softpipe.scenes.shadow_volumes import ShadowVolumeResult, render_shadow_volumes
+from softpipe.scenes.shadow_volumes import ShadowVolumeResult, render_shadow_volumes, shadow_volume, volume_vertex
+from softpipe.scenes.silhouette import light_vector
 from softpipe.tracers.whitted import raytrace_scene
 
 DOCS_IMAGES = REPO / "docs" / "images" / "shadow-volumes"
@@ -126,12 +128,6 @@ def report(figures):
 
 def volume_picture(size, caps=False):
     """The outside scene with its shadow volumes drawn over it, translucent: what the stencil counts."""
-    from softpipe.pipeline.draw import DrawCall
-    from softpipe.pipeline.transforms import perspective_infinite
-    from softpipe.scenes.drawing import standard_uniforms
-    from softpipe.scenes.silhouette import light_vector
-    from softpipe.scenes.shadow_volumes import shadow_volume, volume_vertex
-
     scene = outside_scene(size)
     camera = scene.view_camera()
     fb = render_scene(scene.replace(lights=(Light.point((1.5, 4.0, 2.0), name="bulb", shadows=True),)))
