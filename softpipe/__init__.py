@@ -23,7 +23,8 @@ from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.draw import DrawCall, Stage, draw
 from softpipe.pipeline.fragment import ShadedFragments
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.pipeline.output import MergeResult, MergeState, NonFiniteColorWarning
+from softpipe.pipeline.merge_state import MergeState, Stencil
+from softpipe.pipeline.output import MergeResult, NonFiniteColorWarning, OcclusionQuery
 from softpipe.pipeline.raster import Fragments, rasterize
 from softpipe.pipeline.sampling import CENTER, SamplePattern, grid, jittered, random_pattern, rotated_grid_4x
 from softpipe.pipeline.trace import PixelHistory, Trace
@@ -61,6 +62,7 @@ __all__ = [
     "make_uniforms", "lighting", "Light", "Lighting", "LightingUniform", "Material", "MaterialUniform",
     "pack_lights", "ShadowSettings", "ShadowUniform", "Texture2D", "TextureUniform", "Primitives", "assemble",
     "Camera", "DrawCall", "Stage", "draw", "ShadedFragments", "Framebuffer", "MergeResult", "MergeState",
+    "Stencil", "OcclusionQuery",
     "Fragments", "rasterize", "CENTER", "SamplePattern", "grid", "jittered", "random_pattern",
     "rotated_grid_4x", "PixelHistory", "Trace", "Viewport", "compose", "frustum", "identity", "look_at",
     "normal_matrix", "opencv_camera", "orthographic", "perspective", "rotate", "rotate_x", "rotate_y",

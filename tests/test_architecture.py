@@ -40,7 +40,7 @@ TOP_LEVEL = {"shading": "programs", "testing": "views", "": "scenes", "__main__"
 LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.explorer"), ("", "tools.batch")}
 #: softpipe/pipeline/ in pipeline order; each may import only those before it.
 STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "lines", "points",
-          "raster", "fragment", "output", "tiles", "visibility", "trace", "draw"]
+          "raster", "fragment", "merge_state", "output", "tiles", "visibility", "trace", "draw"]
 
 
 def _module_name(path: Path) -> str:

@@ -73,7 +73,7 @@ ALL_EQUAL = {  # A, B and the clear depth all 0.5
 CASES = [("near_far", 0.25, 0.75, NEAR_FAR), ("far_near", 0.75, 0.25, FAR_NEAR), ("equal", 0.5, 0.5, ALL_EQUAL)]
 
 
-@pytest.mark.parametrize("func", softpipe.pipeline.output.DEPTH_FUNCS)
+@pytest.mark.parametrize("func", softpipe.pipeline.merge_state.DEPTH_FUNCS)
 @pytest.mark.parametrize("case, za, zb, table", CASES, ids=[c[0] for c in CASES])
 def test_depth_compare_functions_pick_the_expected_winner(func, case, za, zb, table):
     fb = draw_ab(func, za, zb)

@@ -295,7 +295,7 @@ def _check_row(cells: dict, k: int, name: str, e) -> None:
     for column, want in (("shader output", e.color), ("color after", e.color_after)):
         got = _numbers(cells[column])
         assert len(got) == 4 and all(_printed_close(g, v, 4) for g, v in zip(got, want)), (column, got, want)
-    assert cells["depth test"].replace("★", "").strip() == e.verdict
+    assert cells["merger"].replace("★", "").strip() == e.verdict
 
 
 def _read_table(page):
@@ -340,7 +340,7 @@ def test_the_page_in_a_real_browser(scene, browser, tmp_path):
     for cells, (k, e) in zip(rows, expected):
         _check_row(cells, k, results[k].name, e)
     written = [i for i, (_, e) in enumerate(expected) if e.verdict == "written"]
-    assert [i for i, c in enumerate(rows) if "★" in c["depth test"]] == written[-1:]
+    assert [i for i, c in enumerate(rows) if "★" in c["merger"]] == written[-1:]
     k, e = expected[written[-1]]                # the winner's triangle, with its three vertices
     triangle = page.locator("#triangle").inner_text()
     assert f"draw {k + 1} ({results[k].name})" in triangle and f"primitive {e.primitive_id}" in triangle

@@ -12,7 +12,7 @@ from conftest import window_to_clip
 
 import softpipe as sp
 from softpipe.pipeline.draw import DrawCall
-from softpipe.pipeline.output import DEPTH_FUNCS
+from softpipe.pipeline.merge_state import DEPTH_FUNCS
 from softpipe.pipeline.sampling import grid, rotated_grid_4x
 from softpipe.pipeline.transforms import perspective
 
@@ -80,7 +80,7 @@ def test_every_depth_function_and_write_mode(func, write):
     if func == "notequal" and write:
         # the fast path takes it only for a shader whose alpha is a finite literal (a hidden
         # fragment discarded could change which one shows): the default shader's is not proven
-        from softpipe.pipeline.output import MergeState
+        from softpipe.pipeline.merge_state import MergeState
         from softpipe.pipeline.visibility import fast_path_blocker
         assert "notequal" in fast_path_blocker(MergeState(func, write), None)
         assert fast_path_blocker(MergeState(func, write), opaque) is None

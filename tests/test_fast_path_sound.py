@@ -233,7 +233,7 @@ def test_the_built_in_programs_still_take_the_fast_path():
 
     import softpipe.programs
     from softpipe.pipeline.fragment import color_rgb, color_rgba
-    from softpipe.pipeline.output import MergeState
+    from softpipe.pipeline.merge_state import MergeState
     from softpipe.pipeline.visibility import fast_path_blocker
     found = [color_rgb, color_rgba]
     for info in pkgutil.iter_modules(softpipe.programs.__path__):

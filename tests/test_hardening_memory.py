@@ -259,7 +259,7 @@ def test_running_out_of_memory_is_one_line_naming_the_options(tmp_path, capsys, 
 def test_a_framebuffer_too_large_for_the_memory_left_is_refused_before_it_is_made(monkeypatch, capsys, tmp_path):
     import softpipe.core.runtime as runtime
     monkeypatch.setattr(runtime, "available_memory", lambda: 100 << 20)
-    with pytest.raises(MemoryError, match=r"a 4000×3000 framebuffer with 4 sample\(s\) per pixel \(20 bytes a "
+    with pytest.raises(MemoryError, match=r"a 4000×3000 framebuffer with 4 sample\(s\) per pixel \(21 bytes a "
                                           r"sample\) needs about 0\.9 GiB, and this machine has 0\.1 GiB available"):
         sp.Framebuffer(4000, 3000, sp.pipeline.sampling.pattern_named("rgss4"))
     code, out, err = run_cli(capsys, "render", "bunny", "--size", "4000x3000", "--samples", "rgss4",

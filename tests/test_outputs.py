@@ -442,7 +442,7 @@ def test_pixel_history_is_an_html_table():
     parsed.feed(history._repr_html_())
     assert parsed.paragraphs == [str(history).splitlines()[0]]
     header, *rows = parsed.rows
-    assert header == ["#", "prim", "sample", "depth", "color", "shader output", "depth test", "color after"]
+    assert header == ["#", "prim", "sample", "depth", "color", "shader output", "merger", "color after"]
     assert len(rows) == len(history)
     for event, row in zip(history, rows):
         assert int(row[0]) == event.index and int(row[1]) == event.primitive_id and int(row[2]) == event.sample

@@ -50,7 +50,7 @@ from hypothesis import strategies as st
 
 import softpipe
 from softpipe.pipeline.assembly import GUARD_PIXELS, W_MIN
-from softpipe.pipeline.output import DEPTH_FUNCS
+from softpipe.pipeline.merge_state import DEPTH_FUNCS
 from softpipe.pipeline.raster import rasterize
 from softpipe.pipeline.sampling import CENTER, grid, rotated_grid_4x
 from softpipe.pipeline.tiles import TILE_H, TILE_W

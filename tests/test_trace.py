@@ -78,7 +78,7 @@ def test_pixel_history_ends_with_the_framebuffer_color(rng):
                 assert e.color_after == e.color
             previous = e.color_after
     text = str(trace.pixel_history(*overdrawn[0]))
-    assert "depth test" in text and "written" in text and f"pixel ({overdrawn[0][0]}, {overdrawn[0][1]})" in text
+    assert "merger" in text and "written" in text and f"pixel ({overdrawn[0][0]}, {overdrawn[0][1]})" in text
 
 
 def test_pixel_history_outside_the_framebuffer_is_an_error():

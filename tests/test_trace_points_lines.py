@@ -99,7 +99,7 @@ def test_pixel_history_of_a_point_names_the_point_and_its_point_coord():
     assert event.color[:2] == pytest.approx(event.point_coord)
     text = str(history).splitlines()
     assert text[1].split() == ["#", "point", "sample", "depth", "point", "coord", "color", "shader", "output",
-                               "depth", "test", "color", "after"]
+                               "merger", "color", "after"]
     assert "(0.2143, 0.2143)" in text[3]
 
 

@@ -44,11 +44,12 @@ from softpipe.language.contract import make_uniforms
 from softpipe.pipeline.assembly import Primitives, assemble, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.merge_state import ALL_SAMPLES, MergeState, Stencil
 from softpipe.pipeline.output import (
     MergeResult,
-    MergeState,
     NonFinite,
     NonFiniteColorWarning,
+    OcclusionQuery,
     merge,
     non_finite_written,
 )
@@ -151,7 +152,14 @@ class DrawCall:
                  depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
                  path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None,
-                 polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0):
+                 polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0,
+                 stencil: Optional[Stencil] = None, stencil_back: Optional[Stencil] = None,
+                 scissor: Optional[Tuple[int, int, int, int]] = None,
+                 color_mask: Tuple[bool, bool, bool, bool] = (True, True, True, True),
+                 blend_equation: Union[str, Tuple[str, str]] = "add",
+                 blend_color: Tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+                 sample_mask: int = ALL_SAMPLES, alpha_to_coverage: bool = False,
+                 query: Optional[OcclusionQuery] = None):
         if not isinstance(framebuffer, Framebuffer):
             raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
         viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
@@ -171,7 +179,14 @@ class DrawCall:
         #: what the draw's primitives are: "triangles", "lines" or "points" (the topology's, or the polygon mode's)
         self.kind = primitive_kind(topology, polygon_mode)
         self.point_size, self.line_width = check_size("point_size", point_size), check_size("line_width", line_width)
-        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend)
+        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend,
+                                blend_equation=blend_equation, blend_color=blend_color, color_mask=color_mask,
+                                stencil=stencil, stencil_back=stencil_back, scissor=scissor,
+                                sample_mask=sample_mask, alpha_to_coverage=alpha_to_coverage)
+        if query is not None and not isinstance(query, OcclusionQuery):
+            raise TypeError(f"query must be a softpipe.OcclusionQuery or None, got {type(query).__name__}")
+        self.query = query
+        self.rect = self._pixel_rect(scissor=True)
         if sample_shading not in SHADING_POSITIONS:
             raise ValueError(f"sample_shading must be one of {SHADING_POSITIONS}, got {sample_shading!r}")
         self.sample_shading = sample_shading
@@ -196,7 +211,7 @@ class DrawCall:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
         fb = self.framebuffer
         return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
-                           keep_fragments)
+                           keep_fragments, fb.samples, self.query is not None)
 
     def steps(self, record: bool = False) -> Iterator[Stage]:
         """Run the draw one stage at a time, yielding each stage's result as it is made.
@@ -220,6 +235,8 @@ class DrawCall:
 
     def _steps(self, record: bool) -> Iterator[Stage]:
         self.path_taken, self.path_reason = self.choose_path(keep_fragments=record)
+        #: the pixels this run may touch (:func:`~softpipe.pipeline.setup.pixel_rect`, with the scissor)
+        self.rect = self._pixel_rect(scissor=not record)
         debug = _debug_stages()
         clock = self._clock()
         vout = self._vertex_stage()
@@ -236,7 +253,7 @@ class DrawCall:
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
         fb = self.framebuffer
-        setup = setup_primitives(prims, self._rect(), fb.pattern.offsets)
+        setup = setup_primitives(prims, self.rect, fb.pattern.offsets)
         if self.polygon_offset is not None:
             if isinstance(setup, TriangleSetup):
                 apply_polygon_offset(setup, prims.window, *self.polygon_offset)
@@ -257,16 +274,23 @@ class DrawCall:
         (its slope, GL's ``POLYGON_OFFSET_LINE`` / ``_POINT``), added to the line's or point's depth."""
         faces = prims.faces
         assert faces is not None
-        face_setup = setup_triangles(faces.window, self._rect(), self.framebuffer.pattern.offsets)
+        face_setup = setup_triangles(faces.window, self.rect, self.framebuffer.pattern.offsets)
         before = face_setup.plane[:, 0].copy()
         apply_polygon_offset(face_setup, faces.window, *polygon_offset)
         triangles, first_row = np.unique(faces.primitive_id, return_index=True)
         offset = (face_setup.plane[:, 0] - before)[first_row[np.searchsorted(triangles, prims.primitive_id)]]
         setup.depth += offset[:, None] if setup.depth.ndim == 2 else offset
 
-    def _rect(self) -> np.ndarray:
-        """The pixels the draw may touch: the viewport within the framebuffer."""
-        return pixel_rect(self.framebuffer.width, self.framebuffer.height, self.viewport)
+    def _pixel_rect(self, scissor: bool) -> np.ndarray:
+        """The pixels the draw may touch: the viewport within the framebuffer, and within the scissor
+        rectangle if ``scissor`` (a traced draw makes the fragments outside it too, for the merger to
+        stop and the pixel history to show; either way the same pixels are written)."""
+        rect = pixel_rect(self.framebuffer.width, self.framebuffer.height, self.viewport)
+        if scissor and self.state.scissor is not None:
+            x, y, w, h = self.state.scissor
+            rect = np.array([max(rect[0], x), min(rect[1], x + w - 1), max(rect[2], y), min(rect[3], y + h - 1)],
+                            np.int64)
+        return rect
 
     def _check_memory(self, vout) -> None:
         """Refuse, before assembly, a draw whose primitives cannot fit in memory (:data:`BYTES_PER_TRIANGLE`:
@@ -281,7 +305,7 @@ class DrawCall:
     def _reference_stages(self, prims, setup, clock, record: bool) -> Iterator[Stage]:
         """Rasterize, shade every fragment and merge in order, in batches of whole triangles."""
         fb = self.framebuffer
-        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self._rect(), setup=setup)
+        counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self.rect, setup=setup)
         if record:
             total = int(counts.sum())
             check_memory(f"tracing {total:,} fragments ({BYTES_PER_TRACED_FRAGMENT} bytes each, kept by the trace)",
@@ -290,24 +314,30 @@ class DrawCall:
         batches = list(_batches(counts, MAX_FRAGMENTS_PER_BATCH))
         # A shader that raises leaves the framebuffer as it was: with one batch nothing is merged
         # before every fragment is shaded; with more (millions of fragments), a copy is kept.
-        saved = (fb.samples_color.copy(), fb.samples_depth.copy()) if len(batches) > 1 else None
+        saved = ((fb.samples_color.copy(), fb.samples_depth.copy(), fb.samples_stencil.copy())
+                 if len(batches) > 1 else None)
+        passed = 0
         for batch, (first, last) in enumerate(batches):
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
-                              rect=self._rect(), setup=setup)
+                              rect=self.rect, setup=setup)
             clock("raster")
             yield Stage("raster", frags, batch)
             try:
                 shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
             except BaseException:
                 if saved is not None:
-                    fb.samples_color[...], fb.samples_depth[...] = saved
+                    fb.samples_color[...], fb.samples_depth[...], fb.samples_stencil[...] = saved
                 raise
             clock("fragment")
             yield Stage("fragment", shaded, batch)
-            merged = merge(frags, shaded, self.state, fb, record=record)
+            merged = merge(frags, shaded, self.state, fb, record=record, front_facing=prims.front_facing)
+            if self.query is not None:
+                passed += merged.samples_passed
             self._note_non_finite(non_finite_written(frags, shaded, merged))
             clock("output")
             yield Stage("output", merged, batch)
+        if self.query is not None:
+            self.query.add(passed)
 
     def _fast_stages(self, prims, setup, clock) -> Iterator[Stage]:
         """Early depth: the visibility pass, then the shader on the visible samples only.
@@ -323,7 +353,7 @@ class DrawCall:
         if prims.kind == "triangles":
             visibility, shade = visibility_pass(prims, setup, fb, self.state, undo=undo), shade_visible
         else:
-            counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self._rect(), setup=setup)
+            counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self.rect, setup=setup)
             if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
                 self.path_taken = "reference"
                 self.path_reason = (f"more than MAX_FRAGMENTS_PER_BATCH = {MAX_FRAGMENTS_PER_BATCH:,} fragments "
@@ -331,7 +361,7 @@ class DrawCall:
                 yield from self._reference_stages(prims, setup, clock, record=False)
                 return
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
-                              rect=self._rect(), setup=setup)
+                              rect=self.rect, setup=setup)
             visibility, shade = early_depth(frags, fb, self.state, undo=undo), shade_winners
         clock("raster")
         yield Stage("visibility", visibility)
@@ -436,10 +466,33 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         Lines' width in pixels (GL's ``glLineWidth``, default 1): a run of round(width)
         fragments across the line's minor axis.
     interpolation : dict varying name → "smooth" | "noperspective" | "flat"
-    depth_test : compare function (see :data:`softpipe.pipeline.output.DEPTH_FUNCS`) or None
+    depth_test : compare function (see :data:`softpipe.pipeline.merge_state.DEPTH_FUNCS`) or None
         (default "less")
     depth_write : bool (default True)
-    blend : None, "alpha", "additive" or (src_factor, dst_factor) (default None)
+    blend : None, "alpha", "premultiplied", "additive", (src_factor, dst_factor) or
+        (src_rgb, dst_rgb, src_alpha, dst_alpha) (default None: off); factors are GL's, lower case
+        (:data:`softpipe.pipeline.merge_state.BLEND_FACTORS`)
+    blend_equation : "add" | "subtract" | "reverse_subtract" | "min" | "max", or (rgb, alpha)
+        (default "add")
+    blend_color : (r, g, b, a)
+        The ``constant_*`` factors' color (GL's ``glBlendColor``, default (0, 0, 0, 0)).
+    color_mask : 4 bools
+        Which channels are written (GL's ``glColorMask``, default all).
+    stencil : Stencil, optional
+        Turns the stencil test on with this state (:class:`softpipe.Stencil`: func, ref, mask, the ops
+        on stencil fail, depth fail and depth pass, write mask); the framebuffer's stencil buffer
+        holds 8 bits per sample.
+    stencil_back : Stencil, optional
+        The state for back-facing triangles (GL's ``*Separate``); the same as ``stencil`` by default.
+    scissor : (x, y, width, height), optional
+        Only pixels in this rectangle are written (window coordinates, row 0 at the bottom, as the
+        viewport).
+    sample_mask : int
+        Bit m lets sample m be written (multisampling; default every sample).
+    alpha_to_coverage : bool
+        With several samples per pixel, a fragment covers round(alpha·S) of them (default False).
+    query : OcclusionQuery, optional
+        Counts the samples that passed every test (``query.samples_passed``).
     cull : "none" | "back" | "front" (default "none")
     front_face : "ccw" | "cw" (default "ccw")
     viewport : Viewport, optional; the whole framebuffer by default

@@ -1,4 +1,4 @@
-"""The framebuffer: float RGBA color and float depth, per sample.
+"""The framebuffer: float RGBA color, float depth and an 8-bit stencil, per sample.
 
 Row 0 is the top of the image, as pillow and numpy expect; the rasterizer
 flipped y once when it emitted the fragments. Colors are linear floats and
@@ -31,10 +31,11 @@ MAX_TOTAL_SAMPLES = 1 << 26
 
 
 @numba.njit(cache=True, nogil=True)
-def _fill(lo, hi, color, rgba, depth, z):
+def _fill(lo, hi, color, rgba, depth, z, stencil, s):
     """Clear samples lo:hi (run in parallel bands: numpy's fill is single-threaded, a 1080p clear is worth sharing)."""
     for k in range(lo, hi):
         depth[k] = z
+        stencil[k] = s
         for c in range(4):
             color[k, c] = rgba[c]
 
@@ -85,7 +86,7 @@ def image_format(name: Optional[str], format: Optional[str] = None) -> str:
 
 
 class Framebuffer:
-    """Color (RGBA float32) and depth (float32) buffers, one value per sample.
+    """Color (RGBA float32), depth (float32) and stencil (uint8) buffers, one value per sample.
 
     Parameters
     ----------
@@ -100,15 +101,17 @@ class Framebuffer:
         For one sample per pixel, the color buffer itself (writable).
     depth : float32 [H, W]
         For one sample per pixel, the depth buffer itself.
-    samples_color : float32 [S, H, W, 4], samples_depth : float32 [S, H, W]
+    stencil : uint8 [H, W]
+        The stencil buffer of sample 0 (the buffer itself for one sample per pixel).
+    samples_color : float32 [S, H, W, 4], samples_depth : float32 [S, H, W], samples_stencil : uint8 [S, H, W]
         Every sample: one image plane per sample, so that a row of one sample is
         contiguous in memory (what the rasterizer's inner loop walks along).
-    width, height, pattern, samples, samples_color, samples_depth
+    width, height, pattern, samples, samples_color, samples_depth, samples_stencil
         Read-only: assigning them raises AttributeError, because the kernels index the
         arrays without bounds checks. The arrays are written in place
         (``fb.samples_color[...] = c``); each read hands out a checked view of them.
 
-    A new framebuffer is cleared to opaque black, (0, 0, 0, 1), and depth 1.0.
+    A new framebuffer is cleared to opaque black, (0, 0, 0, 1), depth 1.0 and stencil 0.
 
     As a picture: ``np.asarray(fb)`` is 8-bit RGB [H, W, 3] (:meth:`__array__` says
     why), so ``PIL.Image.fromarray(np.asarray(fb))``, ``plt.imshow(fb)`` and
@@ -126,14 +129,15 @@ class Framebuffer:
             raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
         _check_size(width, height, len(pattern))
         s = len(pattern)
-        check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel (20 bytes a sample)",
-                     int(width) * int(height) * s * 20)
+        check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel (21 bytes a sample)",
+                     int(width) * int(height) * s * 21)
         object.__setattr__(self, "_width", int(width))
         object.__setattr__(self, "_height", int(height))
         object.__setattr__(self, "_pattern", pattern)
         object.__setattr__(self, "_count", s)
         object.__setattr__(self, "_samples_color", np.empty((s, self._height, self._width, 4), dtype=np.float32))
         object.__setattr__(self, "_samples_depth", np.empty((s, self._height, self._width), dtype=np.float32))
+        object.__setattr__(self, "_samples_stencil", np.empty((s, self._height, self._width), dtype=np.uint8))
         object.__setattr__(self, "_views", {})
         object.__setattr__(self, "_lock", threading.RLock())
         object.__setattr__(self, "_writes", 0)
@@ -149,7 +153,8 @@ class Framebuffer:
     # (``fb.color.flags.writeable = False``, even on the view of one expression) stays
     # and the draws can honour it (:meth:`check_drawable`).
 
-    _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth", "lock", "writes")
+    _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth", "samples_stencil",
+                  "lock", "writes")
     # set once, by __init__ (through object.__setattr__)
     _width: int
     _height: int
@@ -157,6 +162,7 @@ class Framebuffer:
     _count: int
     _samples_color: np.ndarray
     _samples_depth: np.ndarray
+    _samples_stencil: np.ndarray
     _lock: threading.RLock
     _writes: int
     _views: dict
@@ -210,6 +216,16 @@ class Framebuffer:
         return self._view("samples_depth")
 
     @property
+    def samples_stencil(self) -> np.ndarray:
+        """uint8 [S, H, W], C-contiguous: every sample's stencil value (a view: write into it in place)."""
+        return self._view("samples_stencil")
+
+    @property
+    def stencil(self) -> np.ndarray:
+        """uint8 [H, W]: the stencil of sample 0 (the buffer itself, writable in place)."""
+        return self._view("stencil")
+
+    @property
     def lock(self) -> threading.RLock:
         """The lock every draw into this framebuffer (and :meth:`clear`) holds while it writes.
 
@@ -230,17 +246,20 @@ class Framebuffer:
 
     # the views handed out: name → (the array viewed, index into it)
     _VIEWS = {"samples_color": ("_samples_color", ()), "samples_depth": ("_samples_depth", ()),
-              "color": ("_samples_color", (0,)), "depth": ("_samples_depth", (0,))}
+              "samples_stencil": ("_samples_stencil", ()), "color": ("_samples_color", (0,)),
+              "depth": ("_samples_depth", (0,)), "stencil": ("_samples_stencil", (0,))}
+    _DTYPES = {"_samples_color": np.float32, "_samples_depth": np.float32, "_samples_stencil": np.uint8}
 
     def _view(self, name: str) -> np.ndarray:
         """The kept view ``name`` of the framebuffer's array, or a new one if it was reshaped or retyped."""
         owner, index = self._VIEWS[name]
         a = getattr(self, owner)
         shape = (self._count, self._height, self._width) + ((4,) if owner == "_samples_color" else ())
-        if not (a.shape == shape and a.dtype == np.float32 and a.flags.c_contiguous and a.flags.writeable):
+        dtype = self._DTYPES[owner]
+        if not (a.shape == shape and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable):
             raise RuntimeError(f"Framebuffer.{owner[1:]} was changed in place (it is {a.dtype} {list(a.shape)}, "
                                f"{'' if a.flags.c_contiguous else 'not '}C-contiguous"
-                               f"{'' if a.flags.writeable else ', read-only'}, not float32 {list(shape)}); "
+                               f"{'' if a.flags.writeable else ', read-only'}, not {np.dtype(dtype)} {list(shape)}); "
                                "the kernels cannot draw into it safely")
         want = a[index]
         v = self._views.get(name)
@@ -267,9 +286,12 @@ class Framebuffer:
         object.__setattr__(self, "_views", {})
         object.__setattr__(self, "_lock", threading.RLock())
         self.__dict__.setdefault("_writes", 0)
+        if "_samples_stencil" not in self.__dict__:       # pickled before the stencil buffer existed
+            object.__setattr__(self, "_samples_stencil", np.zeros(self._samples_depth.shape, np.uint8))
 
-    def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0) -> "Framebuffer":
-        """Set every sample to ``color`` and ``depth``; returns the framebuffer.
+    def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0,
+              stencil: int = 0) -> "Framebuffer":
+        """Set every sample to ``color``, ``depth`` and ``stencil``; returns the framebuffer.
 
         ``color`` is anything :func:`softpipe.core.colors.parse_color` reads: 3 or 4 numbers
         (RGB or RGBA, linear, unclamped), a CSS name (``"red"``), hex (``"#ff8000"``) or
@@ -285,11 +307,16 @@ class Framebuffer:
             raise ValueError(f"clear color must be 3 or 4 finite numbers, a color name or '#rrggbb', got {color!r}")
         if not 0.0 <= float(depth) <= 1.0:
             raise ValueError(f"clear depth must be in [0, 1], got {depth!r}")
+        if isinstance(stencil, (bool, np.bool_)) or not isinstance(stencil, (int, np.integer)):
+            raise TypeError(f"clear stencil must be an integer in [0, 255], got {stencil!r}")
+        if not 0 <= int(stencil) <= 255:
+            raise ValueError(f"clear stencil must be in [0, 255] (8 bits), got {stencil!r}")
         with self._lock:
             self.check_drawable()
             self.count_write()
             in_bands(_fill, self.samples_depth.size, self.samples_color.reshape(-1, 4), c,
-                     self.samples_depth.reshape(-1), np.float32(depth), grain=65536)
+                     self.samples_depth.reshape(-1), np.float32(depth), self.samples_stencil.reshape(-1),
+                     np.uint8(stencil), grain=65536)
         return self
 
     @property

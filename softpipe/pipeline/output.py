@@ -1,205 +1,333 @@
-"""Stage 5: the output merger — depth test, depth write and blending, in primitive order.
+"""Stage 5: the output merger — GL's per-fragment operations, in primitive order, per sample.
 
 For each fragment, in the order the rasterizer produced them (primitive order),
-at its sample of the framebuffer:
+at its sample of the framebuffer, GL's chain (:mod:`softpipe.pipeline.merge_state`
+holds the state, by GL's names):
 
 1. a discarded fragment does nothing;
-2. the depth test compares the fragment's depth (as float32, the buffer's type)
-   with the stored one using the compare function; a failing fragment stops;
-3. if depth writes are on, its depth is stored;
-4. its color is blended with the stored color, ``src·F_src + dst·F_dst`` per
-   channel (OpenGL's FUNC_ADD), or replaces it when blending is off.
+2. the **scissor** test: outside the rectangle, the fragment stops;
+3. the **multisample** operations (a framebuffer with more than one sample):
+   alpha to coverage, then the sample mask; a sample they leave out stops;
+4. the **stencil** test, with the front or back face's state: ``(ref & mask) OP
+   (stored & mask)``; a failing fragment applies the ``fail`` op and stops;
+5. the **depth** test compares the fragment's depth (as float32, the buffer's type;
+   clamped to [0, 1] first with depth clamp) with the stored one; a failing fragment
+   applies the stencil's ``depth_fail`` op and stops; a passing one applies
+   ``depth_pass`` and, with depth writes on, stores its depth;
+6. **blending**: ``src·F_src ∘ dst·F_dst`` per channel with the equation ∘ (GL's
+   FUNC_ADD, FUNC_SUBTRACT, …, MIN, MAX), RGB and alpha each with their own factors
+   and equation; or the color replaces the stored one when blending is off;
+7. the **color mask**: only the unmasked channels are written.
 
-Each fragment's verdict is recorded (:data:`VERDICTS`) so a trace can say what
-happened to it.
+The buffers hold floats, so nothing is clamped (GL clamps only fixed-point
+buffers); sRGB encoding happens where the colors become bytes
+(:meth:`~softpipe.pipeline.framebuffer.Framebuffer.to_uint8`). Each fragment's
+verdict is recorded (:data:`VERDICTS`: which step stopped it) so a trace can say
+what happened to it, and the samples that passed every test are counted
+(:class:`OcclusionQuery`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Tuple, Union
+from typing import Optional
 
 import numba
 import numpy as np
 
 from softpipe.pipeline.fragment import ShadedFragments
 from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.merge_state import (
+    ST_ALPHA_TO_COVERAGE,
+    ST_BLEND,
+    ST_COLOR_MASK,
+    ST_DEPTH_CLAMP,
+    ST_DEPTH_FUNC,
+    ST_DEPTH_WRITE,
+    ST_DST_ALPHA,
+    ST_DST_RGB,
+    ST_EQUATION_ALPHA,
+    ST_EQUATION_RGB,
+    ST_SAMPLE_MASK,
+    ST_SCISSOR,
+    ST_SRC_ALPHA,
+    ST_SRC_RGB,
+    ST_STENCIL,
+    ST_STENCIL_BACK,
+    ST_STENCIL_FRONT,
+    MergeState,
+)
 from softpipe.pipeline.raster import Fragments
 
-__all__ = ["MergeState", "MergeResult", "merge", "DEPTH_FUNCS", "BLEND_FACTORS", "VERDICTS",
-           "depth_passes", "NonFiniteColorWarning", "NonFinite", "non_finite_written"]
+__all__ = ["MergeResult", "merge", "VERDICTS", "depth_passes", "compare", "stencil_op", "blend_factor",
+           "blend_channel", "covered_by_alpha", "OcclusionQuery", "NonFiniteColorWarning", "NonFinite",
+           "non_finite_written"]
 
-#: OpenGL's eight depth compare functions: the fragment passes if ``z_frag OP z_stored``.
-DEPTH_FUNCS = ("never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always")
-BLEND_FACTORS = ("zero", "one", "src_color", "one_minus_src_color", "dst_color", "one_minus_dst_color",
-                 "src_alpha", "one_minus_src_alpha", "dst_alpha", "one_minus_dst_alpha")
-#: Named blend modes: ``"alpha"`` (over), ``"additive"``.
-BLEND_PRESETS = {"alpha": ("src_alpha", "one_minus_src_alpha"), "additive": ("one", "one")}
-#: What the merger did with a fragment: its index in this tuple is stored per fragment.
-VERDICTS = ("written", "depth-failed", "discarded")
-WRITTEN, DEPTH_FAILED, DISCARDED = 0, 1, 2
-
-
-@dataclass(frozen=True)
-class MergeState:
-    """The output merger's fixed-function state.
-
-    Parameters
-    ----------
-    depth_test : one of :data:`DEPTH_FUNCS`, or None to turn the test off
-        (OpenGL then neither tests nor writes depth).
-    depth_write : bool
-    blend : None (off), ``"alpha"``, ``"additive"``, or (src_factor, dst_factor)
-        with factors from :data:`BLEND_FACTORS`.
-    """
-
-    depth_test: Optional[str] = "less"
-    depth_write: bool = True
-    blend: Union[None, str, Tuple[str, str]] = None
-
-    def __post_init__(self):
-        if self.depth_test is not None and self.depth_test not in DEPTH_FUNCS:
-            raise ValueError(f"depth_test must be one of {DEPTH_FUNCS} or None, got {self.depth_test!r}")
-        if not isinstance(self.depth_write, (bool, np.bool_)):
-            raise TypeError(f"depth_write must be True or False, got {self.depth_write!r}")
-        self.blend_factors()
-
-    def blend_factors(self) -> Tuple[int, int]:
-        """(src, dst) factor codes, or (-1, -1) when blending is off."""
-        b = self.blend
-        if b is None:
-            return -1, -1
-        if isinstance(b, str):
-            if b not in BLEND_PRESETS:
-                raise ValueError(f"blend must be None, one of {tuple(BLEND_PRESETS)} or a (src, dst) pair of "
-                                 f"{BLEND_FACTORS}, got {b!r}")
-            b = BLEND_PRESETS[b]
-        if not (isinstance(b, (tuple, list)) and len(b) == 2):
-            raise ValueError(f"blend must be None, a preset name or a (src_factor, dst_factor) pair, got {b!r}")
-        for f in b:
-            if f not in BLEND_FACTORS:
-                raise ValueError(f"unknown blend factor {f!r}; expected one of {BLEND_FACTORS}")
-        return BLEND_FACTORS.index(b[0]), BLEND_FACTORS.index(b[1])
+#: What the merger did with a fragment: its index in this tuple is stored per fragment
+#: (the step of the chain that stopped it, or "written": it passed every test).
+VERDICTS = ("written", "depth-failed", "discarded", "scissored", "stencil-failed", "sample-masked")
+WRITTEN, DEPTH_FAILED, DISCARDED, SCISSORED, STENCIL_FAILED, SAMPLE_MASKED = 0, 1, 2, 3, 4, 5
 
 
 @numba.njit(cache=True)
-def depth_passes(func, z, stored):
-    """The depth compare function (codes as in DEPTH_FUNCS)."""
+def compare(func, a, b):
+    """GL's compare function ``a OP b`` (codes as in :data:`~softpipe.pipeline.merge_state.COMPARE_FUNCS`)."""
     if func == 0:
         return False
     if func == 1:
-        return z < stored
+        return a < b
     if func == 2:
-        return z == stored
+        return a == b
     if func == 3:
-        return z <= stored
+        return a <= b
     if func == 4:
-        return z > stored
+        return a > b
     if func == 5:
-        return z != stored
+        return a != b
     if func == 6:
-        return z >= stored
+        return a >= b
     return True
 
 
 @numba.njit(cache=True)
-def blend_factor(code, channel_src, channel_dst, src_alpha, dst_alpha):
-    """One blend factor for one channel (codes as in BLEND_FACTORS)."""
+def depth_passes(func, z, stored):
+    """The depth test: ``z OP stored`` (codes as in DEPTH_FUNCS)."""
+    return compare(func, z, stored)
+
+
+@numba.njit(cache=True)
+def stencil_op(op, stored, ref):
+    """The new stencil value by GL's op (codes as in STENCIL_OPS), before the write mask; 8 bits."""
+    if op == 0:
+        return stored
+    if op == 1:
+        return 0
+    if op == 2:
+        return ref
+    if op == 3:
+        return min(stored + 1, 255)
+    if op == 4:
+        return (stored + 1) & 255
+    if op == 5:
+        return max(stored - 1, 0)
+    if op == 6:
+        return (stored - 1) & 255
+    return (~stored) & 255
+
+
+@numba.njit(cache=True)
+def blend_factor(code, c, src, dst, src_alpha, dst_alpha, constant):
+    """One blend factor for channel ``c`` (0..3) (codes as in BLEND_FACTORS): ``src`` and ``dst``
+    are that channel's values, ``constant`` the blend color [4]."""
     if code == 0:
         return 0.0
     if code == 1:
         return 1.0
     if code == 2:
-        return channel_src
+        return src
     if code == 3:
-        return 1.0 - channel_src
+        return 1.0 - src
     if code == 4:
-        return channel_dst
+        return dst
     if code == 5:
-        return 1.0 - channel_dst
+        return 1.0 - dst
     if code == 6:
         return src_alpha
     if code == 7:
         return 1.0 - src_alpha
     if code == 8:
         return dst_alpha
-    return 1.0 - dst_alpha
+    if code == 9:
+        return 1.0 - dst_alpha
+    if code == 10:
+        return constant[c]
+    if code == 11:
+        return 1.0 - constant[c]
+    if code == 12:
+        return constant[3]
+    if code == 13:
+        return 1.0 - constant[3]
+    return min(src_alpha, 1.0 - dst_alpha) if c < 3 else 1.0      # src_alpha_saturate
 
 
 @numba.njit(cache=True)
-def _merge_kernel(x, y, s, depth, color, discarded, func, depth_write, src_f, dst_f, fb_color, fb_depth, verdict,
-                  after):
+def blend_channel(equation, src_f, dst_f, c, src, dst, src_alpha, dst_alpha, constant):
+    """One channel blended (float64, so that numba and plain Python agree): GL's equation
+    (codes as in BLEND_EQUATIONS) of ``src·F_src`` and ``dst·F_dst``."""
+    if equation == 3:
+        return min(src, dst)
+    if equation == 4:
+        return max(src, dst)
+    s = src * blend_factor(src_f, c, src, dst, src_alpha, dst_alpha, constant)
+    d = dst * blend_factor(dst_f, c, src, dst, src_alpha, dst_alpha, constant)
+    if equation == 1:
+        return s - d
+    if equation == 2:
+        return d - s
+    return s + d
+
+
+@numba.njit(cache=True)
+def covered_by_alpha(alpha, sample, samples):
+    """Alpha to coverage: does a fragment of this alpha cover ``sample`` of its pixel's ``samples``?
+    It covers the samples m < round(clamp(alpha, 0, 1)·samples) (half to even; NaN covers none)."""
+    if not alpha > 0.0:
+        return False
+    return sample < np.rint(min(alpha, 1.0) * samples)
+
+
+@numba.njit(cache=True)
+def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blend_color, fb_color, fb_depth,
+                  fb_stencil, verdict, after, stencil_after):
     record = after.shape[0] > 0
     for k in range(x.shape[0]):
         i, j, m = x[k], y[k], s[k]
-        verdict[k] = _merge_one(k, i, j, m, depth, color, discarded, func, depth_write, src_f, dst_f,
-                                fb_color, fb_depth)
+        front = front_facing.shape[0] == 0 or front_facing[prim[k]]
+        verdict[k] = _merge_one(k, i, j, m, depth, color, discarded, front, st, blend_color, fb_color, fb_depth,
+                                fb_stencil)
         if record:
             for c in range(4):
                 after[k, c] = fb_color[m, j, i, c]
+            stencil_after[k] = fb_stencil[m, j, i]
 
 
 @numba.njit(cache=True)
-def _merge_one(k, i, j, m, depth, color, discarded, func, depth_write, src_f, dst_f, fb_color, fb_depth):
-    """One fragment through the merger; returns its verdict."""
+def _write_stencil(fb_stencil, m, j, i, face, op, stored):
+    """Apply a stencil op through the face's write mask."""
+    if op == 0:
+        return
+    wmask = face[6]
+    fb_stencil[m, j, i] = (stored & ~wmask & 255) | (stencil_op(op, stored, face[1]) & wmask)
+
+
+@numba.njit(cache=True)
+def _merge_one(k, i, j, m, depth, color, discarded, front, st, blend_color, fb_color, fb_depth, fb_stencil):
+    """One fragment through the chain; returns its verdict."""
     if discarded[k]:
         return DISCARDED
-    z = np.float32(depth[k])
+    if st[ST_SCISSOR] and not (st[ST_SCISSOR + 1] <= i < st[ST_SCISSOR + 2]
+                               and st[ST_SCISSOR + 3] <= j < st[ST_SCISSOR + 4]):
+        return SCISSORED
+    if fb_color.shape[0] > 1:          # GL's multisample operations: only with several samples
+        if st[ST_ALPHA_TO_COVERAGE] and not covered_by_alpha(np.float64(color[k, 3]), m, fb_color.shape[0]):
+            return SAMPLE_MASKED
+        if not (st[ST_SAMPLE_MASK] >> m) & 1:
+            return SAMPLE_MASKED
+    stencil_on = st[ST_STENCIL] != 0
+    base = ST_STENCIL_FRONT if front else ST_STENCIL_BACK
+    face = st[base:base + 7]
+    stored = np.int64(fb_stencil[m, j, i])
+    if stencil_on and not compare(face[0], face[1] & face[2], stored & face[2]):
+        _write_stencil(fb_stencil, m, j, i, face, face[3], stored)
+        return STENCIL_FAILED
+    func = st[ST_DEPTH_FUNC]
     if func >= 0:
+        z = np.float32(depth[k])
+        if st[ST_DEPTH_CLAMP]:
+            z = min(max(z, np.float32(0.0)), np.float32(1.0))
         if not depth_passes(func, z, fb_depth[m, j, i]):
+            if stencil_on:
+                _write_stencil(fb_stencil, m, j, i, face, face[4], stored)
             return DEPTH_FAILED
-        if depth_write:
+        if st[ST_DEPTH_WRITE]:
             fb_depth[m, j, i] = z
-    if src_f < 0:
+    if stencil_on:
+        _write_stencil(fb_stencil, m, j, i, face, face[5], stored)
+    if not st[ST_BLEND]:
         for c in range(4):
-            fb_color[m, j, i, c] = color[k, c]
+            if st[ST_COLOR_MASK + c]:
+                fb_color[m, j, i, c] = color[k, c]
     else:
-        # float64 explicitly: numba and plain Python (NumPy keeps float32 scalars) then agree
         sa, da = np.float64(color[k, 3]), np.float64(fb_color[m, j, i, 3])
+        out = np.empty(4)
         for c in range(4):
             src, dst = np.float64(color[k, c]), np.float64(fb_color[m, j, i, c])
-            fb_color[m, j, i, c] = (src * blend_factor(src_f, src, dst, sa, da)
-                                    + dst * blend_factor(dst_f, src, dst, sa, da))
+            if c < 3:
+                out[c] = blend_channel(st[ST_EQUATION_RGB], st[ST_SRC_RGB], st[ST_DST_RGB], c, src, dst, sa, da,
+                                       blend_color)
+            else:
+                out[c] = blend_channel(st[ST_EQUATION_ALPHA], st[ST_SRC_ALPHA], st[ST_DST_ALPHA], c, src, dst, sa,
+                                       da, blend_color)
+        for c in range(4):
+            if st[ST_COLOR_MASK + c]:
+                fb_color[m, j, i, c] = out[c]
     return WRITTEN
 
 
 @dataclass
 class MergeResult:
-    """What the output merger did: a verdict per fragment, and (when recorded) the color after it.
+    """What the output merger did: a verdict per fragment, and (when recorded) the sample after it.
 
     Attributes
     ----------
     verdict : int8 [F]
-        Index into :data:`VERDICTS` ("written", "depth-failed", "discarded").
+        Index into :data:`VERDICTS`: "written", or the step that stopped the fragment.
     color_after : float32 [F, 4] or None
         The sample's color right after each fragment was merged.
+    stencil_after : uint8 [F] or None
+        The sample's stencil value right after each fragment was merged.
     """
 
     verdict: np.ndarray
     color_after: Optional[np.ndarray] = None
+    stencil_after: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return len(self.verdict)
 
+    @property
+    def samples_passed(self) -> int:
+        """How many fragments (samples) passed every test: what an occlusion query counts."""
+        return int(np.count_nonzero(self.verdict == WRITTEN))
+
     def __repr__(self) -> str:
         counts = np.bincount(self.verdict, minlength=len(VERDICTS)) if len(self.verdict) else [0] * len(VERDICTS)
-        return "MergeResult(" + ", ".join(f"{n}: {int(c)}" for n, c in zip(VERDICTS, counts)) + ")"
+        return "MergeResult(" + ", ".join(f"{n}: {int(c)}" for n, c in zip(VERDICTS, counts) if c or n in VERDICTS[:3]) + ")"
 
 
 def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Framebuffer,
-          record: bool = False) -> MergeResult:
-    """Apply the fragments to the framebuffer in order.
+          record: bool = False, front_facing: Optional[np.ndarray] = None) -> MergeResult:
+    """Apply the fragments to the framebuffer in order, through the chain of the module docstring.
 
-    With ``record``, also keep each sample's color right after its fragment (for pixel history).
+    ``front_facing`` (bool, one per row of the Primitives the fragments came from) picks each
+    fragment's stencil state (front or back); without it every fragment faces the front.
+    With ``record``, also keep each sample's color and stencil right after its fragment
+    (for pixel history).
     """
-    verdict = np.empty(len(frags), dtype=np.int8)
-    after = np.empty((len(frags) if record else 0, 4), dtype=np.float32)
-    if len(frags):
-        func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
-        src_f, dst_f = state.blend_factors()
-        _merge_kernel(frags.x, frags.y, frags.sample, frags.depth, shaded.color, shaded.discarded, func,
-                      bool(state.depth_write) and func >= 0, src_f, dst_f, fb.samples_color, fb.samples_depth,
-                      verdict, after)
-    return MergeResult(verdict, after if record else None)
+    n = len(frags)
+    verdict = np.empty(n, dtype=np.int8)
+    after = np.empty((n if record else 0, 4), dtype=np.float32)
+    stencil_after = np.empty(n if record else 0, dtype=np.uint8)
+    if n:
+        facing = (np.zeros(0, np.bool_) if front_facing is None or state.stencil_back is None
+                  else np.ascontiguousarray(front_facing, dtype=np.bool_))
+        _merge_kernel(frags.x, frags.y, frags.sample, frags.depth, shaded.color, shaded.discarded, frags.triangle,
+                      facing, state.codes(fb.height), np.asarray(state.blend_color, np.float64), fb.samples_color,
+                      fb.samples_depth, fb.samples_stencil, verdict, after, stencil_after)
+    return MergeResult(verdict, after if record else None, stencil_after if record else None)
+
+
+class OcclusionQuery:
+    """GL's occlusion query (``GL_SAMPLES_PASSED``): how many samples of the draws given it passed
+    every per-fragment test (scissor, sample mask, stencil, depth).
+
+    ``q = softpipe.OcclusionQuery(); softpipe.draw(fb, ..., query=q)``; then
+    ``q.samples_passed``. It adds up over every draw given it; :meth:`reset` starts again.
+    """
+
+    def __init__(self) -> None:
+        self.samples_passed = 0
+        self.draws = 0
+
+    def add(self, samples: int) -> None:
+        """Count one draw's passing samples."""
+        self.samples_passed += int(samples)
+        self.draws += 1
+
+    def reset(self) -> None:
+        self.samples_passed, self.draws = 0, 0
+
+    def __repr__(self) -> str:
+        return f"OcclusionQuery(samples_passed={self.samples_passed:,}, draws={self.draws})"
 
 
 # ------------------------------------------------------------------ colors that are not numbers

@@ -359,7 +359,7 @@ def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles
     offsets : int64 [S, 2]
         The sample pattern's fixed-point offsets.
     func : int
-        The depth compare function (its index in ``output.DEPTH_FUNCS``), −1 for no depth test.
+        The depth compare function (its index in ``merge_state.DEPTH_FUNCS``), −1 for no depth test.
     depth_write : bool
     depth : float32 [S, H, W]
         The framebuffer's depth (image rows), tested and written in place.

@@ -7,9 +7,10 @@ stages, the same pixels) and keeps:
 ``primitives``  assembly's :class:`~softpipe.pipeline.assembly.Primitives` (with what was dropped and why)
 ``fragments``   the rasterizer's :class:`~softpipe.pipeline.raster.Fragments`, all batches
 ``shaded``      the fragment shader's :class:`~softpipe.pipeline.fragment.ShadedFragments`
-``merged``      the output merger's :class:`~softpipe.pipeline.output.MergeResult` (verdicts, color after each)
-``before``      the framebuffer's color and depth before the draw (:meth:`Trace.before_at`,
-                :attr:`Trace.before_color`): kept only at the pixels the draw touched
+``merged``      the output merger's :class:`~softpipe.pipeline.output.MergeResult` (verdicts: which test
+                stopped each fragment; the color and stencil after each)
+``before``      the framebuffer's color, depth and stencil before the draw (:meth:`Trace.before_at`,
+                :attr:`Trace.before_color`, :attr:`Trace.before_stencil`): kept only at the pixels the draw touched
 ``path``        the path the draw took ("reference" or "fast") and ``path_reason`` why
 ``visibility``  on the fast path, the visibility pass's :class:`~softpipe.pipeline.visibility.Visibility`
 
@@ -60,8 +61,8 @@ class BeforeDraw:
     """What a framebuffer held, before one draw, at the pixels the draw touched.
 
     ``pixels`` int64 [P], sorted: row · width + column of each pixel kept; ``color``
-    float32 [S, P, 4] and ``depth`` float32 [S, P]: every sample of those pixels before
-    the draw; ``writes``: the framebuffer's :attr:`~softpipe.pipeline.framebuffer.Framebuffer.writes`
+    float32 [S, P, 4], ``depth`` float32 [S, P] and ``stencil`` uint8 [S, P]: every sample of
+    those pixels before the draw; ``writes``: the framebuffer's :attr:`~softpipe.pipeline.framebuffer.Framebuffer.writes`
     right after the draw (while it is unchanged the pixels not kept still hold what they
     held before the draw).
     """
@@ -69,6 +70,7 @@ class BeforeDraw:
     pixels: np.ndarray
     color: np.ndarray
     depth: np.ndarray
+    stencil: np.ndarray
     writes: int
 
     @classmethod
@@ -88,11 +90,11 @@ class BeforeDraw:
             x0, x1 = int(max(np.floor(xs.min()) - 1 - r, 0)), int(min(np.ceil(xs.max()) + 2 + r, w))
             y0, y1 = int(max(np.floor(h - ys.max()) - 1 - r, 0)), int(min(np.ceil(h - ys.min()) + 2 + r, h))
             x1, y1 = max(x1, x0), max(y1, y0)
-        need = fb.samples * (y1 - y0) * (x1 - x0) * 20
-        check_memory(f"tracing a draw over {x1 - x0}×{y1 - y0} pixels ({fb.samples} sample(s), 20 bytes each: "
+        need = fb.samples * (y1 - y0) * (x1 - x0) * 21
+        check_memory(f"tracing a draw over {x1 - x0}×{y1 - y0} pixels ({fb.samples} sample(s), 21 bytes each: "
                      "the framebuffer under it, kept to show each pixel's color before the draw)", need)
         return _Snapshot((y0, y1, x0, x1), fb.samples_color[:, y0:y1, x0:x1].copy(),
-                         fb.samples_depth[:, y0:y1, x0:x1].copy())
+                         fb.samples_depth[:, y0:y1, x0:x1].copy(), fb.samples_stencil[:, y0:y1, x0:x1].copy())
 
     def find(self, x: int, y: int, width: int) -> int:
         """The column of pixel (x, y) in :attr:`pixels`, or -1 when it was not kept."""
@@ -108,13 +110,16 @@ class _Snapshot:
     rect: tuple
     color: np.ndarray
     depth: np.ndarray
+    stencil: np.ndarray
 
     def keep(self, fb, fragments) -> BeforeDraw:
         """After the draw: keep the pixels its fragments reached or whose samples it changed."""
         y0, y1, x0, x1 = self.rect
         w = fb.width
         now_c, now_d = fb.samples_color[:, y0:y1, x0:x1], fb.samples_depth[:, y0:y1, x0:x1]
-        changed = ((now_c != self.color).any(axis=(0, 3)) | (now_d != self.depth).any(axis=0))
+        now_s = fb.samples_stencil[:, y0:y1, x0:x1]
+        changed = ((now_c != self.color).any(axis=(0, 3)) | (now_d != self.depth).any(axis=0)
+                   | (now_s != self.stencil).any(axis=0))
         mask = changed.copy()
         fx, fy = np.asarray(fragments.x, np.int64), np.asarray(fragments.y, np.int64)
         inside = (fx >= x0) & (fx < x1) & (fy >= y0) & (fy < y1)
@@ -122,7 +127,8 @@ class _Snapshot:
         rows, cols = np.nonzero(mask)                       # row-major: the pixels come out sorted
         pixels = (rows + y0).astype(np.int64) * w + (cols + x0)
         return BeforeDraw(pixels, np.ascontiguousarray(self.color[:, rows, cols]),
-                          np.ascontiguousarray(self.depth[:, rows, cols]), fb.writes)
+                          np.ascontiguousarray(self.depth[:, rows, cols]),
+                          np.ascontiguousarray(self.stencil[:, rows, cols]), fb.writes)
 
 
 @dataclass
@@ -136,10 +142,11 @@ class PixelEvent:
     depth: float
     varyings: Any               # namedtuple, as the shader received them
     color: tuple                # the shader's output (RGBA), NaN alpha = discarded
-    verdict: str                # "written", "depth-failed", "discarded"
+    verdict: str                # "written", or the test that stopped it: "depth-failed", "stencil-failed", ...
     color_after: tuple          # the sample's color after this fragment
     shadow: tuple = ()          # V_j of each light at the fragment (RGB), when the draw has shadow maps
     point_coord: tuple = ()     # of a line's or a point's fragment: frag.point_coord ((t, 0) on a line)
+    stencil: tuple = ()         # (before, after) the sample's stencil value, when the draw's stencil test is on
 
 
 class PixelHistory(list):
@@ -176,16 +183,18 @@ class PixelHistory(list):
         fmt = self._fmt
         names = list(self[0].varyings._fields)
         shadow = ["shadow V_j"] if self[0].shadow else []
+        stencil = ["stencil"] if self[0].stencil else []
         # a line's fragment: t along it; a point's: gl_PointCoord (none for a triangle's)
         where = {"lines": ["t"], "points": ["point coord"]}.get(self.kind, [])
         label = "prim" if not where else ("triangle" if self.polygon_mode else self.kind[:-1])
         cols = (["#", label, "sample", "depth"] + where + names + shadow
-                + ["shader output", "depth test", "color after"])
+                + ["shader output", "merger"] + stencil + ["color after"])
         rows = [[str(e.index), str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
                 + ([fmt(e.point_coord[0]) if self.kind == "lines" else fmt(e.point_coord)] if where else [])
                 + [fmt(getattr(e.varyings, n)) for n in names]
                 + ([self._fmt_shadow(e.shadow)] if shadow else [])
-                + [fmt(e.color), str(e.verdict), fmt(e.color_after)] for e in self]
+                + [fmt(e.color), str(e.verdict)] + ([f"{e.stencil[0]} → {e.stencil[1]}"] if stencil else [])
+                + [fmt(e.color_after)] for e in self]
         return cols, rows
 
     @classmethod
@@ -221,7 +230,7 @@ class PixelHistory(list):
         cols, rows = self.table()
         out = ['<div class="softpipe-pixel-history">', f"<p>{escape(self._heading())}</p>"]
         if rows:
-            colored = {len(cols) - 3: "color", len(cols) - 1: "color_after"}
+            colored = {cols.index("shader output"): "color", len(cols) - 1: "color_after"}
             out.append('<table><thead><tr>' + "".join(f"<th>{escape(c)}</th>" for c in cols) + "</tr></thead><tbody>")
             for event, row in zip(self, rows):
                 cells = []
@@ -285,14 +294,14 @@ class Trace:
             fragments.setup = out["raster"][0].setup
             shaded = _concat(out["fragment"], ShadedFragments, ("color", "discarded"))
             shaded.invocations = sum(p.invocations for p in out["fragment"])
-            merged = _concat(out["output"], MergeResult, ("verdict", "color_after"))
+            merged = _concat(out["output"], MergeResult, ("verdict", "color_after", "stencil_after"))
         else:
             empty = np.zeros(0)
             fragments = Fragments(empty.astype(np.int32), empty.astype(np.int32), empty.astype(np.int32),
                                   empty, np.zeros((0, 3)), empty.astype(np.int32), empty.astype(np.int64),
                                   empty, empty)
             shaded = ShadedFragments(np.zeros((0, 4), np.float32), np.zeros(0, bool))
-            merged = MergeResult(np.zeros(0, np.int8), np.zeros((0, 4), np.float32))
+            merged = MergeResult(np.zeros(0, np.int8), np.zeros((0, 4), np.float32), np.zeros(0, np.uint8))
         return cls(call, vertex, primitives, fragments, shaded, merged)
 
     @classmethod
@@ -302,7 +311,8 @@ class Trace:
         fragments = visibility.fragments(primitives, fb.pattern, call.sample_shading)
         color = fb.samples_color[fragments.sample, fragments.y, fragments.x]
         shaded = ShadedFragments(color, np.zeros(len(fragments), bool), shaded_samples.invocations)
-        merged = MergeResult(np.zeros(len(fragments), np.int8), color.copy())
+        merged = MergeResult(np.zeros(len(fragments), np.int8), color.copy(),
+                             fb.samples_stencil[fragments.sample, fragments.y, fragments.x])
         trace = cls(call, vertex, primitives, fragments, shaded, merged)
         trace.visibility = visibility
         return trace
@@ -334,6 +344,21 @@ class Trace:
         """float32 [S, H, W]: every sample's depth before the draw (a new array; see the module docstring)."""
         fb = self._unchanged_framebuffer("the whole before_depth")
         return self._put_back(fb.samples_depth.copy(), self.before.depth)
+
+    @property
+    def before_stencil(self) -> np.ndarray:
+        """uint8 [S, H, W]: every sample's stencil before the draw (a new array; see the module docstring)."""
+        fb = self._unchanged_framebuffer("the whole before_stencil")
+        return self._put_back(fb.samples_stencil.copy(), self.before.stencil)
+
+    def stencil_before_at(self, x: int, y: int) -> np.ndarray:
+        """uint8 [S]: the stencil of pixel (x, y)'s samples before the draw (known as :meth:`before_at`'s color)."""
+        self._check_pixel(x, y)
+        j = self.before.find(x, y, self.width)
+        if j >= 0:
+            return self.before.stencil[:, j].copy()
+        fb = self._unchanged_framebuffer(f"pixel ({x}, {y}), which the draw did not touch")
+        return fb.samples_stencil[:, y, x].copy()
 
     def _put_back(self, now: np.ndarray, kept: np.ndarray) -> np.ndarray:
         rows, cols = np.divmod(self.before.pixels, self.width)
@@ -439,6 +464,8 @@ class Trace:
         assert m.color_after is not None    # a trace's merge keeps it (recorded)
         events = []
         kind = self.primitives.kind
+        stencil_on = self.call.state.stencil is not None and m.stencil_after is not None
+        stencil_now = self.stencil_before_at(x, y).astype(int) if stencil_on and len(idx) else None
         for k in idx:
             inputs = self._inputs(module, int(k))
             varyings = inputs[0]
@@ -448,6 +475,10 @@ class Trace:
                 color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
                 color_after=tuple(float(c) for c in m.color_after[k])))
             events[-1].shadow = self._shadow_terms(varyings)
+            if stencil_now is not None and m.stencil_after is not None:   # before: the sample's last fragment's after
+                sample = int(f.sample[k])
+                events[-1].stencil = (int(stencil_now[sample]), int(m.stencil_after[k]))
+                stencil_now[sample] = int(m.stencil_after[k])
             if kind != "triangles":         # what the shader saw: the very frag it was given
                 events[-1].point_coord = tuple(float(c) for c in inputs[2].point_coord)
         if self.before.find(x, y, self.width) < 0 and self.call.framebuffer.writes != self.before.writes:

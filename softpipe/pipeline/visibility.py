@@ -43,7 +43,8 @@ from softpipe.core.parallel import in_bands
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients, run_fragment_stage
-from softpipe.pipeline.output import DEPTH_FUNCS, MergeState, NonFinite, depth_passes
+from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
+from softpipe.pipeline.output import NonFinite, depth_passes
 from softpipe.pipeline.raster import Fragments
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
@@ -69,10 +70,29 @@ FAST_PATH_MIN_SAMPLES = 128 * 128
 
 # ------------------------------------------------------------------ the decision
 
-def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable]) -> Optional[str]:
-    """Why a draw with this merge state and shader cannot take the fast path, or None if it can."""
+def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable], samples_per_pixel: int = 1,
+                      counts_samples: bool = False) -> Optional[str]:
+    """Why a draw with this merge state and shader cannot take the fast path, or None if it can.
+
+    The fast path tests depth and writes whole colors; the scissor it takes as the rectangle
+    its coverage walk stays in (the same pixels). ``samples_per_pixel`` is the framebuffer's
+    (the multisample operations apply only with more than one); ``counts_samples``: an
+    occlusion query counts the samples that pass.
+    """
     if state.blend is not None:
         return "blending is on (the result depends on every fragment, not only the last)"
+    if state.stencil is not None:
+        return "the stencil test is on (the fast path's visibility pass tests depth only)"
+    if state.masks_color:
+        return f"the color mask {state.color_mask} holds back a channel (the fast path writes whole colors)"
+    if state.depth_clamp:
+        return "depth clamp is on (the fast path's visibility pass compares unclamped depths)"
+    if samples_per_pixel > 1 and state.alpha_to_coverage:
+        return "alpha to coverage is on (which samples a fragment covers depends on the shader's alpha)"
+    if samples_per_pixel > 1 and (state.sample_mask & ((1 << samples_per_pixel) - 1)) != (1 << samples_per_pixel) - 1:
+        return f"the sample mask {state.sample_mask:#x} leaves samples out (the fast path writes every covered sample)"
+    if counts_samples:
+        return "an occlusion query counts the samples that pass, which only the reference path's merger counts"
     if fragment_shader is not None and kernels.may_discard(fragment_shader):
         return "the fragment shader may return DISCARD"
     if state.depth_test == "notequal" and state.depth_write and not (
@@ -84,19 +104,21 @@ def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable]) ->
 
 
 def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable], samples: int,
-                keep_fragments: bool = False) -> Tuple[str, str]:
+                keep_fragments: bool = False, samples_per_pixel: int = 1,
+                counts_samples: bool = False) -> Tuple[str, str]:
     """Which order a draw takes, and why: ("reference" | "fast", reason).
 
     ``path`` is the draw's request (:data:`PATHS`), ``samples`` the framebuffer's
     width × height × samples per pixel, ``keep_fragments`` whether the caller
-    needs every fragment (a trace with ``path="auto"``). The same for every kind of
+    needs every fragment (a trace with ``path="auto"``); ``samples_per_pixel`` and
+    ``counts_samples`` as :func:`fast_path_blocker` takes them. The same for every kind of
     primitive (points and lines have a visibility pass of their own, :func:`early_depth`).
     """
     if path not in PATHS:
         raise ValueError(f"path must be one of {PATHS}, got {path!r}")
     if path == "reference":
         return "reference", "path='reference' was asked for"
-    blocker = fast_path_blocker(state, fragment_shader)
+    blocker = fast_path_blocker(state, fragment_shader, samples_per_pixel, counts_samples)
     if path == "fast":
         if blocker:
             raise ValueError(f"path='fast' is not possible for this draw: {blocker}")

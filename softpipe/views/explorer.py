@@ -58,6 +58,7 @@ from typing import Any, Dict, List, Optional, cast
 import numpy as np
 
 from softpipe.core.runtime import check_memory
+from softpipe.pipeline.output import VERDICTS
 
 __all__ = ["write_explorer", "explorer_html", "read_explorer", "ExplorerData", "ExplorerSummary",
            "MAX_FRAGMENTS", "READ_LIMIT"]
@@ -68,8 +69,8 @@ MAX_FRAGMENTS = 400_000
 #: The most :func:`read_explorer` reads by default: the page's file, and its arrays inflated (bytes).
 READ_LIMIT = 1 << 31
 
-#: The verdicts, as :data:`softpipe.pipeline.output.VERDICTS` names them (index = the stored code).
-_VERDICTS = ("written", "depth-failed", "discarded")
+#: The verdicts, as the output merger names them (index = the stored code).
+_VERDICTS = VERDICTS
 
 
 # ---------------------------------------------------------------------------- inputs

@@ -196,7 +196,7 @@ function historyTable(x, y) {
   const where = kinds.has("lines") || kinds.has("points")
     ? [[kinds.has("lines") && kinds.has("points") ? "t / point coord" : (kinds.has("lines") ? "t" : "point coord")]] : [];
   const cols = ["draw", "#", "prim", "tri", "sample", "depth", ...where.map(c => c[0]), ...vnames.map(v => v[0]),
-                ...(anyShadow ? ["shadow V_j"] : []), "shader output", "depth test", "color after"];
+                ...(anyShadow ? ["shadow V_j"] : []), "shader output", "merger", "color after"];
   thead.innerHTML = "<tr>" + cols.map(c => `<th>${esc(c)}</th>`).join("") + "</tr>";
   const first = A.f_draw[r0];
   before.innerHTML = `${r1 - r0} fragment(s); color before draw ${first + 1} (${esc(META.draws[first].name)}): ` +
