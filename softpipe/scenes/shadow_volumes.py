@@ -45,6 +45,7 @@ from softpipe.light.material import Light, Lighting
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.draw import DrawCall
 from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.merge_state import Stencil
 from softpipe.pipeline.sampling import pattern_named
 from softpipe.pipeline.transforms import perspective_infinite
 from softpipe.scenes.drawing import draw_mesh, standard_uniforms
@@ -206,8 +207,6 @@ def render_shadow_volumes(scene, *, camera: Optional[Camera] = None, method: str
         added (blend "additive") where the stencil is 0 and the depth is equal to pass
         1's: the lit, unshadowed surface.
     """
-    from softpipe.pipeline.output import Stencil  # the output merger's stencil state (issue 30)
-
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
     camera = camera or scene.view_camera()
