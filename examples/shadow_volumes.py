@@ -24,7 +24,7 @@ from softpipe.light.material import Light, Material
 from softpipe.light.shadowmap import ShadowSettings
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.draw import DrawCall
-from softpipe.pipeline.transforms import compose, perspective_infinite, rotate_y, scale, translate
+from softpipe.pipeline.transforms import compose, rotate_y, scale, translate
 from softpipe.scenes import shapes
 from softpipe.scenes.drawing import render_scene, standard_uniforms
 from softpipe.scenes.scene import Scene, SceneObject
@@ -132,7 +132,6 @@ def volume_picture(size, caps=False):
     camera = scene.view_camera()
     fb = render_scene(scene.replace(lights=(Light.point((1.5, 4.0, 2.0), name="bulb", shadows=True),)))
     aspect = scene.width / scene.height
-    projection = perspective_infinite(camera.fovy, aspect, camera.near)
     light = scene.lighting_for(camera).lights[0]
 
     def tint(varyings, uniforms, frag):
@@ -143,8 +142,9 @@ def volume_picture(size, caps=False):
             continue
         volume = shadow_volume(obj.mesh, light_vector(light, obj.model))
         u = standard_uniforms(camera, aspect, obj.model)
+        # the camera's own projection, as render_scene drew the depths with: the sides end at its far plane
         DrawCall(fb, volume.positions, volume.triangles(caps=caps), None, volume_vertex, tint,
-                 {"model_view": u["model_view"], "projection": projection}, cull="none", depth_test="less",
+                 {"model_view": u["model_view"], "projection": u["projection"]}, cull="none", depth_test="less",
                  depth_write=False, blend="alpha").run()
     return fb.to_uint8(alpha=False)
 
