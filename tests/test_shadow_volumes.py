@@ -279,3 +279,17 @@ def test_an_open_caster_is_refused_before_anything_is_drawn():
         render_shadow_volumes(scene)
     with pytest.raises(ValueError, match=r"method must be one of 'zpass', 'zfail', got 'zfial'"):
         render_shadow_volumes(_scene(), method="zfial")
+
+
+def test_a_directional_light_and_two_lights_each_with_its_own_stencil_pass():
+    sun = Light.directional((0.5, -1.0, -0.4), diffuse=0.6, name="sun")
+    bulb = Light.point((-1.5, 3.5, 1.5), diffuse=0.6, name="bulb")
+    scene = _scene().replace(lights=(sun, bulb))
+    _, found = _volumes(scene, "zfail")
+    assert len(found.shadowed) == 2 and set(found.volumes[0]) == {"ball", "box"}
+    for j in range(2):
+        covered, rays = shadow_mask(scene, j, "ray")
+        assert rays.sum() > 100
+        c = compare_masks(rays, found.shadowed[j], covered, width=BAND)
+        assert c.count_outside == 0, f"light {j}"
+    assert not np.array_equal(found.shadowed[0], found.shadowed[1])
