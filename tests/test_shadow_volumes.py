@@ -270,6 +270,7 @@ def test_the_shadowed_pixels_keep_the_unlit_term_and_the_lit_ones_get_the_light(
     gain = fb.color[..., :3].sum(axis=-1) - ambient.color[..., :3].sum(axis=-1)
     assert np.all(gain[lit] >= 0.0) and np.mean(gain[lit] > 0.0) > 0.9
     assert fb.stencil.dtype == np.uint8
+    assert np.all(fb.color[found.covered][:, 3] == 1.0)          # the lights' passes add RGB, not alpha
 
 
 def test_an_open_caster_is_refused_before_anything_is_drawn():

@@ -205,7 +205,15 @@ def render_shadow_volumes(scene, *, camera: Optional[Camera] = None, method: str
         depth test "less", no culling, the front and back faces' stencil ops per
         ``method``), then the scene again with that light's diffuse and specular only,
         added (blend "additive") where the stencil is 0 and the depth is equal to pass
-        1's: the lit, unshadowed surface.
+        1's: the lit, unshadowed surface (its RGB added, pass 1's alpha kept).
+
+    Raises
+    ------
+    NotClosedError
+        Before anything is drawn, naming the first caster that is not a closed mesh and
+        its edge (:func:`~softpipe.scenes.silhouette.edge_adjacency`).
+    ValueError
+        An unknown ``method``.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
@@ -257,6 +265,7 @@ def render_shadow_volumes(scene, *, camera: Optional[Camera] = None, method: str
                      color_mask=(False, False, False, False), stencil=front, stencil_back=back).run()
         result.volumes.append(drawn)
         result.shadowed.append(fb.stencil != 0)
+        # the light's color added, the alpha pass 1 wrote kept (additive alone would add the alphas up)
         draw_scene(_lit_only(light), stencil=Stencil(func="equal", ref=0), depth_test="equal", depth_write=False,
-                   blend="additive")
+                   blend=("one", "one", "zero", "one"))
     return fb
