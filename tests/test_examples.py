@@ -27,6 +27,7 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "emission_b_term": (24, 12),
     "fresnel_tir": (24, 8),
     "environment": (24, 10),
+    "transparency": ((32, 24), 7),
 }
 
 

@@ -15,7 +15,8 @@ fragment's (1 − s − t, s, t) with (s, t) its ``gl_PointCoord``).
 
 Points are kept or discarded whole, by their vertex: one outside the view volume
 (−w ≤ x, y, z ≤ w) is discarded, as the GL specification says (§13.7.1), so a
-wide point whose centre leaves the viewport disappears at once.
+wide point whose centre leaves the viewport disappears at once; so is one outside
+a user clip plane.
 
 Clipping happens in clip space, before the divide, against
 ``w ≥ W_MIN`` (so nothing with w ≤ 0 is ever divided), the near plane
@@ -25,6 +26,15 @@ rasterizer's 64-bit edge functions cannot overflow). Inside the guard band, the
 rasterizer's bounding box does the x/y clipping exactly, pixel by pixel. A new
 vertex on a clipped edge is always computed from the edge's inside end, so two
 triangles sharing the edge get the same new vertex (no cracks).
+
+User clip planes (``clip_planes``: rows (a, b, c, d), kept where
+a·x + b·y + c·z + d·w ≥ 0) and the components of the varyings ``clip_distance``
+and ``clip_distance2`` (GLSL's ``gl_ClipDistance``: kept where ≥ 0) are clipped
+against after those, by the same clipper: a vertex's distances ride beside its
+clip position as extra coordinates, interpolated with it, so a distance's plane
+is the row selecting its coordinate. With ``depth_clamp`` (GL_DEPTH_CLAMP) the near and far planes are not
+clipped against (OpenGL 4.6 §13.7); window depths may then leave the depth
+range, and the rasterizer's depth clamps them to [0, 1].
 
 Varyings at a new vertex: ``smooth`` ones are interpolated linearly in clip
 space (which is what makes them perspective-correct afterwards),
@@ -51,7 +61,8 @@ from softpipe.pipeline.vertex import VertexOut
 
 __all__ = ["Primitives", "assemble", "triangle_indices", "primitive_indices", "primitive_kind", "TOPOLOGIES",
            "TRIANGLE_TOPOLOGIES", "LINE_TOPOLOGIES", "POLYGON_MODES", "KINDS", "CULL_MODES", "FRONT_FACES",
-           "GUARD_PIXELS", "MAX_POINT_SIZE", "MAX_LINE_WIDTH", "check_size"]
+           "GUARD_PIXELS", "MAX_POINT_SIZE", "MAX_LINE_WIDTH", "check_size", "check_clip_planes",
+           "MAX_CLIP_DISTANCES", "CLIP_DISTANCE_VARYINGS"]
 
 TRIANGLE_TOPOLOGIES = ("triangles", "triangle_strip", "triangle_fan")
 LINE_TOPOLOGIES = ("lines", "line_strip", "line_loop")
@@ -69,6 +80,9 @@ FRONT_FACES = ("ccw", "cw")
 GUARD_PIXELS = 32768.0
 #: The clip plane w ≥ W_MIN: vertices at or behind the eye never reach the divide.
 W_MIN = 1e-9
+#: GL's minimum MAX_CLIP_DISTANCES: the most user clip planes a draw may have, and the most clip
+#: distances (the components of :data:`CLIP_DISTANCE_VARYINGS`, four each).
+MAX_CLIP_DISTANCES = 8
 
 
 @dataclass
@@ -274,11 +288,12 @@ def _polygon_mode_indices(tri: np.ndarray, kept: np.ndarray, kind: str):
     return corners, np.repeat(t[:, 2], 3), np.repeat(kept, 3)
 
 
-def _planes(viewport: Viewport) -> np.ndarray:
-    """Clip planes as rows (a, b, c, d, e): inside where a·x + b·y + c·z + d·w + e ≥ 0."""
+def _planes(viewport: Viewport, depth_clamp: bool = False) -> np.ndarray:
+    """Clip planes as rows (a, b, c, d, e): inside where a·x + b·y + c·z + d·w + e ≥ 0 (without the near
+    and far planes when ``depth_clamp``)."""
     gx = max(1.0, GUARD_PIXELS / (viewport.width / 2.0))
     gy = max(1.0, GUARD_PIXELS / (viewport.height / 2.0))
-    return np.array([
+    planes = np.array([
         [0, 0, 0, 1, -W_MIN],   # w ≥ W_MIN, first, so later planes see w > 0
         [0, 0, 1, 1, 0],        # near: z ≥ −w
         [0, 0, -1, 1, 0],       # far:  z ≤ w
@@ -287,6 +302,62 @@ def _planes(viewport: Viewport) -> np.ndarray:
         [0, 1, 0, gy, 0],       # guard band bottom
         [0, -1, 0, gy, 0],      # guard band top
     ], dtype=np.float64)
+    return planes[[0, 3, 4, 5, 6]] if depth_clamp else planes
+
+
+def check_clip_planes(clip_planes) -> np.ndarray:
+    """A draw's ``clip_planes``: None or up to :data:`MAX_CLIP_DISTANCES` rows (a, b, c, d) of finite
+    numbers, as float64 [k, 4] (k = 0 for None or an empty list)."""
+    if clip_planes is None:
+        return np.zeros((0, 4))
+    try:
+        planes = np.array(clip_planes, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"clip_planes must be an array [k, 4] of numbers, one plane (a, b, c, d) a row, got "
+                         f"{clip_planes!r}") from None
+    if planes.size == 0:
+        return np.zeros((0, 4))
+    if planes.ndim != 2 or planes.shape[1] != 4:
+        raise ValueError(f"clip_planes must have shape [k, 4], one plane (a, b, c, d) a row (kept where "
+                         f"a·x + b·y + c·z + d·w ≥ 0), got shape {list(planes.shape)}")
+    if len(planes) > MAX_CLIP_DISTANCES:
+        raise ValueError(f"clip_planes has shape {list(planes.shape)}: at most {MAX_CLIP_DISTANCES} planes "
+                         "(GL's MAX_CLIP_DISTANCES)")
+    if not np.isfinite(planes).all():
+        row = int(np.nonzero(~np.isfinite(planes).all(axis=1))[0][0])
+        raise ValueError(f"clip_planes (shape {list(planes.shape)}) must be finite, got plane {row} = "
+                         f"{planes[row].tolist()}")
+    return planes
+
+
+#: The varyings that are clip distances, GLSL's ``gl_ClipDistance[0..3]`` and ``[4..7]`` (a varying holds
+#: at most 4 floats, so 8 distances take two).
+CLIP_DISTANCE_VARYINGS = ("clip_distance", "clip_distance2")
+
+
+def _clip_distance_columns(layout: VaryingLayout) -> np.ndarray:
+    """The varyings' columns that are clip distances (:data:`CLIP_DISTANCE_VARYINGS`), in that order."""
+    cols = [np.arange(layout.slice(name).start, layout.slice(name).stop) for name in CLIP_DISTANCE_VARYINGS
+            if name in layout.names]
+    return np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, np.int64)
+
+
+def _with_user_planes(planes: np.ndarray, user: np.ndarray, vout: VertexOut, distances: np.ndarray):
+    """The clip planes and clip positions of a draw with user planes or a ``clip_distance`` varying.
+
+    Each vertex's m distances go beside its clip position, (x, y, z, w, d_1 … d_m), so the
+    clipper interpolates them as it does the position; the planes become rows over those
+    coordinates (and the constant): the frustum's and the user planes (a, b, c, d) with zeros
+    for the distances, then one row a distance, selecting it.
+    """
+    m = len(distances)
+    rows = np.zeros((len(planes) + len(user) + m, 4 + m + 1))
+    rows[:len(planes), :4], rows[:len(planes), -1] = planes[:, :4], planes[:, 4]
+    rows[len(planes):len(planes) + len(user), :4] = user
+    for k in range(m):
+        rows[len(planes) + len(user) + k, 4 + k] = 1.0
+    position = vout.position if not m else np.hstack([vout.position, vout.varyings[:, distances]])
+    return rows, np.ascontiguousarray(position, np.float64)
 
 
 #: Beyond this magnitude, clip-space coordinates are clipped in exact rational arithmetic.
@@ -322,7 +393,7 @@ def _clip_polygon(poly_pos, poly_var, planes, noperspective_cols):
     for plane in planes:
         if len(poly_pos) < 3:
             break
-        d = [sum(plane[k] * p[k] for k in range(4)) + plane[4] for p in poly_pos]
+        d = [sum(plane[k] * p[k] for k in range(len(p))) + plane[-1] for p in poly_pos]
         out_pos, out_var = [], []
         n = len(poly_pos)
         for k in range(n):
@@ -344,7 +415,7 @@ def _crossing(p_in, p_out, v_in, v_out, d_in, d_out, noperspective_cols, exact: 
     """The new vertex where an edge from its inside end ``p_in`` to ``p_out`` crosses a plane (signed
     distances ``d_in`` ≥ 0 > ``d_out``): its clip position and its varyings."""
     t = d_in / (d_in - d_out)
-    pos = [p_in[c] + t * (p_out[c] - p_in[c]) for c in range(4)]
+    pos = [p_in[c] + t * (p_out[c] - p_in[c]) for c in range(len(p_in))]
     var = v_in + float(t) * (v_out - v_in)
     if len(noperspective_cols):
         sw = _window_parameter(t, p_out[3], pos[3])
@@ -364,7 +435,7 @@ def _clip_segment(ends_pos, ends_var, planes, noperspective_cols):
         planes = [[Fraction(float(c)) for c in plane] for plane in planes]
     ends_pos, ends_var = list(ends_pos), list(ends_var)
     for plane in planes:
-        d = [sum(plane[k] * p[k] for k in range(4)) + plane[4] for p in ends_pos]
+        d = [sum(plane[k] * p[k] for k in range(len(p))) + plane[-1] for p in ends_pos]
         if d[0] < 0 and d[1] < 0:
             return None
         if (d[0] >= 0) != (d[1] >= 0):
@@ -396,7 +467,7 @@ def _signed_area(ax, ay, bx, by, cx, cy):
     return (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
 
 
-NON_FINITE_BIT = 1 << 7   # beside one bit per clip plane (7 planes)
+NON_FINITE_BIT = 1 << 7   # beside one bit per clip plane (7 planes; user planes' bits are above it)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -414,6 +485,33 @@ def _vertex_codes(lo, hi, pos, planes, vp, codes, window):
                      + planes[p, 3] * pos[v, 3] + planes[p, 4])
                 if d < 0:
                     code |= 1 << p
+        codes[v] = code
+        if code == 0:
+            window[v, 0], window[v, 1], window[v, 2] = _to_window(pos[v, 0], pos[v, 1], pos[v, 2], pos[v, 3], vp)
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_codes_user(lo, hi, pos, planes, vp, codes, window):
+    """:func:`_vertex_codes` for a draw with user clip planes or a ``clip_distance`` varying (its own
+    kernel, so that draws without them do no more work a vertex): ``pos`` [N, 4 + m] carries each
+    vertex's m distances beside its position, a row of ``planes`` is 4 + m coefficients and the
+    constant, and the planes after the seventh take the bits above NON_FINITE_BIT. A distance that
+    is not finite makes the vertex non-finite."""
+    m = pos.shape[1]
+    for v in range(lo, hi):
+        code = 0
+        for k in range(m):
+            if not np.isfinite(pos[v, k]):
+                code = NON_FINITE_BIT
+        if code == 0:
+            for p in range(planes.shape[0]):
+                d = (planes[p, 0] * pos[v, 0] + planes[p, 1] * pos[v, 1] + planes[p, 2] * pos[v, 2]
+                     + planes[p, 3] * pos[v, 3])
+                for k in range(4, m):          # the order the clipper's sum takes (_clip_polygon)
+                    d += planes[p, k] * pos[v, k]
+                d += planes[p, m]
+                if d < 0:
+                    code |= 1 << (p if p < 7 else p + 1)
         codes[v] = code
         if code == 0:
             window[v, 0], window[v, 1], window[v, 2] = _to_window(pos[v, 0], pos[v, 1], pos[v, 2], pos[v, 3], vp)
@@ -459,7 +557,8 @@ def _classify_lines(lo, hi, codes, tri, status):
 @numba.njit(cache=True, nogil=True)
 def _classify_points(lo, hi, pos, codes, tri, status):
     """Per input point: NON_FINITE, OUTSIDE (its vertex is outside the view volume −w ≤ x, y, z ≤ w,
-    or behind the eye) or ACCEPTED; a point is never cut."""
+    or behind the eye, or outside a user clip plane; z is free with a depth clamp: the codes say) or
+    ACCEPTED; a point is never cut."""
     for t in range(lo, hi):
         v = tri[t, 0]
         if codes[v] & NON_FINITE_BIT:
@@ -536,8 +635,11 @@ def _viewport_params(viewport: Viewport) -> np.ndarray:
                      (viewport.far - viewport.near) / 2], dtype=np.float64)
 
 
-def _clip_cut_lines(vout, tri, provoking, cut_ids, planes, vp, layout, status):
-    """Clip the lines that cross a plane; returns {t: (window [1,3,3], inv_w [1,3], var [1,3,K], True)}."""
+def _clip_cut_lines(vout, tri, provoking, cut_ids, planes, vp, layout, status, clip_pos):
+    """Clip the lines that cross a plane; returns {t: (window [1,3,3], inv_w [1,3], var [1,3,K], True)}.
+
+    ``clip_pos`` is each vertex's clip position, with its clip distances beside it (:func:`_with_user_planes`).
+    """
     flat, nopersp = _columns(layout, "flat"), _columns(layout, "noperspective")
     pieces = {}
     for t in cut_ids:
@@ -545,23 +647,26 @@ def _clip_cut_lines(vout, tri, provoking, cut_ids, planes, vp, layout, status):
         ends_var = [vout.varyings[a].copy(), vout.varyings[b].copy()]
         for v in ends_var:
             v[flat] = vout.varyings[provoking[t], flat]
-        clipped = _clip_segment([vout.position[a], vout.position[b]], ends_var, planes, nopersp)
+        clipped = _clip_segment([clip_pos[a], clip_pos[b]], ends_var, planes, nopersp)
         if clipped is None:
             status[t] = OUTSIDE
             continue
         (pa, pb), (va, vb) = clipped
-        clip = np.array([[pa, pb, pb]])                                        # [1, 3, 4]
+        clip = np.array([[pa[:4], pb[:4], pb[:4]]])                                        # [1, 3, 4]
         win = _windows_of(clip.reshape(-1, 4), vp).reshape(-1, 3, 3)
         pieces[int(t)] = (win, 1.0 / clip[:, :, 3], np.array([[va, vb, vb]]), True)
     return pieces
 
 
-def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status):
-    """Clip the triangles that cross a plane; returns {t: (window [n,3,3], inv_w [n,3], var [n,3,K], front)}."""
+def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status, clip_pos):
+    """Clip the triangles that cross a plane; returns {t: (window [n,3,3], inv_w [n,3], var [n,3,K], front)}.
+
+    ``clip_pos`` is each vertex's clip position, with its clip distances beside it (:func:`_with_user_planes`).
+    """
     flat, nopersp = _columns(layout, "flat"), _columns(layout, "noperspective")
     pieces = {}
     for t in cut_ids:
-        corners = vout.position[tri[t]]
+        corners = clip_pos[tri[t]]
         cvar = vout.varyings[tri[t]].copy()
         if len(flat):
             cvar[:, flat] = cvar[2, flat]
@@ -570,7 +675,7 @@ def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status):
             status[t] = OUTSIDE
             continue
         fan = [(0, k, k + 1) for k in range(1, len(ppos) - 1)]
-        clip = np.array([[ppos[i] for i in f] for f in fan])                 # [n, 3, 4]
+        clip = np.array([[ppos[i][:4] for i in f] for f in fan])             # [n, 3, 4]
         win = _windows_of(clip.reshape(-1, 4), vp).reshape(-1, 3, 3)
         total = sum(_signed_area(*w[0, :2], *w[1, :2], *w[2, :2]) for w in win)
         front = total > 0 if ccw_front else total < 0
@@ -584,7 +689,7 @@ def _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull, ccw_front, status):
 def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
              viewport: Viewport, cull: str = "none", front_face: str = "ccw",
              keep_culled: bool = True, polygon_mode: str = "fill", point_size: float = 1.0,
-             line_width: float = 1.0) -> Primitives:
+             line_width: float = 1.0, clip_planes=None, depth_clamp: bool = False) -> Primitives:
     """Primitive assembly: see the module docstring for the steps and their order.
 
     ``keep_culled`` keeps the window coordinates of culled triangles (for pictures).
@@ -592,28 +697,39 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
     after culling (:data:`POLYGON_MODES`). ``point_size`` is every point's size, unless
     the vertices carry a one-component varying ``point_size`` (GLSL's ``gl_PointSize``);
     ``line_width`` every line's width; both in pixels, clamped to [1, 255].
+    ``clip_planes`` ([k, 4], k ≤ :data:`MAX_CLIP_DISTANCES`, :func:`check_clip_planes`) are
+    user clip planes (a, b, c, d) in clip coordinates: what is kept is where
+    a·x + b·y + c·z + d·w ≥ 0; the varyings ``clip_distance`` and ``clip_distance2``
+    (:data:`CLIP_DISTANCE_VARYINGS`, GLSL's ``gl_ClipDistance[0..3]`` and ``[4..7]``) clip each
+    component where its value is < 0, and still reach the fragment shader as ordinary
+    varyings. A point outside either is discarded whole.
+    ``depth_clamp`` (GL_DEPTH_CLAMP) leaves out the near and far planes.
     """
     if cull not in CULL_MODES:
         raise ValueError(f"cull must be one of {CULL_MODES}, got {cull!r}")
     if front_face not in FRONT_FACES:
         raise ValueError(f"front_face must be one of {FRONT_FACES}, got {front_face!r}")
     point_size, line_width = check_size("point_size", point_size), check_size("line_width", line_width)
+    user = check_clip_planes(clip_planes)
+    if not isinstance(depth_clamp, (bool, np.bool_)):
+        raise ValueError(f"depth_clamp must be True or False, got {depth_clamp!r}")
+    clipping = (user, bool(depth_clamp))
     kind = primitive_kind(topology, polygon_mode)
     corners = primitive_indices(topology, indices, len(vout.position))
     whole_list = indices is None and topology == "triangles"
     if topology in TRIANGLE_TOPOLOGIES and kind != "triangles":
         faces = _assemble(vout, corners, corners[:, 2], "triangles", viewport, cull, front_face, keep_culled,
-                          whole_list)
+                          whole_list, clipping=clipping)
         kept = np.unique(faces.primitive_id)
         edges, provoking, owner = _polygon_mode_indices(corners, kept, kind)
         prims = _assemble(vout, edges, provoking, kind, viewport, cull, front_face, False, False,
-                          point_size, line_width)
+                          point_size, line_width, clipping)
         prims.primitive_id = owner[prims.primitive_id]
         prims.dropped, prims.input_count, prims.culled_window = faces.dropped, faces.input_count, faces.culled_window
         prims.faces = faces
         return prims
     return _assemble(vout, corners, corners[:, 2], kind, viewport, cull, front_face, keep_culled, whole_list,
-                     point_size, line_width)
+                     point_size, line_width, clipping)
 
 
 def check_size(name: str, value) -> float:
@@ -647,17 +763,26 @@ def _sizes(vout: VertexOut, corners: np.ndarray, kind: str, point_size: float, l
 
 def _assemble(vout: VertexOut, tri: np.ndarray, provoking: np.ndarray, kind: str, viewport: Viewport, cull: str,
               front_face: str, keep_culled: bool, whole_list: bool, point_size: float = 1.0,
-              line_width: float = 1.0) -> Primitives:
-    """Assemble primitives of one kind: corners ``tri`` [n, 3] and the provoking vertex of each."""
+              line_width: float = 1.0, clipping=(np.zeros((0, 4)), False)) -> Primitives:
+    """Assemble primitives of one kind: corners ``tri`` [n, 3] and the provoking vertex of each.
+
+    ``clipping`` is (the user clip planes [k, 4], depth clamp).
+    """
     layout, n = vout.layout, len(tri)
-    planes, vp = _planes(viewport), _viewport_params(viewport)
+    user, depth_clamp = clipping
+    planes, vp = _planes(viewport, depth_clamp), _viewport_params(viewport)
+    distances = _clip_distance_columns(layout)
+    clip_pos, codes_of, code_type = vout.position, _vertex_codes, np.uint8
+    if len(user) or len(distances):
+        planes, clip_pos = _with_user_planes(planes, user, vout, distances)
+        codes_of, code_type = _vertex_codes_user, np.uint32
     cull_code, ccw_front = CULL_MODES.index(cull), front_face == "ccw"
     status = np.empty(n, np.int8)
     front = np.zeros(n, bool) if kind == "triangles" else np.ones(n, bool)
-    codes = np.empty(len(vout.position), np.uint8)
+    codes = np.empty(len(vout.position), code_type)
     vertex_window = np.empty((len(vout.position), 3))
     if n:
-        in_bands(_vertex_codes, len(vout.position), vout.position, planes, vp, codes, vertex_window, grain=8192)
+        in_bands(codes_of, len(vout.position), clip_pos, planes, vp, codes, vertex_window, grain=8192)
         if kind == "triangles":
             in_bands(_classify, n, codes, vertex_window, tri, cull_code, ccw_front, status, front, grain=8192)
         elif kind == "lines":
@@ -667,9 +792,9 @@ def _assemble(vout: VertexOut, tri: np.ndarray, provoking: np.ndarray, kind: str
     size_in = _sizes(vout, tri, kind, point_size, line_width, status)
     cut_ids = _ids_with(status, CUT)
     if kind == "triangles":
-        pieces = _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull_code, ccw_front, status)
+        pieces = _clip_cut(vout, tri, cut_ids, planes, vp, layout, cull_code, ccw_front, status, clip_pos)
     else:
-        pieces = _clip_cut_lines(vout, tri, provoking, cut_ids, planes, vp, layout, status)
+        pieces = _clip_cut_lines(vout, tri, provoking, cut_ids, planes, vp, layout, status, clip_pos)
     for t, (_, _, _, f) in pieces.items():
         front[t] = f
     offset = _output_offsets(status, np.fromiter(pieces, np.int64, len(pieces)),

@@ -41,7 +41,7 @@ import numpy as np
 
 from softpipe.core.runtime import check_memory
 from softpipe.language.contract import make_uniforms
-from softpipe.pipeline.assembly import Primitives, assemble, check_size, primitive_kind
+from softpipe.pipeline.assembly import Primitives, assemble, check_clip_planes, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.merge_state import ALL_SAMPLES, MergeState, Stencil
@@ -153,6 +153,7 @@ class DrawCall:
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
                  path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None,
                  polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0,
+                 clip_planes=None, depth_clamp: bool = False,
                  stencil: Optional[Stencil] = None, stencil_back: Optional[Stencil] = None,
                  scissor: Optional[Tuple[int, int, int, int]] = None,
                  color_mask: Tuple[bool, bool, bool, bool] = (True, True, True, True),
@@ -179,10 +180,13 @@ class DrawCall:
         #: what the draw's primitives are: "triangles", "lines" or "points" (the topology's, or the polygon mode's)
         self.kind = primitive_kind(topology, polygon_mode)
         self.point_size, self.line_width = check_size("point_size", point_size), check_size("line_width", line_width)
+        self.clip_planes = check_clip_planes(clip_planes)
         self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend,
                                 blend_equation=blend_equation, blend_color=blend_color, color_mask=color_mask,
                                 stencil=stencil, stencil_back=stencil_back, scissor=scissor,
-                                sample_mask=sample_mask, alpha_to_coverage=alpha_to_coverage)
+                                sample_mask=sample_mask, alpha_to_coverage=alpha_to_coverage,
+                                depth_clamp=depth_clamp)
+        self.depth_clamp = self.state.depth_clamp
         if query is not None and not isinstance(query, OcclusionQuery):
             raise TypeError(f"query must be a softpipe.OcclusionQuery or None, got {type(query).__name__}")
         self.query = query
@@ -248,7 +252,8 @@ class DrawCall:
         prims = self.primitives = assemble(vout, self.topology, self.indices, viewport=self.viewport,
                                            cull=self.cull, front_face=self.front_face, keep_culled=not fast,
                                            polygon_mode=self.polygon_mode, point_size=self.point_size,
-                                           line_width=self.line_width)
+                                           line_width=self.line_width, clip_planes=self.clip_planes,
+                                           depth_clamp=self.depth_clamp)
         clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
@@ -465,6 +470,8 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     line_width : float
         Lines' width in pixels (GL's ``glLineWidth``, default 1): a run of round(width)
         fragments across the line's minor axis.
+    clip_planes, depth_clamp : [[a, b, c, d], ...] (at most 8), bool (default None, False)
+        User clip planes, kept where a·x+b·y+c·z+d·w ≥ 0 (a varying ``clip_distance`` too); GL_DEPTH_CLAMP.
     interpolation : dict varying name → "smooth" | "noperspective" | "flat"
     depth_test : compare function (see :data:`softpipe.pipeline.merge_state.DEPTH_FUNCS`) or None
         (default "less")

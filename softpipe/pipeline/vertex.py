@@ -82,6 +82,10 @@ def _varying_arrays(varyings: Optional[Mapping[str, Any]], n: int) -> Dict[str, 
     out = {}
     for name, value in varyings.items():
         check_name("varying", name)
+        if name == "clip_distance" and np.ndim(value) == 2 and np.shape(value)[1] > 4:
+            raise ValueError(f"varyings['clip_distance'] has {np.shape(value)[1]} components: a varying holds at most "
+                             "4, so gl_ClipDistance[4..7] go in a second varying, 'clip_distance2' (8 in all at most, "
+                             "GL's MAX_CLIP_DISTANCES)")
         arr = as_float_array(f"varyings[{name!r}]", value, ncols=(1, 2, 3, 4), allow_1d=True)
         if arr.shape[0] != n:
             raise ValueError(f"varyings[{name!r}] has {arr.shape[0]} rows but positions has {n}")
