@@ -21,12 +21,14 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "shadows": (24, 9),
     "shadows_bias": (24, 8),
     "shadows_glass": ((32, 24), 4),
+    "shadow_volumes": ((32, 24), 9),
     "raytrace": (24, 9),
     "hall": (24, 9),
     "emission_b_term": (24, 12),
     "fresnel_tir": (24, 8),
     "environment": (24, 10),
     "planar_mirror": ((32, 24), 8),
+    "transparency": ((32, 24), 7),
 }
 
 

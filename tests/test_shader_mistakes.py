@@ -312,6 +312,47 @@ def test_appending_components_with_plus_is_left_alone():
     assert draw(appends_two).color[0, 0].tolist() == [1.0, 1.0, 0.0, 1.0]
 
 
+# ------------------------------------------------------------------ the parameters a shader takes
+
+def fragment_of_two(frag, uniforms):
+    return (1.0, 1.0, 1.0, 1.0)
+
+
+def vertex_of_three(attributes, uniforms, frag):
+    return (attributes.position[0], attributes.position[1], 0.0, 1.0), ()
+
+
+def fragment_with_a_default(varyings, uniforms, frag, derivatives=None, extra=1.0):
+    return (1.0, 1.0, 1.0, 1.0)
+
+
+@pytest.mark.parametrize("stage, shader, names, takes", [
+    ("fragment", fragment_of_two, "frag, uniforms",
+     "(varyings, uniforms, frag), or (varyings, uniforms, frag, derivatives)"),
+    ("vertex", vertex_of_three, "attributes, uniforms, frag", "(attributes, uniforms)"),
+])
+def test_a_shader_with_the_wrong_parameters_is_named_at_its_def(stage, shader, names, takes):
+    fb = sp.Framebuffer(8, 8)
+    before = fb.color.copy()
+    with pytest.raises(ShaderError) as info:
+        if stage == "vertex":
+            sp.draw(fb, FULL[:, :2], QUAD, vertex_shader=shader)
+        else:
+            sp.draw(fb, FULL, QUAD, varyings={"color": np.ones((4, 3))}, fragment_shader=shader)
+    n = len(names.split(", "))
+    assert str(info.value) == (
+        f"{stage} shader test_shader_mistakes.{shader.__name__} takes {n} parameters ({names}); a {stage} shader "
+        f"takes {takes}\n"
+        f'  File "{__file__}", line {shader.__code__.co_firstlineno}, in {shader.__name__}\n'
+        f"    def {shader.__name__}({names}):")
+    assert (info.value.file, info.value.line) == (__file__, shader.__code__.co_firstlineno)
+    assert np.array_equal(fb.color, before)
+
+
+def test_a_shader_whose_extra_parameters_have_defaults_is_taken():
+    assert draw(fragment_with_a_default).color[0, 0].tolist() == [1.0, 1.0, 1.0, 1.0]
+
+
 # ------------------------------------------------------------------ a notebook cell
 
 CELL = '''\

@@ -17,6 +17,11 @@ It is used by :meth:`Framebuffer.clear <softpipe.pipeline.framebuffer.Framebuffe
 :class:`~softpipe.light.material.Material` and :class:`~softpipe.light.material.Light` colors,
 :func:`softpipe.render` and :func:`softpipe.turntable` (``background``,
 ``wire_color``) and the command line's ``--background`` and ``--wire-color``.
+
+:func:`srgb_encode` and :func:`srgb_decode` are sRGB's two transfer functions (IEC
+61966-2-1, FORMULAS §28): linear light to the encoded values an 8-bit image stores,
+and back. An sRGB framebuffer encodes on the way to bytes, an sRGB texture decodes
+its texels once when it is made (docs/gamma.md says why both are needed).
 """
 from __future__ import annotations
 
@@ -26,7 +31,9 @@ import numbers
 import re
 from typing import Any, Tuple, cast
 
-__all__ = ["parse_color", "rgba", "color_names"]
+import numpy as np
+
+__all__ = ["parse_color", "rgba", "color_names", "srgb_encode", "srgb_decode"]
 
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 _HELP = "a CSS name such as 'red', '#rrggbb', 'rgb(r, g, b)' or 'r,g,b[,a]' in 0..1"
@@ -108,3 +115,52 @@ def rgba(value: Any) -> Tuple[float, float, float, float]:
     """:func:`parse_color`, with alpha 1 added to an RGB color."""
     c = parse_color(value)
     return cast(Tuple[float, float, float, float], c + (1.0,) if len(c) == 3 else c)  # 3 or 4 numbers: 4
+
+
+# FORMULAS §28: sRGB's piecewise transfer functions (IEC 61966-2-1), linear segment near black
+_ENCODE_KNEE = 0.0031308      # linear values at or below it are encoded by the straight line 12.92·c
+_DECODE_KNEE = 0.04045        # = 12.92 × 0.0031308, rounded as the standard gives it
+
+
+def srgb_encode(linear: Any) -> np.ndarray:
+    """Linear light → sRGB-encoded values (FORMULAS §28), element by element.
+
+    ``12.92·c`` for ``c ≤ 0.0031308``, else ``1.055·c^(1/2.4) − 0.055``, computed in
+    float64. The formula is for 0 ≤ c ≤ 1; a negative value is taken as 0 and a value
+    above 1 as 1 (as GL clamps before it encodes), and NaN stays NaN for the caller to
+    decide (:meth:`Framebuffer.to_uint8 <softpipe.pipeline.framebuffer.Framebuffer.to_uint8>`
+    makes it 0).
+
+    Parameters
+    ----------
+    linear : array-like of numbers
+        Any shape: a value, a color, an image [H, W, C].
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, the same shape; encoded values in [0, 1].
+    """
+    c = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+    # np.where evaluates both branches: the power of a value below the knee is finite (c ≥ 0), so no warning
+    return np.where(c <= _ENCODE_KNEE, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+
+
+def srgb_decode(encoded: Any) -> np.ndarray:
+    """sRGB-encoded values → linear light (FORMULAS §28), element by element: the inverse of :func:`srgb_encode`.
+
+    ``c / 12.92`` for ``c ≤ 0.04045``, else ``((c + 0.055) / 1.055)^2.4``, computed in
+    float64; values outside [0, 1] are clamped into it first, NaN stays NaN.
+
+    Parameters
+    ----------
+    encoded : array-like of numbers
+        Any shape, encoded values in 0..1 (an 8-bit image's bytes divided by 255).
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, the same shape; linear values in [0, 1].
+    """
+    c = np.clip(np.asarray(encoded, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= _DECODE_KNEE, c / 12.92, np.power((c + 0.055) / 1.055, 2.4))

@@ -4,6 +4,12 @@ Shared by the 2D textures (:mod:`softpipe.light.texture`) and the cube maps
 (:mod:`softpipe.light.cubemap`): both hold float32 RGBA levels [H, W, 4], row 0 at the
 top, level 0 first and each next level half the size (floored, at least 1) made by a
 box filter. docs/textures.md tells the whole story; sampling is in texture.py.
+
+sRGB textures (``srgb=True``): the 8-bit (or 16-bit) values of an image are sRGB-encoded,
+and are decoded to linear light here, once, from the exact integers (FORMULAS §28),
+before the mip pyramid is made: filtering (the box filter of the mipmaps, a shader's
+bilinear and trilinear taps) averages light, so it must average linear values, as GL's
+sRGB textures decode before they filter. Alpha is never decoded.
 """
 from __future__ import annotations
 
@@ -12,6 +18,8 @@ import warnings
 from typing import Optional, Tuple, Union
 
 import numpy as np
+
+from softpipe.core.colors import srgb_decode
 
 __all__ = ["PEAK_BYTES_PER_TEXEL", "MAX_TEXTURE_BYTES", "texture_bytes", "check_size", "load_image", "to_rgba",
            "check_array", "build_mipmaps", "choose"]
@@ -43,8 +51,21 @@ def check_size(name: str, width: int, height: int, max_bytes: Optional[int]) -> 
                          "softpipe.light.images.MAX_TEXTURE_BYTES)")
 
 
-def load_image(path: Union[str, os.PathLike], max_bytes: Optional[int] = None) -> np.ndarray:
-    """Read an image file into float32 RGBA [H, W, 4], row 0 = top; its size is checked before decoding."""
+def _from_integers(values: np.ndarray, top: float, srgb: bool) -> np.ndarray:
+    """Integer texels (0..``top``) as float32 in 0..1; with ``srgb`` the color channels (not a 4th, alpha)
+    decoded from sRGB to linear (FORMULAS §28), computed from the integers in float64."""
+    f = values.astype(np.float64) / top
+    if srgb:
+        color = slice(None) if f.ndim == 2 else slice(0, 3)
+        f[..., color] = srgb_decode(f[..., color])
+    return f.astype(np.float32)
+
+
+def load_image(path: Union[str, os.PathLike], max_bytes: Optional[int] = None, srgb: bool = False) -> np.ndarray:
+    """Read an image file into float32 RGBA [H, W, 4], row 0 = top; its size is checked before decoding.
+
+    ``srgb``: the image's color values are sRGB-encoded; decode them to linear (module docstring).
+    """
     from PIL import Image, UnidentifiedImageError
 
     name = os.fspath(path)
@@ -57,8 +78,7 @@ def load_image(path: Union[str, os.PathLike], max_bytes: Optional[int] = None) -
             img.load()
             mode = img.mode
             if mode.startswith("I;16"):
-                gray = np.asarray(img, dtype=np.float64) / 65535.0
-                return to_rgba(gray.astype(np.float32))
+                return to_rgba(_from_integers(np.asarray(img), 65535.0, srgb))
             if mode in ("I", "F"):
                 raise ValueError(
                     f"Texture2D: image file {name!r} has 32-bit pixel mode {mode!r}; expected an "
@@ -72,7 +92,9 @@ def load_image(path: Union[str, os.PathLike], max_bytes: Optional[int] = None) -
     except (UnidentifiedImageError, OSError, SyntaxError) as err:
         # pillow reports truncated and corrupt files as OSError or SyntaxError
         raise ValueError(f"Texture2D: cannot read image file {name!r}: {err}") from None
-    return rgba.astype(np.float32) / np.float32(255.0)
+    if srgb:
+        return _from_integers(rgba, 255.0, True)
+    return rgba.astype(np.float32) / np.float32(255.0)     # not through float64: the texels as they always were
 
 
 def to_rgba(data: np.ndarray) -> np.ndarray:
@@ -86,8 +108,12 @@ def to_rgba(data: np.ndarray) -> np.ndarray:
     return out
 
 
-def check_array(array: np.ndarray) -> np.ndarray:
-    """Validate a texture array and return it as float32 RGBA [H, W, 4]."""
+def check_array(array: np.ndarray, srgb: bool = False) -> np.ndarray:
+    """Validate a texture array and return it as float32 RGBA [H, W, 4].
+
+    ``srgb``: a uint8 array holds sRGB-encoded values; decode them to linear (module
+    docstring). A float array is taken as linear already, so ``srgb=True`` refuses it.
+    """
     a = np.asarray(array)
     if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (3, 4)):
         raise ValueError(
@@ -95,8 +121,12 @@ def check_array(array: np.ndarray) -> np.ndarray:
         )
     if a.shape[0] == 0 or a.shape[1] == 0:
         raise ValueError(f"Texture2D: array must be at least 1×1 texels, got shape {a.shape}")
+    if srgb and a.dtype != np.uint8:
+        raise ValueError(f"Texture2D: srgb=True decodes 8-bit (uint8) texels, and this array is {a.dtype}; a "
+                         "float array is taken as linear already (decode it yourself with "
+                         "softpipe.core.colors.srgb_decode, or give srgb=False)")
     if a.dtype == np.uint8:
-        f = a.astype(np.float32) / np.float32(255.0)
+        f = _from_integers(a, 255.0, True) if srgb else a.astype(np.float32) / np.float32(255.0)
     elif np.issubdtype(a.dtype, np.floating):
         with np.errstate(over="ignore"):  # overflow to inf is reported just below
             f = a.astype(np.float32)

@@ -308,6 +308,14 @@ class Texture2D:
         The most memory making this texture may take (default
         :data:`softpipe.light.images.MAX_TEXTURE_BYTES`, 2 GiB); a larger image is refused before it
         is decoded, with the estimate (:func:`softpipe.light.images.texture_bytes`) in the message.
+    srgb : bool
+        An sRGB texture (GL's SRGB8 / SRGB8_ALPHA8): the image file's or uint8 array's color
+        values are sRGB-encoded, and are decoded to linear light once, here, before the
+        mipmaps are made (FORMULAS §28), so that every filter averages light, as GL's sRGB
+        textures decode before they filter; alpha is not decoded. Default False: the
+        values are taken as they are (byte/255), as before. A float array is linear
+        already: ``srgb=True`` refuses it (ValueError). Most photographs and painted
+        color maps (an MTL's ``map_Kd``) are sRGB.
 
     Attributes
     ----------
@@ -316,6 +324,7 @@ class Texture2D:
     levels : list of numpy.ndarray
         The mip pyramid, float32 [h, w, 4] each, row 0 = top, read-only.
     wrap_s, wrap_t, filter : str
+    srgb : bool
     """
 
     def __init__(
@@ -327,7 +336,11 @@ class Texture2D:
         wrap_s: Optional[str] = None,
         wrap_t: Optional[str] = None,
         max_bytes: Optional[int] = None,
+        srgb: bool = False,
     ) -> None:
+        if not isinstance(srgb, (bool, np.bool_)):
+            raise TypeError(f"Texture2D: srgb must be True or False, got {type(srgb).__name__} {srgb!r}")
+        self.srgb = bool(srgb)
         self.wrap_s = wrap if wrap_s is None else wrap_s
         self.wrap_t = wrap if wrap_t is None else wrap_t
         self.filter = filter
@@ -336,12 +349,12 @@ class Texture2D:
         self._filter = choose("filter", filter, FILTERS)
         if isinstance(source, (str, os.PathLike)):
             self.source = os.fspath(source)
-            level0 = load_image(source, max_bytes)
+            level0 = load_image(source, max_bytes, srgb=self.srgb)
         elif isinstance(source, np.ndarray):
             self.source = "array"
             if source.ndim >= 2:
                 check_size(f"the array of shape {source.shape}", source.shape[1], source.shape[0], max_bytes)
-            level0 = check_array(source)
+            level0 = check_array(source, srgb=self.srgb)
         else:
             raise TypeError(
                 "Texture2D: source must be an image file path or a numpy array, "
@@ -393,5 +406,5 @@ class Texture2D:
         wrap = self.wrap_s if self.wrap_s == self.wrap_t else f"({self.wrap_s}, {self.wrap_t})"
         return (
             f"Texture2D({self.source!r}, {self.width}×{self.height}, {self.num_levels} levels, "
-            f"wrap={wrap}, filter={self.filter})"
+            f"wrap={wrap}, filter={self.filter}{', srgb' if self.srgb else ''})"
         )

@@ -4,7 +4,7 @@ Row 0 is the top of the image, as pillow and numpy expect; the rasterizer
 flipped y once when it emitted the fragments. Colors are linear floats and
 unclamped until they become 8 bits in :meth:`Framebuffer.to_uint8`, the one
 place that conversion happens: ``round(clamp(c, 0, 1)·255)``, rounding half to
-even.
+even, after the sRGB encode (FORMULAS §28) in an sRGB framebuffer (``srgb=True``).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from typing import BinaryIO, Optional, Sequence, Union
 import numba
 import numpy as np
 
-from softpipe.core.colors import rgba
+from softpipe.core.colors import rgba, srgb_encode
 from softpipe.core.parallel import in_bands
 from softpipe.core.runtime import check_memory
 from softpipe.pipeline.sampling import CENTER, SamplePattern
@@ -94,6 +94,16 @@ class Framebuffer:
         Size in pixels (limits: :data:`MAX_DIMENSION`, :data:`MAX_TOTAL_SAMPLES`).
     pattern : SamplePattern
         Where the samples of a pixel are; one centre sample by default.
+    srgb : bool
+        An sRGB framebuffer (GL_FRAMEBUFFER_SRGB with an sRGB color format): the colors
+        are still linear floats, shaded and blended in linear light; :meth:`to_uint8`
+        encodes R, G and B by sRGB's transfer function (FORMULAS §28) before they
+        become bytes, and leaves alpha as it is, as GL does. Default False: the floats
+        are written as bytes unencoded (softpipe's behaviour before, byte for byte).
+        GL stores an sRGB framebuffer as 8-bit encoded values and decodes the
+        destination before it blends; softpipe keeps the floats, so its bytes are GL's
+        except where GL would have rounded the destination to 8 bits between two
+        blended draws (docs/gamma.md).
 
     Attributes
     ----------
@@ -106,7 +116,9 @@ class Framebuffer:
     samples_color : float32 [S, H, W, 4], samples_depth : float32 [S, H, W], samples_stencil : uint8 [S, H, W]
         Every sample: one image plane per sample, so that a row of one sample is
         contiguous in memory (what the rasterizer's inner loop walks along).
-    width, height, pattern, samples, samples_color, samples_depth, samples_stencil
+    srgb : bool
+        Whether :meth:`to_uint8` encodes (read-only).
+    width, height, pattern, samples, samples_color, samples_depth, samples_stencil, srgb
         Read-only: assigning them raises AttributeError, because the kernels index the
         arrays without bounds checks. The arrays are written in place
         (``fb.samples_color[...] = c``); each read hands out a checked view of them.
@@ -124,9 +136,11 @@ class Framebuffer:
     False``) freezes it: a draw or a clear then raises ValueError instead of writing.
     """
 
-    def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER):
+    def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER, srgb: bool = False):
         if not isinstance(pattern, SamplePattern):
             raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
+        if not isinstance(srgb, (bool, np.bool_)):
+            raise TypeError(f"Framebuffer srgb must be True or False, got {type(srgb).__name__} {srgb!r}")
         _check_size(width, height, len(pattern))
         s = len(pattern)
         check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel (21 bytes a sample)",
@@ -134,6 +148,7 @@ class Framebuffer:
         object.__setattr__(self, "_width", int(width))
         object.__setattr__(self, "_height", int(height))
         object.__setattr__(self, "_pattern", pattern)
+        object.__setattr__(self, "_srgb", bool(srgb))
         object.__setattr__(self, "_count", s)
         object.__setattr__(self, "_samples_color", np.empty((s, self._height, self._width, 4), dtype=np.float32))
         object.__setattr__(self, "_samples_depth", np.empty((s, self._height, self._width), dtype=np.float32))
@@ -154,11 +169,12 @@ class Framebuffer:
     # and the draws can honour it (:meth:`check_drawable`).
 
     _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth", "samples_stencil",
-                  "lock", "writes")
+                  "lock", "writes", "srgb")
     # set once, by __init__ (through object.__setattr__)
     _width: int
     _height: int
     _pattern: SamplePattern
+    _srgb: bool
     _count: int
     _samples_color: np.ndarray
     _samples_depth: np.ndarray
@@ -199,6 +215,11 @@ class Framebuffer:
             raise RuntimeError(f"this framebuffer's sample pattern was changed after it was made (it had {s} "
                                "sample(s)); the kernels cannot draw into it safely")
         return p
+
+    @property
+    def srgb(self) -> bool:
+        """Whether this is an sRGB framebuffer: :meth:`to_uint8` encodes RGB (FORMULAS §28) (read-only)."""
+        return self._srgb
 
     @property
     def samples(self) -> int:
@@ -288,6 +309,7 @@ class Framebuffer:
         self.__dict__.setdefault("_writes", 0)
         if "_samples_stencil" not in self.__dict__:       # pickled before the stencil buffer existed
             object.__setattr__(self, "_samples_stencil", np.zeros(self._samples_depth.shape, np.uint8))
+        self.__dict__.setdefault("_srgb", False)       # pickled before framebuffers had srgb
 
     def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0,
               stencil: int = 0) -> "Framebuffer":
@@ -367,10 +389,16 @@ class Framebuffer:
         The one place softpipe turns colors into bytes (``np.asarray(fb)``, :meth:`save`,
         the stage pictures, Jupyter), whichever path drew them. A NaN channel (a shader
         that divided 0 by 0, say) becomes 0, +inf 255 and −inf 0, silently (no numpy
-        warning): NaN counts as no light.
+        warning): NaN counts as no light. In an sRGB framebuffer (:attr:`srgb`) R, G and
+        B are clamped, then encoded (FORMULAS §28: ``srgb_encode``), then rounded the
+        same way; alpha is not encoded. Several samples are averaged (:attr:`color`)
+        in linear light before the encode.
         """
         c = np.nan_to_num(self.color[..., : 4 if alpha else 3].astype(np.float64), nan=0.0, posinf=1.0, neginf=0.0)
-        return np.rint(np.clip(c, 0.0, 1.0) * 255.0).astype(np.uint8)
+        c = np.clip(c, 0.0, 1.0)
+        if self._srgb:
+            c[..., :3] = srgb_encode(c[..., :3])
+        return np.rint(c * 255.0).astype(np.uint8)
 
     def to_image(self, alpha: bool = False):
         """A pillow Image (RGB by default, RGBA with ``alpha=True``)."""
@@ -451,4 +479,5 @@ class Framebuffer:
         return buf.getvalue()
 
     def __repr__(self) -> str:
-        return f"Framebuffer({self.width}×{self.height}, {self.samples} sample{'s' if self.samples > 1 else ''})"
+        srgb = ", sRGB" if self._srgb else ""
+        return f"Framebuffer({self.width}×{self.height}, {self.samples} sample{'s' if self.samples > 1 else ''}{srgb})"

@@ -21,7 +21,7 @@ import numpy as np
 
 __all__ = [
     "identity", "translate", "scale", "rotate_x", "rotate_y", "rotate_z", "rotate",
-    "compose", "look_at", "normal_matrix", "perspective", "frustum", "orthographic",
+    "compose", "look_at", "normal_matrix", "perspective", "perspective_infinite", "frustum", "orthographic",
     "Viewport", "opencv_camera", "transform_points",
 ]
 
@@ -228,6 +228,34 @@ def perspective(fovy_degrees: float, aspect: float, near: float, far: float) -> 
         raise ValueError(f"perspective: aspect must be > 0, got {aspect}")
     top = near * math.tan(math.radians(fovy) / 2.0)
     return frustum(-top * aspect, top * aspect, -top, top, near, far)
+
+
+def perspective_infinite(fovy_degrees: float, aspect: float, near: float, epsilon: float = 0.0) -> np.ndarray:
+    """:func:`perspective` with the far plane at infinity (Everitt and Kilgard 2002, "Practical and
+    Robust Stenciled Shadow Volumes", §3).
+
+    The limit of glFrustum's matrix as far → ∞: its z row becomes (0, 0, ε − 1, (ε − 2)·near), so a
+    point at eye depth z (< 0) gets z_ndc = (ε − 1) − (ε − 2)·near/z: −1 at the near plane,
+    rising toward 1 − ε as z → −∞; a point at infinity, (x, y, z, 0), lands at exactly
+    z_ndc = 1 − ε (window depth 1 − ε/2) and is never far-clipped. ε = 0 is the exact limit
+    (points at infinity on the far plane z = w); Everitt and Kilgard's small ε > 0 keeps
+    them strictly inside on hardware whose arithmetic might round z past w. Shadow
+    volumes drawn with it close at infinity (:mod:`softpipe.scenes.shadow_volumes`);
+    depth clamp is the other way to keep their far ends.
+    """
+    fovy = _finite("fovy_degrees", fovy_degrees)
+    if not 0.0 < fovy < 180.0:
+        raise ValueError(f"perspective_infinite: fovy_degrees must be in (0, 180), got {fovy}")
+    aspect, n, eps = _finite("aspect", aspect), _finite("near", near), _finite("epsilon", epsilon)
+    if aspect <= 0.0 or n <= 0.0:
+        raise ValueError(f"perspective_infinite: need aspect > 0 and near > 0, got aspect={aspect}, near={n}")
+    if not 0.0 <= eps < 1.0:
+        raise ValueError(f"perspective_infinite: epsilon must be in [0, 1), got {eps}")
+    top = n * math.tan(math.radians(fovy) / 2.0)
+    m = frustum(-top * aspect, top * aspect, -top, top, n, 2.0 * n)   # rows 0, 1 and 3 do not depend on far
+    m[2, 2] = eps - 1.0
+    m[2, 3] = (eps - 2.0) * n
+    return m
 
 
 def orthographic(left: float, right: float, bottom: float, top: float, near: float, far: float) -> np.ndarray:

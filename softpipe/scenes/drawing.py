@@ -7,8 +7,11 @@
   lighting, texture, faceted programs, mirrored model matrices; its line segments
   and points after the triangles, :func:`draw_lines_and_points`);
 - :func:`render_scene` draws a :class:`~softpipe.scenes.scene.Scene` into a new
-  framebuffer, one :func:`draw_mesh` per object, and the wireframe over it if asked
-  (:func:`draw_wireframe`: the pipeline's own lines, polygon mode "line");
+  framebuffer, one :func:`draw_mesh` per object (the opaque ones in the scene's order,
+  then the transparent ones sorted back to front: :func:`draw_order`), and the
+  wireframe over it if asked (:func:`draw_wireframe`: the pipeline's own lines,
+  polygon mode "line"); :func:`scene_lighting` and :func:`draw_object` are its two
+  steps, for other renderers of a scene (:mod:`softpipe.scenes.transparency`);
 - :func:`render` and :func:`turntable` are ``softpipe render`` and ``softpipe
   turntable`` in Python (``softpipe.render("teapot")``): the command line calls
   them, so they make the same pixels, with the same defaults (size, framing, the
@@ -53,6 +56,7 @@ from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
 from softpipe.scenes.shadow_pass import render_shadow_maps
 
 __all__ = ["standard_uniforms", "draw_mesh", "draw_lines_and_points", "render_scene", "draw_wireframe", "WIREFRAME_STATE", "DrawResult", "as_mesh", "prepare_scene", "render",
+           "is_transparent", "eye_depth", "draw_order", "TRANSPARENT_STATE", "scene_lighting", "draw_object",
            "turntable", "input_kind", "default_lighting", "gif_frame",
            "MAX_FRAMES", "RENDER_SIZE", "TURNTABLE_SIZE", "animation_format", "frame_duration"]
 
@@ -326,6 +330,73 @@ def _texture(texture):
     return texture
 
 
+#: The state :func:`render_scene` draws a transparent object in (:func:`is_transparent`): blended
+#: "over" what is behind it, color src·α + dst·(1 − α) (as ``blend="alpha"``) and alpha
+#: α + A·(1 − α) (separate alpha factors, so the picture's alpha is the coverage, not α² + …),
+#: and tested against the depth buffer without writing it, so a transparent surface hides
+#: neither the opaque ones (drawn before it) nor the transparent ones drawn after it.
+TRANSPARENT_STATE: Dict[str, Any] = {"blend": ("src_alpha", "one_minus_src_alpha", "one", "one_minus_src_alpha"),
+                                     "depth_write": False}
+
+
+def is_transparent(obj: SceneObject) -> bool:
+    """Does ``obj`` let what is behind it show: a material of its mesh with ``opacity`` below 1?"""
+    materials = getattr(obj.mesh, "materials", ()) or (obj.mesh.material,)
+    return any(m.opacity < 1.0 for m in materials)
+
+
+def eye_depth(obj: SceneObject, camera: Camera) -> float:
+    """How far in front of ``camera`` ``obj`` is, for sorting: −z, in eye space, of the centre of its
+    world bounding box (the box's centre, not the vertices' mean, so a finely tessellated side
+    does not pull it). One number an object: objects that interpenetrate cannot be put in one
+    order that is right at every pixel, and sorting does not try."""
+    positions = obj.world_positions()
+    if not len(positions):
+        return 0.0
+    centre = (positions.min(axis=0) + positions.max(axis=0)) / 2.0
+    return float(-(camera.view[2, :3] @ centre + camera.view[2, 3]))
+
+
+def draw_order(objects: List[SceneObject], camera: Camera) -> List[SceneObject]:
+    """The order :func:`render_scene` draws ``objects`` in: the opaque ones first, in the order given;
+    then the transparent ones (:func:`is_transparent`) back to front, farthest :func:`eye_depth`
+    first (equal depths keep the order given)."""
+    opaque = [o for o in objects if not is_transparent(o)]
+    clear = [o for o in objects if is_transparent(o)]
+    return opaque + sorted(clear, key=lambda o: -eye_depth(o, camera))
+
+
+def scene_lighting(scene: Scene, camera: Camera, objects: List[SceneObject], shadow_maps: Optional[list] = None):
+    """The ``lighting`` uniform every draw of ``scene`` seen by ``camera`` gets, in eye space: its lights,
+    with their shadow maps made first (from ``objects``' casters) when a light casts shadows; the
+    :class:`~softpipe.scenes.shadow_pass.ShadowMaps` are appended to ``shadow_maps`` if given."""
+    lights = scene.lighting_for(camera)
+    if any(light.shadows is not None for light in lights.lights):
+        maps = render_shadow_maps(objects, lights)
+        if shadow_maps is not None:
+            shadow_maps.append(maps)
+        return maps.lighting_uniform(lights, camera.view)
+    return lights.uniform(camera.view)  # once for every draw: eye space
+
+
+def draw_object(fb: Framebuffer, scene: Scene, obj: SceneObject, camera: Camera, lighting, *,
+                program: Union[str, Program, Callable, None] = None, trace: bool = False,
+                results: Optional[list] = None, **state):
+    """Draw one object of ``scene`` as :func:`render_scene` does (its program, model matrix, texture,
+    cull mode; the scene's sample shading, point size and line width), with ``lighting`` from
+    :func:`scene_lighting`. ``program`` replaces the object's; ``state`` is added to the draw's
+    (:func:`draw_mesh`'s ``**state``). The :class:`DrawResult` s appended to ``results`` are
+    named as the object. Returns what :func:`draw_mesh` returns."""
+    first = len(results) if results is not None else 0
+    out = draw_mesh(fb, obj.mesh, camera, program or program_for(obj, scene.program), model=obj.model,
+                    lighting=lighting, texture=obj.texture, cull=obj.cull or scene.cull,
+                    sample_shading=scene.sample_shading, trace=trace, results=results,
+                    point_size=scene.point_size, line_width=scene.line_width, **state)
+    for r in (results or [])[first:]:
+        r.name = obj.name
+    return out
+
+
 def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool = False,
                  results: Optional[list] = None,
                  progress: Optional[Callable[[int, int, SceneObject], None]] = None,
@@ -340,7 +411,7 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
     trace : bool
         Keep each draw's Trace (in its :class:`DrawResult`).
     results : list, optional
-        Receives one :class:`DrawResult` per object, named as the object.
+        Receives one :class:`DrawResult` per object, named as the object, in the order drawn.
     progress : callable, optional
         ``progress(k, n, object)`` is called before draw k of n.
     shadow_maps : list, optional
@@ -353,33 +424,29 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
     -------
     Framebuffer
         ``scene.width`` × ``scene.height``, the scene's sample pattern, cleared to its
-        background, every object drawn in order with :func:`draw_mesh` (and the ground,
-        :meth:`~softpipe.scenes.scene.Scene.drawn_objects`). Lights with
-        ``shadows`` set get their shadow maps first (:func:`softpipe.scenes.shadow_pass.render_shadow_maps`,
-        from the objects whose ``cast_shadows`` is true).
+        background, every object drawn with :func:`draw_mesh` (and the ground,
+        :meth:`~softpipe.scenes.scene.Scene.drawn_objects`) in :func:`draw_order`: the
+        opaque objects in the scene's order, then the transparent ones (a material's
+        ``opacity`` below 1) sorted back to front by :func:`eye_depth` and drawn in
+        :data:`TRANSPARENT_STATE` (alpha blending, no depth writes). Sorting by object is
+        right where the transparent objects do not overlap in depth; where they
+        interpenetrate it is not (docs/transparency.md: depth peeling and weighted OIT in
+        :mod:`softpipe.scenes.transparency`). Lights with ``shadows`` set get their shadow
+        maps first (:func:`softpipe.scenes.shadow_pass.render_shadow_maps`, from the
+        objects whose ``cast_shadows`` is true).
     """
     camera = camera or scene.view_camera()
-    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples))
+    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples), srgb=scene.srgb)
     fb.clear(scene.background)
     objects = scene.drawn_objects(camera)
-    lights = scene.lighting_for(camera)
-    if any(light.shadows is not None for light in lights.lights):
-        maps = render_shadow_maps(objects, lights)
-        if shadow_maps is not None:
-            shadow_maps.append(maps)
-        lighting = maps.lighting_uniform(lights, camera.view)
-    else:
-        lighting = lights.uniform(camera.view)  # once for every draw: eye space
+    lighting = scene_lighting(scene, camera, objects, shadow_maps)
     drawn: List[DrawResult] = []
-    for k, obj in enumerate(objects):
+    order = draw_order(objects, camera)
+    for k, obj in enumerate(order):
         if progress is not None:
-            progress(k, len(objects), obj)
-        first = len(drawn)
-        draw_mesh(fb, obj.mesh, camera, program_for(obj, scene.program), model=obj.model, lighting=lighting,
-                  texture=obj.texture, cull=obj.cull or scene.cull, sample_shading=scene.sample_shading,
-                  trace=trace, results=drawn, point_size=scene.point_size, line_width=scene.line_width)
-        for r in drawn[first:]:
-            r.name = obj.name
+            progress(k, len(order), obj)
+        draw_object(fb, scene, obj, camera, lighting, trace=trace, results=drawn,
+                    **(TRANSPARENT_STATE if is_transparent(obj) else {}))
     if results is not None:
         results.extend(drawn)
     if scene.wireframe and wireframe:
@@ -458,7 +525,7 @@ def input_kind(model) -> str:
 
 
 def _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy,
-                allow_outside: bool = False) -> Tuple[Scene, bool]:
+                allow_outside: bool = False, srgb_textures: bool = False) -> Tuple[Scene, bool]:
     """The Scene for a model name, an OBJ or TOML path, a mesh or a Scene; and whether it is one model."""
     size = {"width": width or default_size[0], "height": height or default_size[1]}
     angles = {"azimuth": 30.0 if azimuth is None else azimuth, "elevation": 20.0 if elevation is None else elevation,
@@ -466,7 +533,7 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
     if isinstance(model, Scene) or not isinstance(model, (str, os.PathLike)):
         if not isinstance(model, Scene):
             mesh = as_mesh(model)
-            return Scene.from_model(mesh, texture=texture, **angles, **size), True
+            return Scene.from_model(mesh, texture=texture, srgb_textures=srgb_textures, **angles, **size), True
         scene = model
     else:
         from softpipe.scenes.models import model_path
@@ -478,7 +545,8 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
                 model = load_model(model, allow_outside=True)
                 if model.triangle_count == 0 and model.segment_count == 0 and model.point_count == 0:
                     raise ValueError(f"{label}: the file has no faces (f), lines (l) or points (p) to render")
-            return Scene.from_model(model, texture=texture, **angles, **size, path=label), True
+            return Scene.from_model(model, texture=texture, srgb_textures=srgb_textures, **angles, **size,
+                                    path=label), True
         from softpipe.scenes.scenefile import load_scene  # the one place drawing reads a scene file: render()'s input
         scene = load_scene(path, allow_outside=allow_outside)
     # a scene (file or object): its own settings, changed only by what is given
@@ -509,7 +577,7 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
                   azimuth: Optional[float] = None, elevation: Optional[float] = None, fovy: Optional[float] = None,
                   default_size: Tuple[int, int] = RENDER_SIZE, allow_outside: bool = False,
                   shadows: bool = False, point_size: Optional[float] = None,
-                  line_width: Optional[float] = None) -> Scene:
+                  line_width: Optional[float] = None, srgb: bool = False) -> Scene:
     """The :class:`~softpipe.scenes.scene.Scene` that :func:`render` draws (the options of ``softpipe render``).
 
     Takes the arguments of :func:`render` (which see) and ``default_size``, the size
@@ -538,6 +606,8 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
             changes[name] = check_size(name, size)
     if isinstance(texture, (str, os.PathLike)) and not os.path.isfile(texture):
         raise FileNotFoundError(f"texture: {os.fspath(texture)}: no such file")
+    if not isinstance(srgb, (bool, np.bool_)):
+        raise TypeError(f"srgb must be True or False, got {type(srgb).__name__} {srgb!r}")
     if background is not None:
         try:
             changes["background"] = rgba(background)
@@ -549,7 +619,7 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
         except (TypeError, ValueError) as e:
             raise ValueError(f"wire_color: {e}") from None
     scene, one_model = _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy,
-                                   allow_outside)
+                                   allow_outside, srgb_textures=bool(srgb))
     samples = samples or ("rgss4" if msaa and scene.samples in ("1", "center", "none") else None)
     if samples:
         changes["samples"] = samples
@@ -564,6 +634,8 @@ def prepare_scene(model, *, width: Optional[int] = None, height: Optional[int] =
         objects = [dataclasses.replace(o, cull=None) for o in objects]
     if wireframe:
         changes["wireframe"] = True
+    if srgb:
+        changes["srgb"] = True
     if shadows:
         changes["shadows"] = True
         if one_model:   # a model alone has nothing to throw its shadow on: stand it on a floor
@@ -595,7 +667,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
            stages=None, trace: bool = False, results: Optional[list] = None,
            progress: Optional[Callable[[int, int, SceneObject], None]] = None,
            allow_outside: bool = False, shadows: bool = False, point_size: Optional[float] = None,
-           line_width: Optional[float] = None) -> Framebuffer:
+           line_width: Optional[float] = None, srgb: bool = False) -> Framebuffer:
     """``softpipe render MODEL`` in Python: the same picture, as a :class:`Framebuffer`.
 
     ``softpipe.render("teapot").save("teapot.png")`` writes what ``softpipe render
@@ -654,6 +726,12 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
         and ``l``; ``--point-size``, ``--line-width``); GL's default 1 for both (a scene
         keeps its own). They are drawn after the faces, unlit in their material's ``kd``
         (:func:`draw_lines_and_points`).
+    srgb : bool
+        Render into an sRGB framebuffer (``--srgb``; FORMULAS §28, docs/gamma.md): shaded in
+        linear light and encoded as the picture becomes bytes. A model's texture files (the
+        ``texture`` path, its MTL's ``map_Kd``) are then read as sRGB too (decoded to linear
+        when loaded); a scene file says that of its textures itself (``[render]
+        srgb_textures``), and a scene's ``srgb = true`` is kept when this is False.
 
     Raises
     ------
@@ -665,7 +743,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
                           allow_outside=allow_outside, shadows=shadows, point_size=point_size,
-                          line_width=line_width)
+                          line_width=line_width, srgb=srgb)
     camera = camera or scene.view_camera()
     drawn: List[DrawResult] = []
     fb = render_scene(scene, camera=camera, trace=trace or stages is not None, results=drawn, progress=progress,

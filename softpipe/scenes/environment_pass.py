@@ -203,7 +203,7 @@ def render_with_environments(scene: Scene, environments: Union[CubeMap, Mapping[
             raise ValueError(f"environments must be a CubeMap, a dict of them, None or 'rays', got {environments!r}")
         from softpipe.tracers.whitted import tracer_uniform
         tracer = tracer_uniform(scene, camera, max_depth=max_depth)
-    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples)).clear(scene.background)
+    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples), srgb=scene.srgb).clear(scene.background)
     objects = scene.drawn_objects(camera)
     lights = scene.lighting_for(camera)
     if any(light.shadows is not None for light in lights.lights):

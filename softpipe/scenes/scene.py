@@ -93,8 +93,10 @@ class Scene:
     light cast shadows (those that have no ShadowSettings of their own get the
     defaults); ``ground`` adds a floor under the objects (:func:`ground_object`) that
     receives shadows but casts none and is left out of the framing. ``point_size`` and
-    ``line_width`` (pixels) are those of the meshes' points and line segments. ``path`` names the
-    scene in error messages; ``warnings`` keeps what loading it warned about.
+    ``line_width`` (pixels) are those of the meshes' points and line segments. ``srgb`` true
+    renders into an sRGB framebuffer (:class:`~softpipe.pipeline.framebuffer.Framebuffer`'s
+    ``srgb``: shaded in linear light, encoded by FORMULAS §28 when it becomes bytes). ``path``
+    names the scene in error messages; ``warnings`` keeps what loading it warned about.
     """
 
     objects: List[SceneObject] = field(default_factory=list)
@@ -116,13 +118,14 @@ class Scene:
     materials: Dict[str, Material] = field(default_factory=dict)
     shadows: bool = False
     ground: bool = False
+    srgb: bool = False
     path: str = "<string>"
     warnings: List[str] = field(default_factory=list)
 
     @classmethod
     def from_model(cls, model: Union[str, "os.PathLike[str]", Mesh], *, texture: Any = None,
                    azimuth: float = 30.0, elevation: float = 20.0, fovy: float = 35.0,
-                   **settings: Any) -> "Scene":
+                   srgb_textures: bool = False, **settings: Any) -> "Scene":
         """The scene ``softpipe render MODEL`` draws: one model, framed, under the studio lights.
 
         Parameters
@@ -136,6 +139,12 @@ class Scene:
             coordinates). Without it, a part whose material names a ``diffuse_texture``
             (an MTL ``map_Kd``, or the bundled ``spot``'s texture) gets that one; one
             that cannot be read is warned about and the part drawn without it.
+        srgb_textures : bool
+            Read the texture image files (``texture`` given as a path, and the materials'
+            ``diffuse_texture``) as sRGB-encoded: decoded to linear light when loaded
+            (``Texture2D(..., srgb=True)``, FORMULAS §28). An MTL's ``map_Kd`` is sRGB by
+            convention in most tools, but the default, False, reads the values as they are
+            (as softpipe always has). A ``Texture2D`` given as ``texture`` is used as it is.
         azimuth, elevation, fovy : float
             The framed camera's angles and field of view, in degrees (:class:`FrameSpec`).
         **settings
@@ -180,7 +189,7 @@ class Scene:
             else:
                 if not os.path.isfile(texture):
                     raise FileNotFoundError(f"texture: {os.fspath(texture)}: no such file")
-                tex, source = Texture2D(texture), os.path.abspath(texture)
+                tex, source = Texture2D(texture, srgb=srgb_textures), os.path.abspath(texture)
         textures: Dict[str, Any] = {}
         objects = []
         for material, part in mesh.by_material():
@@ -191,7 +200,8 @@ class Scene:
             elif material.diffuse_texture:
                 if material.diffuse_texture not in textures:  # parts sharing an image share one Texture2D
                     try:
-                        textures[material.diffuse_texture] = Texture2D(material.diffuse_texture)
+                        textures[material.diffuse_texture] = Texture2D(material.diffuse_texture,
+                                                                       srgb=srgb_textures)
                     except (ValueError, OSError) as e:
                         caught.append(f"{e}; material {material.name!r} drawn without it")
                         textures[material.diffuse_texture] = None

@@ -116,7 +116,7 @@ def pattern_name(v: Any) -> str:
 TOP_KEYS = ("ambient", "camera", "render", "lights", "materials", "meshes")
 CAMERA_KEYS = ("frame", "eye", "target", "up", "fovy", "near", "far", "azimuth", "elevation", "margin")
 RENDER_KEYS = ("width", "height", "background", "samples", "sample_shading", "program", "cull", "wireframe",
-               "wireframe_color", "shadows", "ground")
+               "wireframe_color", "shadows", "ground", "srgb", "srgb_textures")
 LIGHT_KEYS = ("kind", "name", "color", "ambient", "diffuse", "specular", "position", "direction",
               "attenuation", "spot_direction", "cutoff", "exponent", "shadows")
 SHADOW_KEYS = ("resolution", "pcf", "offset_factor", "offset_units")
@@ -169,6 +169,7 @@ class SceneReader(Reader):
         self.warnings: List[str] = []
         self._objs: Dict[str, Mesh] = {}
         self._textures: Dict[str, Any] = {}
+        self.srgb_textures = False      # [render] srgb_textures: the texture files are sRGB-encoded
 
     # -- the whole file
 
@@ -226,6 +227,8 @@ class SceneReader(Reader):
                                       scene.wireframe_color)
         scene.shadows = t.get("shadows", boolean, False)
         scene.ground = t.get("ground", boolean, False)
+        scene.srgb = t.get("srgb", boolean, False)
+        self.srgb_textures = t.get("srgb_textures", boolean, False)
 
     def camera(self, data: Any, scene: Scene) -> None:
         t = Table(self, data, "[camera]", CAMERA_KEYS)
@@ -316,7 +319,7 @@ class SceneReader(Reader):
         if path not in self._textures:
             from softpipe.light.texture import Texture2D
             try:
-                self._textures[path] = Texture2D(path)
+                self._textures[path] = Texture2D(path, srgb=self.srgb_textures)
             except (ValueError, TypeError, OSError) as e:
                 raise self.error(f"key {key!r} in {table.label}: {e}", table=table.label, key=key) from None
         return self._textures[path]

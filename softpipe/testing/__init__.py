@@ -15,12 +15,15 @@
   pixel, with a message that says how many pixels differ, where, the worst one,
   and an ASCII map; ``diff_path=`` writes a diff image.
 - :func:`ascii_picture`, :func:`from_ascii`: expectations as pictures in the source.
+- :func:`sorted_composite`: the exact transparent composite, every traced fragment sorted
+  by depth per sample and composited "over" an opaque picture (docs/transparency.md).
 - :func:`check_golden` and the pytest plugin :mod:`softpipe.testing.plugin`
   (the ``golden`` fixture, ``pytest --softpipe-update-golden``).
 
 docs/testing.md shows them at work.
 """
 from softpipe.testing.compare import assert_pixels_equal, check_golden, diff_image, to_8bit
+from softpipe.testing.composite import sorted_composite
 from softpipe.testing.coverage import Coverage, coverage, covered_pixels
 from softpipe.testing.line_reference import reference_line, reference_line_parameter, reference_point
 from softpipe.testing.pictures import ascii_picture, from_ascii
@@ -28,4 +31,4 @@ from softpipe.testing.reference import reference_coverage
 
 __all__ = ["coverage", "covered_pixels", "Coverage", "reference_coverage", "reference_line", "reference_point",
            "reference_line_parameter", "assert_pixels_equal", "ascii_picture", "from_ascii", "check_golden",
-           "diff_image", "to_8bit"]
+           "diff_image", "to_8bit", "sorted_composite"]

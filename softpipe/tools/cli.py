@@ -310,6 +310,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="rasterize, and let the objects drawn with mirror, glass or hall trace their reflected "
                              "and refracted rays from the fragment shader (ray queries) instead of reading an "
                              "environment map: their pixels are the ray tracer's")
+    render.add_argument("--srgb", action="store_true",
+                        help="render into an sRGB framebuffer: shade in linear light and sRGB-encode the picture "
+                             "as it is written (FORMULAS §28, docs/gamma.md); an OBJ model's textures (--texture, "
+                             "map_Kd) are then read as sRGB too; a scene file says so with [render] srgb = true "
+                             "and srgb_textures = true")
     render.add_argument("--stages", metavar="DIR",
                         help="also trace every draw and write each stage's picture (vertices, primitives, coverage, "
                              "depth, overdraw, final) and a contact sheet into DIR (one folder per draw when there "
@@ -552,7 +557,9 @@ def _prepare(args, default_size):
     _check_options(args, kind, default_size)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        scene = prepare_scene(args.input, default_size=default_size, **_options(args))
+        # --srgb is render's alone (turntable and explore have no such option)
+        scene = prepare_scene(args.input, default_size=default_size, srgb=getattr(args, "srgb", False),
+                              **_options(args))
     for message in dict.fromkeys(str(w.message) for w in caught):
         _note(args, f"warning: {message}")
     from softpipe.programs import PROGRAMS
@@ -668,7 +675,7 @@ def _render(args) -> int:
         traced = pathtrace(scene, spp=spp, seed=0 if args.seed is None else args.seed)
         for note in traced.notes:
             _note(args, note)
-        where = _save_image(traced.framebuffer(), output)
+        where = _save_image(traced.framebuffer(srgb=scene.srgb), output)
         _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
                              f"path traced, {spp} samples per pixel, seed {traced.seed}, "
                              f"{time.perf_counter() - start:.2f} s)")

@@ -593,9 +593,10 @@ class PathTrace:
         s2 = np.maximum(self._squares - n * mean * mean, 0.0) / (n - 1)
         return (s2 / n).astype(np.float32)
 
-    def framebuffer(self) -> Framebuffer:
-        """The image in a one-sample framebuffer (alpha 1), for softpipe's 8-bit conversion and ``save``."""
-        fb = Framebuffer(self.width, self.height)
+    def framebuffer(self, srgb: bool = False) -> Framebuffer:
+        """The image in a one-sample framebuffer (alpha 1), for softpipe's 8-bit conversion and ``save``;
+        ``srgb=True``: an sRGB framebuffer, whose bytes are encoded (FORMULAS §28)."""
+        fb = Framebuffer(self.width, self.height, srgb=srgb)
         fb.color[..., :3] = self.image
         fb.color[..., 3] = 1.0
         return fb

@@ -612,7 +612,7 @@ def raytrace_scene(scene, *, camera: Optional[Camera] = None, max_depth: int = 5
     else:
         in_bands(_trace_rows, h, w, h, p.unproject, p.tracer, _offsets(pattern), out, grain=8)
         traced = h * w * len(pattern)
-    fb = Framebuffer(w, h)
+    fb = Framebuffer(w, h, srgb=bool(getattr(scene, "srgb", False)))
     fb.color[...] = out
     if notes is not None:
         notes.extend(p.notes + found)

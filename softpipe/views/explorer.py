@@ -33,6 +33,8 @@ What the page holds
                  "points"), with its own window corners (a, b, b) or (p, p, p) always and its
                  width or size (``t_size``); a line's or point's fragments keep their
                  ``frag.point_coord`` (``f_pc``: (t, 0) on a line)
+``f_stencil``    of a draw with the stencil test on (its ``stencil``), each fragment's sample's
+                 stencil value before and after it (uint8 pairs), as ``pixel_history`` shows them
 
 Numbers are stored at the precision the pipeline made them where that is small: depth
 as float64, the shader's output and the color after as float32 (what the pipeline
@@ -71,6 +73,21 @@ READ_LIMIT = 1 << 31
 
 #: The verdicts, as the output merger names them (index = the stored code).
 _VERDICTS = VERDICTS
+
+
+def _stencil_pairs(trace, pixels: np.ndarray, idx: np.ndarray, width: int) -> np.ndarray:
+    """uint8 [n, 2]: each fragment's sample's stencil (before, after): before is the same sample's previous
+    fragment's after, or the framebuffer's before the draw (``idx`` in fragment order per pixel)."""
+    f, after = trace.fragments, trace.merged.stencil_after
+    out = np.zeros((len(idx), 2), np.uint8)
+    last: Dict[tuple, int] = {}
+    for r, (p, i) in enumerate(zip(pixels, idx)):
+        key = (int(p), int(f.sample[i]))
+        if key not in last:
+            last[key] = int(trace.stencil_before_at(int(p % width), int(p // width))[key[1]])
+        out[r] = (last[key], after[i])
+        last[key] = int(after[i])
+    return out
 
 
 # ---------------------------------------------------------------------------- inputs
@@ -298,6 +315,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     depth = np.zeros(F)
     verdict = np.zeros(F, np.uint8)
     point_coord = np.full((F, 2), np.nan)                   # a line's or a point's fragments only
+    stencil = np.zeros((F, 2), np.uint8)                    # (before, after), of a draw with the stencil test on
     prim = np.zeros(F, np.int64)
     tri = np.zeros(F, np.int64)
     sample = np.zeros(F, np.int64)
@@ -312,6 +330,8 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         depth[sel], prim[sel], tri[sel], sample[sel] = f.depth[idx], f.primitive_id[idx], f.triangle[idx], \
             f.sample[idx]
         color[sel], after[sel], verdict[sel] = t.shaded.color[idx], t.merged.color_after[idx], t.merged.verdict[idx]
+        if t.call.state.stencil is not None and t.merged.stencil_after is not None:
+            stencil[sel] = _stencil_pairs(t, rows[sel, 0], idx, w)
         module = kernels.python_fragment_module(t.fragment_shader, t.primitives.layout)
         ncols = 0
         own = t.primitives.kind != "triangles"
@@ -406,6 +426,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         "draws": [{"name": _shown(n), "program": _shown(prog), "path": t.path, "fragments": int(len(t)),
                    "triangles": int(len(t.primitives)), "input_triangles": int(t.primitives.input_count),
                    "kind": t.primitives.kind, "polygon_mode": t.primitives.faces is not None,
+                   "stencil": t.call.state.stencil is not None,
                    "tri_offset": int(tri_offset[k]), "varyings": [[a, int(b)] for a, b in layouts[k]],
                    "shadow_lights": int(shadow_cols[k]),
                    "object_space": "object" if t.call.vertex_shader is not None else "given (clip)",
@@ -424,6 +445,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         "f_verdict": _array(verdict, "u1"), "f_color": _array(color, "f4"), "f_after_same": _array(same, "u1"),
         "f_after": _array(after[~same], "f4"),
         "f_vary": _array(vary, "f4"), "f_shadow": _array(shadow, "f4"), "f_pc": _array(point_coord, "f4"),
+        "f_stencil": _array(stencil, "u1"),
         "t_id": _array(gid, "u4"), "t_window": _array(t_window[t_own == 1], "f4"), "t_prim": _array(t_prim, "u4"),
         "t_clipped": _array(t_clipped, "u1"), "t_own": _array(t_own, "u1"), "t_size": _array(t_size, "f4"), "t_vindex": _array(t_vindex, "u4"), "t_vert": _array(t_vert, "u4"),
         "v_obj": _array(cat(v_obj, 4), "f4"), "v_clip": _array(cat(v_clip, 4), "f4"),
@@ -577,6 +599,7 @@ class ExplorerData:
                         "verdict": self.meta["verdicts"][int(a["f_verdict"][r])],
                         "color_after": tuple(float(c) for c in a["f_after"][r]), "shadow": shadow,
                         "point_coord": pc,
+                        "stencil": (tuple(int(c) for c in a["f_stencil"][r]) if d.get("stencil") else ()),
                         "before": tuple(float(c) for c in a["h_before"][j])})
         return out
 

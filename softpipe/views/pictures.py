@@ -23,6 +23,12 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
 ``final``       the color buffer after the draw
 ``non-finite``  only when the framebuffer holds a NaN or infinite color: the final picture
                 with those pixels magenta (a PNG would show them as 0, black)
+``stencil``     only for a draw with the stencil test on: the stencil buffer (sample 0) after
+                the draw, each value its own color (0 black; :func:`id_colors`)
+``tests``       only when a fragment was stopped by the scissor, the stencil test or the
+                sample mask: at each pixel, what the merger did with the last fragment there
+                (:data:`TEST_COLORS`: written green, depth-failed red, stencil-failed orange,
+                scissored blue, sample-masked purple, discarded gray)
 ``shadow map k``  when the draw's ``lighting`` uniform carries shadow maps, each map's
                 depth as the light saw it (near dark, far light, no caster white;
                 :mod:`softpipe.scenes.shadow_pass`), scaled to the framebuffer's height; named
@@ -41,10 +47,13 @@ from typing import Dict
 
 import numpy as np
 
+from softpipe.pipeline.output import VERDICTS
+
 __all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage_pictures", "overdraw", "PICTURES",
            "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "draw_primitive_outlines", "OUTLINE_LAYERS",
            "draw_outline_layer", "draw_window_segments", "cut_outlines", "id_colors", "heat_colors",
-           "WHITE", "CYAN", "ORANGE", "RED", "YELLOW", "MAGENTA", "non_finite_pixels"]
+           "WHITE", "CYAN", "ORANGE", "RED", "YELLOW", "MAGENTA", "non_finite_pixels", "TEST_COLORS",
+           "merger_tests"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
 
@@ -54,6 +63,9 @@ ORANGE = (250, 150, 40)
 RED = (230, 50, 50)
 YELLOW = (250, 230, 80)
 MAGENTA = (255, 0, 255)
+#: The ``tests`` picture's color for each of the merger's verdicts (VERDICTS order).
+TEST_COLORS = {"written": (70, 200, 90), "depth-failed": RED, "discarded": (120, 120, 120),
+               "scissored": (70, 110, 240), "stencil-failed": ORANGE, "sample-masked": (170, 80, 220)}
 
 
 def _to_image_xy(window_xy: np.ndarray, height: int) -> np.ndarray:
@@ -205,8 +217,26 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
         marked = pics["final"].copy()
         marked[bad] = MAGENTA
         pics["non-finite"] = marked
+    if trace.call.state.stencil is not None:
+        stencil = fb.stencil
+        colors = id_colors(stencil.reshape(-1).astype(np.int64)).reshape(h, w, 3)
+        pics["stencil"] = np.where(stencil[..., None] > 0, colors, 0).astype(np.uint8)
+    verdicts = trace.verdicts
+    if np.isin(verdicts, ("scissored", "stencil-failed", "sample-masked")).any():
+        pics["tests"] = merger_tests(trace)
     pics.update(shadow_map_pictures(trace.call.uniforms, h, w))
     return pics
+
+
+def merger_tests(trace) -> np.ndarray:
+    """[H, W, 3] uint8: at each pixel, the verdict of the last fragment the merger saw there, colored by
+    :data:`TEST_COLORS` (black: no fragment)."""
+    img = np.zeros((trace.height, trace.width, 3), np.uint8)
+    f = trace.fragments
+    if len(f):
+        palette = np.array([TEST_COLORS[v] for v in VERDICTS], np.uint8)
+        img[f.y, f.x] = palette[trace.merged.verdict]     # fancy assignment: the last fragment wins
+    return img
 
 
 def non_finite_pixels(fb) -> np.ndarray:

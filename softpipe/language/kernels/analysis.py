@@ -22,7 +22,15 @@ import numba
 import numpy as np
 
 from softpipe.language.contract import ShaderError, VaryingLayout, field_size, python_function, shader_name
-from softpipe.language.kernels.diagnostics import BadReturn, def_site, from_shader, raised_error, return_error, rgba
+from softpipe.language.kernels.diagnostics import (
+    BadReturn,
+    check_parameters,
+    def_site,
+    from_shader,
+    raised_error,
+    return_error,
+    rgba,
+)
 from softpipe.language.kernels.snapshot import is_softpipe, nested_codes, reads, user_module
 
 __all__ = ["may_discard", "may_raise", "alpha_is_finite", "probe_vertex_shader", "probe_fragment_shader"]
@@ -156,6 +164,7 @@ def alpha_is_finite(shader: Callable) -> bool:
 
 def probe_vertex_shader(shader: Callable, attributes, uniforms) -> Tuple[Tuple[float, ...], Any]:
     """Run a vertex shader once in plain Python to learn the names and sizes it outputs."""
+    check_parameters("vertex", shader)
     f = python_function(shader)
     try:
         out = f(attributes, uniforms)

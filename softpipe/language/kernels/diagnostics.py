@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import difflib
 import dis
+import inspect
 import linecache
 import os
 import re
@@ -40,7 +41,8 @@ from softpipe.language.kernels.snapshot import helper_kind, nested_codes, reads
 
 __all__ = ["run_compiled", "plain_value", "vertex_site", "fragment_site", "visible_site", "rgba", "finite_rgba", "BadReturn", "return_error",
            "raised_error", "from_shader", "def_site",
-           "shown_file", "check_tuple_arithmetic", "users_traceback", "hide_internal_frames"]
+           "shown_file", "check_tuple_arithmetic", "check_parameters", "SHADER_PARAMETERS", "users_traceback",
+           "hide_internal_frames"]
 
 
 # ------------------------------------------------------------------ return values
@@ -474,6 +476,31 @@ def _tuple_literal_operand(seen: list) -> bool:
 _TUPLE_CHECKED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
+#: The parameters each kind of shader takes (softpipe.language.contract), and how many it may take.
+SHADER_PARAMETERS = {"vertex": ("(attributes, uniforms)", (2,)),
+                     "fragment": ("(varyings, uniforms, frag), or (varyings, uniforms, frag, derivatives)", (3, 4))}
+
+
+def check_parameters(kind: str, shader: Callable) -> None:
+    """Refuse a shader whose parameters do not fit its kind, naming them and its ``def`` line (numba would
+    say only that it "cannot bind" the arguments)."""
+    f = python_function(shader)
+    if not isinstance(f, types.FunctionType) or kind not in SHADER_PARAMETERS:
+        return
+    code = f.__code__
+    if code.co_flags & inspect.CO_VARARGS:
+        return
+    takes, counts = SHADER_PARAMETERS[kind]
+    n, required = code.co_argcount, code.co_argcount - len(f.__defaults__ or ())
+    if any(required <= c <= n for c in counts):
+        return
+    names = ", ".join(code.co_varnames[:n])
+    raise ShaderError(f"{kind} shader {shader_name(shader)} takes {n} parameter{'s' if n != 1 else ''} ({names}); "
+                      f"a {kind} shader takes {takes}\n"
+                      f"{_frame_text(code.co_filename, code.co_firstlineno, f.__name__)}",
+                      file=code.co_filename, line=code.co_firstlineno)
+
+
 def check_tuple_arithmetic(kind: str, shader: Callable) -> None:
     """Refuse ``+`` of a vector and a literal tuple: Python and numba concatenate tuples, so
     ``c + (0.1, 0.1, 0.1)`` makes 6 values, not a brighter color (a silent wrong picture).
@@ -751,6 +778,7 @@ def run_compiled(kind: str, shader: Callable, kernel: Callable, *args, site: Cal
     raised while it ran is reported with the invocation it happened on, which
     ``site`` (:func:`fragment_site`, :func:`visible_site`, :func:`vertex_site`) finds.
     """
+    check_parameters(kind, shader)
     check_tuple_arithmetic(kind, shader)
     try:
         if _needs_compiling(kernel):

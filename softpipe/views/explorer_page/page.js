@@ -192,11 +192,13 @@ function historyTable(x, y) {
   const vnames = [];                        // the union of the varyings of the draws here, in order
   draws.forEach(k => META.draws[k].varyings.forEach(([n, s]) => { if (!vnames.some(v => v[0] === n)) vnames.push([n, s]); }));
   const anyShadow = [...draws].some(k => META.draws[k].shadow_lights > 0);
+  const anyStencil = [...draws].some(k => META.draws[k].stencil);
   const kinds = new Set([...draws].map(kindOf));       // a line's t, a point's gl_PointCoord
   const where = kinds.has("lines") || kinds.has("points")
     ? [[kinds.has("lines") && kinds.has("points") ? "t / point coord" : (kinds.has("lines") ? "t" : "point coord")]] : [];
   const cols = ["draw", "#", "prim", "tri", "sample", "depth", ...where.map(c => c[0]), ...vnames.map(v => v[0]),
-                ...(anyShadow ? ["shadow V_j"] : []), "shader output", "merger", "color after"];
+                ...(anyShadow ? ["shadow V_j"] : []), "shader output", "merger", ...(anyStencil ? ["stencil"] : []),
+                "color after"];
   thead.innerHTML = "<tr>" + cols.map(c => `<th>${esc(c)}</th>`).join("") + "</tr>";
   const first = A.f_draw[r0];
   before.innerHTML = `${r1 - r0} fragment(s); color before draw ${first + 1} (${esc(META.draws[first].name)}): ` +
@@ -231,6 +233,7 @@ function historyTable(x, y) {
     const color = row("f_color", r, 4), after = row("f_after", r, 4);
     cells.push([swatch(color) + esc(tup(color)), "color", true]);
     cells.push([META.verdicts[A.f_verdict[r]] + (r === win ? " ★" : ""), "verdict"]);
+    if (anyStencil) cells.push([d.stencil ? `${A.f_stencil[2 * r]} → ${A.f_stencil[2 * r + 1]}` : "", "stencil"]);
     cells.push([swatch(after) + esc(tup(after)), "color_after", true]);
     const gt = d.tri_offset + A.f_tri[r];
     html += `<tr data-row="${r}" data-tri="${gt}" class="${r === win ? "winner" : ""}${state.picked === gt ? " picked" : ""}">` +
