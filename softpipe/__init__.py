@@ -53,6 +53,7 @@ from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.mesh import concatenate as concatenate_meshes
 from softpipe.scenes.models import load_model, model_path
 from softpipe.scenes.obj import OBJError, load_obj, parse_obj
+from softpipe.scenes.planar_mirror import render_planar_mirror
 from softpipe.scenes.scene import Scene
 from softpipe.scenes.shadow_pass import ShadowMaps, render_shadow_maps
 from softpipe.scenes.shadow_volumes import render_shadow_volumes
@@ -65,7 +66,7 @@ __all__ = [
     "pack_lights", "ShadowSettings", "ShadowUniform", "Texture2D", "TextureUniform", "Primitives", "assemble",
     "Camera", "DrawCall", "Stage", "draw", "ShadedFragments", "Framebuffer", "MergeResult", "MergeState",
     "Stencil", "OcclusionQuery",
-    "render_shadow_volumes", "depth_peel", "weighted_oit",
+    "render_shadow_volumes", "render_planar_mirror", "depth_peel", "weighted_oit",
     "Fragments", "rasterize", "CENTER", "SamplePattern", "grid", "jittered", "random_pattern",
     "rotated_grid_4x", "PixelHistory", "Trace", "Viewport", "compose", "frustum", "identity", "look_at",
     "normal_matrix", "opencv_camera", "orthographic", "perspective", "rotate", "rotate_x", "rotate_y",
