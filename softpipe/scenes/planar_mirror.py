@@ -149,7 +149,8 @@ def find_mirror(scene: Scene, camera: Camera, mirror: Optional[str] = None) -> T
                              f"{', '.join(repr(o.name) for o in objects) or 'none'})")
         obj = found[0]
     label = f"mirror {obj.name!r}"
-    kr = tuple(float(k) for k in obj.mesh.material.kr)
+    kr_r, kr_g, kr_b = (float(k) for k in obj.mesh.material.kr)
+    kr = (kr_r, kr_g, kr_b)
     if not max(kr) > 0.0:
         raise ValueError(f"{label}: its material's kr is {kr}: it reflects nothing (FORMULAS §13's k_r); "
                          "give the material kr > 0")
