@@ -124,13 +124,14 @@ def test_depth_write_must_be_a_bool():
 
 
 def test_unknown_blend_mode_and_factor():
-    with pytest.raises(ValueError, match=r"blend must be None, one of \('alpha', 'additive'\) or a \(src, dst\) "
-                                         r"pair .*got 'multiply'"):
+    with pytest.raises(ValueError, match=r"blend must be None, one of \('alpha', 'additive', 'premultiplied'\), a "
+                                         r"\(src, dst\) pair or a \(src_rgb, dst_rgb, src_alpha, dst_alpha\) "
+                                         r"quadruple .*got 'multiply'"):
         draw(blend="multiply")
     with pytest.raises(ValueError, match=r"unknown blend factor 'src'; expected one of \('zero', 'one', "):
         draw(blend=("src", "one"))
-    with pytest.raises(ValueError, match=r"blend must be None, a preset name or a \(src_factor, dst_factor\) pair, "
-                                         r"got \('one',\)"):
+    with pytest.raises(ValueError, match=r"blend must be None, a preset name, a \(src_factor, dst_factor\) pair or "
+                                         r"a \(src_rgb, dst_rgb, src_alpha, dst_alpha\) quadruple, got \('one',\)"):
         draw(blend=("one",))
 
 
