@@ -3,9 +3,10 @@ glDraw*Instanced with divisor-1 attributes.
 
 An instanced draw equals its N draws one after another, byte for byte (color and depth, on
 both paths); the shader sees ``attributes.instance_id`` (gl_InstanceID) and each instance's row
-of the instance attributes; ``frag.primitive_id`` restarts in each instance (GLSL 4.60 §7.1.5:
-gl_PrimitiveID counts the primitives "processed by the drawing command", and a
-glDraw*Instanced is one glDraw* per instance); strips do not run from one instance into the
+of the instance attributes; ``frag.primitive_id`` restarts in each instance (the GL 4 reference
+pages: gl_PrimitiveID(In) counts the primitives processed by the drawing command from zero, and
+glDrawArraysInstanced "has the same effect as" one glDrawArrays per instance); strips do not run
+from one instance into the
 next; the trace names each fragment's instance; bad input is refused with a message.
 """
 from collections import namedtuple
