@@ -26,6 +26,9 @@ bytes in every process.
                      per vertex (issue 29)
 ``points200k``       200,000 points of size 2 on and around a sphere at 1024², a color per
                      vertex (issue 29)
+``field10k``         10,000 instances of an 80-triangle ball on a 100 × 100 field at 1024², in
+                     one instanced draw: each instance's place, size and color are instance
+                     attributes (issue 31)
 =================== ===================================================================
 
 The lit scenes use softpipe's built-in programs when they are there
@@ -57,7 +60,7 @@ from softpipe.programs import get_program
 from softpipe.scenes.drawing import standard_uniforms
 from softpipe.scenes.models import MODELS_DIR
 from softpipe.scenes.obj import load_obj
-from softpipe.scenes.shapes import plane, uv_sphere
+from softpipe.scenes.shapes import icosphere, plane, uv_sphere
 from softpipe.shading import standard_vertex
 
 __all__ = ["Scene", "SCENES", "build_scene", "AssetMissing", "ASSETS", "asset_path", "TEXTURE_NOTE"]
@@ -132,6 +135,15 @@ def color_vertex(attributes, uniforms):
     p = attributes.position
     clip = mat4_mul_vec4(uniforms.mvp, (p[0], p[1], p[2], 1.0))
     return clip, ColorVaryings(attributes.color)
+
+
+def instanced_vertex(attributes, uniforms):
+    """An instance's place and size (instance attributes ``place``, ``size``), then MVP (uniform ``mvp``);
+    its ``color``, shaded by the vertex's height in the ball, as the varying."""
+    p, o, k = attributes.position, attributes.place, attributes.size
+    clip = mat4_mul_vec4(uniforms.mvp, (k * p[0] + o[0], k * p[1] + o[1], k * p[2] + o[2], 1.0))
+    c, light = attributes.color, 0.6 + 0.4 * p[1]
+    return clip, ColorVaryings((c[0] * light, c[1] * light, c[2] * light))
 
 
 def blinn_phong_fragment(varyings, uniforms, frag):
@@ -527,6 +539,32 @@ def points200k(scale: float = 1.0) -> Scene:
                  scale=scale, shading=_shader_names(color_vertex, None))
 
 
+FIELD_INSTANCES = 10_000
+
+
+def field10k(scale: float = 1.0) -> Scene:
+    """10,000 instances (fewer at a smaller scale, 100 at least) of an icosphere of 80 triangles on a square
+    field, seen from above and in front, in one instanced draw (issue 31); depth LESS, back faces culled."""
+    w, h = _size(1024, 1024, scale)
+    side = max(10, round(math.sqrt(FIELD_INSTANCES) * scale))
+    n = side * side
+    ball = icosphere(0.5, 1)
+    rng = np.random.default_rng(31)
+    i, k = np.divmod(np.arange(n), side)
+    place = np.stack([i - (side - 1) / 2, np.zeros(n), k - (side - 1) / 2], 1) + rng.uniform(-0.2, 0.2, (n, 3))
+    camera = Camera(eye=(0.0, 0.55 * side, 0.85 * side), target=(0.0, 0.0, 0.05 * side), fovy=50.0, near=0.1,
+                    far=3.0 * side)
+    base = standard_uniforms(camera, w / h)
+    draws = [dict(positions=ball.positions, indices=ball.indices, vertex_shader=instanced_vertex,
+                  uniforms={"mvp": compose(base["projection"], base["model_view"])}, cull="back", instances=n,
+                  instance_attributes={"place": place, "size": rng.uniform(0.6, 1.0, n),
+                                       "color": rng.uniform(0.3, 1.0, (n, 3))})]
+    return Scene("field10k", w, h, draws, n * ball.triangle_count,
+                 f"{n:,} instances of an {ball.triangle_count}-triangle ball in one instanced draw, each placed, "
+                 "sized and colored by its instance attributes", scale=scale,
+                 shading=_shader_names(instanced_vertex, None))
+
+
 SCENES: Dict[str, Callable[[float], Scene]] = {
     "sphere200k": sphere200k,
     "sphere200k-color": sphere200k_color,
@@ -544,6 +582,7 @@ SCENES: Dict[str, Callable[[float], Scene]] = {
     "bunny-shadows": _bunny_on_plane("bunny-shadows", shadows=True),
     "bunny-wireframe": bunny_wireframe,
     "points200k": points200k,
+    "field10k": field10k,
 }
 
 

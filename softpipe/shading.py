@@ -26,7 +26,9 @@ A shader is a plain Python function, written like GLSL and compiled by numba::
 ``attributes``
     The vertex's inputs by name: ``position`` (the ``positions`` of the draw)
     and every array given as ``attributes=`` (``normal``, ``uv``, …). A field
-    is a float for an ``[N]`` array, a tuple of k floats for ``[N, k]``.
+    is a float for an ``[N]`` array, a tuple of k floats for ``[N, k]``. An
+    instanced draw adds its ``instance_attributes=`` (the instance's row) and
+    ``instance_id`` (``gl_InstanceID``, an int).
 ``uniforms``
     The draw's ``uniforms=`` dict, the same for every invocation, by name:
     numbers become floats, short vectors tuples, matrices numpy arrays,

@@ -29,6 +29,7 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "environment": (24, 10),
     "planar_mirror": ((32, 24), 8),
     "transparency": ((32, 24), 7),
+    "instancing": ((32, 24), 3),
 }
 
 

@@ -9,6 +9,13 @@ of floats, and its inputs arrive as namedtuples so that they read by name
     def fragment(varyings, uniforms, frag):              # -> (r, g, b, a) or DISCARD
     def fragment(varyings, uniforms, frag, derivatives): # with exact dFdx / dFdy
 
+A vertex shader's ``attributes`` holds, by name, ``position`` (the draw's positions) and
+every array given as ``attributes=``: a float for an [N] array, a tuple of k floats for
+[N, k]. In an instanced draw (``draw(..., instances=N, instance_attributes={...})``) it
+holds too each instance attribute, the row of the instance being drawn, and
+``instance_id``, GLSL's ``gl_InstanceID``: an int, 0 for the first instance (so
+``uniforms.table[attributes.instance_id]`` picks an instance's row of a uniform table).
+
 Here: :data:`FragInfo` (``x``, ``y`` as ``gl_FragCoord``, ``z``, ``front_facing``,
 ``primitive_id``, ``point_coord``), :data:`DISCARD`, :class:`Derivatives`, the uniforms
 (:func:`make_uniforms`, :func:`reads_uniforms`: GLSL's ``uniform`` declarations, so a
@@ -42,6 +49,8 @@ __all__ = ["FragInfo", "DISCARD", "Derivatives", "ShaderError", "make_uniforms",
 #: ``point_coord``, where the fragment lies in its primitive: on a point GLSL's ``gl_PointCoord``
 #: (s, t), from (0, 0) at the square's upper-left corner to (1, 1); on a line (t, 0), t from 0 at
 #: its first end to 1 at its last; on a triangle its barycentrics (b1, b2) (b0 = 1 − b1 − b2).
+#: ``primitive_id`` is ``gl_PrimitiveID``: the primitive's number in the draw, from 0, restarting
+#: at 0 in each instance of an instanced draw.
 #: (A FragInfo made in Python without ``point_coord``, for calling a shader by hand, gets (0, 0).)
 FragInfo = namedtuple("FragInfo", ["x", "y", "z", "front_facing", "primitive_id", "point_coord"],
                       defaults=((0.0, 0.0),))

@@ -44,6 +44,15 @@ copied to every corner before clipping. The provoking vertex is the last one of
 each triangle and each line (its second end; a line loop's closing line's is the
 first vertex), as OpenGL's default; in polygon mode the edges and corners of a
 triangle keep the triangle's.
+
+An instanced draw (:attr:`VertexOut.instances` = N, V vertices each) repeats the
+topology once per instance over that instance's vertices (vertex v of instance i
+is row i·V + v), as GL's ``glDraw*Instanced`` runs the draw once per instance:
+all of instance 0's primitives, then instance 1's, …; a strip, fan or loop starts
+afresh in each instance (none joins one instance's last vertex to the next one's
+first). Each primitive's ``primitive_id`` counts within its instance, from 0
+(``gl_PrimitiveID`` restarts with each instance), and :attr:`Primitives.instance`
+names its instance.
 """
 from __future__ import annotations
 
@@ -102,16 +111,19 @@ class Primitives:
     layout : VaryingLayout
     primitive_id : int64 [P]
         Index of the input primitive each comes from (a clipped triangle may give
-        several; in polygon mode, an edge or corner has its triangle's).
+        several; in polygon mode, an edge or corner has its triangle's), counted
+        within its instance in an instanced draw (GLSL's ``gl_PrimitiveID``).
     front_facing : bool [P]
         Always True for points and lines.
     clipped : bool [P]
         True for pieces of a primitive that clipping cut.
     dropped : dict reason → int64 array of primitive ids
         Input primitives that produced nothing here, and why: ``"non-finite"``,
-        ``"outside"`` (entirely outside the clip volume), ``"culled"``.
+        ``"outside"`` (entirely outside the clip volume), ``"culled"``. In an
+        instanced draw these count over the whole draw: i·(input_count / instances) + id
+        for primitive ``id`` of instance i.
     input_count : int
-        Number of primitives the topology produced.
+        Number of primitives the topology produced (every instance's).
     culled_window : float64 [C, 3, 3]
         Window coordinates of the triangles culled for their facing (kept for pictures).
     kind : "triangles" | "lines" | "points"
@@ -121,6 +133,11 @@ class Primitives:
     faces : Primitives or None
         In polygon mode "line" or "point": the filled triangles whose edges or corners these
         are (a polygon offset takes their slope, as GL's ``POLYGON_OFFSET_LINE`` does).
+    instance : int64 [P] or None
+        The instance each comes from (``gl_InstanceID``; all 0 without instancing;
+        None in Primitives made by hand).
+    instances : int
+        How many instances the draw had (1 without instancing).
     """
 
     window: np.ndarray
@@ -136,13 +153,16 @@ class Primitives:
     kind: str = "triangles"
     size: np.ndarray = field(default_factory=lambda: np.zeros(0))
     faces: Optional["Primitives"] = None
+    instance: Optional[np.ndarray] = None
+    instances: int = 1
 
     def __len__(self) -> int:
         return len(self.window)
 
     def __repr__(self) -> str:
         drops = ", ".join(f"{k}: {len(v)}" for k, v in self.dropped.items() if len(v))
-        return (f"Primitives({len(self)} {self.kind} from {self.input_count} input"
+        instances = f" ({self.instances} instances)" if self.instances != 1 else ""
+        return (f"Primitives({len(self)} {self.kind} from {self.input_count} input{instances}"
                 f"{'; dropped ' + drops if drops else ''}; {int(self.clipped.sum())} clipped pieces)")
 
 
@@ -715,7 +735,9 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
         raise ValueError(f"depth_clamp must be True or False, got {depth_clamp!r}")
     clipping = (user, bool(depth_clamp))
     kind = primitive_kind(topology, polygon_mode)
-    corners = primitive_indices(topology, indices, len(vout.position))
+    corners = primitive_indices(topology, indices, vout.vertices_per_instance)
+    per_instance = len(corners)
+    corners = _per_instance(corners, vout)
     whole_list = indices is None and topology == "triangles"
     if topology in TRIANGLE_TOPOLOGIES and kind != "triangles":
         faces = _assemble(vout, corners, corners[:, 2], "triangles", viewport, cull, front_face, keep_culled,
@@ -726,10 +748,30 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
                           point_size, line_width, clipping)
         prims.primitive_id = owner[prims.primitive_id]
         prims.dropped, prims.input_count, prims.culled_window = faces.dropped, faces.input_count, faces.culled_window
-        prims.faces = faces
-        return prims
-    return _assemble(vout, corners, corners[:, 2], kind, viewport, cull, front_face, keep_culled, whole_list,
-                     point_size, line_width, clipping)
+        prims.faces = _name_instances(faces, per_instance, vout.instances)
+        return _name_instances(prims, per_instance, vout.instances)
+    prims = _assemble(vout, corners, corners[:, 2], kind, viewport, cull, front_face, keep_culled, whole_list,
+                      point_size, line_width, clipping)
+    return _name_instances(prims, per_instance, vout.instances)
+
+
+def _per_instance(corners: np.ndarray, vout: VertexOut) -> np.ndarray:
+    """One instance's primitives' corners [P, 3] repeated for every instance (instance i's vertices are rows
+    i·V … i·V + V − 1), instance by instance: [N·P, 3]."""
+    if vout.instance_vertices is None:
+        return corners
+    shift = np.arange(vout.instances, dtype=np.int64) * vout.instance_vertices
+    return (corners[None, :, :] + shift[:, None, None]).reshape(-1, 3)
+
+
+def _name_instances(prims: Primitives, per_instance: int, instances: int) -> Primitives:
+    """Split the draw-wide primitive ids (i·P + id) into the instance i and the id within it."""
+    prims.instances = instances
+    if instances == 1 or per_instance == 0:
+        prims.instance = np.zeros(len(prims), np.int64)
+    else:
+        prims.instance, prims.primitive_id = np.divmod(prims.primitive_id, per_instance)
+    return prims
 
 
 def check_size(name: str, value) -> float:

@@ -56,7 +56,7 @@ from softpipe.pipeline.output import (
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
 from softpipe.pipeline.setup import SHADING_POSITIONS, TriangleSetup, apply_polygon_offset, pixel_rect, setup_triangles
 from softpipe.pipeline.transforms import Viewport
-from softpipe.pipeline.vertex import run_vertex_stage
+from softpipe.pipeline.vertex import check_instances, run_vertex_stage
 from softpipe.pipeline.visibility import (
     PATHS,
     DiscardOnFastPath,
@@ -160,7 +160,8 @@ class DrawCall:
                  blend_equation: Union[str, Tuple[str, str]] = "add",
                  blend_color: Tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
                  sample_mask: int = ALL_SAMPLES, alpha_to_coverage: bool = False,
-                 query: Optional[OcclusionQuery] = None):
+                 query: Optional[OcclusionQuery] = None, instances: Optional[int] = None,
+                 instance_attributes: Optional[Mapping[str, Any]] = None):
         if not isinstance(framebuffer, Framebuffer):
             raise TypeError(f"framebuffer must be a softpipe.Framebuffer, got {type(framebuffer).__name__}")
         viewport = viewport or Viewport(0, 0, framebuffer.width, framebuffer.height)
@@ -174,6 +175,9 @@ class DrawCall:
                                 f"{type(f).__name__}; a shader's extra inputs are uniforms (a functools.partial "
                                 "or a callable object cannot be compiled)")
         self.vertex_shader, self.fragment_shader = vertex_shader, fragment_shader
+        if instances is not None:       # checked now; the vertex stage checks them against the shader
+            check_instances(instances, instance_attributes, attributes)
+        self.instances, self.instance_attributes = instances, instance_attributes
         self.uniforms = make_uniforms(uniforms)
         self.topology, self.interpolation, self.cull, self.front_face = topology, interpolation, cull, front_face
         self.polygon_mode = polygon_mode
@@ -282,8 +286,8 @@ class DrawCall:
         face_setup = setup_triangles(faces.window, self.rect, self.framebuffer.pattern.offsets)
         before = face_setup.plane[:, 0].copy()
         apply_polygon_offset(face_setup, faces.window, *polygon_offset)
-        triangles, first_row = np.unique(faces.primitive_id, return_index=True)
-        offset = (face_setup.plane[:, 0] - before)[first_row[np.searchsorted(triangles, prims.primitive_id)]]
+        triangles, first_row = np.unique(_draw_wide_ids(faces), return_index=True)
+        offset = (face_setup.plane[:, 0] - before)[first_row[np.searchsorted(triangles, _draw_wide_ids(prims))]]
         setup.depth += offset[:, None] if setup.depth.ndim == 2 else offset
 
     def _pixel_rect(self, scissor: bool) -> np.ndarray:
@@ -300,7 +304,7 @@ class DrawCall:
     def _check_memory(self, vout) -> None:
         """Refuse, before assembly, a draw whose primitives cannot fit in memory (:data:`BYTES_PER_TRIANGLE`:
         a line or point takes as much as a triangle)."""
-        n = len(vout.position) if self.indices is None else np.size(self.indices)
+        n = len(vout.position) if self.indices is None else np.size(self.indices) * vout.instances
         per_kind = {"triangles": n // 3, "lines": n // 2, "triangle_strip": n - 2, "triangle_fan": n - 2}
         triangles = max(per_kind.get(self.topology, n), 0) * (3 if self.polygon_mode != "fill" else 1)
         per_triangle = BYTES_PER_TRIANGLE + BYTES_PER_TRIANGLE_VARYING * vout.layout.width
@@ -417,7 +421,8 @@ class DrawCall:
         return None
 
     def _vertex_stage(self):
-        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes)
+        vout = run_vertex_stage(self.positions, self.varyings, self.vertex_shader, self.uniforms, self.attributes,
+                                self.instances, self.instance_attributes)
         vout.layout = vout.layout.with_qualifiers(self.interpolation)
         if self.fragment_shader is None:
             default_fragment_shader(vout.layout)     # no 'color' varying: say so now, drawn or not
@@ -432,6 +437,13 @@ class DrawCall:
         if stage.name in debug:
             print(f"[softpipe {stage.name}] {stage.output!r}", file=sys.stderr)
         return stage
+
+
+def _draw_wide_ids(prims: Primitives) -> np.ndarray:
+    """Each primitive's input primitive over the whole draw (an instanced draw's ids restart per instance)."""
+    if prims.instances in (0, 1) or prims.instance is None:
+        return prims.primitive_id
+    return prims.instance * (prims.input_count // prims.instances) + prims.primitive_id
 
 
 def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[Mapping[str, Any]] = None,
@@ -458,6 +470,17 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         Keep every stage's output and return it as a :class:`~softpipe.pipeline.trace.Trace`.
     attributes : dict name → [N, k] array, optional
         Extra vertex-shader inputs.
+    instances : int, optional
+        Instancing (GL's ``glDrawArraysInstanced`` / ``glDrawElementsInstanced``): draw the
+        vertices (and indices) this many times, the vertex shader running once per vertex per
+        instance and seeing ``attributes.instance_id`` (``gl_InstanceID``, an int from 0).
+        Instance 0's primitives are drawn first, then instance 1's, …; strips, fans and loops
+        restart in each instance; ``frag.primitive_id`` restarts at 0 in each
+        (:attr:`Primitives.instance` names the instance). 0 draws nothing. Needs a vertex shader.
+    instance_attributes : dict name → [instances, k] array, optional
+        Per-instance vertex-shader inputs (``glVertexAttribDivisor`` 1): every vertex of instance
+        i sees row i as ``attributes.<name>``; k is 1 to 4, the values finite, the names apart
+        from the per-vertex attributes'.
     topology : "points" | "lines" | "line_strip" | "line_loop" | "triangles" | "triangle_strip" | "triangle_fan"
         GL's primitive types (default "triangles"); lines follow GL's diamond-exit rule
         (:mod:`softpipe.pipeline.lines`), points GL's square (:mod:`softpipe.pipeline.points`).

@@ -147,6 +147,7 @@ class PixelEvent:
     shadow: tuple = ()          # V_j of each light at the fragment (RGB), when the draw has shadow maps
     point_coord: tuple = ()     # of a line's or a point's fragment: frag.point_coord ((t, 0) on a line)
     stencil: tuple = ()         # (before, after) the sample's stencil value, when the draw's stencil test is on
+    instance: int = 0           # the instance its primitive belongs to (gl_InstanceID; 0 without instancing)
 
 
 class PixelHistory(list):
@@ -157,12 +158,15 @@ class PixelHistory(list):
     ``kind`` is the draw's primitives' (``Primitives.kind``): for "lines" the table names the
     line and shows each fragment's t along it, for "points" the point and its ``gl_PointCoord``;
     with ``polygon_mode`` (a triangle's edges or corners) the "triangle" column names the triangle.
+    ``instances`` is the draw's (1 without instancing); with more than one, an "instance" column
+    names each fragment's instance beside its primitive (whose id counts within the instance).
     """
 
     def __init__(self, x: int, y: int, events: List[PixelEvent], before: Optional[tuple], kind: str = "triangles",
-                 polygon_mode: bool = False):
+                 polygon_mode: bool = False, instances: int = 1):
         super().__init__(events)
         self.x, self.y, self.before, self.kind, self.polygon_mode = x, y, before, kind, polygon_mode
+        self.instances = instances
 
     @staticmethod
     def _fmt(v) -> str:
@@ -187,9 +191,11 @@ class PixelHistory(list):
         # a line's fragment: t along it; a point's: gl_PointCoord (none for a triangle's)
         where = {"lines": ["t"], "points": ["point coord"]}.get(self.kind, [])
         label = "prim" if not where else ("triangle" if self.polygon_mode else self.kind[:-1])
-        cols = (["#", label, "sample", "depth"] + where + names + shadow
+        instance = ["instance"] if self.instances > 1 else []
+        cols = (["#"] + instance + [label, "sample", "depth"] + where + names + shadow
                 + ["shader output", "merger"] + stencil + ["color after"])
-        rows = [[str(e.index), str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
+        rows = [[str(e.index)] + ([str(e.instance)] if instance else [])
+                + [str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
                 + ([fmt(e.point_coord[0]) if self.kind == "lines" else fmt(e.point_coord)] if where else [])
                 + [fmt(getattr(e.varyings, n)) for n in names]
                 + ([self._fmt_shadow(e.shadow)] if shadow else [])
@@ -464,6 +470,7 @@ class Trace:
         assert m.color_after is not None    # a trace's merge keeps it (recorded)
         events = []
         kind = self.primitives.kind
+        instance_of = self.primitives.instance
         stencil_on = self.call.state.stencil is not None and m.stencil_after is not None
         stencil_now = self.stencil_before_at(x, y).astype(int) if stencil_on and len(idx) else None
         for k in idx:
@@ -473,7 +480,8 @@ class Trace:
                 index=int(k), primitive_id=int(f.primitive_id[k]), triangle=int(f.triangle[k]),
                 sample=int(f.sample[k]), depth=float(f.depth[k]), varyings=varyings,
                 color=tuple(float(c) for c in s.color[k]), verdict=VERDICTS[m.verdict[k]],
-                color_after=tuple(float(c) for c in m.color_after[k])))
+                color_after=tuple(float(c) for c in m.color_after[k]),
+                instance=int(instance_of[f.triangle[k]]) if instance_of is not None else 0))
             events[-1].shadow = self._shadow_terms(varyings)
             if stencil_now is not None and m.stencil_after is not None:   # before: the sample's last fragment's after
                 sample = int(f.sample[k])
@@ -485,7 +493,8 @@ class Trace:
             before = None       # not touched, and the framebuffer has changed since: not kept (module docstring)
         else:
             before = tuple(float(c) for c in self.before_at(x, y)[0][0])
-        return PixelHistory(x, y, events, before, kind, self.primitives.faces is not None)
+        return PixelHistory(x, y, events, before, kind, self.primitives.faces is not None,
+                            self.primitives.instances)
 
     def _shadow_terms(self, varyings) -> tuple:
         """V_j of every light at the fragment's eye-space ``position`` varying (FORMULAS §21), as the lit
