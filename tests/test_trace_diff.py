@@ -186,3 +186,18 @@ def test_softpipe_explore_diff_on_the_command_line(tmp_path, capsys):
             in capsys.readouterr().err)
     assert main(["explore", "-o", str(out)]) == 2
     assert "softpipe explore: error: give INPUT (or --diff A B)" in capsys.readouterr().err
+    assert main(["explore", str(tmp_path / "a.toml"), "--pixel", "1", "2", "-o", str(out)]) == 2
+    assert "softpipe explore: error: --pixel applies only with --diff A B" in capsys.readouterr().err
+    assert main(["explore", "--diff", str(tmp_path / "a.toml"), str(tmp_path / "b.toml"), "--pixel", "32", "0",
+                 "-o", str(tmp_path / "other.html"), "--size", "32x24", "-q"]) == 2
+    assert ("softpipe explore: error: --pixel: diff page: pixel (32, 0) is outside the 32×24 picture"
+            in capsys.readouterr().err)
+    assert not (tmp_path / "other.html").exists()
+
+
+def test_softpipe_explore_overlays_on_the_command_line(tmp_path, capsys):
+    (tmp_path / "a.toml").write_text(SCENE.format(ball="[0.8, 0.2, 0.1]"))
+    out = tmp_path / "page.html"
+    assert main(["explore", str(tmp_path / "a.toml"), "--overlays", "-o", str(out), "--size", "32x24", "-q"]) == 0
+    page = out.read_text()
+    assert all(f'alt="{name}"' in page for name in ("triangle size", "depth test", "clipped and culled"))

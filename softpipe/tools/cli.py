@@ -371,6 +371,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="instead of INPUT: render A and B (models or scene files) with the same options and "
                               "write their diff: the changed pixels, and for one pixel (--pixel) the two histories "
                               "side by side with the first fragment that differs (softpipe.views.diff)")
+    explore.add_argument("--overlays", action="store_true",
+                         help="add RenderDoc's overlays to the pictures: triangle size, depth test pass/fail, "
+                              "clipped and culled triangles (softpipe.views.overlays)")
     explore.add_argument("--pixel", nargs=2, type=int, metavar=("X", "Y"),
                          help="with --diff: the pixel whose histories the page shows (default the first changed)")
     explore.add_argument("--max-fragments", type=_fragment_count, metavar="N",
@@ -820,7 +823,7 @@ def _explore(args) -> int:
 
     results = _traced_render(args, scene)
     _progress(args, "gathering every pixel's history")
-    summary = write_explorer(results, output, max_fragments=args.max_fragments or MAX_FRAGMENTS,
+    summary = write_explorer(results, output, max_fragments=args.max_fragments or MAX_FRAGMENTS, overlays=args.overlays,
                              progress=lambda done, total: _progress(args, f"fragment {done}/{total}"))
     _wrote(args, output, f"wrote {summary.path.resolve()} ({summary.bytes / 1e6:.1f} MB, {scene.width}×{scene.height}, "
                          f"{len(results)} draw(s); {summary.held['statement']}; {time.perf_counter() - start:.2f} s)")
