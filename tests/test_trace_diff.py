@@ -48,7 +48,11 @@ def test_one_triangles_color_changed_names_its_pixels_and_its_fragments_shader_o
     assert str(d).endswith(f"{want.sum()} pixel(s) changed ({100 * want.sum() / (W * H):.3g}%); the largest change "
                            "|Δ| = 1 at " + str(d.pixels()[0]).replace(" ", " ") + "; mean |Δ| over the changed "
                            "pixels 1")
-    assert "shader output" in str(d.first_difference(*d.pixels()[0]))
+    x, y = d.pixels()[0]
+    k = int(a.at(x, y)[0])
+    assert str(d.first_difference(x, y)) == (
+        f"pixel ({x}, {y}): fragment 0 of its history differs in its shader output: A fragment #{k} of draw 0, "
+        f"primitive 1: (1, 0, 0, 1); B fragment #{k} of draw 0, primitive 1: (0, 0, 1, 1)")
 
 
 def test_the_diff_picture_marks_the_changed_pixels_by_how_much():

@@ -66,6 +66,19 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
+def _shown(value: Any) -> str:
+    """A field's value as the pixel history prints it: floats to 4 significant digits."""
+    if isinstance(value, tuple):
+        names = getattr(value, "_fields", None)
+        items = [_shown(v) for v in value]
+        if names:
+            return "(" + ", ".join(f"{n}={v}" for n, v in zip(names, items)) + ")"
+        return "(" + ", ".join(items) + ")"
+    if isinstance(value, (float, np.floating)):
+        return f"{value:.4g}"
+    return str(value)
+
+
 def _field_values(draw: int, e) -> dict:
     return {"draw": draw, "primitive": e.primitive_id, "sample": e.sample, "depth": e.depth,
             "varyings": e.varyings, "shader output": e.color, "verdict": e.verdict, "stencil": e.stencil,
@@ -97,7 +110,7 @@ class FragmentDifference:
         def side(e, draw, value):
             if e is None:
                 return "no fragment"
-            return f"fragment #{e.index} of draw {draw}, primitive {e.primitive_id}: {value!r}"
+            return f"fragment #{e.index} of draw {draw}, primitive {e.primitive_id}: {_shown(value)}"
         return (f"pixel ({self.x}, {self.y}): fragment {self.position} of its history differs in its "
                 f"{self.field}: A {side(self.a, self.draw_a, self.value_a)}; B {side(self.b, self.draw_b, self.value_b)}")
 
@@ -316,7 +329,7 @@ def _history_table(events: list, mark: Optional[int]) -> str:
     for k, (draw, e) in enumerate(events):
         v = _field_values(draw, e)
         style = ' class="first"' if k == mark else ""
-        cells = "".join(f"<td>{html.escape(str(v[n]))}</td>" for n in names)
+        cells = "".join(f"<td>{html.escape(_shown(v[n]))}</td>" for n in names)
         rows.append(f"<tr{style}><td>{e.index}</td>{cells}</tr>")
     return "\n".join(rows + ["</table>"])
 

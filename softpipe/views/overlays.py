@@ -16,8 +16,9 @@ Each is an [H, W, 3] uint8 array the size of the framebuffer, computed from the 
                         stopped before the depth test (discarded, scissored, stencil-failed,
                         sample-masked) is neither (:func:`depth_test_counts`)
 ``clipped and culled``  the final picture at half brightness, with the pixels written by
-                        the pieces clipping made in cyan and the outline of each triangle
-                        culled for facing in red over it
+                        the pieces clipping made in cyan, and the outline of each triangle
+                        culled for facing in red where the draws wrote nothing (where the
+                        culling shows: a closed mesh's back faces lie under its front)
 
 The other overlays RenderDoc users ask for are stage pictures already
 (:mod:`softpipe.views.pictures`): ``overdraw``, ``non-finite`` (NaN and infinity),
@@ -115,7 +116,8 @@ def depth_test_picture(traces) -> np.ndarray:
 
 def clipped_and_culled(traces) -> np.ndarray:
     """[H, W, 3] uint8: the last draw's framebuffer at half brightness; cyan where a piece clipping made
-    was last written; each triangle culled for facing outlined in red over it."""
+    was last written; the outline of each triangle culled for facing in red where the draws wrote nothing
+    (where culling left a hole: a closed mesh's back faces, hidden under its front, show no red)."""
     ts = _traces(traces)
     img = (ts[-1].call.framebuffer.to_uint8(alpha=False) // 2).astype(np.uint8)
     h, w = img.shape[:2]
@@ -125,8 +127,10 @@ def clipped_and_culled(traces) -> np.ndarray:
         if wr.any():
             cut[f.y[wr], f.x[wr]] = np.where(t.primitives.clipped[f.triangle[wr]], 1, -1)
     img[cut == 1] = CYAN
+    outline = np.zeros_like(img)        # a closed mesh's back faces lie under its front: outlines there are noise
     for t in ts:
-        draw_triangle_outlines(img, t.primitives.culled_window, h, RED)
+        draw_triangle_outlines(outline, t.primitives.culled_window, h, RED)
+    img[outline.any(axis=2) & (cut == 0)] = RED
     return img
 
 
