@@ -535,6 +535,12 @@ class Trace:
         from softpipe.views.explorer import write_explorer
         return write_explorer(self, path, **options)
 
+    def diff(self, other):
+        """What changed from this draw to ``other`` (a Trace, a DrawResult, or a scene's list of either): a
+        :class:`softpipe.views.diff.TraceDiff` (the pixels changed, by how much, each one's first differing fragment)."""
+        from softpipe.views.diff import diff_draws
+        return diff_draws(self, other)
+
     def save_pictures(self, directory) -> dict:
         """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""
         from softpipe.views.pictures import save_stage_pictures

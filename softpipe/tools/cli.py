@@ -5,6 +5,7 @@
     softpipe render SCENE.toml -o out.png           a scene file (softpipe.scenes.scenefile)
     softpipe turntable MODEL -o spin.gif            an animated GIF, the camera circling the model
     softpipe explore MODEL -o report.html           the pipeline explorer: every stage, every pixel's history (softpipe.views.explorer)
+    softpipe explore --diff A B -o diff.html        what changed from A to B: the changed pixels, each one's first differing fragment
     softpipe batch JOBS.toml -o DIR                 every frame of a job, on a Dask cluster (softpipe.tools.batch)
     softpipe demo                                   the default scene
     softpipe programs                               the shading programs and sample patterns
@@ -363,8 +364,18 @@ def build_parser() -> argparse.ArgumentParser:
                     "docs/explorer.md.\n\nIn Python: trace.to_html(PAGE), or "
                     "softpipe.views.explorer.write_explorer(results, PAGE).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    explore.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
+    explore.add_argument("input", metavar="INPUT", nargs="?",
+                         help="a .obj model, a bundled model's name or a .toml scene file")
     explore.add_argument("-o", "--output", metavar="PAGE", help="the .html page to write; default out/NAME.html")
+    explore.add_argument("--diff", nargs=2, metavar=("A", "B"),
+                         help="instead of INPUT: render A and B (models or scene files) with the same options and "
+                              "write their diff: the changed pixels, and for one pixel (--pixel) the two histories "
+                              "side by side with the first fragment that differs (softpipe.views.diff)")
+    explore.add_argument("--overlays", action="store_true",
+                         help="add RenderDoc's overlays to the pictures: triangle size, depth test pass/fail, "
+                              "clipped and culled triangles (softpipe.views.overlays)")
+    explore.add_argument("--pixel", nargs=2, type=int, metavar=("X", "Y"),
+                         help="with --diff: the pixel whose histories the page shows (default the first changed)")
     explore.add_argument("--max-fragments", type=_fragment_count, metavar="N",
                          help="hold every pixel's history while the draws made at most N fragments (default "
                               "400000); beyond, the history of a regular grid of pixels (the page says which)")
@@ -753,15 +764,9 @@ def _html_format(path: str) -> str:
     return "HTML"
 
 
-def _explore(args) -> int:
-    from softpipe.scenes.drawing import RENDER_SIZE, draw_wireframe, render
-    from softpipe.views.explorer import MAX_FRAGMENTS, write_explorer
-    start = time.perf_counter()
-    output = _default_output(args, ".html")
-    if output == STDOUT:
-        raise CLIError("-o -: the explorer is written to a file (give an .html path)")
-    output = _checked_output(args, output, _html_format)
-    scene = _prepare(args, RENDER_SIZE)
+def _traced_render(args, scene) -> list:
+    """Every draw of ``scene`` traced (its wireframe's too), as softpipe.render's ``results``."""
+    from softpipe.scenes.drawing import draw_wireframe, render
 
     def progress(k, total, obj):
         if total > 1:
@@ -771,8 +776,54 @@ def _explore(args) -> int:
     fb = render(dataclasses.replace(scene, wireframe=False), trace=True, results=results, progress=progress)
     if scene.wireframe:     # its draws traced too, so the page shows the edges' pixels and their histories
         draw_wireframe(fb, scene, scene.view_camera(), trace=True, results=results)
+    return results
+
+
+def _explore_diff(args, start: float) -> int:
+    """``softpipe explore --diff A B``: A and B rendered with the same options, their diff as a page."""
+    from softpipe.scenes.drawing import RENDER_SIZE
+    from softpipe.views.diff import diff_draws, write_diff_page
+    if args.input:
+        raise CLIError("--diff A B compares two inputs; give no INPUT beside them")
+    a, b = args.diff
+    args.input = a
+    output = args.output or os.path.join("out", f"{Path(a).stem}-vs-{Path(b).stem}.html")
+    if output == STDOUT:
+        raise CLIError("-o -: the diff page is written to a file (give an .html path)")
+    output = _checked_output(args, output, _html_format)
+    sides = []
+    for name in (a, b):
+        args.input = name
+        sides.append(_traced_render(args, _prepare(args, RENDER_SIZE)))
+    diff = diff_draws(*sides)
+    try:
+        path = write_diff_page(diff, output, tuple(args.pixel) if args.pixel else None, names=(a, b),
+                               title=f"softpipe diff: {a} → {b}")
+    except ValueError as e:
+        raise CLIError(f"--pixel: {e}") from None
+    _wrote(args, output, f"wrote {path.resolve()} ({diff.summary()}; {time.perf_counter() - start:.2f} s)")
+    return 0
+
+
+def _explore(args) -> int:
+    from softpipe.scenes.drawing import RENDER_SIZE
+    from softpipe.views.explorer import MAX_FRAGMENTS, write_explorer
+    start = time.perf_counter()
+    if args.diff:
+        return _explore_diff(args, start)
+    if args.pixel:
+        raise CLIError("--pixel applies only with --diff A B")
+    if not args.input:
+        raise CLIError("give INPUT (or --diff A B)")
+    output = _default_output(args, ".html")
+    if output == STDOUT:
+        raise CLIError("-o -: the explorer is written to a file (give an .html path)")
+    output = _checked_output(args, output, _html_format)
+    scene = _prepare(args, RENDER_SIZE)
+
+    results = _traced_render(args, scene)
     _progress(args, "gathering every pixel's history")
-    summary = write_explorer(results, output, max_fragments=args.max_fragments or MAX_FRAGMENTS,
+    summary = write_explorer(results, output, max_fragments=args.max_fragments or MAX_FRAGMENTS, overlays=args.overlays,
                              progress=lambda done, total: _progress(args, f"fragment {done}/{total}"))
     _wrote(args, output, f"wrote {summary.path.resolve()} ({summary.bytes / 1e6:.1f} MB, {scene.width}×{scene.height}, "
                          f"{len(results)} draw(s); {summary.held['statement']}; {time.perf_counter() - start:.2f} s)")

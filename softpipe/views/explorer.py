@@ -273,7 +273,7 @@ def _varyings_flat(v) -> List[float]:
 
 
 def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, title: Optional[str] = None,
-                  progress=None) -> dict:
+                  progress=None, overlays: bool = False) -> dict:
     """The page's data (see the module docstring) as a JSON-ready dict, with the pictures."""
     from softpipe.language import kernels
     from softpipe.pipeline.assembly import primitive_indices
@@ -406,6 +406,9 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     cat = lambda parts, n: np.concatenate(parts) if parts else np.zeros((0, n))  # noqa: E731
 
     pics = _pictures(draws)
+    if overlays:                    # RenderDoc's overlays, after the stage pictures (softpipe.views.overlays)
+        from softpipe.views.overlays import overlay_pictures
+        pics.update(overlay_pictures(traces))
     held = len(hpix)
     covered = int(len(np.unique(np.concatenate([t.fragments.y.astype(np.int64) * w + t.fragments.x
                                                 for t in traces]))))
@@ -470,9 +473,10 @@ def _page_text(name: str) -> str:
 
 
 def explorer_html(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, title: Optional[str] = None,
-                  progress=None) -> str:
+                  progress=None, overlays: bool = False) -> str:
     """The page as a string (see :func:`write_explorer`)."""
-    data = explorer_data(traces_or_results, max_fragments=max_fragments, title=title, progress=progress)
+    data = explorer_data(traces_or_results, max_fragments=max_fragments, title=title, progress=progress,
+                         overlays=overlays)
     meta, pics = data["meta"], data["pictures"]
     images = "\n".join(f'<img id="pic-{k}" alt="{html.escape(_shown(name))}" src="{_png(img)}">'
                        for k, (name, img) in enumerate(pics.items()))
@@ -498,7 +502,7 @@ class ExplorerSummary:
 
 
 def write_explorer(traces_or_results, path, *, max_fragments: int = MAX_FRAGMENTS, title: Optional[str] = None,
-                   progress=None) -> ExplorerSummary:
+                   progress=None, overlays: bool = False) -> ExplorerSummary:
     """Write the explorer page of one draw or of several (a scene) to ``path``.
 
     Parameters
@@ -514,9 +518,12 @@ def write_explorer(traces_or_results, path, *, max_fragments: int = MAX_FRAGMENT
     title : str, optional
     progress : callable, optional
         ``progress(done, total)`` every 20 000 fragments gathered.
+    overlays : bool
+        Add RenderDoc's overlays to the pictures (:func:`softpipe.views.overlays.overlay_pictures`).
     """
     from softpipe.core.files import atomic_write
-    page = explorer_html(traces_or_results, max_fragments=max_fragments, title=title, progress=progress)
+    page = explorer_html(traces_or_results, max_fragments=max_fragments, title=title, progress=progress,
+                         overlays=overlays)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     raw = page.encode("utf-8")
