@@ -184,7 +184,7 @@ class TraceDiff:
         The final colors compared (resolved).
     """
 
-    def __init__(self, a, b):
+    def __init__(self, a, b) -> None:
         self.traces_a, self.traces_b = _as_traces(a, "A"), _as_traces(b, "B")
         ta, tb = self.traces_a[0], self.traces_b[0]
         if (ta.width, ta.height) != (tb.width, tb.height):
@@ -229,7 +229,7 @@ class TraceDiff:
     # ------------------------------------------------------------- histories
 
     def _history(self, traces: list, x: int, y: int) -> list:
-        events = []
+        events: list = []
         for k, t in enumerate(traces):
             if len(t.at(x, y)):
                 events.extend((k, e) for e in t.pixel_history(x, y))
