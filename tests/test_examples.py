@@ -28,6 +28,7 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "fresnel_tir": (24, 8),
     "environment": (24, 10),
     "transparency": ((32, 24), 7),
+    "three_ways": (24, 14),
 }
 
 
