@@ -155,3 +155,13 @@ def test_the_fresnel_reflectance_agrees_with_mitsubas_conductor():
             _, weight = bsdf.sample(mi.BSDFContext(), si, 0.5, mi.Point2f(0.5, 0.5))
             ours = [conductor_fresnel(math.cos(a), e, k) for e, k in zip(index["eta"], index["k"])]
             assert [weight[0], weight[1], weight[2]] == pytest.approx(ours, rel=1e-5), (name, degrees)
+
+
+def test_the_whitted_tracer_says_it_does_not_read_k():
+    from softpipe.tracers.whitted import raytrace_scene
+    scene = Scene(objects=[SceneObject("metal", shapes.plane(4.0, material=Material(kr=1.0, **GOLD)), np.eye(4))],
+                  camera=Camera(eye=(0.0, 3.0, 1.0), target=(0.0, 0.0, 0.0)), width=4, height=4, lights=())
+    notes = []
+    raytrace_scene(scene, notes=notes)
+    assert "metal: a conductor's k (its complex index, FORMULAS §30) is the path tracer's; the ray tracer reflects " \
+           "kr as the notes' Hall model does (§13)" in notes
