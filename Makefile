@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-deps lint bench bench-cold bench-peers bench-batch bench-rays fuzz clean clean-cache
+.PHONY: demo test test-deps lint bench bench-cold bench-peers bench-batch bench-rays bench-pt fuzz clean clean-cache
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -74,6 +74,14 @@ bench-batch: $(STAMP)
 bench-rays: $(STAMP)
 	$(PY) -m pip install -q embreex || echo "embreex did not install: the Embree column is skipped"
 	$(PY) -m benchmarks.rays
+
+# Path tracing samples/s: softpipe's path tracer beside Mitsuba 3 (scalar_rgb) on its Cornell box,
+# the same size, spp, path length and threads, alternated (benchmarks/README.md, "Path tracing").
+# Without mitsuba it says so and times softpipe alone (pip install mitsuba to compare).
+bench-pt: $(STAMP)
+	@$(PY) -c "import mitsuba" >/dev/null 2>&1 \
+	  || echo "bench-pt: mitsuba is missing (pip install mitsuba): timing softpipe's path tracer alone, no Mitsuba column"
+	$(PY) -m benchmarks.pathtrace
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

@@ -163,6 +163,16 @@ class Material:
         a = ``falloff_a`` (then ``transmittance`` is not used).
     falloff_a
         Glassner's a ≥ 0 (per unit distance); 0 means no falloff.
+    k
+        The extinction coefficient (RGB, ≥ 0) of a conductor: a metal's index of
+        refraction is complex, η + ik, per channel (FORMULAS §30). 0 (the default):
+        not a conductor. Where k ≠ 0 the path tracer (:mod:`softpipe.tracers.pathtrace`)
+        weights the mirror reflection ``kr`` by the conductor's exact Fresnel
+        reflectance, per channel (``kr = 1`` for a bare metal); nothing else reads it.
+    eta
+        The real part η of that complex index, per channel (RGB, each > 0); None
+        (the default): ``ior`` in every channel. Gold and copper need one per
+        channel (docs/pathtracing.md, "Conductors").
 
     ``transmittance``, ``falloff`` and ``falloff_a`` are read by the ray tracer
     (:mod:`softpipe.tracers.whitted`), the only place a distance inside an object is
@@ -186,6 +196,8 @@ class Material:
     transmittance: RGB = field(default=(1.0, 1.0, 1.0), kw_only=True)
     falloff: str = field(default="power", kw_only=True)
     falloff_a: float = field(default=0.0, kw_only=True)
+    k: RGB = field(default=(0.0, 0.0, 0.0), kw_only=True)
+    eta: Optional[RGB] = field(default=None, kw_only=True)
 
     def __post_init__(self) -> None:
         for f in _COLOR_FIELDS:
@@ -207,6 +219,18 @@ class Material:
             raise ValueError(f"Material.falloff must be 'power' (T^d) or 'glassner' (1/(1 + a·d)), "
                              f"got {self.falloff!r}")
         object.__setattr__(self, "falloff_a", checked("Material.falloff_a", nonnegative, self.falloff_a))
+        object.__setattr__(self, "k", checked("Material.k", color, self.k))
+        if self.eta is not None:
+            eta = checked("Material.eta", color, self.eta)
+            if min(eta) <= 0.0:
+                raise ValueError(f"Material.eta is the real part of a conductor's complex index η + ik, > 0 in "
+                                 f"every channel, got {self.eta!r}")
+            object.__setattr__(self, "eta", eta)
+
+    @property
+    def conductor_eta(self) -> RGB:
+        """η per channel of the complex index η + ik: ``eta``, or ``ior`` in every channel."""
+        return self.eta if self.eta is not None else (self.ior, self.ior, self.ior)
 
     def replace(self, **changes) -> "Material":
         """A copy with some fields changed (validated like the constructor)."""

@@ -121,7 +121,7 @@ LIGHT_KEYS = ("kind", "name", "color", "ambient", "diffuse", "specular", "positi
               "attenuation", "spot_direction", "cutoff", "exponent", "shadows")
 SHADOW_KEYS = ("resolution", "pcf", "offset_factor", "offset_units")
 MATERIAL_KEYS = ("ke", "ka", "kd", "ks", "shininess", "kr", "kt", "transmission_shininess", "ior", "opacity",
-                 "roughness", "diffuse_texture", "transmittance", "falloff", "falloff_a")
+                 "roughness", "diffuse_texture", "transmittance", "falloff", "falloff_a", "k", "eta")
 MESH_KEYS = ("name", "obj", "shape", "fit", "normals", "transform", "material", "program", "cull", "cast_shadows")
 TRANSFORM_KEYS = ("translate", "rotate", "rotate_x", "rotate_y", "rotate_z", "scale", "matrix")
 
@@ -303,8 +303,9 @@ class SceneReader(Reader):
                 kw[key] = t.get(key, number)
         if "ior" in t:          # a number, or a medium's name (softpipe.light.material.MEDIA: "water", "glass", …)
             kw["ior"] = t.get("ior", lambda v: v if isinstance(v, str) else number(v))
-        if "transmittance" in t:
-            kw["transmittance"] = t.get("transmittance", color)
+        for key in ("transmittance", "k", "eta"):      # k, eta: a conductor's complex index η + ik (Material)
+            if key in t:
+                kw[key] = t.get(key, color)
         if "falloff" in t:
             kw["falloff"] = t.get("falloff", string)
         if "diffuse_texture" in t:

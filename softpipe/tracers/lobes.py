@@ -35,7 +35,7 @@ from softpipe.light.lighting import beckmann_d, cook_torrance
 from softpipe.tracers.montecarlo import basis
 
 __all__ = ["NO_LOBE", "PHONG_LOBE", "BLINN_PHONG_LOBE", "COOK_TORRANCE_LOBE", "LOBE_CODES", "LOBE_NAMES",
-           "lobe_eval", "lobe_sample", "lobe_code"]
+           "lobe_eval", "lobe_sample", "lobe_code", "conductor_fresnel"]
 
 NO_LOBE, PHONG_LOBE, BLINN_PHONG_LOBE, COOK_TORRANCE_LOBE = 0, 1, 2, 3
 #: The glossy lobe of each program (the others: Blinn-Phong, §10's lobe, with a note).
@@ -73,6 +73,32 @@ def _mirror(V, A):
     """V mirrored about the unit A: 2(V·A)A − V."""
     c = 2.0 * _dot(V, A)
     return (c * A[0] - V[0], c * A[1] - V[1], c * A[2] - V[2])
+
+
+@njit(cache=True)
+def conductor_fresnel(cos_i, eta, k):
+    """F_R of a conductor of complex index η + ik, seen from air: the exact, unpolarized reflectance (FORMULAS §30).
+
+    One channel. With s² = sin²θ, a² + b² = √((η² − k² − s²)² + 4η²k²) and
+    a = √(((a² + b²) + η² − k² − s²)/2):
+    R_s = (a² + b² − 2a·cos θ + cos²θ)/(a² + b² + 2a·cos θ + cos²θ),
+    R_p = R_s·((a² + b²)cos²θ − 2a·cos θ·s² + s⁴)/((a² + b²)cos²θ + 2a·cos θ·s² + s⁴),
+    F_R = (R_s + R_p)/2: ((η − 1)² + k²)/((η + 1)² + k²) at normal incidence, 1 at grazing.
+    With k = 0 it is §20's F_R from n₁ = 1 into n₂ = η (below the critical angle).
+    """
+    c = min(max(cos_i, 0.0), 1.0)
+    c2 = c * c
+    s2 = 1.0 - c2
+    t0 = eta * eta - k * k - s2
+    a2b2 = math.sqrt(t0 * t0 + 4.0 * eta * eta * k * k)
+    a = math.sqrt(max(0.0, 0.5 * (a2b2 + t0)))
+    den_s = a2b2 + 2.0 * a * c + c2
+    if den_s <= 0.0:
+        return 1.0
+    rs = (a2b2 - 2.0 * a * c + c2) / den_s
+    den_p = a2b2 * c2 + 2.0 * a * c * s2 + s2 * s2
+    rp = rs if den_p <= 0.0 else rs * (a2b2 * c2 - 2.0 * a * c * s2 + s2 * s2) / den_p
+    return 0.5 * (rs + rp)
 
 
 @njit(cache=True)

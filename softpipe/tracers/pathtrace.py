@@ -17,7 +17,9 @@ soft shadows and light from emissive surfaces come out of it:
   ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a glossy lobe of
   reflectance ks, normalized to conserve energy and sampled by its own density
   (:mod:`.lobes`, FORMULAS §27): Blinn-Phong, Phong or Cook-Torrance (§26) as the
-  object's program says; a perfect mirror of reflectance kr (§16); glass when
+  object's program says; a perfect mirror of reflectance kr (§16), times a
+  conductor's exact Fresnel F_R per channel where the material has an extinction
+  coefficient k ≠ 0 (its complex index η + ik, §30); glass when
   kt ≠ 0: reflected with Fresnel's F_R (§20, n = 1 outside, ``ior`` inside), else
   refracted (§18) and tinted by kt, all reflected past the critical angle (§19).
   ka is not used (the path tracer computes the light it stands in for);
@@ -56,7 +58,15 @@ from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.rays.bvh import any_hit, closest_hit
 from softpipe.rays.queries import RayScene, hit_normal
-from softpipe.tracers.lobes import COOK_TORRANCE_LOBE, LOBE_NAMES, NO_LOBE, lobe_code, lobe_eval, lobe_sample
+from softpipe.tracers.lobes import (
+    COOK_TORRANCE_LOBE,
+    LOBE_NAMES,
+    NO_LOBE,
+    conductor_fresnel,
+    lobe_code,
+    lobe_eval,
+    lobe_sample,
+)
 from softpipe.tracers.montecarlo import cosine_hemisphere, triangle_point, uniform
 
 __all__ = ["pathtrace", "PathTrace", "PathStory", "PathSample", "Bounce", "MAX_STORY_BOUNCES", "STORY_COLUMNS", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE", "STRATEGIES"]
@@ -70,7 +80,8 @@ PASS_SPP = 16
 STRATEGIES = ("mis", "bsdf", "light")
 #: Random numbers one bounce draws (lobe, light, light point ×2, direction ×2, Fresnel, roulette).
 DIMENSIONS_PER_BOUNCE = 8
-_MATERIAL_COLUMNS = 19           # ke (3), kd (3), kr (3), kt (3), ior, ks (3), shininess, roughness, lobe code
+_MATERIAL_COLUMNS = 26           # ke (3), kd (3), kr (3), kt (3), ior, ks (3), shininess, roughness, lobe code,
+#                                  conductor (1: k ≠ 0), η (3), k (3)
 _INV_PI = 1.0 / math.pi
 #: A path story's row (PathTrace.path_story): kind, depth, P (3), triangle, object, lobe, f (3), cos, pdf,
 #: throughput (3) after the bounce (and the roulette), roulette q, spare, emission (3) and its MIS weight, NEE Lambert (3), NEE glossy (3),
@@ -260,9 +271,15 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
             if u < w_d + w_s + w_m:                     # a perfect mirror (§16), weight kr
                 p = w_m / total
                 wi = reflect(d, N)
-                tr, tg, tb = tr * m[6] / p, tg * m[7] / p, tb * m[8] / p
+                fr, fg, fb = m[6], m[7], m[8]
+                if m[19] > 0.0:                   # a conductor: kr times its exact Fresnel F_R per channel (§30)
+                    c = N[0] * V[0] + N[1] * V[1] + N[2] * V[2]
+                    fr *= conductor_fresnel(c, m[20], m[23])
+                    fg *= conductor_fresnel(c, m[21], m[24])
+                    fb *= conductor_fresnel(c, m[22], m[25])
+                tr, tg, tb = tr * fr / p, tg * fg / p, tb * fb / p
                 if row >= 0:
-                    record[row, 7:13] = (2.0, m[6], m[7], m[8], 1.0, p)
+                    record[row, 7:13] = (2.0, fr, fg, fb, 1.0, p)
             else:                                 # glass: Fresnel picks reflection or refraction (§18–§20)
                 p = w_g / total
                 n1, n2 = (1.0, m[12]) if front else (m[12], 1.0)
@@ -377,13 +394,20 @@ def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
     rays = RayScene(objects)
     uniform_ = rays.uniform()
     mats = np.array([[*m.ke, *m.kd, *m.kr, *m.kt, m.ior, *m.ks, m.shininess, m.roughness,
-                      lobe_code(scene.program_of(o))] for o, m in ((o, o.mesh.material) for o in objects)],
+                      lobe_code(scene.program_of(o)), float(max(m.k) > 0.0), *m.conductor_eta, *m.k]
+                     for o, m in ((o, o.mesh.material) for o in objects)],
                     np.float64).reshape(-1, _MATERIAL_COLUMNS)
     for obj in objects:
         m = obj.mesh.material
         if max(m.ks) > 0.0 and m.ior == 1.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
             notes.append(f"{obj.name}: Cook-Torrance with ior 1 reflects nothing (Fresnel's F is 0): its ks "
                          f"lobe is black")
+        if max(m.k) > 0.0 and max(m.kr) == 0.0:
+            notes.append(f"{obj.name}: a conductor's k weights the mirror lobe kr by its Fresnel reflectance, "
+                         f"but kr is 0: set kr = 1 for a bare metal")
+        if max(m.k) > 0.0 and max(m.ks) > 0.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
+            notes.append(f"{obj.name}: Cook-Torrance's F is §20's dielectric one into ior; the conductor's k "
+                         f"weights only the mirror lobe kr")
         if obj.texture is not None:
             notes.append(f"{obj.name}: textures are not sampled by the path tracer yet; its kd is used")
     if scene.lights is None or len(scene.lights):

@@ -453,6 +453,9 @@ def _prepare(scene, camera: Optional[Camera], max_depth: int = 5, min_weight: fl
             notes.append(f"{obj.name}: program {name!r} has no lighting equation for rays; lit as 'phong'")
         elif name == "textured":
             notes.append(f"{obj.name}: textures are not sampled by the ray tracer yet; lit with the material's kd")
+        if max(obj.mesh.material.k) > 0.0:
+            notes.append(f"{obj.name}: a conductor's k (its complex index, FORMULAS §30) is the path tracer's; the "
+                         f"ray tracer reflects kr as the notes' Hall model does (§13)")
         programs.append(PROGRAM_CODES.get(name, 0))
     lights = scene.lighting_for(camera)
     packed = pack_lights(lights.lights, np.eye(4))          # world space: the ray tracer's "eye" space

@@ -59,6 +59,7 @@ from softpipe.scenes.scenefile import (
     program_name,
     shape_params,
 )
+from softpipe.tracers.pathtrace import MAX_SPP
 
 __all__ = ["Frame", "Job", "JobError", "LightSet", "load_job", "parse_job", "job_from_dict", "as_job", "VIEWS",
            "BUILTIN_LIGHTS", "MAX_JOB_FRAMES", "MAX_NAME_LENGTH"]
@@ -80,11 +81,14 @@ DEFAULT_BACKGROUND = (0.08, 0.09, 0.12, 1.0)
 
 TOP_KEYS = ("job", "models", "materials", "lights", "sweep", "frames")
 JOB_KEYS = ("background", "fovy", "elevation")
-SWEEP_KEYS = ("models", "cameras", "orbit", "programs", "materials", "lights", "sizes", "samples")
+SWEEP_KEYS = ("models", "cameras", "orbit", "programs", "materials", "lights", "sizes", "samples", "pathtrace", "spp",
+              "seed")
 ORBIT_KEYS = ("frames", "elevation", "start")
 CAMERA_KEYS = ("azimuth", "elevation")
 FRAME_KEYS = ("model", "view", "azimuth", "elevation", "orbit", "program", "material", "lights", "size",
-              "width", "height", "samples")
+              "width", "height", "samples", "pathtrace", "spp", "seed")
+#: Samples per pixel of a path-traced frame when the job does not say (``spp``).
+DEFAULT_SPP = 64
 LIGHTSET_KEYS = ("light", "shadows", "ambient")
 
 
@@ -133,6 +137,11 @@ class Frame:
     width, height : int
     samples : str
         A sample pattern's name (:func:`softpipe.pipeline.sampling.pattern_named`).
+    pathtrace : bool
+        Render with the path tracer (:func:`softpipe.pathtrace`, docs/pathtracing.md) instead
+        of the rasterizer: ``spp`` samples per pixel, random numbers from ``seed``.
+    spp, seed : int
+        The path tracer's samples per pixel and seed (used only with ``pathtrace``).
     """
 
     model: str
@@ -146,10 +155,18 @@ class Frame:
     width: int = DEFAULT_SIZE[0]
     height: int = DEFAULT_SIZE[1]
     samples: str = "1"
+    pathtrace: bool = False
+    spp: int = DEFAULT_SPP
+    seed: int = 0
 
     def params(self) -> Dict[str, Any]:
-        """The parameters as JSON values (the manifest's ``params``)."""
-        return dataclasses.asdict(self)
+        """The parameters as JSON values (the manifest's ``params``); a rasterized frame's leave out the
+        path tracer's (so its digest, name and manifest line are what they were before it had them)."""
+        params = dataclasses.asdict(self)
+        if not self.pathtrace:
+            for key in ("pathtrace", "spp", "seed"):
+                del params[key]
+        return params
 
     def digest(self) -> str:
         """SHA-256 of the canonical JSON of :meth:`params`, in hex."""
@@ -191,6 +208,8 @@ class Frame:
         parts.append(f"{self.width}x{self.height}")
         if self.samples != "1":
             parts.append(word(self.samples))
+        if self.pathtrace:
+            parts.append(f"pt{self.spp}" + (f"-seed{self.seed}" if self.seed else ""))
         name = "-".join(parts)
         if lossless and len(name) <= MAX_NAME_LENGTH:
             return name
@@ -412,19 +431,22 @@ class _JobReader(SceneReader):
         lights = self.axis(t, "lights", lambda v: self.known(v, t, "lights", job.lights, ()), ["studio"])
         samples = self.axis(t, "samples", pattern_name, ["1"])
         sizes = self.axis(t, "sizes", _size, [DEFAULT_SIZE])
+        traced = self.path_tracing(t, "samples")
+        spps = self.axis(t, "spp", _spp, [DEFAULT_SPP])
         axes = {"models": models, "programs": programs, "materials": materials, "lights": lights, "sizes": sizes,
-                "samples": samples, "cameras": cameras + orbit}
+                "samples": samples, "spp": spps, "cameras": cameras + orbit}
         count = math.prod(len(v) for v in axes.values())   # counted before the product is made
         if before + count > MAX_JOB_FRAMES:
             shown = " × ".join(f"{len(v):,} {k}" for k, v in axes.items() if len(v) > 1) or "1"
             earlier = f", after {before:,} from earlier sweeps" if before else ""
             raise t.error(f"makes {count:,} frames ({shown}){earlier}, more than the limit MAX_JOB_FRAMES = "
                           f"{MAX_JOB_FRAMES:,}")
-        for (w, h), s in itertools.product(sizes, samples):
-            self.check_samples(t, "sizes", w, h, s)
-        return [Frame(model=m, program=p, material=mat, lights=li, width=w, height=h, samples=s, **camera)
-                for m, p, mat, li, (w, h), s, camera in
-                itertools.product(models, programs, materials, lights, sizes, samples, cameras + orbit)]
+        for (w, h), s, n in itertools.product(sizes, samples, spps):
+            self.check_samples(t, "sizes", w, h, s, n if traced else 0)
+        return [Frame(model=m, program=p, material=mat, lights=li, width=w, height=h, samples=s, **camera, **traced,
+                      **({"spp": n} if traced else {}))
+                for m, p, mat, li, (w, h), s, n, camera in
+                itertools.product(models, programs, materials, lights, sizes, samples, spps, cameras + orbit)]
 
     def frame(self, data: Any, label: str, job: Job, elevation: float) -> Frame:
         t = Table(self, data, label, FRAME_KEYS)
@@ -450,7 +472,10 @@ class _JobReader(SceneReader):
         kw["width"] = t.get("width", _side, w)
         kw["height"] = t.get("height", _side, h)
         kw["samples"] = t.get("samples", pattern_name, "1")
-        self.check_samples(t, "size", kw["width"], kw["height"], kw["samples"])
+        kw.update(self.path_tracing(t, "samples"))
+        if kw.get("pathtrace"):
+            kw["spp"] = t.get("spp", _spp, DEFAULT_SPP)
+        self.check_samples(t, "size", kw["width"], kw["height"], kw["samples"], kw.get("spp", 0))
         return Frame(**kw)
 
     # -- values
@@ -522,11 +547,39 @@ class _JobReader(SceneReader):
             raise BadValue(f"names an undefined {key.rstrip('s')} {value!r}; known: {', '.join((*extra, *names))}")
         return value
 
-    def check_samples(self, t: Table, key: str, w: int, h: int, samples: str) -> None:
-        count = len(pattern_named(samples))
+    def path_tracing(self, t: Table, samples_key: str) -> Dict[str, Any]:
+        """A sweep's or frame's ``pathtrace`` and ``seed`` (``{}`` for a rasterized frame); ``spp`` and
+        ``seed`` without ``pathtrace = true``, or ``samples`` with it, are refused rather than ignored."""
+        if not t.get("pathtrace", boolean, False):
+            for key in ("spp", "seed"):
+                if key in t:
+                    raise t.error("applies only with pathtrace = true (the path tracer's samples per pixel "
+                                  "and seed)", key)
+            return {}
+        if samples_key in t:
+            raise t.error("picks the rasterizer's sample pattern; it does not apply with pathtrace = true, whose "
+                          "samples are jittered over each pixel (a box filter): use spp = N", samples_key)
+        return {"pathtrace": True, "seed": t.get("seed", _seed, 0)}
+
+    def check_samples(self, t: Table, key: str, w: int, h: int, samples: str, spp: int = 0) -> None:
+        count = spp or len(pattern_named(samples))
         if w * h * count > MAX_TOTAL_SAMPLES:
             raise t.error(f"{w}×{h} pixels × {count} samples exceeds the limit MAX_TOTAL_SAMPLES = "
                           f"{MAX_TOTAL_SAMPLES}", key)
+
+
+def _spp(v: Any) -> int:
+    x = integer(v)
+    if not 1 <= x <= MAX_SPP:
+        raise BadValue(f"must be a whole number of samples per pixel, 1…{MAX_SPP}, got {describe(v)}")
+    return x
+
+
+def _seed(v: Any) -> int:
+    x = integer(v)
+    if not 0 <= x < 2 ** 64:
+        raise BadValue(f"must be a whole number 0…2⁶⁴ − 1, got {describe(v)}")
+    return x
 
 
 def _float_angle(v: Any) -> float:

@@ -81,7 +81,9 @@ def render_frame(frame: Frame, mesh: Mesh, job: Job) -> bytes:
 
     The model is framed by the camera (:func:`softpipe.scenes.drawing.prepare_scene`; an orbit
     camera with :meth:`~softpipe.scenes.scene.Scene.view_camera`'s turntable fit), drawn with
-    :func:`softpipe.scenes.drawing.render`: the same pixels as ``softpipe render`` with the same options.
+    :func:`softpipe.scenes.drawing.render`: the same pixels as ``softpipe render`` with the same options;
+    a frame with ``pathtrace`` by :func:`softpipe.tracers.pathtrace.pathtrace` (``spp`` samples per pixel,
+    ``seed``): the same bytes for the same seed on any worker and thread count.
     """
     return _render_png(frame, mesh, _frame_material(job, frame), job.lights[frame.lights], job.background,
                        job.fovy)
@@ -106,7 +108,11 @@ def _render_png(frame: Frame, mesh: Mesh, material: Optional[Dict[str, Any]], li
         scene = scene.replace(ambient=lights.ambient)
     camera = scene.view_camera(azimuth=frame.azimuth, orbit=True) if frame.orbit else scene.view_camera()
     buffer = io.BytesIO()
-    render(scene, camera=camera).save(buffer, format="png")
+    if frame.pathtrace:         # the job's background is the sky that lights it: the light sets have no area
+        from softpipe.tracers.pathtrace import pathtrace
+        pathtrace(scene, frame.spp, frame.seed, camera=camera).save(buffer, format="png")
+    else:
+        render(scene, camera=camera).save(buffer, format="png")
     return buffer.getvalue()
 
 
