@@ -478,6 +478,14 @@ class Framebuffer:
         self.to_image().save(buf, format="PNG")
         return buf.getvalue()
 
+    def _repr_mimebundle_(self, include=None, exclude=None) -> dict:
+        """What Jupyter shows: a small framebuffer (longer side under 64 pixels) zoomed, nearest
+        neighbour with a pixel grid and coordinates (:func:`softpipe.views.zoom.zoomed`); a larger
+        one as it is (the bytes ``_repr_png_`` and ``save`` write)."""
+        from softpipe.views.zoom import fits_as_is, png, zoomed
+        picture = self._repr_png_() if fits_as_is(self.width, self.height) else png(zoomed(self))
+        return {"image/png": picture, "text/plain": repr(self)}
+
     def __repr__(self) -> str:
         srgb = ", sRGB" if self._srgb else ""
         return f"Framebuffer({self.width}×{self.height}, {self.samples} sample{'s' if self.samples > 1 else ''}{srgb})"

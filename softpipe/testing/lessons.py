@@ -1,0 +1,425 @@
+"""The lessons' checks (lessons/ at the repository's root): a student's answer against softpipe's, pixel for pixel.
+
+Each check takes what the student's function made and what softpipe's stage makes of the
+same input, and returns a :class:`Difference` when they agree. When they do not, it shows
+the difference as a picture (in Jupyter) and raises an AssertionError whose message says
+how many pixels differ, lists the first few, and names the rule most likely broken where
+it can tell (a pixel on an edge the fill rule gives away, a line's last pixel, a depth
+test the wrong way round).
+
+- :func:`check_coverage`: two sets of pixels (window coordinates (x, y), y up; or bool
+  masks, row 0 at the top); ``hint=`` explains a pixel.
+- :func:`check_line`: a line drawer's pixels against :func:`~softpipe.testing.reference_line`
+  (GL's diamond-exit rule), with hints about the last pixel and ties.
+- :func:`check_triangles`: a rasterizer's pixels against softpipe's raster of the same
+  triangles (:func:`~softpipe.testing.coverage`), with the fill rule's hints.
+- :func:`check_depth_test`: which triangle a depth-test loop kept at each pixel, against
+  the output merger's verdicts in a :class:`~softpipe.pipeline.trace.Trace`.
+
+The difference picture (:attr:`Difference.picture`) is zoomed
+(:func:`softpipe.views.zoom.zoomed`): gray where both cover a pixel, red where the answer
+adds a pixel softpipe does not draw, blue where it misses one softpipe draws.
+"""
+from __future__ import annotations
+
+import base64
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Callable, Dict, List, Mapping, Optional, Sequence, Set, Tuple
+
+import numpy as np
+
+from softpipe.testing.coverage import coverage
+from softpipe.testing.line_reference import reference_line
+from softpipe.views.zoom import png, zoomed
+
+__all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "pixel_set",
+           "trace_fragments", "reference_winners", "COLORS", "LEGEND"]
+
+Pixel = Tuple[int, int]
+#: The difference picture's colors.
+COLORS = {"empty": (24, 24, 28), "both": (190, 190, 190), "adds": (220, 50, 32), "misses": (0, 110, 230)}
+#: What each color means.
+LEGEND = {"both": "both draw it", "adds": "your answer adds it (softpipe does not draw it)",
+          "misses": "your answer misses it (softpipe draws it)", "empty": "neither draws it"}
+SHOWN = 5          # how many differing pixels a message lists
+
+
+def _in_jupyter() -> bool:
+    try:
+        from IPython import get_ipython
+    except ImportError:
+        return False
+    shell = get_ipython()
+    return shell is not None and getattr(shell, "kernel", None) is not None
+
+
+@dataclass
+class Difference:
+    """A student's answer beside softpipe's: which pixels it adds, which it misses, and the picture.
+
+    Attributes
+    ----------
+    adds, misses : list of (x, y)
+        Window pixels (y up), sorted: drawn by the answer only / by softpipe only.
+    picture : uint8 [H', W', 3]
+        The zoomed difference picture (:data:`COLORS`, :data:`LEGEND`).
+    message : str
+        What the AssertionError says (or "... agree" when they do).
+    """
+
+    adds: List[Pixel]
+    misses: List[Pixel]
+    picture: np.ndarray
+    message: str
+    legend: Dict[str, str] = field(default_factory=lambda: dict(LEGEND))
+
+    @property
+    def ok(self) -> bool:
+        return not self.adds and not self.misses
+
+    def _repr_mimebundle_(self, include=None, exclude=None) -> dict:
+        data = png(self.picture)
+        keys = "".join(
+            f'<span style="display:inline-block;width:12px;height:12px;margin:0 4px 0 12px;vertical-align:middle;'
+            f'background:rgb{COLORS[k]};border:1px solid #888"></span>{text}' for k, text in self.legend.items())
+        html = (f'<div><img src="data:image/png;base64,{base64.b64encode(data).decode()}" '
+                f'style="image-rendering:pixelated"/><div style="font:12px sans-serif">{keys}</div>'
+                f'<pre>{_escape(self.message)}</pre></div>')
+        return {"image/png": data, "text/html": html, "text/plain": self.message}
+
+
+def _escape(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+def pixel_set(value, name: str = "pixels") -> Set[Pixel]:
+    """Window pixels (x, y), y up, from a set/list of pairs, a Coverage, or a bool mask [H, W] (row 0 at the top)."""
+    if hasattr(value, "pixels") and callable(value.pixels):
+        return {(int(x), int(y)) for x, y in value.pixels()}
+    if isinstance(value, np.ndarray) and value.ndim == 2:
+        rows, cols = np.nonzero(value)
+        h = value.shape[0]
+        return {(int(c), int(h - 1 - r)) for r, c in zip(rows, cols)}
+    if value is None or isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} must be a set of (x, y) pixels, got {type(value).__name__}")
+    out = set()
+    try:
+        items = list(value)
+    except TypeError:
+        raise TypeError(f"{name} must be a set of (x, y) pixels, got {type(value).__name__}") from None
+    for p in items:
+        try:
+            x, y = p
+            out.add((int(x), int(y)))
+        except (TypeError, ValueError):
+            raise TypeError(f"{name} must hold (x, y) pairs of whole numbers, got {p!r}") from None
+    return out
+
+
+def _picture(answer: Set[Pixel], reference: Set[Pixel], width: int, height: int) -> np.ndarray:
+    img = np.empty((height, width, 3), np.uint8)
+    img[:] = COLORS["empty"]
+    for key, pixels in (("both", answer & reference), ("adds", answer - reference), ("misses", reference - answer)):
+        for x, y in pixels:
+            if 0 <= x < width and 0 <= y < height:
+                img[height - 1 - y, x] = COLORS[key]
+    return zoomed(img)
+
+
+def _show(diff: Difference, show: Optional[bool]) -> None:
+    if show or (show is None and _in_jupyter()):
+        from IPython.display import display
+        display(diff)
+
+
+def check_coverage(answer, reference, *, width: Optional[int] = None, height: Optional[int] = None,
+                   hint: Optional[Callable[[Pixel, str], Optional[str]]] = None, what: str = "pixels",
+                   show: Optional[bool] = None) -> Difference:
+    """Compare the pixels an answer draws with the pixels softpipe draws; raise where they differ.
+
+    Parameters
+    ----------
+    answer, reference : set of (x, y), Coverage or bool mask [H, W]
+        Window pixels, y up (a mask's row 0 is the top).
+    width, height : int, optional
+        The picture's size; by default just big enough for every pixel (or the masks' shape).
+    hint : callable (pixel, "adds" | "misses") → str or None, optional
+        Explains one differing pixel: the rule it shows broken.
+    what : str
+        What the pixels are, for the message ("the line's pixels", …).
+    show : bool, optional
+        Display the difference picture (in Jupyter by default) before raising.
+
+    Returns
+    -------
+    Difference
+        When the two agree.
+
+    Raises
+    ------
+    AssertionError
+        ``"<what> differ from softpipe's at N pixels (A your answer adds, M it misses): …"``,
+        the first few pixels with hints, and what the picture's colors mean.
+    """
+    mine, ref = pixel_set(answer, "answer"), pixel_set(reference, "reference")
+    for arr in (answer, reference):
+        if isinstance(arr, np.ndarray) and arr.ndim == 2:
+            height, width = height or arr.shape[0], width or arr.shape[1]
+    every = mine | ref
+    if width is None:
+        width = max([x for x, _ in every if x >= 0] + [0]) + 2
+    if height is None:
+        height = max([y for _, y in every if y >= 0] + [0]) + 2
+    adds, misses = sorted(mine - ref), sorted(ref - mine)
+    picture = _picture(mine, ref, width, height)
+    if not adds and not misses:
+        return Difference([], [], picture, f"{what}: your answer and softpipe's agree at all {len(ref)} pixels")
+    lines = [f"{what} differ from softpipe's at {len(adds) + len(misses)} pixel(s) "
+             f"({len(adds)} your answer adds, {len(misses)} it misses; softpipe draws {len(ref)}):"]
+    listed = [(p, "adds") for p in adds] + [(p, "misses") for p in misses]
+    listed.sort(key=lambda pk: (pk[0][1], pk[0][0]))
+    for p, kind in listed[:SHOWN]:
+        why = hint(p, kind) if hint is not None else None
+        verb = "your answer draws it, softpipe does not" if kind == "adds" else "softpipe draws it, your answer does not"
+        lines.append(f"  pixel {p}: {verb}" + (f": {why}" if why else ""))
+    if len(listed) > SHOWN:
+        lines.append(f"  … and {len(listed) - SHOWN} more")
+    lines.append("(the picture: red = your answer adds the pixel, blue = it misses it, gray = both draw it; "
+                 "pixels are window coordinates (x, y), y up)")
+    diff = Difference(adds, misses, picture, "\n".join(lines))
+    _show(diff, show)
+    raise AssertionError(diff.message)
+
+
+# ------------------------------------------------------------------------------ lines
+
+def _exact(v) -> Fraction:
+    """A window coordinate as softpipe sees it: snapped to 1/256 pixel (round half to even)."""
+    return Fraction(round(Fraction(v) * 256), 256)
+
+
+def _diamond_holds(p, pixel: Pixel) -> bool:
+    return abs(p[0] - pixel[0] - Fraction(1, 2)) + abs(p[1] - pixel[1] - Fraction(1, 2)) < Fraction(1, 2)
+
+
+def _line_hint(pa, pb) -> Callable[[Pixel, str], Optional[str]]:
+    a = (_exact(pa[0]), _exact(pa[1]))
+    b = (_exact(pb[0]), _exact(pb[1]))
+    x_major = abs(b[0] - a[0]) >= abs(b[1] - a[1])
+
+    def hint(p: Pixel, kind: str) -> Optional[str]:
+        if kind == "adds" and _diamond_holds(b, p):
+            return (f"it holds the end point pb = ({float(b[0])}, {float(b[1])}): the diamond-exit rule "
+                    f"leaves the last pixel out (a line is half-open, so a strip's joints are drawn once)")
+        if kind == "misses" and _diamond_holds(a, p):
+            return f"it holds the start point pa = ({float(a[0])}, {float(a[1])}): the first pixel is drawn"
+        major, minor = (0, 1) if x_major else (1, 0)
+        if b[major] == a[major]:
+            return None
+        centre = p[major] + Fraction(1, 2)
+        t = (centre - a[major]) / (b[major] - a[major])
+        if not 0 <= t <= 1:
+            return ("it lies beyond the segment's ends along its major axis "
+                    f"({'x' if x_major else 'y'}): one pixel per {'column' if x_major else 'row'} "
+                    f"from pa's up to (not including) pb's")
+        at = a[minor] + t * (b[minor] - a[minor])           # the line's minor coordinate there
+        off = at - (p[minor] + Fraction(1, 2))
+        if abs(off) == Fraction(1, 2):
+            side = ("the one the shift enters: up for a rising line, down for a falling one" if x_major
+                    else "the left one")
+            return (f"the line passes exactly halfway between this pixel's centre and its neighbour's: GL "
+                    f"moves the segment by (−ε, −ε²) to break the tie, which picks {side}")
+        if kind == "adds" and abs(off) > Fraction(1, 2):
+            return (f"the line passes {float(abs(off)):g} pixels from its centre along "
+                    f"{'y' if x_major else 'x'}: a {'column' if x_major else 'row'} takes the one pixel "
+                    f"whose centre is nearest the line")
+        if kind == "misses":
+            return (f"the line passes {float(abs(off)):g} pixels from its centre: it crosses this pixel's diamond "
+                    f"|x − x_c| + |y − y_c| < ½, one pixel per {'column' if x_major else 'row'}")
+        return None
+
+    return hint
+
+
+def check_line(answer, pa, pb, *, show: Optional[bool] = None) -> Difference:
+    """A line drawer's pixels for the segment ``pa`` → ``pb`` (window coordinates, y up) against GL's
+    diamond-exit rule (:func:`~softpipe.testing.reference_line`, which softpipe's lines match).
+
+    Raises an AssertionError as :func:`check_coverage` does, with hints about the last pixel
+    (left out), the first (drawn), and ties (broken by GL's (−ε, −ε²) shift).
+    """
+    ref = reference_line(pa, pb)
+    return check_coverage(answer, ref, hint=_line_hint(pa, pb), show=show,
+                          what=f"the pixels of the line ({_num(pa[0])}, {_num(pa[1])}) → ({_num(pb[0])}, {_num(pb[1])})")
+
+
+def _num(v) -> str:
+    return f"{float(v):g}"
+
+
+# ------------------------------------------------------------------------------ triangles
+
+def _edge_name(dx, dy) -> str:
+    if dy < 0:
+        return "left edge"
+    if dy > 0:
+        return "right edge"
+    return "bottom edge" if dx > 0 else "top edge"
+
+
+def _triangle_hint(triangles: np.ndarray) -> Callable[[Pixel, str], Optional[str]]:
+    tris = [[(_exact(c[0]), _exact(c[1])) for c in t] for t in triangles]
+
+    def hint(p: Pixel, kind: str) -> Optional[str]:
+        cx, cy = p[0] + Fraction(1, 2), p[1] + Fraction(1, 2)
+        found = []
+        for k, t in enumerate(tris):
+            area = (t[1][0] - t[0][0]) * (t[2][1] - t[0][1]) - (t[1][1] - t[0][1]) * (t[2][0] - t[0][0])
+            if area == 0:
+                continue
+            if area < 0:                                  # clockwise: walk it counter-clockwise
+                t = [t[0], t[2], t[1]]
+            on, outside = [], False
+            for i in range(3):
+                (ax, ay), (bx, by) = t[i], t[(i + 1) % 3]
+                e = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+                if e < 0:
+                    outside = True
+                elif e == 0:
+                    on.append(((ax, ay), (bx, by)))
+            if outside:
+                continue
+            cw = " (it is clockwise: walk it the other way, or negate its edge functions)" if area < 0 else ""
+            if not on:
+                found.append(f"its centre is strictly inside triangle {k}{cw}: every edge function is > 0 there")
+                continue
+            names = []
+            owned = True
+            for (ax, ay), (bx, by) in on:
+                name = _edge_name(bx - ax, by - ay)
+                names.append(f"{name} ({_num(ax)}, {_num(ay)})→({_num(bx)}, {_num(by)})")
+                owned = owned and name in ("left edge", "bottom edge")
+            where = " and ".join(names)
+            rule = ("the fill rule covers it (left edges and bottom edges, y up, own the centres on them)" if owned
+                    else "the fill rule leaves it out (only left edges and bottom edges, y up, own the centres "
+                         "on them; top and right edges do not)")
+            found.append(f"its centre lies exactly on triangle {k}'s {where}: {rule}{cw}")
+        if not found:
+            return "its centre is outside every triangle (some edge function is < 0 there)" if kind == "adds" else None
+        return "; ".join(found)
+
+    return hint
+
+
+def check_triangles(answer, triangles, width: int, height: int, *, show: Optional[bool] = None) -> Difference:
+    """A rasterizer's pixels for ``triangles`` ([T, 3, 2], window coordinates, y up) on a
+    ``width``×``height`` framebuffer against softpipe's raster of the same triangles
+    (:func:`~softpipe.testing.coverage`: snapped to 1/256 pixel, the fill rule of docs/conventions.md).
+
+    Raises an AssertionError as :func:`check_coverage` does; a hint says when a differing
+    pixel's centre lies exactly on an edge, which edge (left, right, top, bottom), and
+    whether the fill rule gives it to the triangle.
+    """
+    tri = np.asarray(triangles, dtype=np.float64)
+    if tri.ndim != 3 or tri.shape[1] != 3 or tri.shape[2] < 2:
+        raise ValueError(f"triangles must be [T, 3, 2] window coordinates, got an array of shape {tri.shape}")
+    ref = coverage(tri[:, :, :2], width, height)
+    return check_coverage(answer, ref.pixels(), width=width, height=height, hint=_triangle_hint(tri[:, :, :2]),
+                          what=f"the pixels of {len(tri)} triangle(s)", show=show)
+
+
+# ------------------------------------------------------------------------------ the depth test
+
+def reference_winners(trace) -> Tuple[Dict[Pixel, int], List[Tuple[int, int, float, int]]]:
+    """The output merger's decisions in a trace: pixel (x, y) → the triangle whose fragment was
+    written last there; and the fragments in draw order as (x, y, depth, triangle), y up."""
+    from softpipe.pipeline.output import VERDICTS
+    frags, verdict = trace.fragments, trace.merged.verdict
+    written = VERDICTS.index("written")
+    h = trace.height
+    order = []
+    winners: Dict[Pixel, int] = {}
+    for k in range(len(frags)):
+        x, y = int(frags.x[k]), h - 1 - int(frags.y[k])
+        t = int(frags.primitive_id[k])
+        order.append((x, y, float(frags.depth[k]), t))
+        if verdict[k] == written:
+            winners[(x, y)] = t
+    return winners, order
+
+
+def trace_fragments(trace) -> List[Tuple[int, int, float, int]]:
+    """A traced draw's fragments in draw order as (x, y, depth, triangle): window pixel (y up), window
+    depth, and the input triangle; what a depth-test loop reads."""
+    return reference_winners(trace)[1]
+
+
+def check_depth_test(answer: Mapping[Pixel, int], trace, *, show: Optional[bool] = None) -> Difference:
+    """Which triangle a depth-test loop kept at each pixel (``{(x, y): triangle}``, y up) against the
+    output merger's verdicts in ``trace`` (a draw with ``depth_test="less"``, the depth buffer cleared to 1).
+
+    Raises an AssertionError as :func:`check_coverage` does, listing the pixels where the answer
+    kept another triangle (or none), with the fragments there and the rule the answer seems to break.
+    """
+    if not isinstance(answer, Mapping):
+        raise TypeError(f"the depth test's answer must be a dict {{(x, y): triangle}}, got {type(answer).__name__}")
+    ref, order = reference_winners(trace)
+    at: Dict[Pixel, List[Tuple[float, int]]] = {}
+    for x, y, z, t in order:
+        at.setdefault((x, y), []).append((z, t))
+    mine = {(int(p[0]), int(p[1])): int(t) for p, t in answer.items()}
+    wrong = sorted((p for p in set(mine) | set(ref) if mine.get(p) != ref.get(p)), key=lambda p: (p[1], p[0]))
+    w, h = trace.width, trace.height
+    img = np.empty((h, w, 3), np.uint8)
+    img[:] = COLORS["empty"]
+    for (x, y) in ref:
+        img[h - 1 - y, x] = COLORS["both"]
+    for (x, y) in wrong:
+        if 0 <= x < w and 0 <= y < h:
+            img[h - 1 - y, x] = COLORS["adds"] if (x, y) in mine else COLORS["misses"]
+    legend = {"both": "you keep the triangle softpipe keeps", "adds": "you keep another triangle",
+              "misses": "you keep none, softpipe keeps one", "empty": "no fragment"}
+    if not wrong:
+        return Difference([], [], zoomed(img), f"the depth test: your answer and softpipe's agree at all {len(ref)} "
+                          "pixels", legend)
+    lines = [f"the depth test keeps another triangle than softpipe's at {len(wrong)} of {len(ref)} pixel(s):"]
+    for p in wrong[:SHOWN]:
+        frs = at.get(p, [])
+        listing = ", ".join(f"triangle {t} at depth {z:.4g}" for z, t in frs)
+        lines.append(f"  pixel {p}: you keep {_tri(mine.get(p))}, softpipe keeps {_tri(ref.get(p))} "
+                     f"(fragments in draw order: {listing}): {_depth_hint(mine.get(p), ref.get(p), frs)}")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    lines.append("(the picture: red = you keep another triangle, blue = you keep none, gray = you agree)")
+    diff = Difference(sorted(p for p in wrong if p in mine), sorted(p for p in wrong if p not in mine),
+                      zoomed(img), "\n".join(lines), legend)
+    _show(diff, show)
+    raise AssertionError(diff.message)
+
+
+def _tri(t: Optional[int]) -> str:
+    return "no triangle" if t is None else f"triangle {t}"
+
+
+def _depth_hint(mine: Optional[int], ref: Optional[int], frs: Sequence[Tuple[float, int]]) -> str:
+    if not frs:
+        return "no fragment covers this pixel: keep nothing there"
+    if mine is None:
+        return "a fragment passes when its depth is less than the stored one, and the depth buffer starts at 1.0"
+    depth = {t: z for z, t in reversed(frs)}                 # the first fragment of each triangle
+    if ref is None:
+        return "no fragment there is nearer than 1.0, the cleared depth buffer"
+    zm, zr = depth.get(mine), depth.get(ref)
+    if zm is None:
+        return f"triangle {mine} has no fragment here"
+    if zm == zr:
+        return ("the two are at the same depth: 'less' keeps the one drawn first (the later one is not less, "
+                "it is equal)")
+    if zm == max(z for z, _ in frs) and len(frs) > 1 and mine == frs[-1][1]:
+        return ("you keep the fragment drawn last, though it is farther: write a fragment only when its depth "
+                "is less than the depth buffer's, and store its depth when it passes")
+    if zm == max(z for z, _ in frs):
+        return "you keep the farthest fragment: the comparison is the wrong way round ('less': nearer wins)"
+    return (f"triangle {ref}'s fragment is nearer ({zr:.4g} < {zm:.4g}): after a fragment passes, its depth "
+            "must be stored, so later farther ones fail")

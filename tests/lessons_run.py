@@ -1,0 +1,28 @@
+"""Runs a lesson notebook headless for tests/test_lessons*.py (lessons/run.py does the work)."""
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+
+LESSONS = Path(__file__).resolve().parent.parent / "lessons"
+NOTEBOOKS = ["01_lines", "02_triangles", "03_zbuffer"]
+
+
+def runner():
+    for name in ("nbclient", "nbformat", "ipykernel"):
+        pytest.importorskip(name, reason=f"{name} runs the lessons' notebooks: pip install -e '.[test]'")
+    spec = importlib.util.spec_from_file_location("lessons_run_script", LESSONS / "run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def failure(name: str) -> str:
+    """The text of the error the notebook stops with, run as it is (the skeleton), without colors."""
+    from nbclient.exceptions import CellExecutionError
+    with pytest.raises(CellExecutionError) as info:
+        runner().run(LESSONS / f"{name}.ipynb", solutions=False)
+    return re.sub(r"\x1b\[[0-9;]*m", "", str(info.value))

@@ -1,0 +1,20 @@
+"""The lessons' notebooks run as a student first gets them (lessons/README.md): each check cell
+fails, and its message names the rule the skeleton breaks. (In a file of its own so that under
+``make test``'s --dist loadfile these runs go to another worker than tests/test_lessons.py's.)"""
+from __future__ import annotations
+
+import pytest
+from lessons_run import failure
+
+
+@pytest.mark.parametrize("name, expected", [
+    ("01_lines", "pixel (13, 6): your answer draws it, softpipe does not: it holds the end point pb = (13.5, 6.5): "
+                 "the diamond-exit rule leaves the last pixel out"),
+    ("02_triangles", "pixel (5, 4): your answer draws it, softpipe does not: its centre lies exactly on triangle 0's "
+                     "right edge (9.5, 1.5)→(1.5, 7.5): the fill rule leaves it out"),
+    ("03_zbuffer", "you keep the fragment drawn last, though it is farther: write a fragment only when its depth is "
+                   "less than the depth buffer's"),
+])
+def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
+    text = failure(name)
+    assert "AssertionError" in text and expected in text, text[-3000:]
