@@ -178,12 +178,69 @@ def covered_by_alpha(alpha, sample, samples):
 @numba.njit(cache=True)
 def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blend_color, fb_color, fb_depth,
                   fb_stencil, verdict, after, stencil_after):
+    # The state read once into scalars: branches on them are the same for every fragment, and a
+    # value in a register costs nothing per fragment (a read of ``st`` would be a load each time).
+    scissor, x0, x1, y0, y1 = st[ST_SCISSOR], st[ST_SCISSOR + 1], st[ST_SCISSOR + 2], st[ST_SCISSOR + 3], \
+        st[ST_SCISSOR + 4]
+    samples = fb_color.shape[0]
+    coverage = samples > 1 and (st[ST_ALPHA_TO_COVERAGE] != 0 or (st[ST_SAMPLE_MASK] & ((1 << samples) - 1))
+                                != (1 << samples) - 1)
+    stencil_on, two_sided = st[ST_STENCIL] != 0, front_facing.shape[0] > 0
+    func, depth_write, clamp = st[ST_DEPTH_FUNC], st[ST_DEPTH_WRITE] != 0, st[ST_DEPTH_CLAMP] != 0
+    blend = st[ST_BLEND] != 0
+    eq_rgb, src_rgb, dst_rgb = st[ST_EQUATION_RGB], st[ST_SRC_RGB], st[ST_DST_RGB]
+    eq_a, src_a, dst_a = st[ST_EQUATION_ALPHA], st[ST_SRC_ALPHA], st[ST_DST_ALPHA]
+    mask_r, mask_g, mask_b, mask_a = (st[ST_COLOR_MASK] != 0, st[ST_COLOR_MASK + 1] != 0, st[ST_COLOR_MASK + 2] != 0,
+                                      st[ST_COLOR_MASK + 3] != 0)
     record = after.shape[0] > 0
     for k in range(x.shape[0]):
         i, j, m = x[k], y[k], s[k]
-        front = front_facing.shape[0] == 0 or front_facing[prim[k]]
-        verdict[k] = _merge_one(k, i, j, m, depth, color, discarded, front, st, blend_color, fb_color, fb_depth,
-                                fb_stencil)
+        verdict[k] = WRITTEN
+        if discarded[k]:
+            verdict[k] = DISCARDED
+        elif scissor and not (x0 <= i < x1 and y0 <= j < y1):
+            verdict[k] = SCISSORED
+        elif coverage and not _covers(st, color[k, 3], m, samples):
+            verdict[k] = SAMPLE_MASKED
+        else:
+            face = ST_STENCIL_BACK if two_sided and not front_facing[prim[k]] else ST_STENCIL_FRONT
+            stored = np.int64(fb_stencil[m, j, i]) if stencil_on else np.int64(0)
+            if stencil_on and not compare(st[face], st[face + 1] & st[face + 2], stored & st[face + 2]):
+                _write_stencil(fb_stencil, m, j, i, st, face, st[face + 3], stored)
+                verdict[k] = STENCIL_FAILED
+            else:
+                z = np.float32(depth[k])
+                if clamp:
+                    z = min(max(z, np.float32(0.0)), np.float32(1.0))
+                if func >= 0 and not depth_passes(func, z, fb_depth[m, j, i]):
+                    if stencil_on:
+                        _write_stencil(fb_stencil, m, j, i, st, face, st[face + 4], stored)
+                    verdict[k] = DEPTH_FAILED
+                else:
+                    if func >= 0 and depth_write:
+                        fb_depth[m, j, i] = z
+                    if stencil_on:
+                        _write_stencil(fb_stencil, m, j, i, st, face, st[face + 5], stored)
+                    if not blend:
+                        r, g, b, a = color[k, 0], color[k, 1], color[k, 2], color[k, 3]
+                    else:
+                        # float64 explicitly: numba and plain Python (NumPy keeps float32 scalars) then agree
+                        sa, da = np.float64(color[k, 3]), np.float64(fb_color[m, j, i, 3])
+                        r = blend_channel(eq_rgb, src_rgb, dst_rgb, 0, np.float64(color[k, 0]),
+                                          np.float64(fb_color[m, j, i, 0]), sa, da, blend_color)
+                        g = blend_channel(eq_rgb, src_rgb, dst_rgb, 1, np.float64(color[k, 1]),
+                                          np.float64(fb_color[m, j, i, 1]), sa, da, blend_color)
+                        b = blend_channel(eq_rgb, src_rgb, dst_rgb, 2, np.float64(color[k, 2]),
+                                          np.float64(fb_color[m, j, i, 2]), sa, da, blend_color)
+                        a = blend_channel(eq_a, src_a, dst_a, 3, sa, da, sa, da, blend_color)
+                    if mask_r:
+                        fb_color[m, j, i, 0] = r
+                    if mask_g:
+                        fb_color[m, j, i, 1] = g
+                    if mask_b:
+                        fb_color[m, j, i, 2] = b
+                    if mask_a:
+                        fb_color[m, j, i, 3] = a
         if record:
             for c in range(4):
                 after[k, c] = fb_color[m, j, i, c]
@@ -191,66 +248,20 @@ def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blen
 
 
 @numba.njit(cache=True)
-def _write_stencil(fb_stencil, m, j, i, face, op, stored):
-    """Apply a stencil op through the face's write mask."""
-    if op == 0:
-        return
-    wmask = face[6]
-    fb_stencil[m, j, i] = (stored & ~wmask & 255) | (stencil_op(op, stored, face[1]) & wmask)
+def _covers(st, alpha, sample, samples):
+    """GL's multisample operations: alpha to coverage, then the sample mask."""
+    if st[ST_ALPHA_TO_COVERAGE] and not covered_by_alpha(np.float64(alpha), sample, samples):
+        return False
+    return (st[ST_SAMPLE_MASK] >> sample) & 1 != 0
 
 
 @numba.njit(cache=True)
-def _merge_one(k, i, j, m, depth, color, discarded, front, st, blend_color, fb_color, fb_depth, fb_stencil):
-    """One fragment through the chain; returns its verdict."""
-    if discarded[k]:
-        return DISCARDED
-    if st[ST_SCISSOR] and not (st[ST_SCISSOR + 1] <= i < st[ST_SCISSOR + 2]
-                               and st[ST_SCISSOR + 3] <= j < st[ST_SCISSOR + 4]):
-        return SCISSORED
-    if fb_color.shape[0] > 1:          # GL's multisample operations: only with several samples
-        if st[ST_ALPHA_TO_COVERAGE] and not covered_by_alpha(np.float64(color[k, 3]), m, fb_color.shape[0]):
-            return SAMPLE_MASKED
-        if not (st[ST_SAMPLE_MASK] >> m) & 1:
-            return SAMPLE_MASKED
-    stencil_on = st[ST_STENCIL] != 0
-    base = ST_STENCIL_FRONT if front else ST_STENCIL_BACK
-    face = st[base:base + 7]
-    stored = np.int64(fb_stencil[m, j, i])
-    if stencil_on and not compare(face[0], face[1] & face[2], stored & face[2]):
-        _write_stencil(fb_stencil, m, j, i, face, face[3], stored)
-        return STENCIL_FAILED
-    func = st[ST_DEPTH_FUNC]
-    if func >= 0:
-        z = np.float32(depth[k])
-        if st[ST_DEPTH_CLAMP]:
-            z = min(max(z, np.float32(0.0)), np.float32(1.0))
-        if not depth_passes(func, z, fb_depth[m, j, i]):
-            if stencil_on:
-                _write_stencil(fb_stencil, m, j, i, face, face[4], stored)
-            return DEPTH_FAILED
-        if st[ST_DEPTH_WRITE]:
-            fb_depth[m, j, i] = z
-    if stencil_on:
-        _write_stencil(fb_stencil, m, j, i, face, face[5], stored)
-    if not st[ST_BLEND]:
-        for c in range(4):
-            if st[ST_COLOR_MASK + c]:
-                fb_color[m, j, i, c] = color[k, c]
-    else:
-        sa, da = np.float64(color[k, 3]), np.float64(fb_color[m, j, i, 3])
-        out = np.empty(4)
-        for c in range(4):
-            src, dst = np.float64(color[k, c]), np.float64(fb_color[m, j, i, c])
-            if c < 3:
-                out[c] = blend_channel(st[ST_EQUATION_RGB], st[ST_SRC_RGB], st[ST_DST_RGB], c, src, dst, sa, da,
-                                       blend_color)
-            else:
-                out[c] = blend_channel(st[ST_EQUATION_ALPHA], st[ST_SRC_ALPHA], st[ST_DST_ALPHA], c, src, dst, sa,
-                                       da, blend_color)
-        for c in range(4):
-            if st[ST_COLOR_MASK + c]:
-                fb_color[m, j, i, c] = out[c]
-    return WRITTEN
+def _write_stencil(fb_stencil, m, j, i, st, face, op, stored):
+    """Apply a stencil op (the face's state at ``st[face:face + 7]``) through its write mask."""
+    if op == 0:
+        return
+    wmask = st[face + 6]
+    fb_stencil[m, j, i] = (stored & ~wmask & 255) | (stencil_op(op, stored, st[face + 1]) & wmask)
 
 
 @dataclass
