@@ -116,9 +116,9 @@ def _bundled_model(name: str, **kwargs):
 
 
 @functools.lru_cache(maxsize=None)
-def _bundled_texture(path: str):
-    """softpipe's Texture2D of a bundled model's texture file, made once."""
-    return _TEXTURE_2D[0](path)
+def _bundled_texture(path: str, srgb: bool = False):
+    """softpipe's Texture2D of a bundled model's texture file, made once (per sRGB decoding)."""
+    return _TEXTURE_2D[0](path, srgb=srgb)
 
 
 #: softpipe.light.texture.Texture2D, as the library has it.
@@ -129,8 +129,9 @@ def _texture(path, *args, **kwargs):
     """Texture2D(path, ...) in the scene target: a bundled model's texture once, other files each time."""
     from softpipe.scenes.models import MODELS_DIR
 
-    if not args and not kwargs and isinstance(path, str) and Path(path).resolve().is_relative_to(MODELS_DIR):
-        return _bundled_texture(path)
+    if (not args and set(kwargs) <= {"srgb"} and isinstance(path, str)
+            and Path(path).resolve().is_relative_to(MODELS_DIR)):
+        return _bundled_texture(path, bool(kwargs.get("srgb", False)))
     return _TEXTURE_2D[0](path, *args, **kwargs)
 
 
