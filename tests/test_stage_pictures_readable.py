@@ -9,9 +9,20 @@ import softpipe as sp
 from softpipe.pipeline.assembly import primitive_indices
 from softpipe.scenes import shapes
 from softpipe.scenes.drawing import draw_mesh
-from softpipe.views.pictures import (CAPTIONS, INSET_FRAME, DIM_YELLOW, PALETTE, SPARSE_CELL, SPARSE_MAX,
-                                     YELLOW, contact_sheet, greedy_coloring, save_stage_pictures,
-                                     triangle_adjacency, triangle_palette)
+from softpipe.views.pictures import (
+    CAPTIONS,
+    DIM_YELLOW,
+    INSET_FRAME,
+    PALETTE,
+    SPARSE_CELL,
+    SPARSE_MAX,
+    YELLOW,
+    contact_sheet,
+    greedy_coloring,
+    save_stage_pictures,
+    triangle_adjacency,
+    triangle_palette,
+)
 
 
 def _trace(mesh, size=96, distance=4.0, **kw):
@@ -35,23 +46,37 @@ def test_no_two_triangles_sharing_an_edge_have_the_same_color(mesh):
     trace = _trace(mesh, size=160, cull="none")
     pairs = _welded_pairs(trace)
     assert len(pairs) >= len(trace.call.indices) // 3          # a closed mesh: every triangle has neighbours
-    colors = triangle_palette(trace)
-    assert not (colors[pairs[:, 0]] == colors[pairs[:, 1]]).all(axis=1).any()
-    assert 2 <= len(np.unique(colors, axis=0)) <= 4             # a few colors, from the palette
-    assert set(map(tuple, colors)) <= set(map(tuple, PALETTE))
+    f, wr = trace.fragments, trace.written()
+    won = np.full((trace.height, trace.width), -1)
+    won[f.y[wr], f.x[wr]] = f.primitive_id[wr]                  # the last fragment written at each pixel
+    # the mesh's edges: at most 3 neighbours each, 4 colors at most; with the picture's touching pixels
+    # (triangles meeting at a corner touch there too), a few more
+    for colors, most in ((triangle_palette(trace), 4), (triangle_palette(trace, won), 6)):
+        assert not (colors[pairs[:, 0]] == colors[pairs[:, 1]]).all(axis=1).any()
+        assert 2 <= len(np.unique(colors, axis=0)) <= most
+        assert set(map(tuple, colors)) <= set(map(tuple, PALETTE))
     # and the picture shows them: each written triangle's pixels carry its color, neighbours on screen differ
     pics = trace.pictures()
     assert "inset" not in pics.captions["coverage"]             # big triangles: every pixel is the picture's own
     pic = pics["coverage"]
-    f, wr = trace.fragments, trace.written()
-    last = {}
-    for pid, x, y in zip(f.primitive_id[wr], f.x[wr], f.y[wr]):   # the last fragment written at each pixel
-        last[(int(x), int(y))] = int(pid)
-    shown = {}
-    for (x, y), pid in last.items():
-        assert shown.setdefault(pid, tuple(pic[y, x])) == tuple(pic[y, x]) == tuple(colors[pid])
+    ys, xs = np.nonzero(won >= 0)
+    assert np.array_equal(pic[ys, xs], colors[won[ys, xs]]) and not pic[won < 0].any()
+    shown = {int(won[y, x]): tuple(pic[y, x]) for y, x in zip(ys, xs)}
     on_screen = [(a, b) for a, b in pairs if a in shown and b in shown]
     assert len(on_screen) > 10 and all(shown[a] != shown[b] for a, b in on_screen)
+    # pixels side by side won by different triangles differ in color (a triangle over another too)
+    side = (won[:, 1:] >= 0) & (won[:, :-1] >= 0) & (won[:, 1:] != won[:, :-1])
+    assert side.sum() > 10 and (pic[:, 1:][side] != pic[:, :-1][side]).any(axis=1).all()
+
+
+def test_triangles_apart_in_the_mesh_but_touching_in_the_picture_differ():
+    """Two separate triangles, one in front of the other (no shared edge): not the same color."""
+    fb = sp.Framebuffer(48, 48)
+    tris = np.array([[-0.9, -0.9, 0.5, 1], [0.9, -0.9, 0.5, 1], [0.0, 0.9, 0.5, 1],
+                     [-0.5, -0.5, 0.0, 1], [0.5, -0.5, 0.0, 1], [0.0, 0.5, 0.0, 1]], float)
+    trace = sp.draw(fb, tris, varyings={"color": np.ones((6, 3))}, trace=True)
+    pic = trace.pictures()["coverage"]
+    assert tuple(pic[24, 24]) != tuple(pic[40, 24]) and pic[24, 24].any() and pic[40, 24].any()
 
 
 def test_the_greedy_coloring_takes_the_smallest_color_free_of_earlier_neighbours():
@@ -102,7 +127,7 @@ def test_dense_vertices_are_dim_pixels_and_a_zoomed_inset_shows_them():
     frame = (img == INSET_FRAME).all(axis=2)
     assert frame.sum() > 4 * 32                       # the inset's frame (64 across) and its source square's
     cap = pics.captions["vertices"]
-    assert f"≤{SPARSE_MAX} vertices per {SPARSE_CELL}×{SPARSE_CELL} px" in cap and "inset: the boxed place ×" in cap
+    assert f"<= {SPARSE_MAX} vertices per {SPARSE_CELL}x{SPARSE_CELL} px" in cap and "inset: the boxed place x" in cap
     # small triangles: the wireframe and the coverage get the inset too
     assert "inset" in pics.captions["primitives"] and "inset" in pics.captions["coverage"]
     assert (pics["primitives"] == INSET_FRAME).all(axis=2).sum() > 4 * 32

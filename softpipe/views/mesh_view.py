@@ -75,7 +75,7 @@ class MeshTable(list):
         if not rows:
             return self.heading()
         widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(cols)]
-        line = lambda r: "  ".join(v.ljust(w) for v, w in zip(r, widths))  # noqa: E731
+        line = lambda r: "  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip()  # noqa: E731
         return "\n".join([self.heading(), line(cols), line(["-" * w for w in widths])] + [line(r) for r in rows])
 
     def _repr_pretty_(self, p, cycle):

@@ -20,8 +20,9 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 together), a zoomed inset shows the wireframe where they are densest
 ``coverage``    each pixel colored by the primitive of the last fragment written there: of a triangle
                 mesh, a few well-separated colors (:data:`PALETTE`) given by a greedy coloring of the
-                triangles' adjacency, so two triangles sharing an edge never have the same color
-                (:func:`triangle_palette`); of lines and points, a color per id (:func:`id_colors`).
+                triangles' adjacency, so two triangles sharing an edge, or whose pixels touch in
+                the picture, do not have the same color (:func:`triangle_palette`; past 8 colors,
+                which greedy coloring does not need on a mesh, they repeat); of lines and points, a color per id (:func:`id_colors`).
                 Small triangles: the same zoomed inset as ``primitives`` (the pixels magnified)
 ``depth``       the depth buffer after the draw (near = white, cleared = black)
 ``overdraw``    how many times the pixel was covered: the samples the draw's fragments
@@ -46,7 +47,8 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 (its file: ``07-shadow-map-k-light-j.png``)
 
 :func:`stage_pictures` returns them with a caption each (``.captions``: what the picture shows, and
-its inset), which :func:`contact_sheet` writes under each picture's name.
+its inset), which :func:`contact_sheet` writes under each picture's name when given them (the sheet
+that ``save_stage_pictures``, ``softpipe render --stages`` and a trace in Jupyter show).
 
 The outlines (and a line's or a point's pixels) are drawn with the pipeline's own lines (``softpipe.draw`` with
 topology "lines", GL's diamond-exit rule), as a wireframe over a rendered image is
@@ -187,7 +189,7 @@ class StagePictures(dict):
 CAPTIONS = {
     "vertices": "each vertex with w > 0: a dot",
     "primitives": "edges: white drawn, red culled, cyan clipping's piece, orange cut",
-    "coverage": "the triangle that won each pixel; triangles sharing an edge differ",
+    "coverage": "the triangle that won each pixel; touching triangles differ in color",
     "depth": "depth after the draw: near white, far gray, cleared black",
     "overdraw": "fragments per pixel (the key below)",
     "final": "the color buffer after the draw",
@@ -256,11 +258,13 @@ def greedy_coloring(n: int, pairs: np.ndarray) -> np.ndarray:
     return np.array(color, dtype=np.int64)
 
 
-def triangle_palette(trace) -> Optional[np.ndarray]:
+def triangle_palette(trace, shown: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
     """uint8 [P, 3]: the coverage color of each input triangle of a draw of triangles (its primitive
-    id), from :data:`PALETTE` by :func:`greedy_coloring` of the triangles that share an edge; the
-    vertices are joined by their given positions (a mesh split at a seam of normals or texture
-    coordinates is still one surface). None for a draw of lines or points."""
+    id), from :data:`PALETTE` by :func:`greedy_coloring` of the triangles that share an edge (the
+    vertices joined by their given positions: a mesh split at a seam of normals or texture
+    coordinates is still one surface) and, given ``shown`` (int [H, W], the primitive id that won
+    each pixel, −1 for none), of those whose pixels touch in the picture (a triangle over another).
+    None for a draw of lines or points."""
     from softpipe.pipeline.assembly import TRIANGLE_TOPOLOGIES, primitive_indices
     call = trace.call
     if call.topology not in TRIANGLE_TOPOLOGIES:
@@ -269,7 +273,13 @@ def triangle_palette(trace) -> Optional[np.ndarray]:
     given = given.reshape(len(given), -1)
     tri = primitive_indices(call.topology, call.indices, len(given))
     _, weld = np.unique(given, axis=0, return_inverse=True)
-    colors = greedy_coloring(len(tri), triangle_adjacency(weld.reshape(-1)[tri]))
+    pairs = [triangle_adjacency(weld.reshape(-1)[tri])]
+    if shown is not None:
+        for a, b in ((shown[:, :-1], shown[:, 1:]), (shown[:-1], shown[1:])):
+            touch = (a >= 0) & (b >= 0) & (a != b) & (a < len(tri)) & (b < len(tri))
+            pairs.append(np.sort(np.stack([a[touch], b[touch]], axis=1), axis=1))
+    both = np.unique(np.concatenate(pairs).astype(np.int64).reshape(-1, 2), axis=0)
+    colors = greedy_coloring(len(tri), both)
     return PALETTE[colors % len(PALETTE)]
 
 
@@ -283,7 +293,7 @@ def _window_vertices(trace) -> np.ndarray:
     return trace.call.viewport.apply(ndc)[:, :2]
 
 
-def density_inset(points_xy: np.ndarray, height: int, width: int, need: float, zoom_of) -> Optional[tuple]:
+def density_inset(points_xy: np.ndarray, height: int, width: int, zoom_of) -> Optional[tuple]:
     """Where a zoomed inset goes: (zoom z, source square (x0, y0, side) in image pixels, target corner
     (x0, y0, side)), or None when the picture has no room for one (under 48 pixels across).
 
@@ -363,15 +373,17 @@ def _vertices_picture(trace, h: int, w: int) -> tuple:
     ok = (dense[:, 0] >= 0) & (dense[:, 0] < w) & (dense[:, 1] >= 0) & (dense[:, 1] < h)
     img[dense[ok, 1], dense[ok, 0]] = DIM_YELLOW
     _dots(img, p[sparse], YELLOW)
-    caption = (f"a dot where ≤{SPARSE_MAX} vertices per {SPARSE_CELL}×{SPARSE_CELL} px, "
+    # (ASCII only: the sheet's default font has no ≤ or ×)
+    caption = (f"a dot where <= {SPARSE_MAX} vertices per {SPARSE_CELL}x{SPARSE_CELL} px, "
                "a dim pixel where denser")
-    place = density_inset(spots + 0.5, h, w, SPARSE_MAX, lambda c: _zoom_for(c, SPARSE_MAX))
+    # zoomed until the fullest cell's vertices are about one per cell: dots far apart
+    place = density_inset(spots + 0.5, h, w, lambda c: _zoom_for(c, 1))
     if place is not None:
         z, (sx, sy, src), (tx, ty, side) = place
         inset = np.zeros((side, side, 3), np.uint8)
         _dots(inset, np.floor((xy - (sx, sy)) * z).astype(np.int64), YELLOW)
         _paste_inset(img, inset, place)
-        caption += f"; inset: the boxed place ×{z}"
+        caption += f"; inset: the boxed place x{z}"
     return img, caption
 
 
@@ -444,8 +456,9 @@ def heat_colors(counts: np.ndarray) -> np.ndarray:
     return (stops[lo] * (1 - f) + stops[hi] * f).astype(np.uint8)
 
 
-def stage_pictures(trace) -> Dict[str, np.ndarray]:
-    """The pictures listed in the module docstring, for a :class:`~softpipe.pipeline.trace.Trace`."""
+def stage_pictures(trace) -> StagePictures:
+    """The pictures listed in the module docstring, for a :class:`~softpipe.pipeline.trace.Trace`, in a
+    :class:`StagePictures` (a dict, with ``captions``: what each shows, for :func:`contact_sheet`)."""
     h, w = trace.height, trace.width
     f = trace.fragments
     fb = trace.call.framebuffer
@@ -457,22 +470,24 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
     small = _small_triangles(trace)
     place = None
     if small is not None:
-        place = density_inset(small[0], h, w, 0, lambda c: small[1])
+        place = density_inset(small[0], h, w, lambda c: small[1])
     img = np.zeros((h, w, 3), np.uint8)
     for layer in OUTLINE_LAYERS:
         draw_outline_layer(img, trace, layer)
     captions["primitives"] = CAPTIONS["primitives"]
     if place is not None:
         _paste_inset(img, _wireframe_inset(trace, place), place)
-        captions["primitives"] += f"; inset: the boxed place ×{place[0]}"
+        captions["primitives"] += f"; inset: the boxed place x{place[0]}"
     pics["primitives"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
     written = trace.written()
     captions["coverage"] = CAPTIONS["coverage"]
     if written.any():                                  # fancy assignment: the last written fragment wins
-        palette = triangle_palette(trace)
         ids = f.primitive_id[written]
+        shown = np.full((h, w), -1, np.int64)
+        shown[f.y[written], f.x[written]] = ids             # the last written wins, as in the picture
+        palette = triangle_palette(trace, shown)
         if palette is None:
             img[f.y[written], f.x[written]] = id_colors(ids)
             captions["coverage"] = "the primitive that won each pixel, a color per id"
@@ -480,7 +495,7 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
             img[f.y[written], f.x[written]] = palette[ids % len(palette)]
     if place is not None:
         _paste_inset(img, _magnified_inset(img.copy(), place), place)
-        captions["coverage"] += f"; inset ×{place[0]}"
+        captions["coverage"] += f"; inset x{place[0]}"
     pics["coverage"] = img
 
     depth = fb.depth
