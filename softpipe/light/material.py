@@ -48,7 +48,7 @@ from softpipe.light.packed import (
     LIGHT_SPOT_DIRECTION,
     LIGHT_SPOT_EXPONENT,
 )
-from softpipe.light.shadowmap import ShadowSettings, light_visibility
+from softpipe.light.shadowmap import ShadowSettings, light_visibilities, light_visibility
 
 RGB = Tuple[float, float, float]
 Vec3 = Tuple[float, float, float]
@@ -483,6 +483,15 @@ class LightingUniform(namedtuple("LightingUniform", ["global_ambient", "lights",
             return ()
         point = tuple(float(v) for v in P)
         return tuple(tuple(float(c) for c in light_visibility(self, j, point)) for j in range(len(shadows.light_maps)))
+
+    def visibilities_at(self, points) -> Optional[np.ndarray]:
+        """V_j of every light at each eye-space point of ``points`` [N, 3], in one compiled pass
+        (:func:`~softpipe.light.shadowmap.light_visibilities`): float64 [N, L, 3], each row equal to
+        :meth:`visibilities` of that point; None when no light casts shadows (where that gives ())."""
+        shadows = self.shadows
+        if shadows is None or not shadows.light_maps[:, 1:].any():
+            return None
+        return light_visibilities(self, points)
 
 
 @dataclass(frozen=True)

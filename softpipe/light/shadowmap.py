@@ -46,7 +46,7 @@ from softpipe.rays.queries import ray_visibility
 Vec3 = Tuple[float, float, float]
 Color = Tuple[float, float, float]
 
-__all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "light_visibility", "casts_shadows",
+__all__ = ["ShadowSettings", "ShadowUniform", "no_shadows", "light_visibility", "light_visibilities", "casts_shadows",
            "shadow_map_visibility", "shadow_compare",
            "SHADOW_MAP", "SHADOW_RAY", "SHADOW_METHODS",
            "depth_texture", "texture_compare",
@@ -341,6 +341,36 @@ def light_visibility(lighting, j: int, P: Sequence[float]) -> Color:
     if lighting.shadows is None:
         return (1.0, 1.0, 1.0)
     return _shadowed_visibility(lighting.lights, lighting.shadows, j, P)
+
+
+def light_visibilities(lighting, points: np.ndarray) -> np.ndarray:
+    """V_j of every light at many eye-space points in one compiled pass: float64 [N, L, 3], where row i,
+    light j is ``light_visibility(lighting, j, points[i])`` — the very function the shaders call, so
+    the values are the ones a shader computed (a pixel history shows them, FORMULAS §21).
+
+    ``points`` is [N, 3] (any float dtype; read as float64). Calling :func:`light_visibility` from
+    Python once per fragment and light costs a call into compiled code each (and the typing of its
+    arguments): the explorer of a shadowed model asked it hundreds of thousands of times.
+    """
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"light_visibilities: points must be an [N, 3] array of eye-space points, got shape "
+                         f"{pts.shape}")
+    shadows = lighting.shadows
+    lights = 0 if shadows is None else len(shadows.light_maps)
+    out = np.ones((len(pts), lights, 3))
+    if lights and len(pts):
+        _visibility_pass(lighting, pts, out)
+    return out
+
+
+@njit(cache=True)
+def _visibility_pass(lighting, points, out):
+    for i in range(points.shape[0]):
+        P = (points[i, 0], points[i, 1], points[i, 2])
+        for j in range(out.shape[1]):
+            v = light_visibility(lighting, j, P)
+            out[i, j, 0], out[i, j, 1], out[i, j, 2] = v[0], v[1], v[2]
 
 
 # inlined, as _shadowed_visibility and the map lookups above: per light and lit sample

@@ -509,6 +509,13 @@ class Trace:
             return ()
         return visibilities(P)
 
+    def shadow_terms(self, points) -> Optional[np.ndarray]:
+        """V_j of every light at many eye-space points [N, 3] in one compiled pass: float64 [N, L, 3], row i
+        equal to :meth:`pixel_history`'s ``shadow`` of a fragment whose ``position`` is points[i]; None
+        when the draw casts no shadows (the uniform answers, ``LightingUniform.visibilities_at``)."""
+        at = getattr(getattr(self.call.uniforms, "lighting", None), "visibilities_at", None)
+        return None if at is None else at(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+
     # ------------------------------------------------------------- pictures
 
     def pictures(self):
@@ -522,7 +529,8 @@ class Trace:
 
         from softpipe.views.pictures import contact_sheet, stage_pictures
         buf = io.BytesIO()
-        contact_sheet(stage_pictures(self)).save(buf, format="PNG")
+        pics = stage_pictures(self)
+        contact_sheet(pics, captions=pics.captions).save(buf, format="PNG")
         return buf.getvalue()
 
     def to_html(self, path, **options):
@@ -540,6 +548,12 @@ class Trace:
         :class:`softpipe.views.diff.TraceDiff` (the pixels changed, by how much, each one's first differing fragment)."""
         from softpipe.views.diff import diff_draws
         return diff_draws(self, other)
+
+    def mesh_table(self, pixel=None, vertices=None):
+        """The draw's vertices in object, clip and window space (RenderDoc's mesh viewer); with ``pixel``
+        (x, y), the corners of the triangle that won it: :func:`softpipe.views.mesh_view.mesh_table`."""
+        from softpipe.views.mesh_view import mesh_table
+        return mesh_table(self, pixel, vertices)
 
     def save_pictures(self, directory) -> dict:
         """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""

@@ -309,7 +309,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     F = len(rows)
     vary = np.full((F, kmax), np.nan)
     shadow_cols = []
-    shadows: Dict[int, list] = {}
+    shadows: List[tuple] = []                                # (rows, V_j [rows, L, 3]) of each shadowed draw
     color = np.zeros((F, 4), np.float32)
     after = np.zeros((F, 4), np.float32)
     depth = np.zeros(F)
@@ -335,6 +335,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         module = kernels.python_fragment_module(t.fragment_shader, t.primitives.layout)
         ncols = 0
         own = t.primitives.kind != "triangles"
+        lit_rows, lit_points = [], []                        # the rows with an eye-space position, for V_j
         for r, i in zip(sel, idx):                           # the very code pixel_history runs, per fragment
             inputs = t._inputs(module, int(i))
             v = inputs[0]
@@ -342,18 +343,23 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
                 point_coord[r] = inputs[2].point_coord
             flat = _varyings_flat(v)
             vary[r, :len(flat)] = flat
-            s = t._shadow_terms(v)
-            if s:
-                shadows[int(r)] = s
-                ncols = max(ncols, len(s))
+            P = getattr(v, "position", None)
+            if P is not None and len(P) == 3:
+                lit_rows.append(int(r))
+                lit_points.append(tuple(float(c) for c in P))
             done += 1
             if progress is not None and done % 20000 == 0:
                 progress(done, F)
+        # V_j of all of them in one compiled pass (FORMULAS §21): the values pixel_history shows, per fragment
+        terms = t.shadow_terms(np.array(lit_points, dtype=np.float64).reshape(-1, 3)) if lit_rows else None
+        if terms is not None and terms.shape[1]:
+            shadows.append((np.array(lit_rows, np.int64), terms))
+            ncols = terms.shape[1]
         shadow_cols.append(ncols)
     lmax = max(shadow_cols + [0])
     shadow = np.full((F, max(lmax, 1), 3), np.nan, np.float32)
-    for row, s in shadows.items():
-        shadow[row, :len(s)] = s
+    for lit, terms in shadows:
+        shadow[lit, :terms.shape[1]] = terms
     same = (color == after).all(axis=1)                     # the color after is the shader's, mostly: once
     hpix, hstart = np.unique(rows[:, 0], return_index=True)
     hstart = np.append(hstart, F)

@@ -2,7 +2,11 @@
 
 Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
 
-``vertices``    every vertex with w > 0 as a dot at its window position
+``vertices``    every vertex with w > 0 at its window position: a 3×3 dot where its 8×8-pixel cell
+                holds at most 4 pixels with a vertex (there dots stay apart), a single dim pixel in a
+                denser cell;
+                when any cell is dense, a zoomed inset (:func:`density_inset`) shows the densest place
+                with dots
 ``primitives``  wireframe of the triangles that reach the rasterizer (white);
                 pieces made by clipping (cyan) over the outline of the triangle
                 they were cut from (orange); triangles culled for facing (red,
@@ -11,8 +15,15 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 clipped one's cut-off segment under it (orange, width 1); a draw
                 of points, the outline of each point's square (the pixels at its
                 border); a draw in polygon mode ("line" or "point"), the triangles
-                whose edges or corners it drew, as a draw of triangles would
-``coverage``    each pixel colored by the primitive id of the last fragment written there
+                whose edges or corners it drew, as a draw of triangles would. When the triangles
+                are small (their median area under 24 pixels: edges closer than ~5 pixels run
+                together), a zoomed inset shows the wireframe where they are densest
+``coverage``    each pixel colored by the primitive of the last fragment written there: of a triangle
+                mesh, a few well-separated colors (:data:`PALETTE`) given by a greedy coloring of the
+                triangles' adjacency, so two triangles sharing an edge, or whose pixels touch in
+                the picture, do not have the same color (:func:`triangle_palette`; past 8 colors,
+                which greedy coloring does not need on a mesh, they repeat); of lines and points, a color per id (:func:`id_colors`).
+                Small triangles: the same zoomed inset as ``primitives`` (the pixels magnified)
 ``depth``       the depth buffer after the draw (near = white, cleared = black)
 ``overdraw``    how many times the pixel was covered: the samples the draw's fragments
                 cover there ÷ the samples per pixel, as a heat map (black 0, blue 1,
@@ -35,6 +46,10 @@ Each picture is an [H, W, 3] uint8 array the size of the framebuffer:
                 ``shadow map k, light j`` or ``…, light j, face +x`` for a cube map
                 (its file: ``07-shadow-map-k-light-j.png``)
 
+:func:`stage_pictures` returns them with a caption each (``.captions``: what the picture shows, and
+its inset), which :func:`contact_sheet` writes under each picture's name when given them (the sheet
+that ``save_stage_pictures``, ``softpipe render --stages`` and a trace in Jupyter show).
+
 The outlines (and a line's or a point's pixels) are drawn with the pipeline's own lines (``softpipe.draw`` with
 topology "lines", GL's diamond-exit rule), as a wireframe over a rendered image is
 (:func:`softpipe.scenes.drawing.draw_wireframe`).
@@ -43,7 +58,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Dict
+from typing import Dict, Optional
 
 import numpy as np
 
@@ -53,7 +68,8 @@ __all__ = ["stage_pictures", "shadow_map_pictures", "contact_sheet", "save_stage
            "HEAT_STOPS", "OVERDRAW_DEFINITION", "draw_triangle_outlines", "draw_primitive_outlines", "OUTLINE_LAYERS",
            "draw_outline_layer", "draw_window_segments", "cut_outlines", "id_colors", "heat_colors",
            "WHITE", "CYAN", "ORANGE", "RED", "YELLOW", "MAGENTA", "non_finite_pixels", "TEST_COLORS",
-           "merger_tests"]
+           "merger_tests", "PALETTE", "triangle_palette", "greedy_coloring", "triangle_adjacency", "density_inset",
+           "StagePictures", "CAPTIONS", "SPARSE_CELL", "SPARSE_MAX", "SMALL_TRIANGLE_AREA"]
 
 PICTURES = ("vertices", "primitives", "coverage", "depth", "overdraw", "final")
 
@@ -152,6 +168,276 @@ def id_colors(ids: np.ndarray) -> np.ndarray:
     return (rgb * 255).astype(np.uint8)
 
 
+#: The coverage picture's colors for a triangle mesh: well apart in hue and lightness, none near black
+#: (the cleared background) or white. A greedy coloring of triangles that share at most 3 edges each
+#: needs at most 4; the rest are there for non-manifold edges and fans.
+PALETTE = np.array([[230, 85, 75], [70, 150, 235], [110, 200, 80], [245, 205, 60], [175, 105, 225],
+                    [50, 205, 195], [245, 140, 45], [225, 120, 180]], dtype=np.uint8)
+
+
+class StagePictures(dict):
+    """name → [H, W, 3] uint8 picture, in order, with ``captions``: name → what the picture shows."""
+
+    captions: Dict[str, str]
+
+    def __init__(self, *args, **kw):
+        super().__init__(*args, **kw)
+        self.captions = {}
+
+
+#: Each stage picture's caption on a contact sheet (a dense mesh's inset adds to some).
+CAPTIONS = {
+    "vertices": "each vertex with w > 0: a dot",
+    "primitives": "edges: white drawn, red culled, cyan clipping's piece, orange cut",
+    "coverage": "the triangle that won each pixel; touching triangles differ in color",
+    "depth": "depth after the draw: near white, far gray, cleared black",
+    "overdraw": "fragments per pixel (the key below)",
+    "final": "the color buffer after the draw",
+    "non-finite": "NaN or infinite pixels in magenta",
+    "stencil": "stencil value per pixel (0 black)",
+    "tests": "what the merger did with each pixel's last fragment",
+}
+
+#: The vertices picture's density rule: a vertex is a 3×3 dot when its SPARSE_CELL × SPARSE_CELL cell
+#: of pixels holds at most SPARSE_MAX pixels with a vertex; else a single dim pixel, and an inset shows the place.
+SPARSE_CELL = 8
+SPARSE_MAX = 4
+#: Triangles whose median window area (in pixels) is under this read as a blob drawn as outlines:
+#: the primitives and coverage pictures then get a zoomed inset.
+SMALL_TRIANGLE_AREA = 24.0
+DIM_YELLOW = (150, 135, 50)
+INSET_FRAME = (160, 160, 170)
+
+
+def triangle_adjacency(triangles: np.ndarray) -> np.ndarray:
+    """The pairs (a, b), a < b, of triangles (rows of vertex ids [n, 3]) that share an edge (two vertex
+    ids), int64 [m, 2], sorted and unique; a degenerate triangle's collapsed edge is no edge."""
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    n = len(tri)
+    if n == 0:
+        return np.zeros((0, 2), np.int64)
+    e = np.stack([tri, np.roll(tri, -1, axis=1)], axis=2).reshape(-1, 2)        # [3n, 2]
+    owner = np.repeat(np.arange(n), 3)
+    ok = e[:, 0] != e[:, 1]
+    e, owner = np.sort(e[ok], axis=1), owner[ok]
+    order = np.lexsort((owner, e[:, 1], e[:, 0]))
+    e, owner = e[order], owner[order]
+    same = (e[1:] == e[:-1]).all(axis=1)
+    starts = np.flatnonzero(np.concatenate([[True], ~same]))
+    sizes = np.diff(np.append(starts, len(e)))
+    pairs = []
+    for k in range(2, int(sizes.max()) + 1 if len(sizes) else 0):   # an edge shared by k triangles: every pair
+        for g in starts[sizes == k]:
+            o = owner[g:g + k]
+            i, j = np.triu_indices(k, 1)
+            pairs.append(np.stack([o[i], o[j]], axis=1))
+    if not pairs:
+        return np.zeros((0, 2), np.int64)
+    out = np.concatenate(pairs)
+    out = np.sort(out[out[:, 0] != out[:, 1]], axis=1)
+    return np.unique(out, axis=0)
+
+
+def greedy_coloring(n: int, pairs: np.ndarray) -> np.ndarray:
+    """int64 [n]: for nodes 0 … n−1 in order, the smallest color no earlier neighbour (``pairs`` [m, 2]) has.
+
+    Nodes with at most d neighbours get colors 0 … d (a triangle mesh's: at most 3 edge
+    neighbours, so 0 … 3)."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    both = np.concatenate([pairs, pairs[:, ::-1]])
+    both = both[np.argsort(both[:, 0], kind="stable")]
+    start = np.searchsorted(both[:, 0], np.arange(n + 1))
+    nb = both[:, 1].tolist()
+    color = [0] * n
+    for i in range(n):
+        used = {color[j] for j in nb[start[i]:start[i + 1]] if j < i}
+        c = 0
+        while c in used:
+            c += 1
+        color[i] = c
+    return np.array(color, dtype=np.int64)
+
+
+def triangle_palette(trace, shown: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
+    """uint8 [P, 3]: the coverage color of each input triangle of a draw of triangles (its primitive
+    id), from :data:`PALETTE` by :func:`greedy_coloring` of the triangles that share an edge (the
+    vertices joined by their given positions: a mesh split at a seam of normals or texture
+    coordinates is still one surface) and, given ``shown`` (int [H, W], the primitive id that won
+    each pixel, −1 for none), of those whose pixels touch in the picture (a triangle over another).
+    None for a draw of lines or points."""
+    from softpipe.pipeline.assembly import TRIANGLE_TOPOLOGIES, primitive_indices
+    call = trace.call
+    if call.topology not in TRIANGLE_TOPOLOGIES:
+        return None
+    given = np.asarray(call.positions, dtype=np.float64)
+    given = given.reshape(len(given), -1)
+    tri = primitive_indices(call.topology, call.indices, len(given))
+    _, weld = np.unique(given, axis=0, return_inverse=True)
+    pairs = [triangle_adjacency(weld.reshape(-1)[tri])]
+    if shown is not None:
+        for a, b in ((shown[:, :-1], shown[:, 1:]), (shown[:-1], shown[1:])):
+            touch = (a >= 0) & (b >= 0) & (a != b) & (a < len(tri)) & (b < len(tri))
+            pairs.append(np.sort(np.stack([a[touch], b[touch]], axis=1), axis=1))
+    both = np.unique(np.concatenate(pairs).astype(np.int64).reshape(-1, 2), axis=0)
+    colors = greedy_coloring(len(tri), both)
+    return PALETTE[colors % len(PALETTE)]
+
+
+def _window_vertices(trace) -> np.ndarray:
+    """Window xy [N, 2] (y up) of the vertices with w > 0."""
+    pos = trace.vertex.position
+    vis = pos[:, 3] > 0
+    if not vis.any():
+        return np.zeros((0, 2))
+    ndc = pos[vis, :3] / pos[vis, 3:4]
+    return trace.call.viewport.apply(ndc)[:, :2]
+
+
+def density_inset(points_xy: np.ndarray, height: int, width: int, zoom_of) -> Optional[tuple]:
+    """Where a zoomed inset goes: (zoom z, source square (x0, y0, side) in image pixels, target corner
+    (x0, y0, side)), or None when the picture has no room for one (under 48 pixels across).
+
+    ``points_xy`` (image coordinates) are counted in SPARSE_CELL cells; the source square is
+    centred on the fullest cell; ``zoom_of(count)`` gives z (a power of two, 2 … 8) from the fullest
+    cell's count. The inset is half the picture's smaller side, in the corner with the fewest points."""
+    side = min(height, width) // 2
+    if side < 24 or len(points_xy) == 0:
+        return None
+    cells = np.floor(points_xy / SPARSE_CELL).astype(np.int64)
+    key = cells[:, 1] * (width // SPARSE_CELL + 2) + cells[:, 0]
+    uniq, counts = np.unique(key, return_counts=True)
+    best = int(np.argmax(counts))                     # the first of the fullest cells: deterministic
+    cy, cx = divmod(int(uniq[best]), width // SPARSE_CELL + 2)
+    z = int(zoom_of(int(counts[best])))
+    src = max(side // z, 1)
+    sx = int(np.clip((cx + 0.5) * SPARSE_CELL - src / 2, 0, max(width - src, 0)))
+    sy = int(np.clip((cy + 0.5) * SPARSE_CELL - src / 2, 0, max(height - src, 0)))
+    corners = [(width - side, 0), (0, 0), (width - side, height - side), (0, height - side)]
+    fill = [int(((points_xy[:, 0] >= x) & (points_xy[:, 0] < x + side) & (points_xy[:, 1] >= y)
+                 & (points_xy[:, 1] < y + side)).sum()) for x, y in corners]
+    tx, ty = corners[int(np.argmin(fill))]            # the first of the emptiest: top right, if it ties
+    return z, (sx, sy, src), (tx, ty, side)
+
+
+def _zoom_for(count: int, limit: float) -> int:
+    """The smallest of 2, 4, 8 that spreads ``count`` points of a cell to at most ``limit`` per cell."""
+    return next((z for z in (2, 4, 8) if count / (z * z) <= limit), 8)
+
+
+def _frame(img: np.ndarray, x0: int, y0: int, side_w: int, side_h: int, color) -> None:
+    """A one-pixel rectangle outline, clipped to the image."""
+    h, w = img.shape[:2]
+    x1, y1 = min(x0 + side_w - 1, w - 1), min(y0 + side_h - 1, h - 1)
+    x0, y0 = max(x0, 0), max(y0, 0)
+    img[y0, x0:x1 + 1] = img[y1, x0:x1 + 1] = color
+    img[y0:y1 + 1, x0] = img[y0:y1 + 1, x1] = color
+
+
+def _paste_inset(img: np.ndarray, inset: np.ndarray, place: tuple) -> None:
+    """``inset`` (side × side) into ``img`` at the target corner, framed; the source square framed too."""
+    z, (sx, sy, src), (tx, ty, side) = place
+    _frame(img, sx, sy, src, src, INSET_FRAME)
+    img[ty:ty + side, tx:tx + side] = inset
+    _frame(img, tx, ty, side, side, INSET_FRAME)
+
+
+def _dots(img: np.ndarray, p: np.ndarray, color) -> None:
+    """3×3 dots centred on the integer pixels p [N, 2] (x, row), clipped to the image."""
+    h, w = img.shape[:2]
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            x, y = p[:, 0] + dx, p[:, 1] + dy
+            ok = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+            img[y[ok], x[ok]] = color
+
+
+def _vertices_picture(trace, h: int, w: int) -> tuple:
+    """The vertices picture (the density rule of the module docstring) and its caption."""
+    img = np.zeros((h, w, 3), np.uint8)
+    xy = _to_image_xy(_window_vertices(trace), h)
+    p = np.floor(xy).astype(np.int64)
+    if len(p) == 0:
+        return img, CAPTIONS["vertices"]
+    cols = w // SPARSE_CELL + 2
+    # counted by the pixels that hold a vertex: a mesh split at its edges (a cube's 3 records per
+    # corner) has one dot per corner, not three
+    spots = np.unique(p, axis=0)
+    key = np.floor_divide(spots[:, 1], SPARSE_CELL) * cols + np.floor_divide(spots[:, 0], SPARSE_CELL)
+    cells, counts = np.unique(key, return_counts=True)
+    mine = np.floor_divide(p[:, 1], SPARSE_CELL) * cols + np.floor_divide(p[:, 0], SPARSE_CELL)
+    sparse = counts[np.searchsorted(cells, mine)] <= SPARSE_MAX
+    if sparse.all():
+        _dots(img, p, YELLOW)
+        return img, CAPTIONS["vertices"]
+    dense = p[~sparse]
+    ok = (dense[:, 0] >= 0) & (dense[:, 0] < w) & (dense[:, 1] >= 0) & (dense[:, 1] < h)
+    img[dense[ok, 1], dense[ok, 0]] = DIM_YELLOW
+    _dots(img, p[sparse], YELLOW)
+    # (ASCII only: the sheet's default font has no ≤ or ×)
+    caption = (f"a dot where <= {SPARSE_MAX} vertices per {SPARSE_CELL}x{SPARSE_CELL} px, "
+               "a dim pixel where denser")
+    # zoomed until the fullest cell's vertices are about one per cell: dots far apart
+    place = density_inset(spots + 0.5, h, w, lambda c: _zoom_for(c, 1))
+    if place is not None:
+        z, (sx, sy, src), (tx, ty, side) = place
+        inset = np.zeros((side, side, 3), np.uint8)
+        _dots(inset, np.floor((xy - (sx, sy)) * z).astype(np.int64), YELLOW)
+        _paste_inset(img, inset, place)
+        caption += f"; inset: the boxed place x{z}"
+    return img, caption
+
+
+def _small_triangles(trace) -> Optional[tuple]:
+    """(image-space centroids [n, 2], zoom) of the drawn triangles when their median window area is under
+    SMALL_TRIANGLE_AREA pixels (a draw of triangles only), else None."""
+    prims = _outlined(trace)
+    if getattr(prims, "kind", "triangles") != "triangles" or len(prims.window) == 0:
+        return None
+    win = np.asarray(prims.window, dtype=np.float64)[:, :, :2]
+    ok = np.isfinite(win).all(axis=(1, 2))
+    if not ok.any():
+        return None
+    win = win[ok]
+    a, b, c = win[:, 0], win[:, 1], win[:, 2]
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+    median = float(np.median(area))
+    if median >= SMALL_TRIANGLE_AREA:
+        return None
+    zoom = next((z for z in (2, 4, 8) if median * z * z >= 4 * SMALL_TRIANGLE_AREA), 8)
+    return _to_image_xy(win.mean(axis=1), trace.height), zoom
+
+
+def _wireframe_inset(trace, place: tuple) -> np.ndarray:
+    """The primitives picture's layers (culled, whole, clipped pieces) of the triangles in the source
+    square, magnified ×z into the inset."""
+    z, (sx, sy, src), (tx, ty, side) = place
+    h = trace.height
+    inset = np.zeros((side, side, 3), np.uint8)
+    prims = _outlined(trace)
+    # window (y up) → the inset's window: x' = (x − sx)·z, y' = side − (h − y − sy)·z
+    def scaled(tris):
+        t = np.asarray(tris, dtype=np.float64)[:, :, :2].copy()
+        if len(t) == 0:
+            return t
+        t[:, :, 0] = (t[:, :, 0] - sx) * z
+        t[:, :, 1] = side - (h - t[:, :, 1] - sy) * z
+        near = ((t[:, :, 0].max(axis=1) >= -1) & (t[:, :, 0].min(axis=1) <= side + 1)
+                & (t[:, :, 1].max(axis=1) >= -1) & (t[:, :, 1].min(axis=1) <= side + 1))
+        return t[near]
+    draw_triangle_outlines(inset, scaled(prims.culled_window), side, RED)
+    draw_triangle_outlines(inset, scaled(prims.window[~prims.clipped]), side, WHITE)
+    draw_triangle_outlines(inset, scaled(prims.window[prims.clipped]), side, CYAN)
+    return inset
+
+
+def _magnified_inset(img: np.ndarray, place: tuple) -> np.ndarray:
+    """The source square of ``img``, each pixel z × z (nearest neighbour), cut to the inset's side."""
+    z, (sx, sy, src), (tx, ty, side) = place
+    rows = np.minimum(sy + np.arange(side) // z, img.shape[0] - 1)
+    cols = np.minimum(sx + np.arange(side) // z, img.shape[1] - 1)
+    return img[rows[:, None], cols[None, :]]
+
+
 #: The overdraw picture's colors at 0, 1, 2, … 6 (and more) coverings of a pixel.
 HEAT_STOPS = np.array([[0, 0, 0], [40, 60, 220], [40, 200, 80], [240, 220, 40], [230, 50, 40], [255, 140, 140],
                        [255, 255, 255]], dtype=np.float64)
@@ -170,36 +456,46 @@ def heat_colors(counts: np.ndarray) -> np.ndarray:
     return (stops[lo] * (1 - f) + stops[hi] * f).astype(np.uint8)
 
 
-def stage_pictures(trace) -> Dict[str, np.ndarray]:
-    """The pictures listed in the module docstring, for a :class:`~softpipe.pipeline.trace.Trace`."""
+def stage_pictures(trace) -> StagePictures:
+    """The pictures listed in the module docstring, for a :class:`~softpipe.pipeline.trace.Trace`, in a
+    :class:`StagePictures` (a dict, with ``captions``: what each shows, for :func:`contact_sheet`)."""
     h, w = trace.height, trace.width
     f = trace.fragments
     fb = trace.call.framebuffer
-    pics: Dict[str, np.ndarray] = {}
+    pics = StagePictures()
+    captions = pics.captions
 
-    img = np.zeros((h, w, 3), np.uint8)
-    pos = trace.vertex.position
-    vis = pos[:, 3] > 0
-    if vis.any():
-        ndc = pos[vis, :3] / pos[vis, 3:4]
-        win = trace.call.viewport.apply(ndc)
-        p = np.floor(_to_image_xy(win[:, :2], h)).astype(np.int64)
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                x, y = p[:, 0] + dx, p[:, 1] + dy
-                ok = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-                img[y[ok], x[ok]] = YELLOW
-    pics["vertices"] = img
+    pics["vertices"], captions["vertices"] = _vertices_picture(trace, h, w)
 
+    small = _small_triangles(trace)
+    place = None
+    if small is not None:
+        place = density_inset(small[0], h, w, lambda c: small[1])
     img = np.zeros((h, w, 3), np.uint8)
     for layer in OUTLINE_LAYERS:
         draw_outline_layer(img, trace, layer)
+    captions["primitives"] = CAPTIONS["primitives"]
+    if place is not None:
+        _paste_inset(img, _wireframe_inset(trace, place), place)
+        captions["primitives"] += f"; inset: the boxed place x{place[0]}"
     pics["primitives"] = img
 
     img = np.zeros((h, w, 3), np.uint8)
     written = trace.written()
+    captions["coverage"] = CAPTIONS["coverage"]
     if written.any():                                  # fancy assignment: the last written fragment wins
-        img[f.y[written], f.x[written]] = id_colors(f.primitive_id[written])
+        ids = f.primitive_id[written]
+        shown = np.full((h, w), -1, np.int64)
+        shown[f.y[written], f.x[written]] = ids             # the last written wins, as in the picture
+        palette = triangle_palette(trace, shown)
+        if palette is None:
+            img[f.y[written], f.x[written]] = id_colors(ids)
+            captions["coverage"] = "the primitive that won each pixel, a color per id"
+        else:
+            img[f.y[written], f.x[written]] = palette[ids % len(palette)]
+    if place is not None:
+        _paste_inset(img, _magnified_inset(img.copy(), place), place)
+        captions["coverage"] += f"; inset x{place[0]}"
     pics["coverage"] = img
 
     depth = fb.depth
@@ -225,6 +521,10 @@ def stage_pictures(trace) -> Dict[str, np.ndarray]:
     if np.isin(verdicts, ("scissored", "stencil-failed", "sample-masked")).any():
         pics["tests"] = merger_tests(trace)
     pics.update(shadow_map_pictures(trace.call.uniforms, h, w))
+    for name in pics:
+        if name not in captions:
+            captions[name] = CAPTIONS.get(name, "depth as the light saw it: near dark, far light, none white"
+                                          if name.startswith("shadow map") else "")
     return pics
 
 
@@ -337,13 +637,27 @@ def cut_outlines(trace) -> np.ndarray:
     return trace.call.viewport.apply(ndc.reshape(-1, 3)).reshape(-1, 3, 3)
 
 
+def _wrap(draw, text: str, width: float) -> list:
+    """``text`` broken at spaces into lines at most ``width`` pixels wide (a word longer stays whole)."""
+    lines: list = []
+    for word in text.split():
+        if lines and draw.textlength(lines[-1] + " " + word) <= width:
+            lines[-1] += " " + word
+        else:
+            lines.append(word)
+    return lines
+
+
 def contact_sheet(pictures: Dict[str, np.ndarray], columns: int = 3, label_height: int = 18,
-                  background=(24, 24, 28)):
+                  background=(24, 24, 28), captions: Optional[Dict[str, str]] = None):
     """One labelled pillow Image with every picture, in order, ``columns`` per row.
 
-    When one of the pictures is ``overdraw``, a row under them is its key: what it
-    counts (:data:`OVERDRAW_DEFINITION`, when the sheet is wide enough) and the colors
-    of 0, 1, … 6+.
+    Each picture's label is its name; with ``captions`` (name → text, as a
+    :class:`StagePictures`' ``captions``: ``contact_sheet(pics, captions=pics.captions)``), what
+    the picture shows follows in gray, wrapped to the picture's width (the label rows
+    grow to hold the longest). When one of the pictures is ``overdraw``, a row under
+    them is its key: what it counts (:data:`OVERDRAW_DEFINITION`, when the sheet is wide
+    enough) and the colors of 0, 1, … 6+.
     """
     from PIL import Image, ImageDraw
     names = list(pictures)
@@ -351,6 +665,11 @@ def contact_sheet(pictures: Dict[str, np.ndarray], columns: int = 3, label_heigh
     rows = -(-len(names) // columns)
     gap = 4
     key = label_height if "overdraw" in pictures else 0
+    wrapped: Dict[str, list] = {}
+    if captions:
+        measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+        wrapped = {n: _wrap(measure, captions.get(n, ""), w - 4) for n in names}
+        label_height += 11 * max(len(v) for v in wrapped.values())
     width, height = columns * (w + gap) + gap, rows * (h + label_height + gap) + gap
     sheet = Image.new("RGB", (width, height + key), background)
     draw = ImageDraw.Draw(sheet)
@@ -358,6 +677,8 @@ def contact_sheet(pictures: Dict[str, np.ndarray], columns: int = 3, label_heigh
         r, c = divmod(k, columns)
         x0, y0 = gap + c * (w + gap), gap + r * (h + label_height + gap)
         draw.text((x0 + 2, y0 + 3), name, fill=(230, 230, 230))
+        for i, line in enumerate(wrapped.get(name, ())):
+            draw.text((x0 + 2, y0 + 15 + 11 * i), line, fill=(160, 160, 168))
         sheet.paste(Image.fromarray(pictures[name]), (x0, y0 + label_height))
     if key:
         _overdraw_key(draw, gap + 2, height, width - gap - 2, key)
@@ -401,5 +722,5 @@ def save_stage_pictures(trace, directory) -> Dict[str, Path]:
         save(Image.fromarray(img), path)
         paths[name] = path
     paths["contact-sheet"] = directory / "contact-sheet.png"
-    save(contact_sheet(pics), paths["contact-sheet"])
+    save(contact_sheet(pics, captions=pics.captions), paths["contact-sheet"])
     return paths
