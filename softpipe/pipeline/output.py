@@ -115,9 +115,9 @@ def stencil_op(op, stored, ref):
 
 
 @numba.njit(cache=True)
-def blend_factor(code, c, src, dst, src_alpha, dst_alpha, constant):
+def blend_factor(code, c, src, dst, src_alpha, dst_alpha, constant, constant_alpha):
     """One blend factor for channel ``c`` (0..3) (codes as in BLEND_FACTORS): ``src`` and ``dst``
-    are that channel's values, ``constant`` the blend color [4]."""
+    are that channel's values, ``constant`` the blend color's that channel, ``constant_alpha`` its alpha."""
     if code == 0:
         return 0.0
     if code == 1:
@@ -139,26 +139,26 @@ def blend_factor(code, c, src, dst, src_alpha, dst_alpha, constant):
     if code == 9:
         return 1.0 - dst_alpha
     if code == 10:
-        return constant[c]
+        return constant
     if code == 11:
-        return 1.0 - constant[c]
+        return 1.0 - constant
     if code == 12:
-        return constant[3]
+        return constant_alpha
     if code == 13:
-        return 1.0 - constant[3]
+        return 1.0 - constant_alpha
     return min(src_alpha, 1.0 - dst_alpha) if c < 3 else 1.0      # src_alpha_saturate
 
 
 @numba.njit(cache=True)
-def blend_channel(equation, src_f, dst_f, c, src, dst, src_alpha, dst_alpha, constant):
+def blend_channel(equation, src_f, dst_f, c, src, dst, src_alpha, dst_alpha, constant, constant_alpha):
     """One channel blended (float64, so that numba and plain Python agree): GL's equation
     (codes as in BLEND_EQUATIONS) of ``src·F_src`` and ``dst·F_dst``."""
     if equation == 3:
         return min(src, dst)
     if equation == 4:
         return max(src, dst)
-    s = src * blend_factor(src_f, c, src, dst, src_alpha, dst_alpha, constant)
-    d = dst * blend_factor(dst_f, c, src, dst, src_alpha, dst_alpha, constant)
+    s = src * blend_factor(src_f, c, src, dst, src_alpha, dst_alpha, constant, constant_alpha)
+    d = dst * blend_factor(dst_f, c, src, dst, src_alpha, dst_alpha, constant, constant_alpha)
     if equation == 1:
         return s - d
     if equation == 2:
@@ -190,6 +190,7 @@ def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blen
     blend = st[ST_BLEND] != 0
     eq_rgb, src_rgb, dst_rgb = st[ST_EQUATION_RGB], st[ST_SRC_RGB], st[ST_DST_RGB]
     eq_a, src_a, dst_a = st[ST_EQUATION_ALPHA], st[ST_SRC_ALPHA], st[ST_DST_ALPHA]
+    const_r, const_g, const_b, const_a = blend_color[0], blend_color[1], blend_color[2], blend_color[3]
     mask_r, mask_g, mask_b, mask_a = (st[ST_COLOR_MASK] != 0, st[ST_COLOR_MASK + 1] != 0, st[ST_COLOR_MASK + 2] != 0,
                                       st[ST_COLOR_MASK + 3] != 0)
     record = after.shape[0] > 0
@@ -227,12 +228,12 @@ def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blen
                         # float64 explicitly: numba and plain Python (NumPy keeps float32 scalars) then agree
                         sa, da = np.float64(color[k, 3]), np.float64(fb_color[m, j, i, 3])
                         r = blend_channel(eq_rgb, src_rgb, dst_rgb, 0, np.float64(color[k, 0]),
-                                          np.float64(fb_color[m, j, i, 0]), sa, da, blend_color)
+                                          np.float64(fb_color[m, j, i, 0]), sa, da, const_r, const_a)
                         g = blend_channel(eq_rgb, src_rgb, dst_rgb, 1, np.float64(color[k, 1]),
-                                          np.float64(fb_color[m, j, i, 1]), sa, da, blend_color)
+                                          np.float64(fb_color[m, j, i, 1]), sa, da, const_g, const_a)
                         b = blend_channel(eq_rgb, src_rgb, dst_rgb, 2, np.float64(color[k, 2]),
-                                          np.float64(fb_color[m, j, i, 2]), sa, da, blend_color)
-                        a = blend_channel(eq_a, src_a, dst_a, 3, sa, da, sa, da, blend_color)
+                                          np.float64(fb_color[m, j, i, 2]), sa, da, const_b, const_a)
+                        a = blend_channel(eq_a, src_a, dst_a, 3, sa, da, sa, da, const_a, const_a)
                     if mask_r:
                         fb_color[m, j, i, 0] = r
                     if mask_g:
