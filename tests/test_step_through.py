@@ -56,14 +56,14 @@ SCENE = textwrap.dedent('''
     from softpipe.pipeline.sampling import rotated_grid_4x
 
     jit = not numba.config.DISABLE_JIT
-    kernels = (raster._cover_triangle, raster._emit_kernel, output._merge_kernel, output._merge_one)
+    kernels = (raster._cover_triangle, raster._emit_kernel, output._merge_kernel, output.blend_channel)
     plain = all(isinstance(k, types.FunctionType) for k in kernels)
     assert plain != jit, ("plain Python functions" if plain else "numba dispatchers", jit)
 
     calls = {}
 
     def count(frame, event, arg):
-        if event == "call" and frame.f_code.co_name in ("_cover_triangle", "_merge_one"):
+        if event == "call" and frame.f_code.co_name in ("_cover_triangle", "blend_channel"):
             calls[frame.f_code.co_name] = calls.get(frame.f_code.co_name, 0) + 1
 
     # overlapping triangles in clip space: one crosses the near plane, one is back-facing
@@ -98,7 +98,7 @@ SCENE = textwrap.dedent('''
         arrays[f"{name}_after"] = t.merged.color_after
         arrays[f"{name}_window"] = t.primitives.window
     np.savez(sys.argv[1], **arrays)
-    print("calls", calls.get("_cover_triangle", 0), calls.get("_merge_one", 0))
+    print("calls", calls.get("_cover_triangle", 0), calls.get("blend_channel", 0))
 ''')
 
 
