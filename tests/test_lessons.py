@@ -15,6 +15,7 @@ import softpipe as sp
 from softpipe.testing import (
     check_coverage,
     check_depth_test,
+    check_interpolation,
     check_line,
     check_triangles,
     covered_pixels,
@@ -184,3 +185,39 @@ def test_check_depth_test_names_the_missing_test():
                                              r"\(fragments in draw order: triangle 0 at depth 0.2, triangle 1 at depth "
                                              r"0.7\): you keep the fragment drawn last, though it is farther"):
         check_depth_test(last, trace, show=False)
+
+
+def test_check_interpolation_agrees_with_the_shader_and_names_the_classic_mistakes():
+    W, H = 12, 8
+    clip = np.array([(-0.9, -0.9, 0.0, 1.0), (3.6, -3.6, 0.0, 4.0), (-0.9, 0.9, 0.0, 1.0)])   # w = 1, 4, 1
+    color = np.array([(1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)])
+    trace = sp.draw(sp.Framebuffer(W, H), clip, varyings={"color": color}, trace=True)
+
+    def smooth(values, inv_w, bary):
+        q = bary * inv_w
+        return q @ values / q.sum()
+
+    result = check_interpolation(smooth, trace, "color")
+    assert result.ok and result.message == (f"the interpolated color: your answer and softpipe's agree at all "
+                                            f"{len(trace.fragments)} fragments")
+    mistakes = {
+        "your answer interpolates linearly in the window (noperspective): v = Σ b_k v_k.":
+            lambda values, inv_w, bary: bary @ values,
+        "you weight each corner by b_k / w_k but do not divide by the weights' sum":
+            lambda values, inv_w, bary: (bary * inv_w) @ values,
+        "you weight each corner by b_k · w_k: inv_w[k] is already 1/w_k":
+            lambda values, inv_w, bary: (bary / inv_w) @ values / (bary / inv_w).sum(),
+    }
+    for hint, answer in mistakes.items():
+        with pytest.raises(AssertionError) as info:
+            check_interpolation(answer, trace, "color", show=False)
+        text = str(info.value)
+        assert text.startswith("the interpolated color differs from softpipe's at ") and hint in text, text
+    with pytest.raises(AssertionError) as info:                   # a wrong answer no classic mistake explains
+        check_interpolation(lambda values, inv_w, bary: values[0], trace, "color", show=False)
+    assert not any(line.startswith(("your answer interpolates", "you weight")) for line in str(info.value).splitlines())
+    with pytest.raises(ValueError, match=r"the draw has no varying 'uv'; its varyings are \['color'\]"):
+        check_interpolation(smooth, trace, "uv")
+    with pytest.raises(ValueError, match=r"interpolate must return the 3 component\(s\) of 'color' at the fragment, "
+                                         r"got an array of shape \(2,\)"):
+        check_interpolation(lambda values, inv_w, bary: values[0, :2], trace, "color")

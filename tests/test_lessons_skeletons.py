@@ -14,6 +14,8 @@ from lessons_run import failure
                      "right edge (9.5, 1.5)→(1.5, 7.5): the fill rule leaves it out"),
     ("03_zbuffer", "you keep the fragment drawn last, though it is farther: write a fragment only when its depth is "
                    "less than the depth buffer's"),
+    ("04_interpolation", "your answer interpolates linearly in the window (noperspective): v = Σ b_k v_k. A smooth "
+                         "varying is perspective-correct: weight each corner by b_k / w_k = b_k · inv_w[k]"),
 ])
 def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
     text = failure(name)

@@ -15,6 +15,9 @@ test the wrong way round).
   triangles (:func:`~softpipe.testing.coverage`), with the fill rule's hints.
 - :func:`check_depth_test`: which triangle a depth-test loop kept at each pixel, against
   the output merger's verdicts in a :class:`~softpipe.pipeline.trace.Trace`.
+- :func:`check_interpolation`: a varying interpolated from the corners' values, 1/w and the
+  barycentrics, against what the fragment shader received at every fragment of a trace, with
+  the classic mistakes named (linear in the window: noperspective).
 
 The difference picture (:attr:`Difference.picture`) is zoomed
 (:func:`softpipe.views.zoom.zoomed`): gray where both cover a pixel, red where the answer
@@ -33,8 +36,8 @@ from softpipe.testing.coverage import coverage
 from softpipe.testing.line_reference import reference_line
 from softpipe.views.zoom import png, zoomed
 
-__all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "pixel_set",
-           "trace_fragments", "reference_winners", "COLORS", "LEGEND"]
+__all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "check_interpolation",
+           "pixel_set", "trace_fragments", "reference_winners", "COLORS", "LEGEND", "TOLERANCE"]
 
 Pixel = Tuple[int, int]
 #: The difference picture's colors.
@@ -423,3 +426,124 @@ def _depth_hint(mine: Optional[int], ref: Optional[int], frs: Sequence[Tuple[flo
         return "you keep the farthest fragment: the comparison is the wrong way round ('less': nearer wins)"
     return (f"triangle {ref}'s fragment is nearer ({zr:.4g} < {zm:.4g}): after a fragment passes, its depth "
             "must be stored, so later farther ones fail")
+
+
+# ------------------------------------------------------------------------------ interpolation
+
+#: How far an interpolated value may be from the fragment stage's and still agree (float64 both ways).
+TOLERANCE = 1e-6
+
+
+def _checker(values: np.ndarray) -> np.ndarray:
+    """A varying as a picture's gray level: two components as a checkerboard of 4 squares per unit
+    (a texture's uv), otherwise the first component."""
+    if values.shape[1] >= 2:
+        squares = np.floor(values[:, 0] * 4) + np.floor(values[:, 1] * 4)
+        return np.where(squares % 2 == 0, 0.85, 0.2)
+    return np.clip(values[:, 0], 0.0, 1.0)
+
+
+def _panels(*images: np.ndarray) -> np.ndarray:
+    """Zoomed pictures side by side, a white gap between them."""
+    shown = [zoomed(img) for img in images]
+    height = max(s.shape[0] for s in shown)
+    gap = np.full((height, 16, 3), 255, np.uint8)
+    parts = []
+    for s in shown:
+        pad = np.full((height - s.shape[0], s.shape[1], 3), 255, np.uint8)
+        parts += [np.concatenate([s, pad]), gap]
+    return np.concatenate(parts[:-1], axis=1)
+
+
+def _interpolation_hint(values, inv_w, bary, mine) -> Optional[str]:
+    """The classic mistakes: which wrong formula reproduces the answer at every differing fragment."""
+    def close(formula) -> bool:
+        return all(np.allclose(m, formula(v, q, b), rtol=0, atol=TOLERANCE)
+                   for v, q, b, m in zip(values, inv_w, bary, mine))
+    if close(lambda v, q, b: b @ v):
+        return ("your answer interpolates linearly in the window (noperspective): v = Σ b_k v_k. A smooth varying is "
+                "perspective-correct: weight each corner by b_k / w_k = b_k · inv_w[k] and divide by the weights' "
+                "sum, v = Σ (b_k / w_k) v_k / Σ (b_k / w_k)")
+    if close(lambda v, q, b: (b * q) @ v):
+        return ("you weight each corner by b_k / w_k but do not divide by the weights' sum Σ (b_k / w_k): "
+                "the weights must add up to 1")
+    if close(lambda v, q, b: (b / q) @ v / (b / q).sum()):
+        return "you weight each corner by b_k · w_k: inv_w[k] is already 1/w_k, so the weight is b_k · inv_w[k]"
+    return None
+
+
+def check_interpolation(interpolate: Callable, trace, varying: str, *, show: Optional[bool] = None) -> Difference:
+    """A student's interpolation of ``varying`` against the fragment stage's, at every fragment of ``trace``.
+
+    ``interpolate(values, inv_w, bary)`` gets one fragment's triangle: the corners' values
+    ``[3, n]``, their 1/w_clip ``[3]`` and the fragment's window-space barycentrics ``[3]``;
+    it returns the varying's ``n`` components there. softpipe's value is what the shader
+    received (:meth:`~softpipe.pipeline.trace.Trace.fragment_inputs`). The picture shows both
+    (a two-component varying as a checkerboard of 4 squares per unit, as a texture's uv) and
+    where they differ (red, brighter the larger the difference).
+
+    Raises
+    ------
+    AssertionError
+        ``"the interpolated <varying> differs from softpipe's at N of M fragment(s) …"``, the first
+        few fragments, and the mistake when it is a classic one (linear in the window,
+        the weights not divided by their sum, weighted by w instead of 1/w).
+    ValueError
+        When ``varying`` is not one of the draw's varyings, or the answer has another shape.
+    """
+    f, prims = trace.fragments, trace.primitives
+    names = [field[0] for field in prims.layout.fields]
+    if varying not in names:
+        raise ValueError(f"check_interpolation: the draw has no varying {varying!r}; its varyings are {names}")
+    h, w = trace.height, trace.width
+    values, inv_w, bary, mine, ref, pixels = [], [], [], [], [], []
+    for k in range(len(f)):
+        t = int(f.triangle[k])
+        v = np.asarray(prims.layout.unpack(prims.varyings[t])[varying], dtype=np.float64).reshape(3, -1)
+        q, b = np.array(prims.inv_w[t], dtype=np.float64), np.array(f.bary[k], dtype=np.float64)
+        got = np.asarray(interpolate(v.copy(), q.copy(), b.copy()), dtype=np.float64).reshape(-1)
+        if got.shape != (v.shape[1],):
+            raise ValueError(f"interpolate must return the {v.shape[1]} component(s) of {varying!r} at the fragment, "
+                             f"got an array of shape {got.shape}")
+        expected = np.asarray(getattr(trace.fragment_inputs(k)[0], varying), dtype=np.float64).reshape(-1)
+        values.append(v), inv_w.append(q), bary.append(b), mine.append(got), ref.append(expected)
+        pixels.append((int(f.x[k]), h - 1 - int(f.y[k])))
+    mine_a, ref_a = np.array(mine).reshape(len(f), -1), np.array(ref).reshape(len(f), -1)
+    error = np.abs(mine_a - ref_a).max(axis=1) if len(f) else np.zeros(0)
+    error = np.where(np.isnan(error), np.inf, error)
+    yours, theirs, diff = (np.empty((h, w, 3), np.uint8) for _ in range(3))
+    for img in (yours, theirs, diff):
+        img[:] = COLORS["empty"]
+    g_mine, g_ref = _checker(np.nan_to_num(mine_a)), _checker(ref_a)
+    for k, (x, y) in enumerate(pixels):
+        yours[h - 1 - y, x] = round(255 * g_mine[k])
+        theirs[h - 1 - y, x] = round(255 * g_ref[k])
+        diff[h - 1 - y, x] = COLORS["both"] if error[k] <= TOLERANCE else \
+            (min(255, 90 + round(1650 * min(error[k], 0.1))), 40, 30)
+    picture = _panels(yours, theirs, diff)
+    legend = {"empty": "no fragment", "both": "your value agrees with softpipe's",
+              "adds": "your value differs (brighter: by more)"}
+    wrong = [k for k in range(len(f)) if error[k] > TOLERANCE]
+    if not wrong:
+        return Difference([], [], picture, f"the interpolated {varying}: your answer and softpipe's agree at all "
+                          f"{len(f)} fragments", legend)
+    worst = max(wrong, key=lambda k: error[k])
+    lines = [f"the interpolated {varying} differs from softpipe's at {len(wrong)} of {len(f)} fragment(s) (by up to "
+             f"{error[worst]:.3g}, at pixel {pixels[worst]}):"]
+    for k in sorted(wrong, key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
+        lines.append(f"  pixel {pixels[k]}: yours {_vector(mine_a[k])}, softpipe's {_vector(ref_a[k])} "
+                     f"(barycentrics {_vector(bary[k])}, 1/w {_vector(inv_w[k])})")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    hint = _interpolation_hint(*([a[k] for k in wrong] for a in (values, inv_w, bary, mine)))
+    if hint:
+        lines.append(hint)
+    lines.append(f"(the picture: yours, softpipe's, and where they differ in red; {varying} drawn as "
+                 + ("a checkerboard of 4 squares per unit)" if ref_a.shape[1] >= 2 else "a gray level)"))
+    d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+def _vector(v) -> str:
+    return "(" + ", ".join(f"{float(c):.4g}" for c in np.ravel(v)) + ")"
