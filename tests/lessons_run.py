@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 LESSONS = Path(__file__).resolve().parent.parent / "lessons"
-NOTEBOOKS = ["01_lines", "02_triangles", "03_zbuffer", "04_interpolation"]
+NOTEBOOKS = ["01_lines", "02_triangles", "03_zbuffer", "04_interpolation", "05_camera"]
 
 
 def runner():

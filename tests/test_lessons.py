@@ -13,6 +13,7 @@ from PIL import Image
 
 import softpipe as sp
 from softpipe.testing import (
+    check_camera,
     check_coverage,
     check_depth_test,
     check_interpolation,
@@ -221,3 +222,52 @@ def test_check_interpolation_agrees_with_the_shader_and_names_the_classic_mistak
     with pytest.raises(ValueError, match=r"interpolate must return the 3 component\(s\) of 'color' at the fragment, "
                                          r"got an array of shape \(2,\)"):
         check_interpolation(lambda values, inv_w, bary: values[0, :2], trace, "color")
+
+
+def test_check_camera_passes_softpipes_matrices_and_names_the_classic_mistakes():
+    result = check_camera(sp.look_at, sp.perspective, 16, 12)
+    assert result.ok and result.message == ("look_at and perspective: your matrices and softpipe's agree on all 3 "
+                                            "cameras and 3 projections")
+
+    def left_handed(eye, target, up):                       # Direct3D's LookAtLH
+        e = np.asarray(eye, float)
+        f = np.asarray(target, float) - e
+        f /= np.linalg.norm(f)
+        x = np.cross(up, f)
+        x /= np.linalg.norm(x)
+        m = np.eye(4)
+        m[0, :3], m[1, :3], m[2, :3] = x, np.cross(f, x), f
+        m[:3, 3] = -m[:3, :3] @ e
+        return m
+
+    def depth_01(fovy, aspect, near, far):                  # Direct3D's depth range
+        m = sp.perspective(fovy, aspect, near, far)
+        m[2, 2], m[2, 3] = -far / (far - near), -far * near / (far - near)
+        return m
+
+    mistakes = [
+        (lambda *a: sp.look_at(*a).T, sp.perspective, "look_at(eye=(3.0, 2.0, 4.0)",
+         "your matrix is the transpose of softpipe's"),
+        (left_handed, sp.perspective, "look_at(eye=(3.0, 2.0, 4.0)", "your look_at is left-handed (Direct3D's LookAtLH"),
+        (lambda *a: np.diag([1.0, 1.0, -1.0, 1.0]) @ sp.look_at(*a), sp.perspective, "look_at(",
+         "your camera looks down +Z"),
+        (sp.look_at, depth_01, "perspective(fovy=50, aspect=1.333, near=0.5, far=20)",
+         "your projection maps depth to [0, 1] (Direct3D's and Vulkan's clip space)"),
+        (sp.look_at, lambda fovy, a, n, f: sp.perspective(2 * fovy, a, n, f),      # c = 1/tan(fovy), not of fovy/2
+         "perspective(fovy=50, aspect=1.333, near=0.5, far=20)",
+         "your y scale M[1, 1] is 0.8391, softpipe's 2.14451 = 1/tan(fovy/2)"),
+    ]
+    for look_at, perspective, first, hint in mistakes:
+        with pytest.raises(AssertionError) as info:
+            check_camera(look_at, perspective, 16, 12, show=False)
+        text = str(info.value)
+        assert text.startswith(first) and hint in text, text
+    shown = []
+    import softpipe.testing.lessons as lessons
+    with pytest.MonkeyPatch.context() as mp, pytest.raises(AssertionError):
+        mp.setattr(lessons, "_show", lambda d, show: shown.append(d))
+        check_camera(left_handed, sp.perspective, 16, 12)
+    assert shown[0].adds == [] and len(shown[0].misses) > 0             # the left-handed eye looks away: nothing
+    with pytest.raises(ValueError, match=r"look_at\(eye=\(3.0, 2.0, 4.0\), target=\(0.0, 0.0, 0.0\), up=\(0.0, 1.0, "
+                                         r"0.0\)\) must return a 4×4 matrix, got an array of shape \(3, 3\)"):
+        check_camera(lambda *a: np.eye(3), sp.perspective, 16, 12)

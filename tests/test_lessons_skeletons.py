@@ -16,6 +16,8 @@ from lessons_run import failure
                    "less than the depth buffer's"),
     ("04_interpolation", "your answer interpolates linearly in the window (noperspective): v = Σ b_k v_k. A smooth "
                          "varying is perspective-correct: weight each corner by b_k / w_k = b_k · inv_w[k]"),
+    ("05_camera", "your matrix is the transpose of softpipe's: softpipe's matrices act on column vectors (p' = M @ p), "
+                  "so the translation goes in the last column, M[:3, 3], not the last row"),
 ])
 def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
     text = failure(name)

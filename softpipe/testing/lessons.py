@@ -18,6 +18,8 @@ test the wrong way round).
 - :func:`check_interpolation`: a varying interpolated from the corners' values, 1/w and the
   barycentrics, against what the fragment shader received at every fragment of a trace, with
   the classic mistakes named (linear in the window: noperspective).
+- :func:`check_camera`: a look_at and a perspective matrix against softpipe's, numerically and by
+  rendering, with the classic mistakes named (the transpose, a left-handed look_at, depth in [0, 1]).
 
 The difference picture (:attr:`Difference.picture`) is zoomed
 (:func:`softpipe.views.zoom.zoomed`): gray where both cover a pixel, red where the answer
@@ -37,7 +39,7 @@ from softpipe.testing.line_reference import reference_line
 from softpipe.views.zoom import png, zoomed
 
 __all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "check_interpolation",
-           "pixel_set", "trace_fragments", "reference_winners", "COLORS", "LEGEND", "TOLERANCE"]
+           "check_camera", "pixel_set", "trace_fragments", "reference_winners", "COLORS", "LEGEND", "TOLERANCE"]
 
 Pixel = Tuple[int, int]
 #: The difference picture's colors.
@@ -547,3 +549,143 @@ def check_interpolation(interpolate: Callable, trace, varying: str, *, show: Opt
 
 def _vector(v) -> str:
     return "(" + ", ".join(f"{float(c):.4g}" for c in np.ravel(v)) + ")"
+
+
+# ------------------------------------------------------------------------------ transforms and the camera
+
+#: The cameras :func:`check_camera` tries: (eye, target, up) and (fovy in degrees, aspect, near, far).
+CAMERAS = [((3.0, 2.0, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
+           ((-2.0, 1.0, -3.5), (0.5, 0.0, 0.0), (0.0, 1.0, 0.0)),
+           ((0.5, 4.0, 0.5), (0.0, 0.0, 0.0), (0.0, 0.0, -1.0))]
+PROJECTIONS = [(50.0, 4 / 3, 0.5, 20.0), (90.0, 1.0, 1.0, 10.0), (30.0, 2.0, 0.1, 100.0)]
+
+
+def _boxes() -> np.ndarray:
+    """Two boxes, a big one at the origin and a small one on its right (+x): a picture that shows a
+    mirrored camera. Triangles [T, 3, 3], counter-clockwise seen from outside."""
+    quads = [((0, 2, 6, 4), 0), ((1, 5, 7, 3), 0), ((0, 4, 5, 1), 1), ((2, 3, 7, 6), 1), ((0, 1, 3, 2), 2),
+             ((4, 6, 7, 5), 2)]
+    tris = []
+    for centre, half in (((0.0, 0.0, 0.0), 0.6), ((1.1, 0.35, 0.0), 0.25)):
+        corners = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)], float)[:, ::-1]
+        corners = np.asarray(centre) + (corners * 2 - 1) * half
+        for (a, b, c, d), _ in quads:
+            tris += [corners[[a, b, c]], corners[[a, c, d]]]
+    return np.array(tris)
+
+
+def _matrix_hint(name: str, mine: np.ndarray, ref: np.ndarray) -> Optional[str]:
+    """The classic mistakes: the transpose, a left-handed look_at, Direct3D's depth range [0, 1]."""
+    def close(a) -> bool:
+        return np.allclose(mine, a, rtol=0, atol=1e-9)
+    if close(ref.T):
+        return ("your matrix is the transpose of softpipe's: softpipe's matrices act on column vectors "
+                "(p' = M @ p), so the translation goes in the last column, M[:3, 3], not the last row "
+                "(docs/conventions.md)")
+    if close(np.diag([-1.0, 1.0, -1.0, 1.0]) @ ref):
+        return ("your look_at is left-handed (Direct3D's LookAtLH: x = up × f, z = f): softpipe's eye space is "
+                "right-handed, the camera looking down −Z, so its rows are s = f × up, u = s × f and −f "
+                "(docs/conventions.md)")
+    if close(np.diag([1.0, 1.0, -1.0, 1.0]) @ ref):
+        return ("your camera looks down +Z: in softpipe's eye space it looks down −Z, so the third row is −f, "
+                "not f (docs/conventions.md)")
+    d3d = ref.copy()
+    d3d[2] = (ref[2] + ref[3]) / 2                           # z_ndc' = (z_ndc + 1)/2: near → 0, far → 1
+    if close(d3d):
+        return ("your projection maps depth to [0, 1] (Direct3D's and Vulkan's clip space): OpenGL's, and "
+                "softpipe's, maps the near plane to z_ndc = −1 and the far plane to +1; the viewport makes "
+                "window depth [0, 1] later (docs/conventions.md)")
+    if name == "perspective" and np.allclose(mine[2:], ref[2:], rtol=0, atol=1e-9) and not np.isclose(
+            mine[1, 1], ref[1, 1]):
+        return (f"your y scale M[1, 1] is {mine[1, 1]:.6g}, softpipe's {ref[1, 1]:.6g} = 1/tan(fovy/2): fovy is "
+                f"the whole vertical angle, in degrees (M[0, 0] is M[1, 1]/aspect)")
+    return None
+
+
+def _depth_picture(depth: np.ndarray, low: float, high: float) -> np.ndarray:
+    img = np.empty(depth.shape + (3,), np.uint8)
+    img[:] = COLORS["empty"]
+    hit = depth < 1.0
+    level = 1.0 - (depth[hit] - low) / max(high - low, 1e-12)          # near is bright
+    img[hit] = np.round(60 + 195 * np.clip(level, 0.0, 1.0))[:, None].astype(np.uint8)
+    return img
+
+
+def _render_depth(mvp: np.ndarray, width: int, height: int) -> np.ndarray:
+    from softpipe.pipeline.draw import draw
+    from softpipe.pipeline.framebuffer import Framebuffer
+    p = _boxes().reshape(-1, 3)
+    clip = (mvp @ np.c_[p, np.ones(len(p))].T).T
+    fb = Framebuffer(width, height)
+    draw(fb, clip, varyings={"color": np.ones((len(p), 3))}, cull="back")
+    return np.asarray(fb.depth, dtype=np.float64)
+
+
+def check_camera(look_at: Callable, perspective: Callable, width: int = 32, height: int = 24, *,
+                 show: Optional[bool] = None) -> Difference:
+    """A student's ``look_at(eye, target, up)`` and ``perspective(fovy, aspect, near, far)`` against
+    softpipe's (:func:`softpipe.look_at`, :func:`softpipe.perspective`) on the cameras of
+    :data:`CAMERAS` and :data:`PROJECTIONS`, numerically (to 1e-9) and by rendering two boxes through
+    both cameras: the picture shows the depth buffer with your matrices, with softpipe's, and which
+    pixels differ (red: yours draws the pixel, softpipe's does not; blue: the other way; orange:
+    both draw it at another depth).
+
+    Raises
+    ------
+    AssertionError
+        ``"look_at(eye=…, target=…, up=…) differs from softpipe's …"`` (or ``perspective(…)``), both
+        matrices, and the mistake when it is a classic one (the transpose, a left-handed look_at, a
+        camera looking down +Z, the depth range [0, 1], the field of view's angle).
+    """
+    from softpipe.pipeline.transforms import look_at as ref_look_at
+    from softpipe.pipeline.transforms import perspective as ref_perspective
+    cases = [("look_at", f"look_at(eye={e}, target={t}, up={u})", look_at, ref_look_at, (e, t, u))
+             for e, t, u in CAMERAS]
+    cases += [("perspective", f"perspective(fovy={a[0]:g}, aspect={a[1]:.4g}, near={a[2]:g}, far={a[3]:g})",
+               perspective, ref_perspective, a) for a in PROJECTIONS]
+    failed = None
+    for name, call, mine_f, ref_f, args in cases:
+        mine = np.asarray(mine_f(*args), dtype=np.float64)
+        if mine.shape != (4, 4):
+            raise ValueError(f"{call} must return a 4×4 matrix, got an array of shape {mine.shape}")
+        ref = ref_f(*args)
+        if not np.allclose(mine, ref, rtol=0, atol=1e-9):
+            failed = (name, call, mine, ref)
+            break
+    eye, target, up = CAMERAS[0]
+    fovy, _, near, far = PROJECTIONS[0]
+    mvp_mine = np.asarray(perspective(fovy, width / height, near, far), np.float64) @ np.asarray(
+        look_at(eye, target, up), np.float64)
+    mvp_ref = ref_perspective(fovy, width / height, near, far) @ ref_look_at(eye, target, up)
+    d_mine, d_ref = _render_depth(mvp_mine, width, height), _render_depth(mvp_ref, width, height)
+    hit = np.concatenate([d_mine[d_mine < 1], d_ref[d_ref < 1]])
+    low, high = (hit.min(), hit.max()) if len(hit) else (0.0, 1.0)
+    diff = np.empty((height, width, 3), np.uint8)
+    diff[:] = COLORS["empty"]
+    a, b = d_mine < 1, d_ref < 1
+    diff[a & b] = COLORS["both"]
+    diff[a & b & ~np.isclose(d_mine, d_ref, rtol=0, atol=1e-6)] = (240, 150, 30)
+    diff[a & ~b], diff[b & ~a] = COLORS["adds"], COLORS["misses"]
+    picture = _panels(_depth_picture(d_mine, low, high), _depth_picture(d_ref, low, high), diff)
+    legend = {"both": "the same pixel at the same depth", "adds": "only your camera draws it",
+              "misses": "only softpipe's draws it", "empty": "neither draws it"}
+    rows, cols = np.nonzero(a != b)
+    adds = sorted((int(c), int(height - 1 - r)) for r, c in zip(rows, cols) if a[r, c])
+    misses = sorted((int(c), int(height - 1 - r)) for r, c in zip(rows, cols) if b[r, c])
+    if failed is None:
+        return Difference(adds, misses, picture, f"look_at and perspective: your matrices and softpipe's agree on "
+                          f"all {len(CAMERAS)} cameras and {len(PROJECTIONS)} projections", legend)
+    name, call, mine, ref = failed
+    worst = np.unravel_index(np.argmax(np.abs(mine - ref)), (4, 4))
+    with np.printoptions(precision=4, suppress=True):
+        lines = [f"{call} differs from softpipe's (by {abs(mine - ref)[worst]:.4g} at row {worst[0]}, column "
+                 f"{worst[1]}):", "  yours:      " + str(np.round(mine, 12) + 0.0).replace("\n", "\n              "),
+                 "  softpipe's: " + str(np.round(ref, 12) + 0.0).replace("\n", "\n              ")]
+    hint = _matrix_hint(name, mine, ref)
+    if hint:
+        lines.append(hint)
+    lines.append("(the picture: two boxes seen through your camera and through softpipe's, near is bright, and "
+                 "where they differ: red = only yours draws the pixel, blue = only softpipe's, orange = another depth)")
+    d = Difference(adds, misses, picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
