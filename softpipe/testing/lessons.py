@@ -508,7 +508,11 @@ def check_interpolation(interpolate: Callable, trace, varying: str, *, show: Opt
             raise ValueError(f"interpolate must return the {v.shape[1]} component(s) of {varying!r} at the fragment, "
                              f"got an array of shape {got.shape}")
         expected = np.asarray(getattr(trace.fragment_inputs(k)[0], varying), dtype=np.float64).reshape(-1)
-        values.append(v), inv_w.append(q), bary.append(b), mine.append(got), ref.append(expected)
+        values.append(v)
+        inv_w.append(q)
+        bary.append(b)
+        mine.append(got)
+        ref.append(expected)
         pixels.append((int(f.x[k]), h - 1 - int(f.y[k])))
     mine_a, ref_a = np.array(mine).reshape(len(f), -1), np.array(ref).reshape(len(f), -1)
     error = np.abs(mine_a - ref_a).max(axis=1) if len(f) else np.zeros(0)
@@ -639,8 +643,8 @@ def check_camera(look_at: Callable, perspective: Callable, width: int = 32, heig
     """
     from softpipe.pipeline.transforms import look_at as ref_look_at
     from softpipe.pipeline.transforms import perspective as ref_perspective
-    cases = [("look_at", f"look_at(eye={e}, target={t}, up={u})", look_at, ref_look_at, (e, t, u))
-             for e, t, u in CAMERAS]
+    cases: list = [("look_at", f"look_at(eye={e}, target={t}, up={u})", look_at, ref_look_at, (e, t, u))
+                   for e, t, u in CAMERAS]
     cases += [("perspective", f"perspective(fovy={a[0]:g}, aspect={a[1]:.4g}, near={a[2]:g}, far={a[3]:g})",
                perspective, ref_perspective, a) for a in PROJECTIONS]
     failed = None

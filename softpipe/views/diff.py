@@ -40,6 +40,8 @@ from typing import Any, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from softpipe.views.draws import traced_draws
+
 __all__ = ["TraceDiff", "FragmentDifference", "FIELDS", "diff_draws", "write_diff_page", "diff_page_html", "PAGE_PIXELS"]
 
 #: The fields of a fragment's record, in the order :meth:`TraceDiff.first_difference` compares them:
@@ -117,16 +119,7 @@ class FragmentDifference:
 
 def _as_traces(item, which: str) -> list:
     """The traces of a Trace, a DrawResult, or a sequence of either (a scene's ``results``)."""
-    items = list(item) if isinstance(item, (list, tuple)) else [item]
-    out = []
-    for k, it in enumerate(items):
-        trace = getattr(it, "trace", None) if hasattr(it, "program") else it
-        if trace is None or not hasattr(trace, "pixel_history"):
-            raise TypeError(f"diff: {which}, item {k}: expected a Trace or a DrawResult drawn with trace=True, got "
-                            f"{type(it).__name__}")
-        out.append(trace)
-    if not out:
-        raise ValueError(f"diff: {which} has no draws to compare (an empty list)")
+    out = [t for _, t in traced_draws(item, f"diff: {which}")]
     w, h, s = out[0].width, out[0].height, out[0].call.framebuffer.samples
     for k, t in enumerate(out):
         if (t.width, t.height, t.call.framebuffer.samples) != (w, h, s):

@@ -61,6 +61,7 @@ import numpy as np
 
 from softpipe.core.runtime import check_memory
 from softpipe.pipeline.output import VERDICTS
+from softpipe.views.draws import traced_draws
 
 __all__ = ["write_explorer", "explorer_html", "read_explorer", "ExplorerData", "ExplorerSummary",
            "MAX_FRAGMENTS", "READ_LIMIT"]
@@ -105,20 +106,11 @@ def _program_name(fragment_shader) -> str:
 
 def _traces(traces_or_results) -> List[tuple]:
     """(name, program, trace) for a Trace, a DrawResult or a sequence of either."""
-    items = traces_or_results
-    if not isinstance(items, (list, tuple)):
-        items = [items]
     out = []
-    for k, item in enumerate(items):
-        trace = getattr(item, "trace", None) if hasattr(item, "program") else item
-        if trace is None or not hasattr(trace, "pixel_history"):
-            raise TypeError(f"item {k}: expected a Trace or a DrawResult drawn with trace=True, got "
-                            f"{type(item).__name__}")
+    for k, (item, trace) in enumerate(traced_draws(traces_or_results, "explorer")):
         name = getattr(item, "name", "") or f"draw {k + 1}"
         program = getattr(item, "program", "") or _program_name(trace.fragment_shader)
         out.append((name, program, trace))
-    if not out:
-        raise ValueError("nothing to explore: no traces")
     w, h = out[0][2].width, out[0][2].height
     for name, _, t in out:
         if (t.width, t.height) != (w, h):

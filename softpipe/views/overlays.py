@@ -32,6 +32,7 @@ from typing import Dict, Tuple
 
 import numpy as np
 
+from softpipe.views.draws import traced_draws
 from softpipe.views.pictures import CYAN, RED, draw_triangle_outlines
 
 __all__ = ["OVERLAYS", "SIZE_STOPS", "DEPTH_TEST_COLORS", "overlay_pictures", "triangle_size", "size_colors",
@@ -49,15 +50,7 @@ DEPTH_TEST_COLORS = {"passed": (70, 200, 90), "failed": RED, "both": (250, 220, 
 
 
 def _traces(traces) -> list:
-    items = list(traces) if isinstance(traces, (list, tuple)) else [traces]
-    out = [getattr(t, "trace", None) if hasattr(t, "program") else t for t in items]
-    for k, t in enumerate(out):
-        if t is None or not hasattr(t, "fragments"):
-            raise TypeError(f"overlays: item {k}: expected a Trace or a DrawResult drawn with trace=True, got "
-                            f"{type(items[k]).__name__}")
-    if not out:
-        raise ValueError("overlays: no traces")
-    return out
+    return [t for _, t in traced_draws(traces, "overlays")]
 
 
 def _samples(trace) -> int:
