@@ -237,6 +237,25 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
     return pics
 
 
+def _mesh_pictures(traces) -> Dict[str, np.ndarray]:
+    """The mesh view's pictures (softpipe.views.mesh_view): every draw's input triangles in window space,
+    in one picture; in object space only for a page of one draw (draws' object spaces are their own,
+    and each picture fits its own mesh's box, so two of them in one picture would not line up)."""
+    from softpipe.views.mesh_view import mesh_pictures
+    window, obj = "mesh, window space", "mesh, object space (front, orthographic)"
+    out: Dict[str, np.ndarray] = {}
+    for t in traces:
+        p = mesh_pictures(t)
+        if window not in out:
+            out[window] = p[window]
+        else:
+            lit = p[window].any(axis=2)
+            out[window][lit] = p[window][lit]
+        if len(traces) == 1:
+            out[obj] = p[obj]
+    return out
+
+
 # ---------------------------------------------------------------------------- the data
 
 
@@ -404,6 +423,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     cat = lambda parts, n: np.concatenate(parts) if parts else np.zeros((0, n))  # noqa: E731
 
     pics = _pictures(draws)
+    pics.update(_mesh_pictures(traces))
     if overlays:                    # RenderDoc's overlays, after the stage pictures (softpipe.views.overlays)
         from softpipe.views.overlays import overlay_pictures
         pics.update(overlay_pictures(traces))
@@ -436,7 +456,8 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         "verdicts": list(_VERDICTS),
         "held": {"statement": statement, "step": step, "pixels": int(held), "fragments": int(F),
                  "covered_pixels": covered, "total_fragments": total_fragments, "limit": int(max_fragments)},
-        "pictures": [{"name": n, "outline": not n.startswith("shadow map")} for n in pics],
+        # the page outlines the selected pixel's triangle in window space: not on a light's view or on object space
+        "pictures": [{"name": n, "outline": not n.startswith(("shadow map", "mesh, object space"))} for n in pics],
     }
     arrays = {
         "win": _array(win, "u4"),
