@@ -124,8 +124,9 @@ SMOOTH_FLAT_NOPERSPECTIVE = VaryingLayout((("n", 0, 3, "smooth"), ("id", 3, 1, "
 def test_the_generated_loops_have_no_placeholder_left(layout, derivatives):
     body = generate._fragment_body(layout, derivatives)
     tree = ast.parse(body)
-    assert [f.name for f in tree.body] == ["interpolate", "fragment_inputs", "fragment_loop", "visible_loop",
-                                           "visible_loop_at_samples"]
+    assert [f.name for f in tree.body] == ["interpolate", "fragment_inputs", "inputs_loop", "fragment_loop",
+                                           "visible_loop", "visible_loop_at_samples"]
+    assert body.count("out_varyings[r, ") == max(layout.width, 1)     # inputs_loop: a column per component
     names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
     assert {n for n in names if re.fullmatch(r"[A-Z][A-Z0-9_]+", n)} == {"JIT"}
     assert ("derivatives" in names) == derivatives

@@ -23,7 +23,8 @@ never made, so a pixel's history lists only the winner).
 and answers: :meth:`Trace.pixel_history` (every fragment that touched a pixel,
 in order), :meth:`Trace.fragment_inputs` and :meth:`Trace.debug_fragment`
 (re-run the fragment shader as plain Python on exactly one fragment's inputs,
-so a breakpoint in the shader stops there). :mod:`softpipe.views.pictures` draws it.
+so a breakpoint in the shader stops there), :meth:`Trace.fragment_varyings` (the varyings of
+many fragments in one compiled pass, for the explorer page). :mod:`softpipe.views.pictures` draws it.
 
 What was under the draw is kept small: every sample of the pixels the draw's fragments
 reached or changed, not a copy of the whole framebuffer (a scene of 1,500 small draws,
@@ -434,6 +435,31 @@ class Trace:
         out = module.fragment_inputs(index, f.triangle, f.frag_x, f.frag_y, f.depth, f.bary, p.inv_w, p.varyings,
                                      p.front_facing, p.primitive_id, self._grad)
         return (plain_value(out[0]), self.call.uniforms) + tuple(plain_value(o) for o in out[1:])
+
+    def fragment_varyings(self, indices) -> Tuple[np.ndarray, np.ndarray]:
+        """The varyings and ``point_coord`` of many fragments in one compiled pass: (varyings float64
+        [n, K], point_coord float64 [n, 2]), row r those of fragment ``indices[r]``.
+
+        The columns are the Varyings' components in order (a tuple's in turn; K is the layout's
+        width, or 1 for a layout without varyings: its one field ``none``, 0.0). The values are
+        those :meth:`fragment_inputs` gives, bit for bit: the same generated ``fragment_inputs``,
+        compiled, as the shader's loop runs it (``inputs_loop``, templates/fragment.py).
+        """
+        f, p = self.fragments, self.primitives
+        rows = np.asarray(indices, dtype=np.int64).reshape(-1)
+        bad = (rows < 0) | (rows >= len(f))
+        if bad.any():
+            raise IndexError(f"fragment index {int(rows[bad][0])} out of range for {len(f)} fragments")
+        if self._grad is None:
+            self._grad = derivative_gradients(self.fragment_shader, f.setup)
+        shader = self.fragment_shader
+        varyings = np.zeros((len(rows), max(p.layout.width, 1)))
+        point_coord = np.zeros((len(rows), 2))
+        if len(rows):
+            loop = kernels.fragment_module(shader, p.layout).inputs_loop
+            kernels.run_compiled("fragment", shader, loop, rows, f.triangle, f.frag_x, f.frag_y, f.depth, f.bary,
+                                 p.inv_w, p.varyings, p.front_facing, p.primitive_id, self._grad, varyings, point_coord)
+        return varyings, point_coord
 
     def debug_fragment(self, x: int, y: int, which: Optional[int] = None, sample: Optional[int] = None,
                        index: Optional[int] = None):

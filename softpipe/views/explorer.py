@@ -229,6 +229,25 @@ def _pictures(draws) -> Dict[str, np.ndarray]:
     return pics
 
 
+def _mesh_pictures(traces) -> Dict[str, np.ndarray]:
+    """The mesh view's pictures (softpipe.views.mesh_view): every draw's input triangles in window space,
+    in one picture; in object space only for a page of one draw (draws' object spaces are their own,
+    and each picture fits its own mesh's box, so two of them in one picture would not line up)."""
+    from softpipe.views.mesh_view import mesh_pictures
+    window, obj = "mesh, window space", "mesh, object space (front, orthographic)"
+    out: Dict[str, np.ndarray] = {}
+    for t in traces:
+        p = mesh_pictures(t)
+        if window not in out:
+            out[window] = p[window]
+        else:
+            lit = p[window].any(axis=2)
+            out[window][lit] = p[window][lit]
+        if len(traces) == 1:
+            out[obj] = p[obj]
+    return out
+
+
 # ---------------------------------------------------------------------------- the data
 
 
@@ -254,20 +273,19 @@ def _shown(text) -> str:
     return str(text).encode("utf-8", "surrogateescape").decode("utf-8", "replace")
 
 
-def _varyings_flat(v) -> List[float]:
-    out: List[float] = []
-    for item in v:
-        if isinstance(item, tuple):
-            out.extend(float(c) for c in item)
-        else:
-            out.append(float(item))
-    return out
+def _position_column(layout) -> Optional[int]:
+    """The first column of the eye-space ``position`` varying (3 components) in a row of varyings, or None."""
+    column = 0
+    for name, size in layout:
+        if name == "position" and size == 3:
+            return column
+        column += size
+    return None
 
 
 def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, title: Optional[str] = None,
                   progress=None, overlays: bool = False) -> dict:
     """The page's data (see the module docstring) as a JSON-ready dict, with the pictures."""
-    from softpipe.language import kernels
     from softpipe.pipeline.assembly import primitive_indices
 
     draws = _traces(traces_or_results)
@@ -324,28 +342,21 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         color[sel], after[sel], verdict[sel] = t.shaded.color[idx], t.merged.color_after[idx], t.merged.verdict[idx]
         if t.call.state.stencil is not None and t.merged.stencil_after is not None:
             stencil[sel] = _stencil_pairs(t, rows[sel, 0], idx, w)
-        module = kernels.python_fragment_module(t.fragment_shader, t.primitives.layout)
         ncols = 0
-        own = t.primitives.kind != "triangles"
-        lit_rows, lit_points = [], []                        # the rows with an eye-space position, for V_j
-        for r, i in zip(sel, idx):                           # the very code pixel_history runs, per fragment
-            inputs = t._inputs(module, int(i))
-            v = inputs[0]
-            if own:
-                point_coord[r] = inputs[2].point_coord
-            flat = _varyings_flat(v)
-            vary[r, :len(flat)] = flat
-            P = getattr(v, "position", None)
-            if P is not None and len(P) == 3:
-                lit_rows.append(int(r))
-                lit_points.append(tuple(float(c) for c in P))
-            done += 1
-            if progress is not None and done % 20000 == 0:
-                progress(done, F)
+        # the varyings and point_coord of all of them in one compiled pass: the generated code pixel_history
+        # runs as Python, compiled, so the values are the shader's bit for bit (Trace.fragment_varyings)
+        v, pc = t.fragment_varyings(idx)
+        vary[sel, :v.shape[1]] = v
+        if t.primitives.kind != "triangles":
+            point_coord[sel] = pc
+        done += len(sel)
+        if progress is not None:
+            progress(done, F)
         # V_j of all of them in one compiled pass (FORMULAS §21): the values pixel_history shows, per fragment
-        terms = t.shadow_terms(np.array(lit_points, dtype=np.float64).reshape(-1, 3)) if lit_rows else None
+        position = _position_column(layouts[k])
+        terms = t.shadow_terms(v[:, position:position + 3]) if position is not None else None
         if terms is not None and terms.shape[1]:
-            shadows.append((np.array(lit_rows, np.int64), terms))
+            shadows.append((sel, terms))
             ncols = terms.shape[1]
         shadow_cols.append(ncols)
     lmax = max(shadow_cols + [0])
@@ -404,6 +415,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
     cat = lambda parts, n: np.concatenate(parts) if parts else np.zeros((0, n))  # noqa: E731
 
     pics = _pictures(draws)
+    pics.update(_mesh_pictures(traces))
     if overlays:                    # RenderDoc's overlays, after the stage pictures (softpipe.views.overlays)
         from softpipe.views.overlays import overlay_pictures
         pics.update(overlay_pictures(traces))
@@ -436,7 +448,8 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         "verdicts": list(_VERDICTS),
         "held": {"statement": statement, "step": step, "pixels": int(held), "fragments": int(F),
                  "covered_pixels": covered, "total_fragments": total_fragments, "limit": int(max_fragments)},
-        "pictures": [{"name": n, "outline": not n.startswith("shadow map")} for n in pics],
+        # the page outlines the selected pixel's triangle in window space: not on a light's view or on object space
+        "pictures": [{"name": n, "outline": not n.startswith(("shadow map", "mesh, object space"))} for n in pics],
     }
     arrays = {
         "win": _array(win, "u4"),
@@ -515,7 +528,7 @@ def write_explorer(traces_or_results, path, *, max_fragments: int = MAX_FRAGMENT
         fragments; beyond it, the pixels of a regular grid (the page says which).
     title : str, optional
     progress : callable, optional
-        ``progress(done, total)`` every 20 000 fragments gathered.
+        ``progress(done, total)`` after each draw's fragments are gathered (done of total fragments).
     overlays : bool
         Add RenderDoc's overlays to the pictures (:func:`softpipe.views.overlays.overlay_pictures`).
     """

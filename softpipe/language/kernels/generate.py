@@ -214,6 +214,24 @@ def _varying_lines(layout: VaryingLayout) -> tuple:
     return [f"{line}  # {q}" for line, (*_, q) in zip(lines, layout.fields)], names
 
 
+def _store_lines(layout: VaryingLayout) -> list:
+    """``STORE_VARYINGS`` of templates/fragment.py: the Varyings' components in order, a column each.
+
+    The order of the namedtuple, flattened (a tuple's components in turn), which is what
+    the explorer page holds; a layout without varyings stores its one field ``none`` (0.0).
+    """
+    if not layout.fields:
+        return ["out_varyings[r, 0] = v[0]  # none"]
+    lines, column = [], 0
+    for j, (n, _, size, _) in enumerate(layout.fields):
+        if size == 1:
+            lines.append(f"out_varyings[r, {column}] = v[{j}]  # {n}")
+        else:
+            lines += [f"out_varyings[r, {column + c}] = v[{j}][{c}]  # {n}.{'xyzw'[c]}" for c in range(size)]
+        column += size
+    return lines
+
+
 def _derivative_lines(layout: VaryingLayout, axis: int) -> tuple:
     """``DERIVATIVES_X`` and ``DX_VALUES`` (axis 0) or ``DERIVATIVES_Y`` and ``DY_VALUES`` (axis 1).
 
@@ -236,8 +254,8 @@ def _derivative_lines(layout: VaryingLayout, axis: int) -> tuple:
 
 
 def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
-    """Source of ``interpolate``, ``fragment_inputs``, ``fragment_loop`` and the two visible loops
-    (templates/fragment.py) for a varying layout, for a shader that takes ``derivatives`` or not."""
+    """Source of ``interpolate``, ``fragment_inputs``, ``inputs_loop``, ``fragment_loop`` and the two visible
+    loops (templates/fragment.py) for a varying layout, for a shader that takes ``derivatives`` or not."""
     smooth = any(q == "smooth" for *_, q in layout.fields)
     varyings, values = _varying_lines(layout)
     fill = {"VARYINGS_AT_BARYCENTRICS": varyings, "VARYING_VALUES": values}
@@ -248,6 +266,7 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False) -> str:
     functions = [
         template_function("fragment", "interpolate", dict(flags, SMOOTH=smooth), fill),
         template_function("fragment", "fragment_inputs"),
+        template_function("fragment", "inputs_loop", flags, {"STORE_VARYINGS": _store_lines(layout)}),
         template_function("fragment", "fragment_loop", flags),
         template_function("fragment", "visible_loop", flags),
         # shading 0 (at the samples) alone: the multisampling branches left out
@@ -262,7 +281,8 @@ def _fragment_preamble(layout: VaryingLayout) -> str:
 
 def fragment_module(shader: Callable, layout: VaryingLayout) -> types.ModuleType:
     """The generated module of ``shader``'s fragment loops for ``layout`` (built and compiled once per
-    set of its globals' values): ``interpolate``, ``fragment_inputs``, ``fragment_loop``, the visible loops."""
+    set of its globals' values): ``interpolate``, ``fragment_inputs``, ``inputs_loop``, ``fragment_loop``, the
+    visible loops."""
     return _fragment_module(shader, layout, wants_derivatives(shader))
 
 

@@ -1,7 +1,9 @@
-"""Template of the fragment loops: the generator (kernels/generate.py) copies these four functions.
+"""Template of the fragment loops: the generator (kernels/generate.py) copies these five functions.
 
 - ``interpolate``: the varyings, FragInfo (and derivatives) at barycentrics of a triangle.
 - ``fragment_inputs``: those of fragment i of the reference path's batch.
+- ``inputs_loop``: those of many fragments, the varyings and ``point_coord`` written to
+  arrays (the explorer page's, softpipe/views/explorer.py); the shader is not run.
 - ``fragment_loop``: the reference path: the shader once per fragment row.
 - ``visible_loop``: the fast path: the shader once per sample the visibility pass kept
   (``visible_loop_at_samples`` is this loop with ``shading`` 0).
@@ -15,6 +17,8 @@ varying layout (the expressions come from templates/varyings.py):
 
 - ``VARYINGS_AT_BARYCENTRICS``: a line per varying, ``v_color = (…)  # smooth``.
 - ``VARYING_VALUES``: ``v_color, v_uv`` (``0.0`` for a layout without varyings).
+- ``STORE_VARYINGS``: a line per component of the Varyings, in order, to its column
+  (``out_varyings[r, 3] = v[1][0]  # uv.x``; ``v[0]``, the one field ``none``, for a layout without varyings).
 - ``DERIVATIVES_X``, ``DERIVATIVES_Y``: ``dqx = …`` (when ``SMOOTH``) and a line per
   varying, ``dx_color = (…)``; ``DX_VALUES``, ``DY_VALUES``: ``dx_color, dx_uv``.
 """
@@ -32,6 +36,7 @@ shader = Varyings = FragInfo = Derivatives = borrowed_tuple = rgba = None
 pixel_coverage = shading_point = sample_depth = finite_rgba = None
 SMOOTH = DERIVATIVES = None
 VARYINGS_AT_BARYCENTRICS = VARYING_VALUES = DERIVATIVES_X = DERIVATIVES_Y = DX_VALUES = DY_VALUES = None
+STORE_VARYINGS = None
 
 
 @JIT
@@ -70,6 +75,21 @@ def fragment_inputs(i, triangle, frag_x, frag_y, depth, bary, inv_w, corner, fro
     """The varyings and FragInfo of fragment i, exactly as the shader receives them."""
     return interpolate(triangle[i], bary[i, 0], bary[i, 1], bary[i, 2], frag_x[i], frag_y[i], depth[i],
                        inv_w, corner, front, prim_id, bary_grad)
+
+
+@JIT
+def inputs_loop(rows, triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, bary_grad,
+                out_varyings, out_point_coord):
+    """The varyings and point_coord of fragments rows[r], exactly as the shader receives them, in row r
+    of out_varyings (the Varyings' components in order, a column each) and of out_point_coord."""
+    for r in range(rows.shape[0]):
+        if DERIVATIVES:
+            v, frag, derivatives = fragment_inputs(rows[r], triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, bary_grad)
+        else:
+            v, frag = fragment_inputs(rows[r], triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, bary_grad)
+        STORE_VARYINGS(r, v, out_varyings)
+        out_point_coord[r, 0] = frag.point_coord[0]
+        out_point_coord[r, 1] = frag.point_coord[1]
 
 
 @JIT
