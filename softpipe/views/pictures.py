@@ -226,11 +226,10 @@ def triangle_adjacency(triangles: np.ndarray) -> np.ndarray:
     starts = np.flatnonzero(np.concatenate([[True], ~same]))
     sizes = np.diff(np.append(starts, len(e)))
     pairs = []
-    for k in range(2, int(sizes.max()) + 1 if len(sizes) else 0):   # an edge shared by k triangles: every pair
-        for g in starts[sizes == k]:
-            o = owner[g:g + k]
-            i, j = np.triu_indices(k, 1)
-            pairs.append(np.stack([o[i], o[j]], axis=1))
+    for k in range(2, int(sizes.max()) + 1 if len(sizes) else 0):   # the edges shared by k triangles, together:
+        first = starts[sizes == k]                                  # every pair of each edge's k owners
+        i, j = np.triu_indices(k, 1)
+        pairs.append(np.stack([owner[first[:, None] + i].ravel(), owner[first[:, None] + j].ravel()], axis=1))
     if not pairs:
         return np.zeros((0, 2), np.int64)
     out = np.concatenate(pairs)
