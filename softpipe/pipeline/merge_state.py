@@ -24,7 +24,7 @@ however much state GL has. docs/06-output.md walks through the chain.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -221,7 +221,6 @@ class MergeState:
     sample_mask: int = ALL_SAMPLES
     alpha_to_coverage: bool = False
     depth_clamp: bool = False
-    _factors: Tuple[int, int, int, int] = field(default=(-1, -1, -1, -1), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         if self.depth_test is not None and self.depth_test not in DEPTH_FUNCS:
@@ -229,7 +228,7 @@ class MergeState:
         _bool("depth_write", self.depth_write)
         _bool("depth_clamp", self.depth_clamp)
         _bool("alpha_to_coverage", self.alpha_to_coverage)
-        object.__setattr__(self, "_factors", _blend_factors(self.blend))
+        _blend_factors(self.blend)
         _equations(self.blend_equation)
         try:
             color = tuple(float(c) for c in self.blend_color)
@@ -262,10 +261,6 @@ class MergeState:
         if not 0 <= int(self.sample_mask) <= ALL_SAMPLES:
             raise ValueError(f"sample_mask must be in [0, 0xFFFFFFFF] (a bit per sample), got {self.sample_mask!r}")
 
-    def blend_factors(self) -> Tuple[int, int, int, int]:
-        """(src_rgb, dst_rgb, src_alpha, dst_alpha) factor codes, or four −1 when blending is off."""
-        return self._factors
-
     @property
     def blends(self) -> bool:
         """Is blending on?"""
@@ -290,7 +285,7 @@ class MergeState:
         st[ST_DEPTH_WRITE] = int(self.depth_write and self.depth_test is not None)
         st[ST_DEPTH_CLAMP] = int(self.depth_clamp)
         st[ST_BLEND] = int(self.blends)
-        st[ST_SRC_RGB:ST_DST_ALPHA + 1] = self._factors
+        st[ST_SRC_RGB:ST_DST_ALPHA + 1] = _blend_factors(self.blend)
         st[ST_EQUATION_RGB:ST_EQUATION_ALPHA + 1] = _equations(self.blend_equation)
         st[ST_COLOR_MASK:ST_COLOR_MASK + 4] = self.color_mask
         if self.stencil is not None:
