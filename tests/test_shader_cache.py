@@ -1,7 +1,8 @@
 """A user's shader is compiled once, then loaded from the kernel cache in every later process.
 
-Each test runs small scripts in fresh processes (``SOFTPIPE_CACHE_DIR`` and ``NUMBA_CACHE_DIR``
-temporary folders shared by this file's tests, so softpipe's own kernels compile once) and
+Each test runs small scripts in fresh processes (a ``SOFTPIPE_CACHE_DIR`` temporary folder shared by
+this file's tests; numba's cache is the suite's own, so softpipe's library kernels are loaded, not
+compiled again in every process, and a user's loops cache beside their generated modules) and
 counts, with numba's ``numba:compile`` event, the functions each process compiled of the
 user's: the generated ``softpipe_user_*`` loops and the shader and helpers of ``__main__``
 or ``helpers``. "Loaded" is none of them compiled (not a timing). Each test's shader is
@@ -69,11 +70,17 @@ def shader(varyings, uniforms, frag):
 
 @pytest.fixture(scope="module")
 def caches(tmp_path_factory):
-    """The kernel cache and numba's cache, shared by this file's tests."""
+    """The kernel cache, shared by this file's tests."""
     root = tmp_path_factory.mktemp("shader-cache")
     (root / "softpipe").mkdir()
-    (root / "numba").mkdir()
     return root
+
+
+def numba_files(caches: Path, pattern: str) -> list:
+    """numba's cache files of the generated modules matching ``pattern``: beside the modules, or under
+    ``$NUMBA_CACHE_DIR`` where the suite sets one."""
+    roots = [caches] + ([Path(os.environ["NUMBA_CACHE_DIR"])] if os.environ.get("NUMBA_CACHE_DIR") else [])
+    return sorted(p for root in roots for p in root.rglob(pattern))
 
 
 def run(caches: Path, script_dir: Path, user: str, name: str = "scene.py") -> dict:
@@ -85,7 +92,7 @@ def run(caches: Path, script_dir: Path, user: str, name: str = "scene.py") -> di
 
 
 def start(caches: Path, script: Path) -> subprocess.Popen:
-    env = dict(os.environ, SOFTPIPE_CACHE_DIR=str(caches / "softpipe"), NUMBA_CACHE_DIR=str(caches / "numba"),
+    env = dict(os.environ, SOFTPIPE_CACHE_DIR=str(caches / "softpipe"),
                PYTHONPATH=os.pathsep.join([str(ROOT), str(script.parent)]))
     env.pop("NUMBA_DISABLE_JIT", None)
     return subprocess.Popen([sys.executable, str(script)], cwd=script.parent, env=env, stdout=subprocess.PIPE,
@@ -203,7 +210,7 @@ def test_two_processes_compiling_one_new_shader_at_once_both_succeed_with_one_en
     new = sorted(set(user_modules(caches)) - before)
     assert len(new) == 1, new                  # one module file for the shader
     stem = new[0][:-3]
-    indexes = sorted(p.name for p in (caches / "numba").rglob(f"{stem}.*.nbi"))
+    indexes = [p.name for p in numba_files(caches, f"{stem}.*.nbi")]
     functions = [name.split(".")[1] for name in indexes]
     assert len(functions) == len(set(functions)), indexes     # one index per compiled loop
     third = run(caches, tmp_path / "c", user)
@@ -215,7 +222,7 @@ def test_a_damaged_cache_entry_is_dropped_and_rebuilt(caches, tmp_path):
     before = set(user_modules(caches))
     first = run(caches, tmp_path, user)
     (stem,) = [name[:-3] for name in set(user_modules(caches)) - before]
-    data = sorted((caches / "numba").rglob(f"{stem}.*.nbc"))
+    data = numba_files(caches, f"{stem}.*.nbc")
     assert data
     for path in data:
         path.write_bytes(path.read_bytes()[:20])          # truncated

@@ -268,6 +268,7 @@ class Trace:
         self.path, self.path_reason = call.path_taken, call.path_reason
         self.visibility = None
         self._grad: Optional[np.ndarray] = None
+        self._python_module = None     # the plain-Python fragment module, made once (exec of generated source)
 
     @classmethod
     def record(cls, call) -> "Trace":
@@ -423,8 +424,14 @@ class Trace:
 
         Computed by the same generated interpolation code, run as plain Python.
         """
-        module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
-        return self._inputs(module, index)
+        return self._inputs(self._python_inputs(), index)
+
+    def _python_inputs(self):
+        """The generated fragment module as plain Python, made on first use: generating and exec-ing it
+        takes milliseconds, longer than one fragment's inputs."""
+        if self._python_module is None:
+            self._python_module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        return self._python_module
 
     def _inputs(self, module, index: int):
         f, p = self.fragments, self.primitives
@@ -491,7 +498,7 @@ class Trace:
     def pixel_history(self, x: int, y: int) -> PixelHistory:
         """Every fragment that touched pixel (x, y), in order, with what happened to it."""
         idx = self.at(x, y)
-        module = kernels.python_fragment_module(self.fragment_shader, self.primitives.layout)
+        module = self._python_inputs()
         f, s, m = self.fragments, self.shaded, self.merged
         assert m.color_after is not None    # a trace's merge keeps it (recorded)
         events = []
