@@ -190,8 +190,9 @@ async function start() {
   if (!r.ok) { showError(await errorOf(r)); return; }
   info = await r.json();
   const img = $("frame");
-  img.width = info.width;
-  img.height = info.height;
+  const scale = Math.max(1, Math.floor(640 / Math.max(info.width, info.height * 4 / 3)));   // a small frame, zoomed
+  img.width = info.width * scale;
+  img.height = info.height * scale;
   fill($("program"), [["", "the scene's own"]].concat(info.programs.map((p) => [p, p])), info.program || "");
   state.program = $("program").value;
   fill($("light"), Object.entries(info.lights).map(([k, v]) => [k, k, v]), "scene");
