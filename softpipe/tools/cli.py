@@ -957,7 +957,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except SystemExit as e:  # --help, --version
         return int(e.code or 0) if not isinstance(e.code, str) else 2
     if not getattr(args, "command", None):
-        print("softpipe: error: a command is required: render, turntable, batch, explore, view, demo or programs "
+        print("softpipe: error: a command is required: render, turntable, batch, explore, demo or programs "
               "(see 'softpipe --help')", file=sys.stderr)
         return 2
     keep_freed_memory()     # a program of softpipe's own: frames' large arrays reuse memory (core/runtime.py)

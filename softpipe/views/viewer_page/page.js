@@ -55,7 +55,7 @@ function requestFrame() {
     showError("");
     const now = performance.now();
     times = times.filter((t) => now - t < 3000).concat([now]);
-    const rate = times.length > 1 ? (times.length - 1) / ((now - times[0]) / 1000) : 0;
+    const rate = times.length > 2 ? (times.length - 1) / ((now - times[0]) / 1000) : 0;
     $("status").textContent = `render ${(+r.headers.get("X-Softpipe-Seconds") * 1000).toFixed(0)} ms` +
       (rate ? ` · ${rate.toFixed(1)} frames/s` : "") +
       ` · azimuth ${state.az.toFixed(0)}°, elevation ${state.el.toFixed(0)}°, zoom ${state.zoom.toFixed(2)}×`;
