@@ -164,6 +164,17 @@ def test_the_server_refuses_a_non_loopback_bind(host):
         sp.view("bunny", host=host, width=8, height=6)
 
 
+def test_a_taken_port_is_named(viewer, capsys):
+    port = viewer.server.port
+    assert main(["view", "bunny", "--size", "8x6", "--port", str(port), "-q"]) == 2
+    assert capsys.readouterr().err.strip() == (f"softpipe view: error: cannot serve on 127.0.0.1 port {port}: "
+                                               "Address already in use (port 0, the default, takes a free one)")
+    assert main(["view", "bunny", "--port", "70000"]) == 2
+    assert "--port: expected a port from 0 to 65535 (0: a free one), got '70000'" in capsys.readouterr().err
+    with pytest.raises(ValueError, match=r"port must be a whole number from 0 to 65535 \(0: a free one\), got -1"):
+        sp.view("bunny", port=-1, width=8, height=6)
+
+
 def test_loopback_hosts_are_taken():
     assert check_loopback("localhost") == "127.0.0.1"
     assert check_loopback("127.0.0.1") == "127.0.0.1" and check_loopback("::1") == "::1"

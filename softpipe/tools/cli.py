@@ -868,14 +868,14 @@ def _view(args) -> int:
     except ValueError as e:
         raise CLIError(f"--host: {e}") from None
     scene = LiveScene(_prepare(args, RENDER_SIZE), args.input)
-    _progress(args, "rendering the first frame (the first render compiles the shaders)")
-    start = time.perf_counter()
-    scene.frame(ViewState())
-    server = serve(scene, args.host, args.port)
-    _wrote(args, "", f"serving {args.input} ({scene.scene.width}×{scene.scene.height}, first frame "
-                     f"{time.perf_counter() - start:.2f} s) at {server.url} (Ctrl-C stops it)")
-    sys.stdout.flush()
+    server = serve(scene, args.host, args.port)         # a taken port is said before the (slow) first frame
     try:
+        _progress(args, "rendering the first frame (the first render compiles the shaders)")
+        start = time.perf_counter()
+        scene.frame(ViewState())
+        _wrote(args, "", f"serving {args.input} ({scene.scene.width}×{scene.scene.height}, first frame "
+                         f"{time.perf_counter() - start:.2f} s) at {server.url} (Ctrl-C stops it)")
+        sys.stdout.flush()
         server.serve_forever()
     except KeyboardInterrupt:
         pass

@@ -412,11 +412,17 @@ class ViewerServer(ThreadingHTTPServer):
     def __init__(self, scene: LiveScene, host: str = "127.0.0.1", port: int = 0,
                  log: Optional[Callable[[str], None]] = None) -> None:
         host = check_loopback(host)
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise ValueError(f"port must be a whole number from 0 to 65535 (0: a free one), got {port!r}")
         self.address_family = socket.AF_INET6 if ":" in host else socket.AF_INET
         self.scene, self.log = scene, log
         self._seq: Dict[str, int] = {}
         self._seq_lock = threading.Lock()
-        super().__init__((host, port), _Handler)
+        try:
+            super().__init__((host, port), _Handler)
+        except OSError as e:                    # taken, or a port below 1024 without the right to it
+            raise OSError(f"cannot serve on {host} port {port}: {e.strerror or e} (port 0, the default, "
+                          "takes a free one)") from None
         self.port = int(self.server_address[1])
         shown = f"[{host}]" if ":" in host else host
         self.url = f"http://{shown}:{self.port}/"
