@@ -73,10 +73,19 @@ __all__ = [
     "rotate_z", "scale", "translate", "VertexOut", "run_vertex_stage", "standard_vertex", "shapes",
     "draw_mesh", "render", "render_scene", "standard_uniforms", "turntable", "Mesh", "concatenate_meshes",
     "load_model", "model_path", "OBJError", "load_obj", "parse_obj", "Scene", "ShadowMaps",
-    "render_shadow_maps", "PathTrace", "pathtrace", "__version__",
+    "render_shadow_maps", "PathTrace", "pathtrace", "view", "__version__",
 ]
 
 __version__ = VERSION
+
+
+def view(model, **options):
+    """Show ``model`` live (``softpipe view MODEL`` in Python): a page served on loopback in a background
+    thread, shown in Jupyter as an IFrame; drag to orbit, scroll to zoom, click a pixel for its history.
+    Returns the :class:`softpipe.tools.viewer.Viewer` (``.url``, ``.stop()``); the options are
+    :func:`softpipe.tools.viewer.view`'s (which see). docs/viewer.md."""
+    from softpipe.tools.viewer import view as serve_view  # the tool, on first use (as softpipe.batch)
+    return serve_view(model, **options)
 
 
 def __getattr__(name: str):

@@ -37,11 +37,11 @@ TOP_LEVEL = {"shading": "programs", "testing": "views", "": "scenes", "__main__"
 #: Imports made at call time that reach *up* a layer, each a convenience on the API, named here
 #: so that no other one can creep in: a trace draws its pictures and writes its explorer page
 #: with the views, diffs itself against another with them (views.diff) and lists its vertices
-#: (views.mesh_view); ``softpipe.batch`` is the batch tool, imported on first use; a small
-#: framebuffer shows itself zoomed in Jupyter (views.zoom).
+#: (views.mesh_view); ``softpipe.batch`` is the batch tool, imported on first use, and so is the live
+#: viewer behind ``softpipe.view`` (tools.viewer); a small framebuffer shows itself zoomed in Jupyter (views.zoom).
 LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.explorer"),
                ("pipeline.trace", "views.diff"), ("pipeline.trace", "views.mesh_view"), ("", "tools.batch"),
-               ("pipeline.framebuffer", "views.zoom")}
+               ("pipeline.framebuffer", "views.zoom"), ("", "tools.viewer")}
 #: softpipe/pipeline/ in pipeline order; each may import only those before it.
 STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "lines", "points",
           "raster", "fragment", "merge_state", "output", "tiles", "visibility", "trace", "draw"]

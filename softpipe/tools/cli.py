@@ -6,6 +6,7 @@
     softpipe turntable MODEL -o spin.gif            an animated GIF, the camera circling the model
     softpipe explore MODEL -o report.html           the pipeline explorer: every stage, every pixel's history (softpipe.views.explorer)
     softpipe explore --diff A B -o diff.html        what changed from A to B: the changed pixels, each one's first differing fragment
+    softpipe view MODEL                             the live viewer: a local page, the scene re-rendered as you turn it (softpipe.tools.viewer)
     softpipe batch JOBS.toml -o DIR                 every frame of a job, on a Dask cluster (softpipe.tools.batch)
     softpipe demo                                   the default scene
     softpipe programs                               the shading programs and sample patterns
@@ -381,6 +382,24 @@ def build_parser() -> argparse.ArgumentParser:
                               "400000); beyond, the history of a regular grid of pixels (the page says which)")
     _add_view_options(explore, "640x480")
     explore.set_defaults(run=_explore)
+
+    live = sub.add_parser(
+        "view", help="serve a local page that shows the scene live: drag to orbit, click a pixel for its history",
+        description="Serve a page on loopback (127.0.0.1, a free port, printed) that shows INPUT rendered live: "
+                    "drag to orbit the camera, scroll to zoom, pick the program, the light and the stage picture "
+                    "shown, click a pixel for its history (every fragment of every draw, as trace.pixel_history "
+                    "prints it). The scene is rendered again as the camera moves; a fast drag renders the newest "
+                    "camera, not every one it passed. Ctrl-C stops it. See docs/viewer.md.\n\n"
+                    "In Python (and Jupyter, where it shows in the notebook): softpipe.view(INPUT, ...).",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    live.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
+    live.add_argument("--port", type=_port, default=0, metavar="N",
+                      help="the port to serve on (default 0: a free one, printed)")
+    live.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
+                      help="a loopback address to serve on: 127.0.0.1 (default), ::1 or localhost; any other is "
+                           "refused (the page is for this machine only)")
+    _add_view_options(live, "640x480")
+    live.set_defaults(run=_view)
 
     programs = sub.add_parser("programs", help="list the shading programs and sample patterns",
                               description="List the registered shading programs (for --program and a scene's "
@@ -830,6 +849,42 @@ def _explore(args) -> int:
     return 0
 
 
+def _port(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a port from 0 to 65535 (0: a free one), got {text!r}")
+    return v
+
+
+def _view(args) -> int:
+    """``softpipe view INPUT``: the live viewer, served until Ctrl-C (softpipe.tools.viewer)."""
+    from softpipe.scenes.drawing import RENDER_SIZE
+    from softpipe.tools.viewer import LiveScene, ViewState, check_loopback, serve
+    try:
+        check_loopback(args.host)
+    except ValueError as e:
+        raise CLIError(f"--host: {e}") from None
+    scene = LiveScene(_prepare(args, RENDER_SIZE), args.input)
+    server = serve(scene, args.host, args.port)         # a taken port is said before the (slow) first frame
+    try:
+        _progress(args, "rendering the first frame (the first render compiles the shaders)")
+        start = time.perf_counter()
+        scene.frame(ViewState())
+        _wrote(args, "", f"serving {args.input} ({scene.scene.width}×{scene.scene.height}, first frame "
+                         f"{time.perf_counter() - start:.2f} s) at {server.url} (Ctrl-C stops it)")
+        sys.stdout.flush()
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()
+    _wrote(args, "", "stopped")
+    return 0
+
+
 def _turntable(args) -> int:
     from softpipe.scenes.drawing import TURNTABLE_SIZE, frame_duration, turntable
     start = time.perf_counter()
@@ -860,6 +915,7 @@ MEMORY_HINTS = {
                "smaller",
     "turntable": "a smaller --size (or --width/--height) or fewer --samples makes it smaller",
     "demo": "a smaller --width/--height makes it smaller",
+    "view": "a smaller --size (or --width/--height) or fewer --samples makes it smaller",
 }
 
 

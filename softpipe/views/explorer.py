@@ -64,7 +64,7 @@ from softpipe.pipeline.output import VERDICTS
 from softpipe.views.draws import traced_draws
 
 __all__ = ["write_explorer", "explorer_html", "read_explorer", "ExplorerData", "ExplorerSummary",
-           "MAX_FRAGMENTS", "READ_LIMIT"]
+           "MAX_FRAGMENTS", "READ_LIMIT", "scene_pictures"]
 
 #: Fragments whose whole history the page holds, by default (about 140 bytes each, compressed).
 MAX_FRAGMENTS = 400_000
@@ -190,8 +190,9 @@ def _png(img: np.ndarray) -> str:
 # ---------------------------------------------------------------------------- pictures
 
 
-def _pictures(draws) -> Dict[str, np.ndarray]:
-    """The stage pictures of one draw, or of several drawn into one framebuffer, composed."""
+def scene_pictures(draws) -> Dict[str, np.ndarray]:
+    """The stage pictures of one draw, or of several drawn into one framebuffer, composed (``draws``: (name,
+    program, trace) of each, in the order drawn; the live viewer shows them too, softpipe.tools.viewer)."""
     from softpipe.views import pictures as P
     if len(draws) == 1:
         return P.stage_pictures(draws[0][2])
@@ -414,7 +415,7 @@ def explorer_data(traces_or_results, *, max_fragments: int = MAX_FRAGMENTS, titl
         v_win.append(win_xyz)
     cat = lambda parts, n: np.concatenate(parts) if parts else np.zeros((0, n))  # noqa: E731
 
-    pics = _pictures(draws)
+    pics = scene_pictures(draws)
     pics.update(_mesh_pictures(traces))
     if overlays:                    # RenderDoc's overlays, after the stage pictures (softpipe.views.overlays)
         from softpipe.views.overlays import overlay_pictures
