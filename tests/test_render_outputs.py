@@ -230,3 +230,35 @@ def test_the_cli_refuses_an_unknown_output_before_rendering(capsys, tmp_path):
     assert ("argument --outputs: unknown output 'foo'; the outputs are color, depth, linear_depth, position, "
             "normal, object_id, triangle_id, barycentrics, uv, albedo") in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_batch_job_writes_its_outputs_and_lists_them_in_the_manifest(tmp_path):
+    import json
+
+    from softpipe.tools.batch import batch, parse_job
+    job = parse_job('[job]\noutputs = ["depth", "object_id"]\n[sweep]\nmodels = ["suzanne"]\n'
+                    'cameras = [0, 90]\nsizes = ["32x24"]\n', "job.toml")
+    result = batch(job, tmp_path, scheduler="serial", contact_sheet=False)
+    assert result.ok and len(result.done) == 2
+    lines = [json.loads(line) for line in (tmp_path / "manifest.jsonl").read_text().splitlines()]
+    for frame, line in zip(job.frames, lines):
+        assert sorted(line["outputs"]) == ["depth.npy", "depth.png", "object_id.npy", "object_id.png"]
+        expected = sp.render("suzanne", width=32, height=24, azimuth=frame.azimuth, outputs=("depth", "object_id"))
+        for name in ("depth", "object_id"):
+            listed = line["outputs"][f"{name}.npy"]
+            assert listed["file"] == f"{frame.name}.{name}.npy"
+            np.testing.assert_array_equal(np.load(tmp_path / listed["file"]), expected[name])
+    again = batch(job, tmp_path, scheduler="serial", contact_sheet=False)
+    assert len(again.skipped) == 2
+    (tmp_path / f"{job.frames[0].name}.depth.npy").unlink()          # a missing output renders its frame again
+    assert [n for n, _ in batch(job, tmp_path, scheduler="serial", contact_sheet=False).rerendered] == \
+        [job.frames[0].name]
+
+
+def test_a_batch_job_refuses_unknown_outputs():
+    from softpipe.tools.batch import JobError, parse_job
+    with pytest.raises(JobError) as e:
+        parse_job('[job]\noutputs = ["depth", "segmentation"]\n[sweep]\nmodels = ["suzanne"]\n', "job.toml")
+    assert str(e.value) == ("job.toml: key 'outputs' in [job] must name outputs among color, depth, linear_depth, "
+                            "position, normal, object_id, triangle_id, barycentrics, uv, albedo; 'segmentation' is "
+                            "not one")

@@ -34,6 +34,7 @@ from softpipe.pipeline.framebuffer import Framebuffer, RecordedDraw, split_recor
 from softpipe.pipeline.transforms import normal_matrix
 
 __all__ = ["OUTPUTS", "RenderOutputs", "check_outputs", "derive_outputs", "save_outputs", "output_picture",
+           "output_files",
            "ID_PALETTE"]
 
 #: The buffers :func:`softpipe.render` can return (``outputs=``), in this order.
@@ -318,6 +319,22 @@ def output_picture(name: str, buffer: np.ndarray, framebuffer: Optional[Framebuf
     return np.rint(rgb * 255).astype(np.uint8)
 
 
+def output_files(outputs: Mapping[str, np.ndarray], framebuffer: Optional[Framebuffer] = None) -> Dict[str, bytes]:
+    """Each output encoded as files: ``"NAME.npy"`` (the array, ``np.save``) and ``"NAME.png"`` (its
+    picture, :func:`output_picture`), in the order of ``outputs``."""
+    import io
+
+    from PIL import Image
+    fb = framebuffer if framebuffer is not None else getattr(outputs, "framebuffer", None)
+    files: Dict[str, bytes] = {}
+    for name, buffer in outputs.items():
+        npy, png = io.BytesIO(), io.BytesIO()
+        np.save(npy, buffer, allow_pickle=False)
+        Image.fromarray(output_picture(name, buffer, fb), "RGB").save(png, format="PNG")
+        files[f"{name}.npy"], files[f"{name}.png"] = npy.getvalue(), png.getvalue()
+    return files
+
+
 def save_outputs(outputs: Mapping[str, np.ndarray], stem: Union[str, "os.PathLike[str]"],
                  framebuffer: Optional[Framebuffer] = None) -> List[Path]:
     """Write each output as ``STEM.NAME.npy`` and its picture (:func:`output_picture`) as ``STEM.NAME.png``.
@@ -325,18 +342,12 @@ def save_outputs(outputs: Mapping[str, np.ndarray], stem: Union[str, "os.PathLik
     Each file is written whole or not at all (:func:`softpipe.core.files.atomic_write`); a missing
     folder is made. Returns the paths written, two per output, in order.
     """
-    from PIL import Image
-
     from softpipe.core.files import atomic_write
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
-    fb = framebuffer if framebuffer is not None else getattr(outputs, "framebuffer", None)
     written: List[Path] = []
-    for name, buffer in outputs.items():
-        npy = stem.with_name(f"{stem.name}.{name}.npy")
-        png = stem.with_name(f"{stem.name}.{name}.png")
-        atomic_write(npy, lambda f, a=buffer: np.save(f, a, allow_pickle=False))
-        image = Image.fromarray(output_picture(name, buffer, fb), "RGB")
-        atomic_write(png, lambda f, im=image: im.save(f, format="PNG"))
-        written += [npy, png]
+    for suffix, data in output_files(outputs, framebuffer).items():
+        path = stem.with_name(f"{stem.name}.{suffix}")
+        atomic_write(path, lambda f, d=data: f.write(d))
+        written.append(path)
     return written
