@@ -178,7 +178,8 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
     ----------
     fb : Framebuffer
         Drawn with ``record=True``; its :attr:`~Framebuffer.recorded_draws` carry the draws'
-        inputs, and their ``tag`` the index of the object each draw belongs to.
+        inputs, and their ``tag`` the index of the object each draw belongs to (a draw
+        without one is object k, k its place among the frame's draws).
     names : sequence of str
         Checked by :func:`check_outputs`.
     objects : sequence of SceneObject
@@ -211,7 +212,8 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
     for k in np.unique(which[shown]):
         d = draws[int(k)]
         rows, cols = np.nonzero(which == k)
-        tag = d.tag if isinstance(d.tag, (int, np.integer)) else -1
+        # a scene's draws name their object; a draw made by hand is its own object, by its place in the frame
+        tag = int(d.tag) if isinstance(d.tag, (int, np.integer)) else int(k)
         object_id[rows, cols] = tag
         triangles = d.kind == "triangles" and d.call.topology in TRIANGLE_TOPOLOGIES
         prim = primitive[rows, cols]
