@@ -24,7 +24,10 @@ buffers); sRGB encoding happens where the colors become bytes
 (:meth:`~softpipe.pipeline.framebuffer.Framebuffer.to_uint8`). Each fragment's
 verdict is recorded (:data:`VERDICTS`: which step stopped it) so a trace can say
 what happened to it, and the samples that passed every test are counted
-(:class:`OcclusionQuery`).
+(:class:`OcclusionQuery`). A framebuffer with a visibility record
+(``Framebuffer(..., record=True)``) gets one more store where a fragment writes the depth:
+which draw, instance and source primitive it came from (:func:`record_visible` is the fast
+path's; docs/outputs.md).
 """
 from __future__ import annotations
 
