@@ -262,3 +262,31 @@ def test_a_batch_job_refuses_unknown_outputs():
     assert str(e.value) == ("job.toml: key 'outputs' in [job] must name outputs among color, depth, linear_depth, "
                             "position, normal, object_id, triangle_id, barycentrics, uv, albedo; 'segmentation' is "
                             "not one")
+
+
+def test_albedo_of_a_textured_model_is_kd_times_the_texture_at_uv():
+    from softpipe.light.texture import texture_lod
+    out = sp.render("spot", width=W, height=H, outputs=("albedo", "uv", "object_id"))
+    draw = out.framebuffer.recorded_draws[0]
+    kd = np.asarray(draw.call.uniforms.material.kd)
+    rows, cols = np.nonzero(out["object_id"] == 0)
+    assert len(rows) > 200
+    for r, c in zip(rows[::7], cols[::7]):
+        u, v = (float(t) for t in out["uv"][r, c])
+        expected = kd * np.asarray(texture_lod(draw.call.uniforms.texture, (u, v), 0.0))[:3]
+        np.testing.assert_allclose(out["albedo"][r, c], expected, rtol=1e-6)
+    assert len(np.unique(out["albedo"][rows, cols], axis=0)) > 20       # the texture shows, not kd alone
+
+
+def test_lines_have_ids_and_depth_but_no_surface():
+    camera = sp.Camera(eye=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fovy=40.0)
+    positions = np.array([[-2, -2, 0], [2, -2, 0], [-2, 2, 0], [-1, 0, 1], [1, 0, 1.0]])
+    mesh = sp.Mesh(positions, np.array([[0, 1, 2]]), lines=np.array([[3, 4]]))
+    out = sp.render(_scene(SceneObject("tri", mesh, np.eye(4)), camera=camera),
+                    outputs=("object_id", "triangle_id", "barycentrics", "linear_depth", "albedo"))
+    line = (out["object_id"] == 0) & (out["triangle_id"] == -1)
+    assert line.sum() >= 20                              # the segment's pixels, in front of the triangle
+    assert np.isnan(out["barycentrics"][line]).all()
+    np.testing.assert_allclose(out["linear_depth"][line], 2.0, rtol=1e-6)    # 1 in front of the origin
+    np.testing.assert_allclose(out["albedo"][line], np.broadcast_to(mesh.material.kd, (line.sum(), 3)))
+    assert (out["triangle_id"] == 0).sum() > 100
