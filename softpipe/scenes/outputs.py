@@ -209,9 +209,13 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
     linear = np.full((h, w), np.nan, np.float32)
     maps = _triangle_maps(objects, draws) if objects else {}
     geometric = want & {"barycentrics", "position", "normal", "uv", "albedo", "linear_depth"}
-    for k in np.unique(which[shown]):
+    # the covered pixels grouped by draw (one sort, not one pass over the image per draw)
+    flat = np.flatnonzero(shown)
+    flat = flat[np.argsort(which.reshape(-1)[flat], kind="stable")]
+    kinds, starts = np.unique(which.reshape(-1)[flat], return_index=True)
+    for k, group in zip(kinds, np.split(flat, starts[1:])):
         d = draws[int(k)]
-        rows, cols = np.nonzero(which == k)
+        rows, cols = np.divmod(group, w)
         # a scene's draws name their object; a draw made by hand is its own object, by its place in the frame
         tag = int(d.tag) if isinstance(d.tag, (int, np.integer)) else int(k)
         object_id[rows, cols] = tag
