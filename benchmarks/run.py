@@ -74,7 +74,8 @@ __all__ = ["run_scene", "run", "main", "render_frame", "count_fragments_of", "TA
 #: DrawCall.timings keys, in pipeline order, and the names the issue gives them.
 STAGES = ("vertex", "assembly", "setup", "raster", "fragment", "output")
 STAGE_TITLES = {"vertex": "vertex", "assembly": "assembly+clip", "setup": "setup+bin", "raster": "raster",
-                "fragment": "shading", "output": "merge", "other": "other", "prepare": "prepare"}
+                "fragment": "shading", "output": "merge", "other": "other", "prepare": "prepare",
+                "outputs": "outputs"}
 #: The part of a frame that runs the scene's draws (the parts table, for scenes with a ``prepare``).
 LIT_PASS = "lit pass"
 
@@ -170,6 +171,11 @@ def render_frame(scene: Scene, fb: Framebuffer, paths: Optional[list] = None, pa
         if paths is not None:
             uses_fast = getattr(call, "uses_fast_path", None)
             paths.append("reference" if uses_fast is None else "fast" if uses_fast() else "reference")
+    finish = getattr(scene, "finish", None)
+    if finish is not None:
+        t0 = time.perf_counter()
+        finish(fb)
+        stages["outputs"] = time.perf_counter() - t0
     end = time.perf_counter()
     if parts is not None and scene.prepare is not None and prepare:
         parts[LIT_PASS] = end - draws_start
@@ -280,8 +286,9 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
     if isinstance(scene, str):
         scene = build_scene(scene, scale)
     build_s = time.perf_counter() - t0
-    fb = Framebuffer(scene.width, scene.height, pattern=scene.pattern) if scene.pattern else \
-        Framebuffer(scene.width, scene.height)
+    record = bool(getattr(scene, "record", False))
+    fb = Framebuffer(scene.width, scene.height, pattern=scene.pattern, record=record) if scene.pattern else \
+        Framebuffer(scene.width, scene.height, record=record)
     notes = list(scene.notes)
     gc.collect()
     release_memory()        # what earlier scenes left for reuse (softpipe.core.runtime) is not this scene's

@@ -14,6 +14,8 @@ bytes in every process.
                      perspective camera, Blinn-Phong per fragment, one directional light
 ``sphere200k-color`` the same geometry, a color per vertex, no lighting
 ``bunny``            Stanford bunny (69,451 triangles), Phong per fragment, three lights
+``bunny-outputs``    the same with five outputs (color, depth, normal, object_id,
+                     triangle_id) derived from its visibility record each frame (issue 31)
 ``spot-textured``    Spot (5,856 triangles) with its 1024² texture, trilinear, one light
 ``fill``             1000 large triangles, 30–60 % of 1920×1080 each, constant random depth
                      each, random order, depth LESS, a color per vertex
@@ -46,7 +48,7 @@ import math
 from collections import namedtuple
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -114,6 +116,12 @@ class Scene:
     #: move) and returns {part name: seconds} of what it did (each map's time); the
     #: harness reports those parts, the rest of ``prepare`` and the draws ("lit pass").
     prepare: Optional[Callable[[], Dict[str, float]]] = None
+    #: Draw into a framebuffer that keeps a visibility record (``Framebuffer(..., record=True)``).
+    record: bool = False
+    #: Run at the end of every frame, inside its time, after the draws, with the framebuffer
+    #: (None: nothing); the harness times it as the stage ``outputs`` (``bunny-outputs``
+    #: derives its buffers from the record there).
+    finish: Optional[Callable[[Any], None]] = None
 
 
 def _size(width: int, height: int, scale: float) -> Tuple[int, int]:
@@ -565,10 +573,27 @@ def field10k(scale: float = 1.0) -> Scene:
                  shading=_shader_names(instanced_vertex, None))
 
 
+#: The buffers ``bunny-outputs`` derives every frame (issue 31's "render with five outputs").
+BENCH_OUTPUTS = ("color", "depth", "normal", "object_id", "triangle_id")
+
+
+def bunny_outputs(scale: float = 1.0) -> Scene:
+    """``bunny`` drawn into a framebuffer with a visibility record, then five outputs derived from it
+    (:func:`softpipe.scenes.outputs.derive_outputs`: color, depth, normal, object_id, triangle_id):
+    what ``render(..., outputs=...)`` adds to a frame, beside ``bunny`` for the cost."""
+    from softpipe.scenes.outputs import derive_outputs
+    base = bunny(scale)
+    return replace(base, name="bunny-outputs", record=True,
+                               finish=lambda fb: derive_outputs(fb, BENCH_OUTPUTS) and None,
+                               description=base.description + "; five outputs from the visibility record: "
+                               + ", ".join(BENCH_OUTPUTS))
+
+
 SCENES: Dict[str, Callable[[float], Scene]] = {
     "sphere200k": sphere200k,
     "sphere200k-color": sphere200k_color,
     "bunny": bunny,
+    "bunny-outputs": bunny_outputs,
     "spot-textured": spot_textured,
     "fill": fill,
     "fill-b2f": fill_b2f,

@@ -52,6 +52,7 @@ from softpipe.pipeline.output import (
     OcclusionQuery,
     merge,
     non_finite_written,
+    record_visible,
 )
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
 from softpipe.pipeline.setup import SHADING_POSITIONS, TriangleSetup, apply_polygon_offset, pixel_rect, setup_triangles
@@ -214,6 +215,8 @@ class DrawCall:
         #: the samples the last run wrote with a NaN or infinite color (None: none), of which a
         #: :class:`~softpipe.pipeline.output.NonFiniteColorWarning` told
         self.non_finite: Optional[NonFinite] = None
+        # what this draw's primitives store in the framebuffer's visibility record (None: it keeps none)
+        self._record_ids: Optional[np.ndarray] = None
 
     def choose_path(self, keep_fragments: bool = False) -> Tuple[str, str]:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
@@ -258,6 +261,7 @@ class DrawCall:
                                            polygon_mode=self.polygon_mode, point_size=self.point_size,
                                            line_width=self.line_width, clip_planes=self.clip_planes,
                                            depth_clamp=self.depth_clamp)
+        self._record_ids = self._recorded(vout, prims)
         clock("assembly")
         yield self._emit(Stage("assembly", prims), debug)
         clock(None)
@@ -323,8 +327,8 @@ class DrawCall:
         batches = list(_batches(counts, MAX_FRAGMENTS_PER_BATCH))
         # A shader that raises leaves the framebuffer as it was: with one batch nothing is merged
         # before every fragment is shaded; with more (millions of fragments), a copy is kept.
-        saved = ((fb.samples_color.copy(), fb.samples_depth.copy(), fb.samples_stencil.copy())
-                 if len(batches) > 1 else None)
+        saved = ((fb.samples_color.copy(), fb.samples_depth.copy(), fb.samples_stencil.copy(),
+                  None if fb.record is None else fb.record.copy()) if len(batches) > 1 else None)
         passed = 0
         for batch, (first, last) in enumerate(batches):
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
@@ -335,11 +339,14 @@ class DrawCall:
                 shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
             except BaseException:
                 if saved is not None:
-                    fb.samples_color[...], fb.samples_depth[...], fb.samples_stencil[...] = saved
+                    fb.samples_color[...], fb.samples_depth[...], fb.samples_stencil[...] = saved[:3]
+                    if saved[3] is not None:
+                        fb.record[...] = saved[3]
                 raise
             clock("fragment")
             yield Stage("fragment", shaded, batch)
-            merged = merge(frags, shaded, self.state, fb, record=record, front_facing=prims.front_facing)
+            merged = merge(frags, shaded, self.state, fb, record=record, front_facing=prims.front_facing,
+                           record_ids=self._record_ids)
             if self.query is not None:
                 passed += merged.samples_passed
             self._note_non_finite(non_finite_written(frags, shaded, merged))
@@ -386,8 +393,21 @@ class DrawCall:
             yield from self._reference_stages(prims, setup, clock, record=False)
             return
         self._note_non_finite(shaded.non_finite)
+        if self._record_ids is not None:
+            record_visible(fb, visibility.vis, self._record_ids, self.state)
         clock("fragment")
         yield Stage("fragment", shaded)
+
+    def _recorded(self, vout, prims: Primitives) -> Optional[np.ndarray]:
+        """With a framebuffer that keeps a visibility record: note this draw in it and return what its
+        primitives store there (the draw's first value + the draw-wide input primitive); else None."""
+        fb = self.framebuffer
+        if fb.record is None:
+            return None
+        instances = max(prims.instances, 1)
+        entry = fb.add_recorded_draw(self, vout.position, vout.vertices_per_instance, prims.input_count,
+                                     prims.input_count // instances, prims.kind)
+        return entry.base + _draw_wide_ids(prims)
 
     def _note_non_finite(self, found: Optional[NonFinite]) -> None:
         """Add a batch's non-finite samples to the draw's (the first one kept)."""

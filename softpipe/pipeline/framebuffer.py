@@ -11,8 +11,9 @@ from __future__ import annotations
 import io
 import os
 import threading
+from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Optional, Sequence, Union
+from typing import Any, BinaryIO, List, Optional, Sequence, Tuple, Union
 
 import numba
 import numpy as np
@@ -22,7 +23,7 @@ from softpipe.core.parallel import in_bands
 from softpipe.core.runtime import check_memory
 from softpipe.pipeline.sampling import CENTER, SamplePattern
 
-__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format"]
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record"]
 
 #: Largest width or height, in pixels.
 MAX_DIMENSION = 16384
@@ -38,6 +39,63 @@ def _fill(lo, hi, color, rgba, depth, z, stencil, s):
         stencil[k] = s
         for c in range(4):
             color[k, c] = rgba[c]
+
+
+@dataclass
+class RecordedDraw:
+    """One draw of a frame whose primitives may enter the framebuffer's visibility record.
+
+    The record stores, per sample, ``base + i·per_instance + p`` for primitive ``p`` of
+    instance ``i`` of this draw (:func:`split_record` takes it apart), so one int64 names
+    the draw, the instance and the source primitive at once.
+
+    Attributes
+    ----------
+    base : int
+        The first record value of this draw (the draws of a frame take consecutive ranges).
+    count : int
+        How many values it took: its input primitives, over every instance.
+    per_instance : int
+        Input primitives per instance (``count`` without instancing).
+    call : DrawCall
+        The draw itself: its positions, indices, topology, attributes and uniforms, as given.
+    clip : float64 [V, 4]
+        The vertex stage's clip coordinates (every instance's vertices, instance by instance).
+    vertices_per_instance : int
+        Rows of ``clip`` per instance.
+    kind : "triangles" | "lines" | "points"
+        What its primitives were.
+    tag : object
+        Free for the caller (a scene names the object the draw belongs to).
+    """
+
+    base: int
+    count: int
+    per_instance: int
+    call: Any
+    clip: np.ndarray
+    vertices_per_instance: int
+    kind: str
+    tag: Any = None
+
+
+def split_record(record: np.ndarray, draws: Sequence[RecordedDraw]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Take record values apart: (draw index in ``draws``, instance, primitive), each int64 of
+    ``record``'s shape, −1 in all three where the record is −1 (nothing written)."""
+    record = np.asarray(record, dtype=np.int64)
+    shown = record >= 0
+    draw = np.full(record.shape, -1, np.int64)
+    instance, primitive = draw.copy(), draw.copy()
+    if not draws or not shown.any():
+        return draw, instance, primitive
+    bases = np.array([d.base for d in draws], np.int64)
+    per = np.array([max(d.per_instance, 1) for d in draws], np.int64)
+    v = record[shown]
+    k = np.searchsorted(bases, v, side="right") - 1
+    local = v - bases[k]
+    draw[shown] = k
+    instance[shown], primitive[shown] = np.divmod(local, per[k])
+    return draw, instance, primitive
 
 
 def _check_size(width, height, samples: int) -> None:
@@ -104,6 +162,10 @@ class Framebuffer:
         destination before it blends; softpipe keeps the floats, so its bytes are GL's
         except where GL would have rounded the destination to 8 bits between two
         blended draws (docs/gamma.md).
+    record : bool
+        Keep a visibility record (docs/outputs.md): per sample, which draw, instance and
+        source primitive last wrote its depth (int64, −1 where none did), with the frame's
+        :attr:`recorded_draws`, cleared with the frame. Default False: no record, no cost.
 
     Attributes
     ----------
@@ -118,6 +180,11 @@ class Framebuffer:
         contiguous in memory (what the rasterizer's inner loop walks along).
     srgb : bool
         Whether :meth:`to_uint8` encodes (read-only).
+    record : int64 [S, H, W] or None
+        The visibility record (with ``record=True``): ``split_record(fb.record,
+        fb.recorded_draws)`` names the draw, instance and primitive at each sample.
+    recorded_draws : list of RecordedDraw
+        The draws since the last :meth:`clear` (with ``record=True``).
     width, height, pattern, samples, samples_color, samples_depth, samples_stencil, srgb
         Read-only: assigning them raises AttributeError, because the kernels index the
         arrays without bounds checks. The arrays are written in place
@@ -136,15 +203,19 @@ class Framebuffer:
     False``) freezes it: a draw or a clear then raises ValueError instead of writing.
     """
 
-    def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER, srgb: bool = False):
+    def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER, srgb: bool = False,
+                 record: bool = False):
         if not isinstance(pattern, SamplePattern):
             raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
         if not isinstance(srgb, (bool, np.bool_)):
             raise TypeError(f"Framebuffer srgb must be True or False, got {type(srgb).__name__} {srgb!r}")
+        if not isinstance(record, (bool, np.bool_)):
+            raise TypeError(f"Framebuffer record must be True or False, got {type(record).__name__} {record!r}")
         _check_size(width, height, len(pattern))
         s = len(pattern)
-        check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel (21 bytes a sample)",
-                     int(width) * int(height) * s * 21)
+        per_sample = 29 if record else 21
+        check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel ({per_sample} bytes "
+                     "a sample)", int(width) * int(height) * s * per_sample)
         object.__setattr__(self, "_width", int(width))
         object.__setattr__(self, "_height", int(height))
         object.__setattr__(self, "_pattern", pattern)
@@ -153,6 +224,9 @@ class Framebuffer:
         object.__setattr__(self, "_samples_color", np.empty((s, self._height, self._width, 4), dtype=np.float32))
         object.__setattr__(self, "_samples_depth", np.empty((s, self._height, self._width), dtype=np.float32))
         object.__setattr__(self, "_samples_stencil", np.empty((s, self._height, self._width), dtype=np.uint8))
+        object.__setattr__(self, "_record", np.empty((s, self._height, self._width), dtype=np.int64)
+                           if record else None)
+        object.__setattr__(self, "_recorded_draws", [])
         object.__setattr__(self, "_views", {})
         object.__setattr__(self, "_lock", threading.RLock())
         object.__setattr__(self, "_writes", 0)
@@ -169,7 +243,7 @@ class Framebuffer:
     # and the draws can honour it (:meth:`check_drawable`).
 
     _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth", "samples_stencil",
-                  "lock", "writes", "srgb")
+                  "lock", "writes", "srgb", "record", "recorded_draws")
     # set once, by __init__ (through object.__setattr__)
     _width: int
     _height: int
@@ -179,6 +253,8 @@ class Framebuffer:
     _samples_color: np.ndarray
     _samples_depth: np.ndarray
     _samples_stencil: np.ndarray
+    _record: Optional[np.ndarray]
+    _recorded_draws: List[RecordedDraw]
     _lock: threading.RLock
     _writes: int
     _views: dict
@@ -247,6 +323,26 @@ class Framebuffer:
         return self._view("stencil")
 
     @property
+    def record(self) -> Optional[np.ndarray]:
+        """int64 [S, H, W] or None: the visibility record (``Framebuffer(..., record=True)``), −1 where no
+        draw wrote the depth since the last clear; :func:`split_record` takes its values apart."""
+        return self._record
+
+    @property
+    def recorded_draws(self) -> List[RecordedDraw]:
+        """The draws made into this framebuffer since the last :meth:`clear`, in order (with a record)."""
+        return self._recorded_draws
+
+    def add_recorded_draw(self, call: Any, clip: np.ndarray, vertices_per_instance: int, count: int,
+                          per_instance: int, kind: str) -> RecordedDraw:
+        """Note a draw about to write (the caller holds :attr:`lock`); its values start after the last draw's."""
+        last = self._recorded_draws[-1] if self._recorded_draws else None
+        base = 0 if last is None else last.base + max(last.count, 1)
+        entry = RecordedDraw(base, int(count), int(per_instance), call, clip, int(vertices_per_instance), kind)
+        self._recorded_draws.append(entry)
+        return entry
+
+    @property
     def lock(self) -> threading.RLock:
         """The lock every draw into this framebuffer (and :meth:`clear`) holds while it writes.
 
@@ -299,8 +395,9 @@ class Framebuffer:
                                  f"another Framebuffer")
 
     def __getstate__(self) -> dict:
-        """For pickling: the size, pattern and arrays (not the lock or the kept views)."""
-        return {k: v for k, v in self.__dict__.items() if k not in ("_lock", "_views")}
+        """For pickling: the size, pattern and arrays (not the lock, the kept views or the recorded draws,
+        which hold the draws' shaders)."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("_lock", "_views", "_recorded_draws")}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
@@ -310,6 +407,8 @@ class Framebuffer:
         if "_samples_stencil" not in self.__dict__:       # pickled before the stencil buffer existed
             object.__setattr__(self, "_samples_stencil", np.zeros(self._samples_depth.shape, np.uint8))
         self.__dict__.setdefault("_srgb", False)       # pickled before framebuffers had srgb
+        self.__dict__.setdefault("_record", None)      # pickled before framebuffers kept a record
+        object.__setattr__(self, "_recorded_draws", [])
 
     def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0,
               stencil: int = 0) -> "Framebuffer":
@@ -317,7 +416,8 @@ class Framebuffer:
 
         ``color`` is anything :func:`softpipe.core.colors.parse_color` reads: 3 or 4 numbers
         (RGB or RGBA, linear, unclamped), a CSS name (``"red"``), hex (``"#ff8000"``) or
-        ``"rgb(255, 128, 0)"``. Alpha is 1 when not given.
+        ``"rgb(255, 128, 0)"``. Alpha is 1 when not given. A visibility record (``record=True``)
+        is set to −1 and its :attr:`recorded_draws` forgotten.
         """
         try:
             c = np.asarray(rgba(color), dtype=np.float32)
@@ -339,6 +439,9 @@ class Framebuffer:
             in_bands(_fill, self.samples_depth.size, self.samples_color.reshape(-1, 4), c,
                      self.samples_depth.reshape(-1), np.float32(depth), self.samples_stencil.reshape(-1),
                      np.uint8(stencil), grain=65536)
+            if self._record is not None:
+                self._record.fill(-1)
+                self._recorded_draws.clear()
         return self
 
     @property

@@ -24,7 +24,10 @@ buffers); sRGB encoding happens where the colors become bytes
 (:meth:`~softpipe.pipeline.framebuffer.Framebuffer.to_uint8`). Each fragment's
 verdict is recorded (:data:`VERDICTS`: which step stopped it) so a trace can say
 what happened to it, and the samples that passed every test are counted
-(:class:`OcclusionQuery`).
+(:class:`OcclusionQuery`). A framebuffer with a visibility record
+(``Framebuffer(..., record=True)``) gets one more store where a fragment writes the depth:
+which draw, instance and source primitive it came from (:func:`record_visible` is the fast
+path's; docs/outputs.md).
 """
 from __future__ import annotations
 
@@ -60,7 +63,7 @@ from softpipe.pipeline.raster import Fragments
 
 __all__ = ["MergeResult", "merge", "VERDICTS", "depth_passes", "compare", "stencil_op", "blend_factor",
            "blend_channel", "covered_by_alpha", "OcclusionQuery", "NonFiniteColorWarning", "NonFinite",
-           "non_finite_written"]
+           "non_finite_written", "record_visible"]
 
 #: What the merger did with a fragment: its index in this tuple is stored per fragment
 #: (the step of the chain that stopped it, or "written": it passed every test).
@@ -177,7 +180,7 @@ def covered_by_alpha(alpha, sample, samples):
 
 @numba.njit(cache=True)
 def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blend_color, fb_color, fb_depth,
-                  fb_stencil, verdict, after, stencil_after):
+                  fb_stencil, verdict, after, stencil_after, ids, fb_record):
     # The state read once into scalars: branches on them are the same for every fragment, and a
     # value in a register costs nothing per fragment (a read of ``st`` would be a load each time).
     scissor, x0, x1, y0, y1 = st[ST_SCISSOR], st[ST_SCISSOR + 1], st[ST_SCISSOR + 2], st[ST_SCISSOR + 3], \
@@ -194,6 +197,7 @@ def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blen
     mask_r, mask_g, mask_b, mask_a = (st[ST_COLOR_MASK] != 0, st[ST_COLOR_MASK + 1] != 0, st[ST_COLOR_MASK + 2] != 0,
                                       st[ST_COLOR_MASK + 3] != 0)
     record = after.shape[0] > 0
+    keep_ids = fb_record.shape[0] > 0      # the framebuffer's visibility record: one store where the depth is
     for k in range(x.shape[0]):
         i, j, m = x[k], y[k], s[k]
         verdict[k] = WRITTEN
@@ -220,6 +224,8 @@ def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blen
                 else:
                     if func >= 0 and depth_write:
                         fb_depth[m, j, i] = z
+                        if keep_ids:
+                            fb_record[m, j, i] = ids[prim[k]]
                     if stencil_on:
                         _write_stencil(fb_stencil, m, j, i, st, face, st[face + 5], stored)
                     if not blend:
@@ -246,6 +252,10 @@ def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blen
             for c in range(4):
                 after[k, c] = fb_color[m, j, i, c]
             stencil_after[k] = fb_stencil[m, j, i]
+
+
+_NO_IDS = np.zeros(0, np.int64)
+_NO_RECORD = np.zeros((0, 0, 0), np.int64)
 
 
 @numba.njit(cache=True)
@@ -297,13 +307,16 @@ class MergeResult:
 
 
 def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Framebuffer,
-          record: bool = False, front_facing: Optional[np.ndarray] = None) -> MergeResult:
+          record: bool = False, front_facing: Optional[np.ndarray] = None,
+          record_ids: Optional[np.ndarray] = None) -> MergeResult:
     """Apply the fragments to the framebuffer in order, through the chain of the module docstring.
 
     ``front_facing`` (bool, one per row of the Primitives the fragments came from) picks each
     fragment's stencil state (front or back); without it every fragment faces the front.
     With ``record``, also keep each sample's color and stencil right after its fragment
-    (for pixel history).
+    (for pixel history). ``record_ids`` (int64, one per row of the Primitives) is what a
+    framebuffer with a visibility record (:attr:`Framebuffer.record`) stores at each sample
+    whose depth a fragment writes; without it the record is left as it is.
     """
     n = len(frags)
     verdict = np.empty(n, dtype=np.int8)
@@ -312,9 +325,12 @@ def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Fram
     if n:
         facing = (np.zeros(0, np.bool_) if front_facing is None or state.stencil_back is None
                   else np.ascontiguousarray(front_facing, dtype=np.bool_))
+        keep = fb.record is not None and record_ids is not None
         _merge_kernel(frags.x, frags.y, frags.sample, frags.depth, shaded.color, shaded.discarded, frags.triangle,
                       facing, state.codes(fb.height), np.asarray(state.blend_color, np.float64), fb.samples_color,
-                      fb.samples_depth, fb.samples_stencil, verdict, after, stencil_after)
+                      fb.samples_depth, fb.samples_stencil, verdict, after, stencil_after,
+                      np.ascontiguousarray(record_ids, np.int64) if keep else _NO_IDS,
+                      fb.record if keep else _NO_RECORD)
     return MergeResult(verdict, after if record else None, stencil_after if record else None)
 
 
@@ -375,3 +391,16 @@ def non_finite_written(frags: Fragments, shaded: ShadedFragments, merged: MergeR
     k = int(bad[0])
     return NonFinite(len(bad), int(frags.x[k]), int(frags.y[k]), int(frags.primitive_id[k]))
 
+
+
+# ------------------------------------------------------------------ the visibility record
+
+def record_visible(fb: Framebuffer, vis: np.ndarray, record_ids: np.ndarray, state: MergeState) -> None:
+    """The fast path's record write: at every sample where ``vis`` (int32 [S, H, W], the row of the
+    Primitives written last there, or −1) names a primitive, store its ``record_ids`` entry in the
+    framebuffer's visibility record, as the merger does where it writes the depth (so only with
+    the depth test on and depth writes on). Nothing without a record."""
+    if fb.record is None or state.depth_test is None or not state.depth_write:
+        return
+    shown = vis >= 0
+    fb.record[shown] = np.asarray(record_ids, np.int64)[vis[shown]]

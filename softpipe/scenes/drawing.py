@@ -37,7 +37,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -52,6 +52,7 @@ from softpipe.pipeline.transforms import compose, normal_matrix
 from softpipe.programs import PROGRAMS, Program, get_program
 from softpipe.programs.common import lighting_uniform
 from softpipe.scenes.mesh import Mesh
+from softpipe.scenes.outputs import RenderOutputs, check_outputs, derive_outputs
 from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
 from softpipe.scenes.shadow_pass import render_shadow_maps
 
@@ -400,7 +401,7 @@ def draw_object(fb: Framebuffer, scene: Scene, obj: SceneObject, camera: Camera,
 def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool = False,
                  results: Optional[list] = None,
                  progress: Optional[Callable[[int, int, SceneObject], None]] = None,
-                 shadow_maps: Optional[list] = None, wireframe: bool = True) -> Framebuffer:
+                 shadow_maps: Optional[list] = None, wireframe: bool = True, record: bool = False) -> Framebuffer:
     """Draw every object of ``scene`` into a new framebuffer (and the wireframe, if asked).
 
     Parameters
@@ -419,6 +420,10 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
     wireframe : bool
         False leaves the edges of a scene with ``wireframe`` set to the caller, who draws them
         later with :func:`draw_wireframe`.
+    record : bool
+        Draw into a framebuffer that keeps a visibility record (``Framebuffer(..., record=True)``),
+        each recorded draw tagged with its object's index in ``scene.drawn_objects(camera)``
+        (what :func:`softpipe.scenes.outputs.derive_outputs` reads).
 
     Returns
     -------
@@ -436,17 +441,21 @@ def render_scene(scene: Scene, *, camera: Optional[Camera] = None, trace: bool =
         objects whose ``cast_shadows`` is true).
     """
     camera = camera or scene.view_camera()
-    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples), srgb=scene.srgb)
+    fb = Framebuffer(scene.width, scene.height, pattern_named(scene.samples), srgb=scene.srgb, record=record)
     fb.clear(scene.background)
     objects = scene.drawn_objects(camera)
+    index = {id(o): k for k, o in enumerate(objects)}
     lighting = scene_lighting(scene, camera, objects, shadow_maps)
     drawn: List[DrawResult] = []
     order = draw_order(objects, camera)
     for k, obj in enumerate(order):
         if progress is not None:
             progress(k, len(order), obj)
+        first = len(fb.recorded_draws)
         draw_object(fb, scene, obj, camera, lighting, trace=trace, results=drawn,
                     **(TRANSPARENT_STATE if is_transparent(obj) else {}))
+        for entry in fb.recorded_draws[first:]:
+            entry.tag = index[id(obj)]
     if results is not None:
         results.extend(drawn)
     if scene.wireframe and wireframe:
@@ -667,7 +676,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
            stages=None, trace: bool = False, results: Optional[list] = None,
            progress: Optional[Callable[[int, int, SceneObject], None]] = None,
            allow_outside: bool = False, shadows: bool = False, point_size: Optional[float] = None,
-           line_width: Optional[float] = None, srgb: bool = False) -> Framebuffer:
+           line_width: Optional[float] = None, srgb: bool = False,
+           outputs: Optional[Sequence[str]] = None) -> Union[Framebuffer, "RenderOutputs"]:
     """``softpipe render MODEL`` in Python: the same picture, as a :class:`Framebuffer`.
 
     ``softpipe.render("teapot").save("teapot.png")`` writes what ``softpipe render
@@ -732,6 +742,13 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
         ``texture`` path, its MTL's ``map_Kd``) are then read as sRGB too (decoded to linear
         when loaded); a scene file says that of its textures itself (``[render]
         srgb_textures``), and a scene's ``srgb = true`` is kept when this is False.
+    outputs : sequence of str, optional
+        Buffers beside the picture (``--outputs``), any of
+        :data:`softpipe.scenes.outputs.OUTPUTS`: ``"color"``, ``"depth"``, ``"linear_depth"``,
+        ``"position"``, ``"normal"``, ``"object_id"``, ``"triangle_id"``, ``"barycentrics"``,
+        ``"uv"``, ``"albedo"`` (docs/outputs.md: each one's space, units and background).
+        Given, ``render`` returns a :class:`~softpipe.scenes.outputs.RenderOutputs`: the
+        buffers by name and ``.framebuffer``, the picture it returns without them.
 
     Raises
     ------
@@ -739,6 +756,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
         One line naming what was wrong: an unknown model or program, a missing file, a
         bad option, ``program="textured"`` for a model without texture coordinates, …
     """
+    names = None if outputs is None else check_outputs(outputs)
     scene = prepare_scene(model, width=width, height=height, program=program, texture=texture,
                           background=background, samples=samples, msaa=msaa, cull=cull, wireframe=wireframe,
                           wire_color=wire_color, azimuth=azimuth, elevation=elevation, fovy=fovy,
@@ -747,7 +765,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
     camera = camera or scene.view_camera()
     drawn: List[DrawResult] = []
     fb = render_scene(scene, camera=camera, trace=trace or stages is not None, results=drawn, progress=progress,
-                      wireframe=False)
+                      wireframe=False, record=names is not None)
     if stages is not None:   # before the wireframe: the "final" picture is the framebuffer as drawn
         folder = Path(stages)
         for k, r in enumerate(drawn):
@@ -757,6 +775,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
         draw_wireframe(fb, scene, camera)
     if results is not None:
         results.extend(drawn)
+    if names is not None:
+        return RenderOutputs(fb, derive_outputs(fb, names, scene.drawn_objects(camera)))
     return fb
 
 

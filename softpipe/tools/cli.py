@@ -317,6 +317,10 @@ def build_parser() -> argparse.ArgumentParser:
                              "as it is written (FORMULAS §28, docs/gamma.md); an OBJ model's textures (--texture, "
                              "map_Kd) are then read as sRGB too; a scene file says so with [render] srgb = true "
                              "and srgb_textures = true")
+    render.add_argument("--outputs", type=_output_names, metavar="NAMES", default=None,
+                        help="also write these buffers beside the picture, comma-separated, each as IMAGE-STEM.NAME.npy "
+                             "and a picture IMAGE-STEM.NAME.png: color, depth, linear_depth, position, normal, "
+                             "object_id, triangle_id, barycentrics, uv, albedo (docs/outputs.md)")
     render.add_argument("--stages", metavar="DIR",
                         help="also trace every draw and write each stage's picture (vertices, primitives, coverage, "
                              "depth, overdraw, final) and a contact sheet into DIR (one folder per draw when there "
@@ -689,6 +693,9 @@ def _render(args) -> int:
     results: list = []
     if (args.spp is not None or args.seed is not None) and not args.pathtrace:
         raise CLIError(f"{'--spp' if args.spp is not None else '--seed'} applies only with --pathtrace")
+    if args.outputs and (args.pathtrace or args.rays or args.raytrace):
+        other = "--pathtrace" if args.pathtrace else "--rays" if args.rays else "--raytrace"
+        raise CLIError(f"--outputs reads the rasterizer's visibility record; it does not apply with {other}")
     if args.pathtrace:
         if args.raytrace or args.rays or args.stages:
             other = "--raytrace" if args.raytrace else "--rays" if args.rays else "--stages"
@@ -740,15 +747,32 @@ def _render(args) -> int:
         _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
                              f"{how}, {time.perf_counter() - start:.2f} s)")
         return 0
-    fb = render(scene, stages=args.stages, results=results, progress=progress)
+    if args.outputs and output == STDOUT:
+        raise CLIError("--outputs writes files named after -o IMAGE; it does not apply with -o -")
+    fb = render(scene, stages=args.stages, results=results, progress=progress, outputs=args.outputs)
     for r in results:
         for path in r.pictures.values():
             _wrote(args, output, f"stage picture {path}")
+    if args.outputs:
+        from softpipe.scenes.outputs import save_outputs
+        for path in save_outputs(fb, Path(output).with_suffix(""), fb.framebuffer):
+            _wrote(args, output, f"output {path.resolve()}")
+        fb = fb.framebuffer
     where = _save_image(fb, output)
     programs = ", ".join(dict.fromkeys(r.program for r in results))
     _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
                          f"program {programs}, {time.perf_counter() - start:.2f} s)")
     return 0
+
+
+def _output_names(text: str) -> tuple:
+    from softpipe.scenes.outputs import check_outputs
+    try:
+        return check_outputs(text)
+    except ValueError as e:
+        message = str(e)      # argparse names the option itself
+        raise argparse.ArgumentTypeError(message[len("outputs: "):] if message.startswith("outputs: ")
+                                         else message) from None
 
 
 def _check_raytrace_options(args) -> None:

@@ -80,7 +80,7 @@ DEFAULT_SIZE = (640, 480)
 DEFAULT_BACKGROUND = (0.08, 0.09, 0.12, 1.0)
 
 TOP_KEYS = ("job", "models", "materials", "lights", "sweep", "frames")
-JOB_KEYS = ("background", "fovy", "elevation")
+JOB_KEYS = ("background", "fovy", "elevation", "outputs")
 SWEEP_KEYS = ("models", "cameras", "orbit", "programs", "materials", "lights", "sizes", "samples", "pathtrace", "spp",
               "seed")
 ORBIT_KEYS = ("frames", "elevation", "start")
@@ -239,6 +239,8 @@ class Job:
     lights: Dict[str, LightSet] = field(default_factory=lambda: dict(BUILTIN_LIGHTS))
     background: Tuple[float, ...] = DEFAULT_BACKGROUND
     fovy: float = DEFAULT_FOVY
+    #: buffers written beside every frame's picture (``[job] outputs``, :data:`softpipe.scenes.outputs.OUTPUTS`)
+    outputs: Tuple[str, ...] = ()
     path: str = "<job>"
     base_dir: str = ""
 
@@ -276,6 +278,7 @@ class _JobReader(SceneReader):
         job.background = tuple(bg) + ((1.0,) if len(bg) == 3 else ())
         job.fovy = settings.get("fovy", _fovy, job.fovy)
         elevation = settings.get("elevation", number, DEFAULT_ELEVATION)
+        job.outputs = settings.get("outputs", _outputs, ())
         models = top.data.get("models", {})
         if not isinstance(models, dict):
             raise self.error(f"'models' must be a table of models by name, got {describe(models)}", key="models")
@@ -320,6 +323,10 @@ class _JobReader(SceneReader):
             raise self.error("the job has no frames; add a [sweep] or [[frames]]", table="[sweep]")
         job.frames = _unique(found)
         _check_names(job.frames, self)
+        traced = next((f for f in job.frames if f.pathtrace), None)
+        if job.outputs and traced is not None:
+            raise self.error(f"outputs are read from the rasterizer's visibility record; frame {traced.name!r} is "
+                             "path traced (leave out 'outputs' or 'pathtrace')", table="[job]", key="outputs")
         return job
 
     # -- the parts
@@ -566,6 +573,20 @@ class _JobReader(SceneReader):
         if w * h * count > MAX_TOTAL_SAMPLES:
             raise t.error(f"{w}×{h} pixels × {count} samples exceeds the limit MAX_TOTAL_SAMPLES = "
                           f"{MAX_TOTAL_SAMPLES}", key)
+
+
+def _outputs(v: Any) -> Tuple[str, ...]:
+    from softpipe.scenes.outputs import OUTPUTS, check_outputs
+    if not isinstance(v, list) or not v or not all(isinstance(n, str) for n in v):
+        raise BadValue(f"must be a list of output names (any of {', '.join(OUTPUTS)}), got {describe(v)}")
+    unknown = [n for n in v if n not in OUTPUTS]
+    if unknown:
+        raise BadValue(f"must name outputs among {', '.join(OUTPUTS)}; {unknown[0]!r} is not one")
+    try:
+        return check_outputs(v)
+    except ValueError as e:
+        message = str(e)
+        raise BadValue(message[len("outputs: "):] if message.startswith("outputs: ") else message) from None
 
 
 def _spp(v: Any) -> int:

@@ -86,7 +86,7 @@ def render_frame(frame: Frame, mesh: Mesh, job: Job) -> bytes:
     ``seed``): the same bytes for the same seed on any worker and thread count.
     """
     return _render_png(frame, mesh, _frame_material(job, frame), job.lights[frame.lights], job.background,
-                       job.fovy)
+                       job.fovy)[0]
 
 
 def _frame_material(job: Job, frame: Frame) -> Optional[Dict[str, Any]]:
@@ -94,7 +94,10 @@ def _frame_material(job: Job, frame: Frame) -> Optional[Dict[str, Any]]:
 
 
 def _render_png(frame: Frame, mesh: Mesh, material: Optional[Dict[str, Any]], lights: LightSet,
-                background: Tuple[float, ...], fovy: float) -> bytes:
+                background: Tuple[float, ...], fovy: float,
+                outputs: Tuple[str, ...] = ()) -> Tuple[bytes, Dict[str, bytes]]:
+    """The frame's PNG, and its ``outputs`` encoded as files (:func:`softpipe.scenes.outputs.output_files`:
+    ``"NAME.npy"`` and ``"NAME.png"``)."""
     from softpipe.scenes.drawing import prepare_scene, render
     if material is not None:
         base = mesh.material
@@ -111,31 +114,38 @@ def _render_png(frame: Frame, mesh: Mesh, material: Optional[Dict[str, Any]], li
     if frame.pathtrace:         # the job's background is the sky that lights it: the light sets have no area
         from softpipe.tracers.pathtrace import pathtrace
         pathtrace(scene, frame.spp, frame.seed, camera=camera).save(buffer, format="png")
+    elif outputs:
+        from softpipe.scenes.outputs import output_files
+        made = render(scene, camera=camera, outputs=outputs)
+        made.framebuffer.save(buffer, format="png")
+        return buffer.getvalue(), output_files(made)
     else:
         render(scene, camera=camera).save(buffer, format="png")
-    return buffer.getvalue()
+    return buffer.getvalue(), {}
 
 
 def _render_task(frame: Frame, mesh: Mesh, material, lights: LightSet, background, fovy,
-                 numba_threads: Optional[int]) -> Tuple[bytes, str, float, float]:
-    """What a worker runs: the frame's PNG, its SHA-256, and the seconds it took (wall clock, CPU)."""
+                 numba_threads: Optional[int], outputs: Tuple[str, ...] = ()
+                 ) -> Tuple[bytes, str, float, float, Dict[str, bytes]]:
+    """What a worker runs: the frame's PNG, its SHA-256, the seconds it took (wall clock, CPU) and its
+    outputs' files."""
     _maybe_crash(frame)
     if numba_threads:
         import numba
         numba.set_num_threads(max(1, min(int(numba_threads), numba.config.NUMBA_NUM_THREADS)))
     start, cpu = time.perf_counter(), time.process_time()
-    png = _render_png(frame, mesh, material, lights, background, fovy)
-    return png, hashlib.sha256(png).hexdigest(), time.perf_counter() - start, time.process_time() - cpu
+    png, files = _render_png(frame, mesh, material, lights, background, fovy, outputs)
+    return png, hashlib.sha256(png).hexdigest(), time.perf_counter() - start, time.process_time() - cpu, files
 
 
-def _cluster_task(*args: Any) -> Tuple[Optional[bytes], str, float, float]:
-    """:func:`_render_task` on a worker; a frame's error comes back as its line (``None, line, 0, 0``),
+def _cluster_task(*args: Any) -> Tuple[Optional[bytes], str, float, float, Dict[str, bytes]]:
+    """:func:`_render_task` on a worker; a frame's error comes back as its line (``None, line, 0, 0, {}``),
     so that the worker logs nothing and Dask does not take it for a lost worker."""
     keep_freed_memory()         # a worker process renders frames only: keep their memory (core/runtime.py)
     try:
         return _render_task(*args)
     except Exception as e:  # noqa: BLE001 - the client reports it with the frame's name
-        return None, _error_line(e), 0.0, 0.0
+        return None, _error_line(e), 0.0, 0.0, {}
 
 
 def _maybe_crash(frame: Frame) -> None:
@@ -206,6 +216,8 @@ def frame_params(frame: Frame, job: Job, model_digest: str) -> Dict[str, Any]:
     inputs = {"model": model_digest[:16], "material": _digest(material)[:16],
               "lights": _digest(job.lights[frame.lights])[:16], "background": list(job.background),
               "fovy": job.fovy, "softpipe": _softpipe_version()}
+    if job.outputs:         # only then: a job without outputs keeps the keys it had before there were any
+        inputs["outputs"] = list(job.outputs)
     params = frame.params()
     params["inputs"] = inputs
     params["key"] = _digest(params)
@@ -458,7 +470,7 @@ def batch(job, out_dir: Union[str, os.PathLike], scheduler=None, *, force: bool 
             continue
         same = entry.get("params") == params[frame.name]
         if same and entry.get("output") == f"{frame.name}.png" and \
-                _sha256_file(out / f"{frame.name}.png") == entry.get("sha256"):
+                _sha256_file(out / f"{frame.name}.png") == entry.get("sha256") and _outputs_intact(out, entry):
             result.skipped.append(frame.name)
             continue
         todo.append(frame)
@@ -584,18 +596,28 @@ class _Run:
         self.progress(BatchProgress(len(r.done), len(r.skipped), len(r.failed), self.total, elapsed, eta,
                                     frame, error))
 
-    def wrote(self, frame: Frame, png: bytes, sha: str, seconds: float, cpu: float, manifest: _Manifest) -> None:
-        """Write a frame's file (whole or not at all), then its manifest line; a file that cannot be
-        written (a folder in its place, a full disk) fails the frame alone."""
+    def wrote(self, frame: Frame, png: bytes, sha: str, seconds: float, cpu: float, manifest: _Manifest,
+              files: Optional[Dict[str, bytes]] = None) -> None:
+        """Write a frame's files (each whole or not at all: its outputs' ``NAME.OUTPUT.npy`` and
+        ``.png`` first, the picture last), then its manifest line, which lists the outputs' files
+        with their SHA-256; a file that cannot be written (a folder in its place, a full disk)
+        fails the frame alone."""
         from softpipe.core.files import atomic_write
         path = self.out / f"{frame.name}.png"
+        listed: Dict[str, Dict[str, str]] = {}
         try:
+            for suffix, data in (files or {}).items():
+                atomic_write(self.out / f"{frame.name}.{suffix}", lambda f, d=data: f.write(d))
+                listed[suffix] = {"file": f"{frame.name}.{suffix}", "sha256": hashlib.sha256(data).hexdigest()}
             atomic_write(path, lambda f: f.write(png))
         except OSError as e:
             self.failed(frame, _error_line(e))
             return
-        manifest.append({"name": frame.name, "params": self.params[frame.name], "output": path.name,
-                         "sha256": sha, "seconds": round(seconds, 4)})
+        entry = {"name": frame.name, "params": self.params[frame.name], "output": path.name,
+                 "sha256": sha, "seconds": round(seconds, 4)}
+        if listed:
+            entry["outputs"] = listed
+        manifest.append(entry)
         self.result.done.append(FrameRecord(frame.name, path, sha, seconds, cpu))
         self.report(frame.name)
 
@@ -609,15 +631,25 @@ def _error_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
+def _outputs_intact(out: Path, entry: Dict[str, Any]) -> bool:
+    """Does every output file a manifest line lists still have its SHA-256?"""
+    listed = entry.get("outputs") or {}
+    if not isinstance(listed, dict):
+        return False
+    return all(isinstance(v, dict) and isinstance(v.get("file"), str) and "/" not in v["file"]
+               and _sha256_file(out / v["file"]) == v.get("sha256") for v in listed.values())
+
+
 def _run_serial(todo: List[Frame], meshes: Dict[str, Mesh], job: Job, state: _Run, manifest: _Manifest) -> None:
     for frame in todo:
         try:
-            png, sha, seconds, cpu = _render_task(frame, meshes[frame.model], _frame_material(job, frame),
-                                             job.lights[frame.lights], job.background, job.fovy, None)
+            png, sha, seconds, cpu, files = _render_task(frame, meshes[frame.model], _frame_material(job, frame),
+                                                         job.lights[frame.lights], job.background, job.fovy, None,
+                                                         job.outputs)
         except Exception as e:  # noqa: BLE001 - a frame's error is reported, the others go on
             state.failed(frame, _error_line(e))
             continue
-        state.wrote(frame, png, sha, seconds, cpu, manifest)
+        state.wrote(frame, png, sha, seconds, cpu, manifest, files)
 
 
 def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_threads, dashboard, log) -> None:
@@ -658,21 +690,21 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
         futures = {}
         for frame in todo:
             future = client.submit(_cluster_task, frame, scattered[frame.model], _frame_material(job, frame),
-                                   job.lights[frame.lights], job.background, job.fovy, numba_threads,
+                                   job.lights[frame.lights], job.background, job.fovy, numba_threads, job.outputs,
                                    key=f"softpipe-frame-{frame.name}-{run}", pure=False)
             futures[future.key] = (future, frame)
         try:
             for future in as_completed([f for f, _ in futures.values()]):
                 frame = futures[future.key][1]
                 try:
-                    png, sha, seconds, cpu = future.result()
+                    png, sha, seconds, cpu, files = future.result()
                 except Exception as e:  # noqa: BLE001 - a lost frame (KilledWorker, ...) is reported too
                     state.failed(frame, _error_line(e))
                 else:
                     if png is None:
                         state.failed(frame, sha)
                     else:
-                        state.wrote(frame, png, sha, seconds, cpu, manifest)
+                        state.wrote(frame, png, sha, seconds, cpu, manifest, files)
                 future.release()
         finally:
             for future, _ in futures.values():
