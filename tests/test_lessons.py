@@ -13,7 +13,10 @@ from PIL import Image
 
 import softpipe as sp
 from softpipe.testing import (
+    check_bilinear,
+    check_blinn_phong,
     check_camera,
+    check_clipping,
     check_coverage,
     check_depth_test,
     check_interpolation,
@@ -271,3 +274,229 @@ def test_check_camera_passes_softpipes_matrices_and_names_the_classic_mistakes()
     with pytest.raises(ValueError, match=r"look_at\(eye=\(3.0, 2.0, 4.0\), target=\(0.0, 0.0, 0.0\), up=\(0.0, 1.0, "
                                          r"0.0\)\) must return a 4×4 matrix, got an array of shape \(3, 3\)"):
         check_camera(lambda *a: np.eye(3), sp.perspective, 16, 12)
+
+
+# ------------------------------------------------------------------ clipping, shading, textures
+
+
+def _clip_polygon(polygon, plane):
+    """Sutherland–Hodgman against one plane, the crossing from the inside end (lessons/solutions/06)."""
+    d = polygon @ plane
+    out = []
+    for a in range(len(polygon)):
+        b = (a + 1) % len(polygon)
+        if d[a] >= 0:
+            out.append(polygon[a])
+        if (d[a] >= 0) != (d[b] >= 0):
+            i, o = (a, b) if d[a] >= 0 else (b, a)
+            out.append(polygon[i] + d[i] / (d[i] - d[o]) * (polygon[o] - polygon[i]))
+    return np.array(out).reshape(-1, 4)
+
+
+def _near_trace():
+    W, H = 32, 24
+    view = sp.look_at(eye=(0.0, 0.6, 2.0), target=(0.0, 0.0, 0.0))
+    corners = np.array([[-1.2, 0.0, 0.0], [1.0, -0.2, 0.2], [0.2, 0.3, 1.9]])
+    clip = (sp.perspective(60.0, W / H, 0.5, 20.0) @ view @ np.c_[corners, np.ones(3)].T).T
+    return clip, sp.draw(sp.Framebuffer(W, H), clip, varyings={"color": np.eye(3)}, trace=True)
+
+
+def test_check_clipping_agrees_with_the_assembly_and_names_the_classic_mistakes():
+    clip, trace = _near_trace()
+    assert len(trace.primitives) == 2 and trace.primitives.clipped.all()        # the near plane cuts it in two
+    result = check_clipping(_clip_polygon, trace)
+    assert result.ok and result.message == ("clipping: your polygons and softpipe's agree on all 6 triangles (1 of "
+                                            "the draw, 5 further cases)")
+    near = _clip_polygon(clip, np.array([0.0, 0.0, 1.0, 1.0]))
+    assert len(near) == 4 and np.allclose(near[2:, 2] + near[2:, 3], 0.0)         # two new corners on the plane
+
+    def strict(polygon, plane):                     # a corner on the plane taken as outside: d > 0, not ≥ 0
+        d = polygon @ plane
+        out = []
+        for a in range(len(polygon)):
+            b = (a + 1) % len(polygon)
+            if d[a] > 0:
+                out.append(polygon[a])
+            if (d[a] > 0) != (d[b] > 0):
+                out.append(polygon[a] + d[a] / (d[a] - d[b]) * (polygon[b] - polygon[a]))
+        return np.array(out).reshape(-1, 4)
+
+    def swapped_t(polygon, plane):                  # t measured from the other end
+        d = polygon @ plane
+        out = []
+        for a in range(len(polygon)):
+            b = (a + 1) % len(polygon)
+            if d[a] >= 0:
+                out.append(polygon[a])
+            if (d[a] >= 0) != (d[b] >= 0):
+                out.append(polygon[a] + d[b] / (d[b] - d[a]) * (polygon[b] - polygon[a]))
+        return np.array(out).reshape(-1, 4)
+
+    mistakes = [
+        (lambda p, plane: p[p @ plane >= 0], "clipping the draw's triangle 0 against the plane (0, 0, 1, 1): your "
+         "polygon differs from softpipe's (2 corners, softpipe's 4):", "your polygon keeps the corners inside the "
+         "plane but not the points where the edges cross it"),
+        (lambda p, plane: p, "clipping the draw's triangle 0", "your corner 2, (0.2598, -0.4479, -0.8343, 0.182), is "
+         "outside the plane: a·x + b·y + c·z + d·w = -0.6523 < 0 there"),
+        (lambda p, plane: _clip_polygon(p, plane)[::-1], "clipping the draw's triangle 0", "your polygon has "
+         "softpipe's corners in the opposite order"),
+        (strict, "clipping a corner exactly on x = w/2 against the plane (-1, 0, 0, 0.5): your polygon differs from "
+         "softpipe's (4 corners, softpipe's 3):", "your polygon holds a corner twice: a corner exactly on the plane "
+         "(distance 0) is inside (d ≥ 0)"),
+        (swapped_t, "clipping the draw's triangle 0", "your corner 2, (1.113, -0.4343, 0.6942, 1.636), is a new point "
+         "but not on the plane (its distance is 2.33, not 0)"),
+    ]
+    for answer, first, hint in mistakes:
+        with pytest.raises(AssertionError) as info:
+            check_clipping(answer, trace, show=False)
+        text = str(info.value)
+        assert text.startswith(first) and hint in text, text
+    shown = []
+    import softpipe.testing.lessons as lessons
+    with pytest.MonkeyPatch.context() as mp, pytest.raises(AssertionError):
+        mp.setattr(lessons, "_show", lambda d, show: shown.append(d))
+        check_clipping(lambda p, plane: p[p @ plane >= 0], trace)
+    assert shown[0].adds == [] and len(shown[0].misses) > 0         # the lost corners' pixels: softpipe's only
+    with pytest.raises(ValueError, match=r"clip_polygon must return the clipped polygon's corners as an array "
+                                         r"\[m, 4\] of clip coordinates \(x, y, z, w\), got an array of shape "
+                                         r"\(3, 3\) for the draw's triangle 0"):
+        check_clipping(lambda p, plane: p[:, :3], trace)
+    indexed = sp.draw(sp.Framebuffer(32, 24), clip[::-1], indices=[2, 1, 0], varyings={"color": np.eye(3)},
+                      trace=True)
+    assert check_clipping(_clip_polygon, indexed).ok                 # the same triangle, indexed: the same corners
+    lines = sp.draw(sp.Framebuffer(8, 8), clip[:2], varyings={"color": np.eye(2, 3)}, topology="lines", trace=True)
+    with pytest.raises(ValueError, match=r"check_clipping needs a trace of a triangle list \(sp.draw\(fb, clip, ..., "
+                                         r"trace=True\)\); this one drew 1 lines by the topology 'lines'"):
+        check_clipping(_clip_polygon, lines)
+
+
+def _blinn_phong(P, N, L, m, light, global_ambient, unit=True):
+    N, V, L = N / (np.linalg.norm(N) if unit else 1.0), -P / np.linalg.norm(P), np.asarray(L)
+    color = np.asarray(m.ke) + np.asarray(m.ka) * (np.asarray(global_ambient) + np.asarray(light.ambient))
+    if N @ L > 0:
+        H = (L + V) / np.linalg.norm(L + V)
+        color = color + np.asarray(m.kd) * np.asarray(light.diffuse) * (N @ L)
+        color = color + np.asarray(m.ks) * np.asarray(light.specular) * max(N @ H, 0.0) ** m.shininess
+    return color
+
+
+def _sphere_trace(lights, program="phong"):
+    material = sp.Material(ka=(0.1, 0.1, 0.1), kd=(0.8, 0.3, 0.2), ks=(0.6, 0.6, 0.6), shininess=24.0)
+    sphere = sp.shapes.uv_sphere(1.0, 16, 8, material=material)
+    return sp.draw_mesh(sp.Framebuffer(24, 18), sphere, sp.Camera(eye=(0.0, 0.0, 3.2), fovy=45.0), program,
+                        lighting=sp.Lighting(lights), trace=True)
+
+
+def test_check_blinn_phong_agrees_with_the_phong_program_and_names_the_classic_mistakes():
+    trace = _sphere_trace([sp.Light.directional((-1.0, -1.0, -1.0))])
+    result = check_blinn_phong(_blinn_phong, trace)
+    assert result.ok and result.message == (f"Blinn–Phong: your colors and softpipe's agree at all "
+                                            f"{len(trace.fragments)} fragments")
+
+    def phong(P, N, L, m, light, ga):                 # Phong's (R·V)ⁿ
+        N, V, L = N / np.linalg.norm(N), -P / np.linalg.norm(P), np.asarray(L)
+        color = np.asarray(m.ka) * (np.asarray(ga) + np.asarray(light.ambient))
+        if N @ L > 0:
+            R = 2 * (N @ L) * N - L
+            color = color + np.asarray(m.kd) * (N @ L) + np.asarray(m.ks) * max(R @ V, 0.0) ** m.shininess
+        return color
+
+    mistakes = {
+        "you compute Phong's specular (R·V)ⁿ (FORMULAS §5)": phong,
+        "the interpolated normal N is not of unit length: normalize it first":
+            lambda P, N, L, m, light, ga: _blinn_phong(P, N, L, m, light, ga, unit=False),
+        "your V points from the eye to the point":
+            lambda P, N, L, m, light, ga: _blinn_phong(-P, N, L, m, light, ga),
+        "the ambient terms are missing": lambda P, N, L, m, light, ga: _blinn_phong(P, N, L, m, light, ga)
+        - np.asarray(m.ka) * (np.asarray(ga) + np.asarray(light.ambient)),
+    }
+    for hint, answer in mistakes.items():
+        with pytest.raises(AssertionError) as info:
+            check_blinn_phong(answer, trace, show=False)
+        text = str(info.value)
+        assert text.startswith("your Blinn–Phong differs from softpipe's at ") and hint in text, text
+    with pytest.raises(AssertionError) as info:                   # a wrong answer no classic mistake explains
+        check_blinn_phong(lambda *a: (0.5, 0.5, 0.5), trace, show=False)
+    assert "FORMULAS" not in str(info.value) and "the largest differences:" in str(info.value)
+    with pytest.raises(ValueError, match=r"blinn_phong must return the color \(r, g, b\), got an array of shape "
+                                         r"\(2,\)"):
+        check_blinn_phong(lambda *a: (0.5, 0.5), trace)
+    with pytest.raises(ValueError, match=r"needs a directional light \(one L everywhere, no attenuation\)"):
+        check_blinn_phong(_blinn_phong, _sphere_trace([sp.Light.point((2.0, 2.0, 2.0))]))
+    with pytest.raises(ValueError, match=r"with one light and no shadows; this draw has 2 light\(s\)"):
+        check_blinn_phong(_blinn_phong, _sphere_trace([sp.Light.directional((-1.0, -1.0, -1.0)),
+                                                       sp.Light.directional((1.0, 0.0, -1.0))]))
+
+
+def _texture_trace(tex):
+    from softpipe.light.texture import texture
+
+    def textured(varyings, uniforms, frag):
+        c = texture(uniforms.tex, varyings.uv)
+        return (c[0], c[1], c[2], 1.0)
+
+    square = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1]], float)
+    uv = np.array([[-0.25, -0.25], [1.25, -0.25], [1.25, 1.25], [-0.25, -0.25], [1.25, 1.25], [-0.25, 1.25]])
+    return sp.draw(sp.Framebuffer(16, 12), square, varyings={"uv": uv}, fragment_shader=textured,
+                   uniforms={"tex": tex}, trace=True)
+
+
+def _bilinear(image, u, v):
+    h, w = image.shape[:2]
+    x, y = u * w - 0.5, v * h - 0.5
+    i0, j0 = int(np.floor(x)), int(np.floor(y))
+    a, b = x - i0, y - j0
+
+    def texel(i, j):
+        return image[h - 1 - (j % h), i % w]
+
+    return ((1 - a) * (1 - b) * texel(i0, j0) + a * (1 - b) * texel(i0 + 1, j0) + (1 - a) * b * texel(i0, j0 + 1)
+            + a * b * texel(i0 + 1, j0 + 1))
+
+
+def test_check_bilinear_agrees_with_texture2d_and_names_the_classic_mistakes():
+    image = np.array([[[230, 60, 40], [250, 200, 40], [60, 160, 70], [40, 90, 220]],
+                      [[40, 90, 220], [240, 240, 240], [30, 30, 30], [250, 200, 40]],
+                      [[60, 160, 70], [30, 30, 30], [240, 240, 240], [230, 60, 40]]], np.uint8)
+    tex = sp.Texture2D(image, wrap="repeat", filter="bilinear")
+    trace = _texture_trace(tex)
+    result = check_bilinear(_bilinear, trace, tex)
+    assert result.ok and result.message == "bilinear filtering: your colors and softpipe's agree at all 192 fragments"
+    assert np.allclose(trace.shaded.color, [tex.sample(*uv) for uv in trace.fragment_varyings(np.arange(192))[0]],
+                       rtol=0, atol=1e-6)                    # what the shader's texture() returned is tex.sample
+
+    def nearest(img, u, v):
+        h, w = img.shape[:2]
+        return img[h - 1 - int(np.floor(v * h)) % h, int(np.floor(u * w)) % w]
+
+    def clamped(img, u, v):
+        h, w = img.shape[:2]
+        x, y = u * w - 0.5, v * h - 0.5
+        i0, j0 = int(np.floor(x)), int(np.floor(y))
+        a, b = x - i0, y - j0
+
+        def texel(i, j):
+            return img[h - 1 - min(max(j, 0), h - 1), min(max(i, 0), w - 1)]
+        return ((1 - a) * (1 - b) * texel(i0, j0) + a * (1 - b) * texel(i0 + 1, j0) + (1 - a) * b * texel(i0, j0 + 1)
+                + a * b * texel(i0 + 1, j0 + 1))
+
+    mistakes = {
+        "your answer is the nearest texel (GL's NEAREST)": nearest,
+        "texel centres sit at (i + ½)/W: subtract ½ before the floor": lambda img, u, v: _bilinear(img, u + 0.5 / 4,
+                                                                                                  v + 0.5 / 3),
+        "your v runs down the image": lambda img, u, v: _bilinear(img[::-1], u, v),
+        "you clamp the texel indices at the edges (CLAMP_TO_EDGE)": clamped,
+    }
+    for hint, answer in mistakes.items():
+        with pytest.raises(AssertionError) as info:
+            check_bilinear(answer, trace, tex, show=False)
+        text = str(info.value)
+        assert text.startswith("your bilinear filter differs from softpipe's at ") and hint in text, text
+    with pytest.raises(ValueError, match=r"check_bilinear compares with a texture whose filter is 'bilinear', got "
+                                         r"'nearest'"):
+        check_bilinear(_bilinear, trace, sp.Texture2D(image, filter="nearest"))
+    with pytest.raises(ValueError, match=r"the draw has no varying 'st'; its varyings are \['uv'\]"):
+        check_bilinear(_bilinear, trace, tex, "st")
+    with pytest.raises(ValueError, match=r"bilinear must return the filtered color \(r, g, b, a\), got an array of "
+                                         r"shape \(2,\)"):
+        check_bilinear(lambda img, u, v: (u, v), trace, tex)
