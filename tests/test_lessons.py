@@ -21,6 +21,7 @@ from softpipe.testing import (
     check_depth_test,
     check_interpolation,
     check_line,
+    check_shadow_compare,
     check_triangles,
     covered_pixels,
     reference_line,
@@ -500,3 +501,66 @@ def test_check_bilinear_agrees_with_texture2d_and_names_the_classic_mistakes():
     with pytest.raises(ValueError, match=r"bilinear must return the filtered color \(r, g, b, a\), got an array of "
                                          r"shape \(2,\)"):
         check_bilinear(lambda img, u, v: (u, v), trace, tex)
+
+
+def _shadow_compare(depth, x, y, ref, r):
+    h, w = depth.shape
+    i0, j0 = int(np.floor(x)), int(np.floor(y))
+    lit = sum(1 for j in range(j0 - r, j0 + r + 1) for i in range(i0 - r, i0 + r + 1)
+              if not (0 <= i < w and 0 <= j < h) or ref <= depth[j, i])
+    return lit / (2 * r + 1) ** 2
+
+
+def _shadow_scene(settings):
+    from softpipe.scenes.scene import SceneObject
+    floor = SceneObject("floor", sp.shapes.plane(4.0, material=sp.Material(kd=(0.8, 0.8, 0.8), ks=(0.0, 0.0, 0.0))),
+                        sp.identity())
+    slab = SceneObject("slab", sp.shapes.cube(1.0, material=sp.Material(kd=(0.8, 0.3, 0.2))),
+                       sp.translate(0.0, 1.2, 0.0) @ sp.rotate_y(30) @ sp.scale(1.2, 0.4, 1.2))
+    camera = sp.Camera(eye=(3.0, 4.0, 5.0), target=(0.0, 0.3, 0.0), fovy=45.0)
+    sun = sp.Light.directional((-1.0, -1.0, -0.6), shadows=settings, name="sun")
+    maps = []
+    sp.render_scene(sp.Scene([floor, slab], camera=camera, lights=(sun,), width=40, height=30), shadow_maps=maps)
+    trace = sp.draw_mesh(sp.Framebuffer(40, 30), floor.mesh, camera, "phong", lighting=sp.Lighting([sun]), trace=True)
+    return trace, maps[0]
+
+
+def test_check_shadow_compare_agrees_with_the_shadow_lookup_and_names_the_classic_mistakes():
+    from softpipe.light.shadowmap import ShadowSettings
+    trace, maps = _shadow_scene(ShadowSettings(resolution=32, pcf=1))
+    result = check_shadow_compare(_shadow_compare, trace, maps)
+    assert result.ok and result.message == ("the shadow compare: your visibility and softpipe's agree at all 270 "
+                                            "fragments (37 of them in shadow, wholly or in part)")
+
+    def flipped(depth, x, y, ref, r):
+        return _shadow_compare(depth[::-1], x, y, ref, r)
+
+    def average_depths(depth, x, y, ref, r):
+        h, w = depth.shape
+        i0, j0 = int(np.floor(x)), int(np.floor(y))
+        taps = [depth[j, i] if 0 <= i < w and 0 <= j < h else 1.0
+                for j in range(j0 - r, j0 + r + 1) for i in range(i0 - r, i0 + r + 1)]
+        return float(ref <= np.mean(taps))
+
+    mistakes = {
+        "your test is the wrong way round": lambda depth, x, y, ref, r: 1.0 - _shadow_compare(depth, x, y, ref, r),
+        "you average the depths and compare once": average_depths,
+        "your rows run down the map": flipped,
+        "you round x and y to the nearest texel": lambda depth, x, y, ref, r: _shadow_compare(depth, x + 0.5, y + 0.5,
+                                                                                              ref, r),
+        "you compare one texel: with PCF radius r = 1, compare at each of the (2r+1)² = 9 texels":
+            lambda depth, x, y, ref, r: _shadow_compare(depth, x, y, ref, 0),
+    }
+    for hint, answer in mistakes.items():
+        with pytest.raises(AssertionError) as info:
+            check_shadow_compare(answer, trace, maps, show=False)
+        text = str(info.value)
+        assert text.startswith("your shadow compare differs from softpipe's at ") and hint in text, text
+    with pytest.raises(AssertionError, match=r"differs from softpipe's at 270 of 270 fragment\(s\) \(PCF radius "
+                                             r"r = 1, a 32×32 map\):\n  pixel \(\d+, \d+\): yours 0.5, softpipe's "):
+        check_shadow_compare(lambda *a: 0.5, trace, maps, show=False)
+    with pytest.raises(ValueError, match=r"shadow_compare must return one number, the share of the light that passes "
+                                         r"\(0 to 1\), got an array of shape \(2,\)"):
+        check_shadow_compare(lambda *a: (1.0, 1.0), trace, maps)
+    with pytest.raises(ValueError, match=r"light 1 is not one of the 1 light\(s\) of these shadow maps"):
+        check_shadow_compare(_shadow_compare, trace, maps, light=1)

@@ -25,6 +25,8 @@ from lessons_run import failure
                    "vector H = normalize(L + V) (FORMULAS §6)"),
     ("08_textures", "your answer is the nearest texel (GL's NEAREST): bilinear filtering weights the four texels "
                     "around (u·W − ½, v·H − ½)"),
+    ("09_shadows", "you compare one texel: with PCF radius r = 1, compare at each of the (2r+1)² = 9 texels "
+                   "(floor(x) + di, floor(y) + dj), −r ≤ di, dj ≤ r, and average"),
 ])
 def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
     text = failure(name)

@@ -27,6 +27,8 @@ test the wrong way round).
   specular §6) against the colors the ``phong`` program's fragment shader returned at every fragment of a trace.
 - :func:`check_bilinear`: bilinear texture filtering against :meth:`softpipe.Texture2D.sample` at the texture
   coordinates of every fragment of a trace, with the classic mistakes named (the half-texel offset, v not flipped).
+- :func:`check_shadow_compare`: the shadow-map depth compare with percentage-closer filtering against softpipe's
+  shadow lookup (V_j, FORMULAS §21) at every fragment of a trace of the surface that receives the shadow.
 
 The difference picture (:attr:`Difference.picture`) is zoomed
 (:func:`softpipe.views.zoom.zoomed`): gray where both cover a pixel, red where the answer
@@ -47,9 +49,10 @@ from softpipe.testing.line_reference import reference_line
 from softpipe.views.zoom import png, zoomed
 
 __all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "check_interpolation",
-           "check_camera", "check_clipping", "check_blinn_phong", "check_bilinear", "pixel_set", "trace_fragments",
+           "check_camera", "check_clipping", "check_blinn_phong", "check_bilinear", "check_shadow_compare", "pixel_set", "trace_fragments",
            "reference_winners", "COLORS", "LEGEND", "TOLERANCE", "CLIP_TOLERANCE", "NEAR_PLANE", "CLIP_CASES",
-           "SHADING_TOLERANCE", "SHADING_MISTAKES", "LightColors", "TEXTURE_TOLERANCE", "TEXTURE_MISTAKES"]
+           "SHADING_TOLERANCE", "SHADING_MISTAKES", "LightColors", "TEXTURE_TOLERANCE", "TEXTURE_MISTAKES",
+           "SHADOW_TOLERANCE", "SHADOW_MISTAKES"]
 
 Pixel = Tuple[int, int]
 #: The difference picture's colors.
@@ -1179,6 +1182,156 @@ def check_bilinear(bilinear: Callable, trace, texture, varying: str = "uv", *,
             break
     lines.append(f"(the picture: your colors, softpipe's, and where they differ in red; a {texture.width}×"
                  f"{texture.height} texture, wrap {texture.wrap_s!r})")
+    d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+# ------------------------------------------------------------------------------ shadows
+
+#: How far a shadow-map visibility may be from softpipe's and still agree (both average whole taps).
+SHADOW_TOLERANCE = 1e-9
+
+
+def _compare_rows(depth: np.ndarray, x: np.ndarray, y: np.ndarray, ref: np.ndarray, r: int, *, reversed_test=False,
+                  outside_lit=True, average_depths=False, flip=False, rounded=False) -> np.ndarray:
+    """The shadow-map compare with percentage-closer filtering at many points, and its classic mistakes by flag."""
+    h, w = depth.shape
+    i0 = (np.floor(x + 0.5) if rounded else np.floor(x)).astype(np.int64)
+    j0 = (np.floor(y + 0.5) if rounded else np.floor(y)).astype(np.int64)
+    lit, depths, inside_taps = np.zeros(len(x)), np.zeros(len(x)), np.zeros(len(x))
+    for dj in range(-r, r + 1):
+        for di in range(-r, r + 1):
+            i, j = i0 + di, j0 + dj
+            inside = (i >= 0) & (j >= 0) & (i < w) & (j < h)
+            d = np.where(inside, depth[np.clip(h - 1 - j if flip else j, 0, h - 1), np.clip(i, 0, w - 1)], 1.0)
+            passes = (ref >= d) if reversed_test else (ref <= d)
+            lit += np.where(inside, passes, 1.0 if outside_lit else 0.0)
+            depths += d
+            inside_taps += 1
+    if average_depths:
+        return (ref <= depths / inside_taps).astype(np.float64)
+    return lit / (2 * r + 1) ** 2
+
+
+#: The classic mistakes :func:`check_shadow_compare` recognizes: the flags of :func:`_compare_rows` that
+#: reproduce the answer, and what to say.
+SHADOW_MISTAKES = [
+    (dict(reversed_test=True), "your test is the wrong way round: a point is lit where its depth from the light is "
+                               "less than or equal to the map's (ref ≤ depth, GL_LEQUAL): nothing stands between it "
+                               "and the light"),
+    (dict(average_depths=True), "you average the depths and compare once: percentage-closer filtering compares "
+                                "at each of the (2r+1)² taps and averages the results (0 or 1 each), not the depths"),
+    (dict(outside_lit=False), "a tap outside the map must count as lit (GL's CLAMP_TO_BORDER with border depth 1: "
+                              "no caster there)"),
+    (dict(flip=True), "your rows run down the map: depth[j, i] is texel column i, row j counted from the bottom "
+                      "(window coordinates, like x and y)"),
+    (dict(rounded=True), "you round x and y to the nearest texel: the point lies in texel (floor(x), floor(y)), "
+                         "texel i covering [i, i + 1)"),
+]
+
+
+def check_shadow_compare(shadow_compare: Callable, trace, shadow_maps, light: int = 0, *,
+                         show: Optional[bool] = None) -> Difference:
+    """A student's ``shadow_compare(depth, x, y, ref, r)`` against softpipe's shadow lookup
+    (:meth:`softpipe.ShadowMaps.visibility`'s V_j, FORMULAS §21) at every fragment of ``trace``.
+
+    ``trace`` is a draw of the surface that receives the shadow by a built-in program (its varying
+    ``position`` is the eye-space point; its uniform ``view`` the camera's). For each fragment the answer
+    gets light ``light``'s shadow map ``depth`` (float64 [res, res], row 0 at the bottom: ``depth[j, i]``
+    is texel (i, j)), the point's position (x, y) on the map in texels and its depth ``ref`` from the
+    light (as :func:`softpipe.light.shadowmap.map_coordinates` finds them), and the PCF radius ``r``; it
+    returns the share of the light that reaches the point, 0 to 1. The picture shows your visibility,
+    softpipe's (bright: lit) and where they differ.
+
+    Raises
+    ------
+    AssertionError
+        ``"your shadow compare differs from softpipe's at N of M fragment(s) …"``, the first few fragments,
+        and the mistake when it is a classic one (:data:`SHADOW_MISTAKES`).
+    ValueError
+        When the light has not exactly one opaque shadow map (a directional light, or a spot light up to
+        70°), the draw has no varying ``position`` or uniform ``view``, or the answer is not one number.
+    """
+    from softpipe.light.material import Lighting
+    from softpipe.light.shadowmap import light_visibility, map_coordinates
+    if not 0 <= light < len(shadow_maps.lights):
+        raise ValueError(f"check_shadow_compare: light {light} is not one of the {len(shadow_maps.lights)} light(s) "
+                         "of these shadow maps")
+    first, count, _ = (int(c) for c in shadow_maps.light_maps[light])
+    if count != 1 or shadow_maps.maps[first].transparent_depth is not None:
+        raise ValueError(f"check_shadow_compare needs a light with one shadow map and opaque casters only (a directional "
+                         f"light, or a spot light up to 70°); light {light} has {count} map(s)"
+                         + ("" if count != 1 else " with transparent casters"))
+    names = trace.primitives.layout.names
+    view = getattr(trace.call.uniforms, "view", None)
+    if "position" not in names or view is None:
+        raise ValueError(f"check_shadow_compare needs a draw by a built-in program (the eye-space varying 'position' "
+                         f"and the uniform 'view'); the draw's varyings are {list(names)}")
+    shadow_map = shadow_maps.maps[first]
+    depth = np.asarray(shadow_map.depth, np.float64)
+    r = shadow_map.settings.pcf
+    lighting = shadow_maps.lighting_uniform(Lighting(shadow_maps.lights), np.asarray(view, np.float64))
+    f = trace.fragments
+    n = len(f)
+    varyings, _ = trace.fragment_varyings(np.arange(n))
+    P = varyings[:, trace.primitives.layout.slice("position")]
+    xs, ys, refs = np.zeros(n), np.zeros(n), np.zeros(n)
+    mine, ref = np.ones(n), np.ones(n)
+    inside = np.zeros(n, bool)
+    for k in range(n):
+        p = tuple(float(c) for c in P[k])
+        x, y, z, ok = map_coordinates(lighting.shadows, first, p)
+        ref[k] = light_visibility(lighting, light, p)[0]
+        if not ok:                                        # behind the light: lit, nothing to compare
+            continue
+        inside[k], xs[k], ys[k], refs[k] = True, x, y, z
+        got = np.asarray(shadow_compare(depth.copy(), float(x), float(y), float(z), r), dtype=np.float64)
+        if got.size != 1:
+            raise ValueError(f"shadow_compare must return one number, the share of the light that passes (0 to 1), "
+                             f"got an array of shape {got.shape}")
+        mine[k] = float(got.reshape(-1)[0])
+    error = np.abs(mine - ref)
+    error = np.where(np.isnan(error), np.inf, error)
+    h, w = trace.height, trace.width
+    yours, theirs, diff = (np.empty((h, w, 3), np.uint8) for _ in range(3))
+    for img in (yours, theirs, diff):
+        img[:] = COLORS["empty"]
+    rows, cols = np.asarray(f.y), np.asarray(f.x)
+    yours[rows, cols] = np.round(40 + 200 * np.clip(np.nan_to_num(mine), 0, 1))[:, None].astype(np.uint8)
+    theirs[rows, cols] = np.round(40 + 200 * np.clip(ref, 0, 1))[:, None].astype(np.uint8)
+    bad = error > SHADOW_TOLERANCE
+    diff[rows, cols] = COLORS["both"]
+    diff[rows[bad], cols[bad]] = COLORS["adds"]
+    picture = _panels(yours, theirs, diff)
+    legend = {"empty": "no fragment", "both": "your visibility agrees with softpipe's",
+              "adds": "your visibility differs"}
+    pixels = [(int(cols[k]), h - 1 - int(rows[k])) for k in range(n)]
+    wrong = np.nonzero(bad)[0]
+    if not len(wrong):
+        return Difference([], [], picture, f"the shadow compare: your visibility and softpipe's agree at all {n} "
+                          f"fragments ({int((ref < 1).sum())} of them in shadow, wholly or in part)", legend)
+    lines = [f"your shadow compare differs from softpipe's at {len(wrong)} of {n} fragment(s) (PCF radius r = {r}, "
+             f"a {depth.shape[1]}×{depth.shape[0]} map):"]
+    for k in sorted(wrong, key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
+        i, j = int(np.floor(xs[k])), int(np.floor(ys[k]))
+        stored = f"{depth[j, i]:.6g}" if 0 <= i < depth.shape[1] and 0 <= j < depth.shape[0] else "none (outside)"
+        lines.append(f"  pixel {pixels[k]}: yours {mine[k]:.4g}, softpipe's {ref[k]:.4g} (x = {xs[k]:.4g}, "
+                     f"y = {ys[k]:.4g}, ref = {refs[k]:.6g}; texel ({i}, {j}) holds {stored})")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    for flags, text in SHADOW_MISTAKES:
+        guess = _compare_rows(depth, xs[wrong], ys[wrong], refs[wrong], r, **flags)
+        if np.allclose(guess, mine[wrong], rtol=0, atol=SHADOW_TOLERANCE):
+            lines.append(text)
+            break
+    else:
+        if r and np.allclose(_compare_rows(depth, xs[wrong], ys[wrong], refs[wrong], 0), mine[wrong], rtol=0,
+                             atol=SHADOW_TOLERANCE):
+            lines.append(f"you compare one texel: with PCF radius r = {r}, compare at each of the (2r+1)² = "
+                         f"{(2 * r + 1) ** 2} texels (floor(x) + di, floor(y) + dj), −r ≤ di, dj ≤ r, and average")
+    lines.append("(the picture: your visibility, softpipe's (bright: lit, dark: in shadow), and where they differ "
+                 "in red)")
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
     _show(d, show)
     raise AssertionError(d.message)
