@@ -21,6 +21,7 @@ from softpipe.testing import (
     check_depth_test,
     check_interpolation,
     check_line,
+    check_ray_triangle,
     check_shadow_compare,
     check_triangles,
     covered_pixels,
@@ -564,3 +565,68 @@ def test_check_shadow_compare_agrees_with_the_shadow_lookup_and_names_the_classi
         check_shadow_compare(lambda *a: (1.0, 1.0), trace, maps)
     with pytest.raises(ValueError, match=r"light 1 is not one of the 1 light\(s\) of these shadow maps"):
         check_shadow_compare(_shadow_compare, trace, maps, light=1)
+
+
+def _intersect(origin, direction, v0, v1, v2):
+    """Möller–Trumbore, both sides, t > 0 (lessons/solutions/10)."""
+    e1, e2 = v1 - v0, v2 - v0
+    p = np.cross(direction, e2)
+    det = p @ e1
+    if det == 0:
+        return None
+    s = origin - v0
+    q = np.cross(s, e1)
+    u, v, t = (s @ p) / det, (direction @ q) / det, (e2 @ q) / det
+    return (t, u, v) if u >= 0 and v >= 0 and u + v <= 1 and t > 0 else None
+
+
+def _ray_scene():
+    cube = sp.shapes.cube(1.0)
+    turn = sp.rotate_y(35) @ sp.rotate_x(20)
+    floor = np.array([[-2, -1, -2], [2, -1, -2], [2, -1, 2], [-2, -1, 2]], float)          # facing down
+    wall = np.array([[-9, -9, 6], [9, -9, 6], [9, 9, 6], [-9, 9, 6]], float)              # behind the eye
+    vertices = np.vstack([(turn[:3, :3] @ cube.positions.T).T, floor, wall])
+    triangles = np.vstack([cube.indices, 24 + np.array([[0, 1, 2], [0, 2, 3]]), 28 + np.array([[0, 1, 2], [0, 2, 3]])])
+    return vertices, triangles, sp.Camera(eye=(1.0, 1.5, 4.0), target=(0.0, -0.2, 0.0), fovy=45.0)
+
+
+def test_check_ray_triangle_agrees_with_the_bvh_and_names_the_classic_mistakes():
+    from softpipe.testing.lessons import camera_rays
+    vertices, triangles, camera = _ray_scene()
+    origins, directions = camera_rays(camera, 16, 12)
+    assert origins.shape == directions.shape == (192, 3) and np.allclose(np.linalg.norm(directions, axis=1), 1.0)
+    centre = directions[5 * 16 + 8] + directions[6 * 16 + 7]              # the two rays around the centre…
+    forward = np.asarray(camera.target) - np.asarray(camera.eye)
+    assert np.allclose(np.cross(centre, forward), 0.0, atol=1e-12)          # …straddle the view axis
+    result = check_ray_triangle(_intersect, vertices, triangles, camera, 16, 12)
+    assert result.ok and result.message == ("the closest hits: yours and softpipe's agree for all 192 rays (91 hit one "
+                                            "of the 16 triangles)")
+
+    def culling(o, d, v0, v1, v2):
+        return _intersect(o, d, v0, v1, v2) if np.cross(d, v2 - v0) @ (v1 - v0) > 0 else None
+
+    def behind(o, d, v0, v1, v2):                  # t of either sign
+        hit = _intersect(o, d, v0, v1, v2)
+        back = _intersect(o, -d, v0, v1, v2)
+        return hit if hit is not None else (None if back is None else (-back[0], back[1], back[2]))
+
+    mistakes = {
+        "your test misses triangles seen from behind (det < 0)": culling,
+        "your test counts hits behind the ray's origin: a hit needs t > 0": behind,
+        "your barycentrics are swapped": lambda *a: None if _intersect(*a) is None else (_intersect(*a)[0],
+                                                                                          _intersect(*a)[2],
+                                                                                          _intersect(*a)[1]),
+    }
+    for hint, answer in mistakes.items():
+        with pytest.raises(AssertionError) as info:
+            check_ray_triangle(answer, vertices, triangles, camera, 16, 12, show=False)
+        text = str(info.value)
+        assert text.startswith("your closest hits differ from softpipe's for ") and hint in text, text
+    with pytest.raises(AssertionError, match=r"for 91 of 192 ray\(s\) \(one per pixel of a 16×12 picture\):\n  pixel "
+                                             r"\(\d+, \d+\): yours no triangle, softpipe's triangle \d+ at t = "):
+        check_ray_triangle(lambda *a: None, vertices, triangles, camera, 16, 12, show=False)
+    with pytest.raises(ValueError, match=r"intersect must return None for a miss or \(t, b1, b2\) for a hit, got an "
+                                         r"array of shape \(2,\)"):
+        check_ray_triangle(lambda *a: (1.0, 0.0), vertices, triangles, camera, 16, 12)
+    with pytest.raises(ValueError, match=r"triangles must be whole-number indices into the 32 vertices"):
+        check_ray_triangle(_intersect, vertices, triangles + 30, camera, 16, 12)

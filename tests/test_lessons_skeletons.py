@@ -27,6 +27,8 @@ from lessons_run import failure
                     "around (u·W − ½, v·H − ½)"),
     ("09_shadows", "you compare one texel: with PCF radius r = 1, compare at each of the (2r+1)² = 9 texels "
                    "(floor(x) + di, floor(y) + dj), −r ≤ di, dj ≤ r, and average"),
+    ("10_rays", "your test misses triangles seen from behind (det < 0): softpipe's rays hit both sides of a triangle, "
+                "so only det = 0 (the ray parallel to the plane) is no hit"),
 ])
 def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
     text = failure(name)

@@ -29,6 +29,8 @@ test the wrong way round).
   coordinates of every fragment of a trace, with the classic mistakes named (the half-texel offset, v not flipped).
 - :func:`check_shadow_compare`: the shadow-map depth compare with percentage-closer filtering against softpipe's
   shadow lookup (V_j, FORMULAS §21) at every fragment of a trace of the surface that receives the shadow.
+- :func:`check_ray_triangle`: a ray–triangle test (Möller–Trumbore), used for the closest hit, against softpipe's
+  BVH (:mod:`softpipe.rays`) on a grid of camera rays (:func:`camera_rays`), with the classic mistakes named.
 
 The difference picture (:attr:`Difference.picture`) is zoomed
 (:func:`softpipe.views.zoom.zoomed`): gray where both cover a pixel, red where the answer
@@ -49,10 +51,11 @@ from softpipe.testing.line_reference import reference_line
 from softpipe.views.zoom import png, zoomed
 
 __all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "check_interpolation",
-           "check_camera", "check_clipping", "check_blinn_phong", "check_bilinear", "check_shadow_compare", "pixel_set", "trace_fragments",
+           "check_camera", "check_clipping", "check_blinn_phong", "check_bilinear", "check_shadow_compare", "check_ray_triangle",
+           "camera_rays", "pixel_set", "trace_fragments",
            "reference_winners", "COLORS", "LEGEND", "TOLERANCE", "CLIP_TOLERANCE", "NEAR_PLANE", "CLIP_CASES",
            "SHADING_TOLERANCE", "SHADING_MISTAKES", "LightColors", "TEXTURE_TOLERANCE", "TEXTURE_MISTAKES",
-           "SHADOW_TOLERANCE", "SHADOW_MISTAKES"]
+           "SHADOW_TOLERANCE", "SHADOW_MISTAKES", "RAY_TOLERANCE", "RAY_MISTAKES"]
 
 Pixel = Tuple[int, int]
 #: The difference picture's colors.
@@ -1333,5 +1336,158 @@ def check_shadow_compare(shadow_compare: Callable, trace, shadow_maps, light: in
     lines.append("(the picture: your visibility, softpipe's (bright: lit, dark: in shadow), and where they differ "
                  "in red)")
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+# ------------------------------------------------------------------------------ rays
+
+#: How far a hit's t and barycentrics may be from softpipe's and still agree (Möller–Trumbore and softpipe's
+#: watertight test round differently).
+RAY_TOLERANCE = 1e-9
+
+
+def camera_rays(camera, width: int, height: int) -> Tuple[np.ndarray, np.ndarray]:
+    """One ray per pixel of a ``width``×``height`` picture seen by ``camera`` (a :class:`softpipe.Camera`):
+    (origins [H·W, 3], directions [H·W, 3], unit length), row by row from the top, each from the eye
+    through its pixel's centre (x + ½, y + ½) on the near plane (the inverse of projection · view)."""
+    view = camera.view
+    inverse = np.linalg.inv(camera.projection(width / height) @ view)
+    rows, cols = np.mgrid[0:height, 0:width]
+    ndc_x = 2 * (cols.ravel() + 0.5) / width - 1
+    ndc_y = 1 - 2 * (rows.ravel() + 0.5) / height                  # row 0 is the top
+    near = inverse @ np.stack([ndc_x, ndc_y, -np.ones_like(ndc_x), np.ones_like(ndc_x)])
+    points = (near[:3] / near[3]).T
+    eye = np.asarray(camera.eye, np.float64)
+    directions = points - eye
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return np.tile(eye, (len(points), 1)), directions
+
+
+def _moller_trumbore_rows(o, d, v0, v1, v2, *, cull=False, behind=False, swap=False, no_sum=False,
+                          raw_t=False) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Möller–Trumbore for one triangle and many rays: (hit, t, b1, b2), and its classic mistakes by flag."""
+    e1, e2 = v1 - v0, v2 - v0
+    p = np.cross(d, e2)
+    det = p @ e1
+    ok = det > 0 if cull else det != 0
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=det != 0)
+    s = o - v0
+    u = (s * p).sum(axis=1) * inv
+    q = np.cross(s, e1)
+    v = (d * q).sum(axis=1) * inv
+    t = (q @ e2) * (1.0 if raw_t else inv)
+    hit = ok & (u >= 0) & (v >= 0) & ((u + v <= 1) | no_sum) & ((t > 0) | behind)
+    return (hit, t, v, u) if swap else (hit, t, u, v)
+
+
+#: The classic mistakes :func:`check_ray_triangle` recognizes: the flags of :func:`_moller_trumbore_rows`
+#: that reproduce the answer, and what to say.
+RAY_MISTAKES = [
+    (dict(cull=True), "your test misses triangles seen from behind (det < 0): softpipe's rays hit both sides of a "
+                      "triangle, so only det = 0 (the ray parallel to the plane) is no hit"),
+    (dict(behind=True), "your test counts hits behind the ray's origin: a hit needs t > 0 (the ray starts at the eye)"),
+    (dict(swap=True), "your barycentrics are swapped: b1 is the weight of v1 (Möller–Trumbore's u = (s·p)/det) and b2 "
+                      "of v2 (v = (d·q)/det)"),
+    (dict(no_sum=True), "your test accepts points beyond the edge v1–v2: a hit needs u ≥ 0, v ≥ 0 and u + v ≤ 1"),
+    (dict(raw_t=True), "your t is not divided by det: t = (e2·q)/det"),
+]
+
+
+def check_ray_triangle(intersect: Callable, vertices, triangles, camera, width: int, height: int, *,
+                       show: Optional[bool] = None) -> Difference:
+    """A student's ray–triangle test ``intersect(origin, direction, v0, v1, v2)`` (Möller–Trumbore), used for
+    the closest hit, against softpipe's BVH (:meth:`softpipe.rays.bvh.BVH.closest`) on a grid of rays: one
+    per pixel of a ``width``×``height`` picture seen by ``camera`` (:func:`camera_rays`).
+
+    ``intersect`` returns None for a miss or (t, b1, b2): the hit point is origin + t·direction =
+    (1 − b1 − b2)·v0 + b1·v1 + b2·v2, t > 0, either side of the triangle. For each ray the check calls it
+    on every triangle in order and keeps the nearest hit (the first at equal t, as softpipe does). Triangle,
+    t and barycentrics must agree, t and b to :data:`RAY_TOLERANCE`. The picture shows the triangle each
+    ray hits, yours and softpipe's (a color per triangle), and the rays that differ in red.
+
+    Raises
+    ------
+    AssertionError
+        ``"your closest hits differ from softpipe's for N of M ray(s) …"``, the first few rays, and the
+        mistake when it is a classic one (:data:`RAY_MISTAKES`).
+    ValueError
+        When ``vertices`` is not [V, 3] or ``triangles`` not [T, 3] indices into it, or the answer is not
+        None or three numbers.
+    """
+    from softpipe.rays.bvh import BVH
+    verts = np.asarray(vertices, np.float64)
+    tris = np.asarray(triangles)
+    if verts.ndim != 2 or verts.shape[1] != 3 or tris.ndim != 2 or tris.shape[1] != 3 or len(tris) == 0:
+        raise ValueError(f"check_ray_triangle needs vertices [V, 3] and triangles [T, 3] (T ≥ 1), got arrays of "
+                         f"shape {verts.shape} and {tris.shape}")
+    if not np.issubdtype(tris.dtype, np.integer) or tris.min() < 0 or tris.max() >= len(verts):
+        raise ValueError(f"check_ray_triangle: triangles must be whole-number indices into the {len(verts)} vertices")
+    origins, directions = camera_rays(camera, width, height)
+    ref_id, ref_t, ref_b = BVH.build(verts, tris).closest(origins, directions)
+    n = len(origins)
+    mine_id, mine_t, mine_b = np.full(n, -1), np.full(n, np.inf), np.zeros((n, 2))
+    corners = verts[tris]
+    for r in range(n):
+        for k, (a, b, c) in enumerate(corners):
+            got = intersect(origins[r].copy(), directions[r].copy(), a.copy(), b.copy(), c.copy())
+            if got is None or got is False:
+                continue
+            values = np.asarray(got, dtype=np.float64).reshape(-1)
+            if values.shape != (3,):
+                raise ValueError(f"intersect must return None for a miss or (t, b1, b2) for a hit, got an array of "
+                                 f"shape {values.shape}")
+            if values[0] < mine_t[r]:
+                mine_id[r], mine_t[r], mine_b[r] = k, values[0], values[1:]
+    same_id = mine_id == ref_id
+    hit = ref_id >= 0
+    t_mine, t_ref = np.where(hit, mine_t, 0.0), np.where(hit, ref_t, 0.0)       # a miss's t is inf on both sides
+    close = same_id & (~hit | ((np.abs(t_mine - t_ref) <= RAY_TOLERANCE * np.maximum(1.0, np.abs(t_ref)))
+                               & (np.abs(mine_b - ref_b) <= RAY_TOLERANCE).all(axis=1)))
+    palette = np.array([(230, 60, 40), (250, 200, 40), (60, 160, 70), (40, 90, 220), (200, 90, 200), (90, 200, 210),
+                        (240, 140, 60), (150, 110, 70), (170, 210, 90), (120, 120, 240), (240, 120, 160),
+                        (200, 200, 200)], np.uint8)
+
+    def ids_picture(ids):
+        img = np.empty((n, 3), np.uint8)
+        img[:] = COLORS["empty"]
+        img[ids >= 0] = palette[ids[ids >= 0] % len(palette)]
+        return img.reshape(height, width, 3)
+    diff = np.empty((n, 3), np.uint8)
+    diff[:] = COLORS["empty"]
+    diff[hit | (mine_id >= 0)] = COLORS["both"]
+    diff[~close] = COLORS["adds"]
+    picture = _panels(ids_picture(mine_id), ids_picture(ref_id), diff.reshape(height, width, 3))
+    legend = {"empty": "no triangle hit", "both": "your closest hit agrees with softpipe's",
+              "adds": "your closest hit differs"}
+    pixels = [(r % width, height - 1 - r // width) for r in range(n)]
+    wrong = np.nonzero(~close)[0]
+    if not len(wrong):
+        return Difference([], [], picture, f"the closest hits: yours and softpipe's agree for all {n} rays "
+                          f"({int(hit.sum())} hit one of the {len(tris)} triangles)", legend)
+
+    def what(i, t, b):
+        return "no triangle" if i < 0 else f"triangle {i} at t = {t:.6g}, b = {_vector(b)}"
+    lines = [f"your closest hits differ from softpipe's for {len(wrong)} of {n} ray(s) (one per pixel of a "
+             f"{width}×{height} picture):"]
+    for r in sorted(wrong, key=lambda r: (pixels[r][1], pixels[r][0]))[:SHOWN]:
+        lines.append(f"  pixel {pixels[r]}: yours {what(mine_id[r], mine_t[r], mine_b[r])}, softpipe's "
+                     f"{what(ref_id[r], ref_t[r], ref_b[r])}")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    for flags, text in RAY_MISTAKES:
+        best_id, best_t, best_b = np.full(len(wrong), -1), np.full(len(wrong), np.inf), np.zeros((len(wrong), 2))
+        for k, (a, b, c) in enumerate(corners):
+            h, t, b1, b2 = _moller_trumbore_rows(origins[wrong], directions[wrong], a, b, c, **flags)
+            better = h & (t < best_t)
+            best_id[better], best_t[better], best_b[better] = k, t[better], np.stack([b1, b2], axis=1)[better]
+        if np.array_equal(best_id, mine_id[wrong]) and np.allclose(
+                np.where(best_id >= 0, best_t, 0.0), np.where(best_id >= 0, mine_t[wrong], 0.0), rtol=1e-9, atol=1e-9) \
+                and np.allclose(best_b, mine_b[wrong], rtol=0, atol=1e-9):
+            lines.append(text)
+            break
+    lines.append("(the picture: the triangle each ray hits first, yours and softpipe's, a color per triangle; the rays "
+                 "that differ in red)")
+    d = Difference([pixels[r] for r in wrong], [], picture, "\n".join(lines), legend)
     _show(d, show)
     raise AssertionError(d.message)
