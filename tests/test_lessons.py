@@ -423,6 +423,9 @@ def test_check_blinn_phong_agrees_with_the_phong_program_and_names_the_classic_m
     with pytest.raises(ValueError, match=r"blinn_phong must return the color \(r, g, b\), got an array of shape "
                                          r"\(2,\)"):
         check_blinn_phong(lambda *a: (0.5, 0.5), trace)
+    with pytest.raises(ValueError, match=r"check_blinn_phong compares with the built-in program 'phong' .*; this "
+                                         r"draw's fragment shader is softpipe.programs.gouraud.gouraud_fragment"):
+        check_blinn_phong(_blinn_phong, _sphere_trace([sp.Light.directional((-1.0, -1.0, -1.0))], "gouraud"))
     with pytest.raises(ValueError, match=r"needs a directional light \(one L everywhere, no attenuation\)"):
         check_blinn_phong(_blinn_phong, _sphere_trace([sp.Light.point((2.0, 2.0, 2.0))]))
     with pytest.raises(ValueError, match=r"with one light and no shadows; this draw has 2 light\(s\)"):

@@ -979,10 +979,16 @@ def check_blinn_phong(blinn_phong: Callable, trace, *, show: Optional[bool] = No
         the mistake when it is a classic one (:data:`SHADING_MISTAKES`: Phong's specular, N not normalized,
         V or L the wrong way, H not normalized, no B, no ambient).
     ValueError
-        When the draw is not lit by exactly one directional light without shadows, has no varyings
-        ``position`` and ``normal``, or the answer is not 3 (or 4) numbers.
+        When the draw is not the ``phong`` program's, not lit by exactly one directional light without
+        shadows, or the answer is not 3 (or 4) numbers.
     """
+    from softpipe.language.contract import shader_name
     from softpipe.light.lighting import light_at, light_colors
+    shader = shader_name(trace.call.fragment_shader) if trace.call.fragment_shader is not None else "the default"
+    if shader != "softpipe.programs.phong.phong_fragment":
+        raise ValueError(f"check_blinn_phong compares with the built-in program 'phong' (per-fragment Blinn–Phong, "
+                         f"sp.draw_mesh(fb, mesh, camera, 'phong', ..., trace=True)); this draw's fragment shader is "
+                         f"{shader}")
     uniforms = trace.call.uniforms
     lighting, m = getattr(uniforms, "lighting", None), getattr(uniforms, "material", None)
     if lighting is None or m is None or len(lighting.lights) != 1 or lighting.shadows is not None:
