@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 LESSONS = Path(__file__).resolve().parent.parent / "lessons"
-NOTEBOOKS = ["01_lines", "02_triangles", "03_zbuffer", "04_interpolation", "05_camera"]
+NOTEBOOKS = ["01_lines", "02_triangles", "03_zbuffer", "04_interpolation", "05_camera", "06_clipping", "07_shading",
+             "08_textures", "09_shadows", "10_rays"]
 
 
 def runner():

@@ -18,6 +18,17 @@ from lessons_run import failure
                          "varying is perspective-correct: weight each corner by b_k / w_k = b_k · inv_w[k]"),
     ("05_camera", "your matrix is the transpose of softpipe's: softpipe's matrices act on column vectors (p' = M @ p), "
                   "so the translation goes in the last column, M[:3, 3], not the last row"),
+    ("06_clipping", "your polygon keeps the corners inside the plane but not the points where the edges cross it: "
+                    "for an edge from corner a to corner b whose distances d_a, d_b have opposite signs, add "
+                    "p_a + t·(p_b − p_a) with t = d_a / (d_a − d_b)"),
+    ("07_shading", "you compute Phong's specular (R·V)ⁿ (FORMULAS §5); Blinn–Phong's is (N·H)₊ⁿ with the half "
+                   "vector H = normalize(L + V) (FORMULAS §6)"),
+    ("08_textures", "your answer is the nearest texel (GL's NEAREST): bilinear filtering weights the four texels "
+                    "around (u·W − ½, v·H − ½)"),
+    ("09_shadows", "you compare one texel: with PCF radius r = 1, compare at each of the (2r+1)² = 9 texels "
+                   "(floor(x) + di, floor(y) + dj), −r ≤ di, dj ≤ r, and average"),
+    ("10_rays", "your test misses triangles seen from behind (det < 0): softpipe's rays hit both sides of a triangle, "
+                "so only det = 0 (the ray parallel to the plane) is no hit"),
 ])
 def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
     text = failure(name)

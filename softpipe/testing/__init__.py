@@ -18,7 +18,8 @@
 - :func:`sorted_composite`: the exact transparent composite, every traced fragment sorted
   by depth per sample and composited "over" an opaque picture (docs/transparency.md).
 - :func:`check_line`, :func:`check_triangles`, :func:`check_depth_test`, :func:`check_interpolation`,
-  :func:`check_camera`, :func:`check_coverage`:
+  :func:`check_camera`, :func:`check_clipping`, :func:`check_blinn_phong`, :func:`check_bilinear`,
+  :func:`check_shadow_compare`, :func:`check_ray_triangle`, :func:`check_coverage`:
   the lessons' checks (lessons/): an answer against softpipe's stage, pixel for pixel, with a
   difference picture and a message that names the rule most likely broken.
 - :func:`check_golden` and the pytest plugin :mod:`softpipe.testing.plugin`
@@ -31,11 +32,16 @@ from softpipe.testing.composite import sorted_composite
 from softpipe.testing.coverage import Coverage, coverage, covered_pixels
 from softpipe.testing.lessons import (
            Difference,
+           check_bilinear,
+           check_blinn_phong,
            check_camera,
+           check_clipping,
            check_coverage,
            check_depth_test,
            check_interpolation,
            check_line,
+           check_ray_triangle,
+           check_shadow_compare,
            check_triangles,
            trace_fragments,
 )
@@ -46,4 +52,6 @@ from softpipe.testing.reference import reference_coverage
 __all__ = ["coverage", "covered_pixels", "Coverage", "reference_coverage", "reference_line", "reference_point",
            "reference_line_parameter", "assert_pixels_equal", "ascii_picture", "from_ascii", "check_golden",
            "diff_image", "to_8bit", "sorted_composite", "check_coverage", "check_line", "check_triangles",
-           "check_depth_test", "check_interpolation", "check_camera", "Difference", "trace_fragments"]
+           "check_depth_test", "check_interpolation", "check_camera", "check_clipping", "check_blinn_phong",
+           "check_bilinear", "check_shadow_compare", "check_ray_triangle", "Difference",
+           "trace_fragments"]

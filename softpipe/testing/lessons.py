@@ -20,6 +20,17 @@ test the wrong way round).
   the classic mistakes named (linear in the window: noperspective).
 - :func:`check_camera`: a look_at and a perspective matrix against softpipe's, numerically and by
   rendering, with the classic mistakes named (the transpose, a left-handed look_at, depth in [0, 1]).
+- :func:`check_clipping`: a polygon clipped against one plane in clip space (Sutherland–Hodgman) against
+  the pieces primitive assembly emitted for a trace's triangles and for a few further cases (user clip
+  planes), with the classic mistakes named (crossing points left out, a corner on the plane counted out).
+- :func:`check_blinn_phong`: the OpenGL lighting equation for one directional light (FORMULAS §10, Blinn–Phong
+  specular §6) against the colors the ``phong`` program's fragment shader returned at every fragment of a trace.
+- :func:`check_bilinear`: bilinear texture filtering against :meth:`softpipe.Texture2D.sample` at the texture
+  coordinates of every fragment of a trace, with the classic mistakes named (the half-texel offset, v not flipped).
+- :func:`check_shadow_compare`: the shadow-map depth compare with percentage-closer filtering against softpipe's
+  shadow lookup (V_j, FORMULAS §21) at every fragment of a trace of the surface that receives the shadow.
+- :func:`check_ray_triangle`: a ray–triangle test (Möller–Trumbore), used for the closest hit, against softpipe's
+  BVH (:mod:`softpipe.rays`) on a grid of camera rays (:func:`camera_rays`), with the classic mistakes named.
 
 The difference picture (:attr:`Difference.picture`) is zoomed
 (:func:`softpipe.views.zoom.zoomed`): gray where both cover a pixel, red where the answer
@@ -28,6 +39,7 @@ adds a pixel softpipe does not draw, blue where it misses one softpipe draws.
 from __future__ import annotations
 
 import base64
+from collections import namedtuple
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Callable, Dict, List, Mapping, Optional, Sequence, Set, Tuple
@@ -39,7 +51,11 @@ from softpipe.testing.line_reference import reference_line
 from softpipe.views.zoom import png, zoomed
 
 __all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "check_interpolation",
-           "check_camera", "pixel_set", "trace_fragments", "reference_winners", "COLORS", "LEGEND", "TOLERANCE"]
+           "check_camera", "check_clipping", "check_blinn_phong", "check_bilinear", "check_shadow_compare", "check_ray_triangle",
+           "camera_rays", "pixel_set", "trace_fragments",
+           "reference_winners", "COLORS", "LEGEND", "TOLERANCE", "CLIP_TOLERANCE", "NEAR_PLANE", "CLIP_CASES",
+           "SHADING_TOLERANCE", "SHADING_MISTAKES", "LightColors", "TEXTURE_TOLERANCE", "TEXTURE_MISTAKES",
+           "SHADOW_TOLERANCE", "SHADOW_MISTAKES", "RAY_TOLERANCE", "RAY_MISTAKES"]
 
 Pixel = Tuple[int, int]
 #: The difference picture's colors.
@@ -691,5 +707,793 @@ def check_camera(look_at: Callable, perspective: Callable, width: int = 32, heig
     lines.append("(the picture: two boxes seen through your camera and through softpipe's, near is bright, and "
                  "where they differ: red = only yours draws the pixel, blue = only softpipe's, orange = another depth)")
     d = Difference(adds, misses, picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+# ------------------------------------------------------------------------------ clipping
+
+#: How far a clipped polygon's corner may be from softpipe's, in clip coordinates, and still agree (the
+#: two compute the same crossing points, perhaps in another order of float operations).
+CLIP_TOLERANCE = 1e-9
+#: The near plane z ≥ −w as a row (a, b, c, d): inside where a·x + b·y + c·z + d·w ≥ 0.
+NEAR_PLANE = (0.0, 0.0, 1.0, 1.0)
+
+#: The further cases :func:`check_clipping` tries, each a triangle inside the view volume (clip coordinates
+#: [3, 4]) and a plane (a, b, c, d) that softpipe clips it against as a user clip plane: one corner out (a
+#: quadrilateral), two out (a smaller triangle), none out, a corner exactly on the plane, every corner out.
+CLIP_CASES = [
+    ("one corner beyond x = w/2", [(-0.6, -0.5, 0.1, 1.0), (0.8, -0.4, 0.2, 1.0), (0.1, 0.7, 0.0, 1.0)],
+     (-1.0, 0.0, 0.0, 0.5)),
+    ("two corners below y = −w/5, w varying", [(-0.9, -0.8, 0.0, 1.5), (1.2, -1.5, 0.3, 2.0), (0.3, 0.6, 0.2, 1.0)],
+     (0.0, 1.0, 0.0, 0.2)),
+    ("no corner beyond x = −w/2", [(-0.4, -0.5, 0.1, 1.0), (0.6, -0.4, 0.2, 1.0), (0.1, 0.7, 0.0, 1.0)],
+     (1.0, 0.0, 0.0, 0.5)),
+    ("a corner exactly on x = w/2", [(-0.6, -0.5, 0.1, 1.0), (0.5, -0.4, 0.2, 1.0), (0.1, 0.7, 0.0, 1.0)],
+     (-1.0, 0.0, 0.0, 0.5)),
+    ("every corner beyond y = w/2", [(-0.6, 0.6, 0.1, 1.0), (0.8, 0.7, 0.2, 1.0), (0.1, 0.9, 0.0, 1.0)],
+     (0.0, -1.0, 0.0, 0.5)),
+]
+
+
+def _polygon_of_pieces(window: np.ndarray, inv_w: np.ndarray, width: int, height: int) -> np.ndarray:
+    """The clip-space polygon [n, 4] whose fan (0, k, k + 1) softpipe's assembly emitted as ``window`` [P, 3, 3]
+    and ``inv_w`` [P, 3]: the divide and the viewport (depth range [0, 1]) undone."""
+    if not len(window):
+        return np.zeros((0, 4))
+    corners = [(window[0, 0], inv_w[0, 0]), (window[0, 1], inv_w[0, 1])] + [(window[k, 2], inv_w[k, 2])
+                                                                             for k in range(len(window))]
+    out = []
+    for (xw, yw, zw), q in corners:
+        w = 1.0 / q
+        out.append((((xw / (width / 2)) - 1.0) * w, ((yw / (height / 2)) - 1.0) * w, (2.0 * zw - 1.0) * w, w))
+    return np.array(out)
+
+
+def _softpipe_polygon(triangle: np.ndarray, plane, width: int, height: int) -> np.ndarray:
+    """softpipe's assembly of one clip-space triangle [3, 4] with ``plane`` as a user clip plane, as a polygon."""
+    from softpipe.pipeline.draw import draw
+    from softpipe.pipeline.framebuffer import Framebuffer
+    trace = draw(Framebuffer(width, height), np.asarray(triangle, np.float64), varyings={"color": np.ones((3, 3))},
+                 clip_planes=[list(plane)], trace=True)
+    p = trace.primitives
+    return _polygon_of_pieces(p.window, p.inv_w, width, height)
+
+
+def _distance(plane, points: np.ndarray) -> np.ndarray:
+    return points @ np.asarray(plane, np.float64) if len(points) else np.zeros(0)
+
+
+def _same_polygon(mine: np.ndarray, ref: np.ndarray) -> bool:
+    """The same corners in the same cyclic order (starting anywhere), to :data:`CLIP_TOLERANCE`."""
+    if mine.shape != ref.shape:
+        return False
+    if not len(ref):
+        return True
+    return any(np.allclose(np.roll(mine, -k, axis=0), ref, rtol=0, atol=CLIP_TOLERANCE) for k in range(len(ref)))
+
+
+def _without_repeats(poly: np.ndarray) -> np.ndarray:
+    keep = [k for k in range(len(poly)) if not np.allclose(poly[k], poly[k - 1], rtol=0, atol=CLIP_TOLERANCE)]
+    return poly[keep] if len(poly) > 1 else poly
+
+
+def _clip_hint(triangle: np.ndarray, plane, mine: np.ndarray, ref: np.ndarray) -> Optional[str]:
+    """The classic mistakes of Sutherland–Hodgman: corners outside kept, crossings left out, a corner on the
+    plane taken as outside, the crossing's parameter from the wrong formula, the order lost."""
+    d_tri, d_mine = _distance(plane, triangle), _distance(plane, mine)
+    scale = max(1.0, float(np.abs(triangle).max()))
+    if len(mine) and (d_mine < -CLIP_TOLERANCE * scale).any():
+        k = int(np.argmin(d_mine))
+        return (f"your corner {k}, {_vector(mine[k])}, is outside the plane: a·x + b·y + c·z + d·w = "
+                f"{d_mine[k]:.4g} < 0 there. Keep a corner only where that distance is ≥ 0")
+    if len(mine) and _same_polygon(_without_repeats(mine), ref):
+        return ("your polygon holds a corner twice: a corner exactly on the plane (distance 0) is inside (d ≥ 0), "
+                "so it is kept as it is, and no crossing point is added beside it")
+    if len(mine) == len(ref) and len(ref) and _same_polygon(mine[::-1], ref):
+        return ("your polygon has softpipe's corners in the opposite order: walk the edges in the polygon's "
+                "order, k → k + 1, so that the clipped polygon keeps the triangle's winding (its facing)")
+    if len(mine) < len(ref):
+        inside = [k for k in range(3) if d_tri[k] >= 0]
+        if len(mine) == len(inside) and all(any(np.allclose(m, triangle[k], rtol=0, atol=CLIP_TOLERANCE)
+                                                for m in mine) for k in inside):
+            return ("your polygon keeps the corners inside the plane but not the points where the edges cross it: "
+                    "for an edge from corner a to corner b whose distances d_a, d_b have opposite signs, add "
+                    "p_a + t·(p_b − p_a) with t = d_a / (d_a − d_b), between the two")
+        return f"softpipe's polygon has {len(ref)} corners, yours {len(mine)}"
+    if len(mine) == len(ref) and len(ref):
+        off = [k for k in range(len(mine)) if abs(d_mine[k]) > CLIP_TOLERANCE * scale
+               and not any(np.allclose(mine[k], t, rtol=0, atol=CLIP_TOLERANCE) for t in triangle)]
+        if off:
+            k = off[0]
+            return (f"your corner {k}, {_vector(mine[k])}, is a new point but not on the plane (its distance is "
+                    f"{d_mine[k]:.4g}, not 0): the crossing of the edge a → b is p_a + t·(p_b − p_a) with "
+                    f"t = d_a / (d_a − d_b), the distances taken before any divide by w")
+    return None
+
+
+def _fan_pixels(poly: np.ndarray, width: int, height: int) -> Set[Pixel]:
+    """The pixels the clipped polygon [n, 4] covers, drawn as its fan (0, k, k + 1) in front of the eye."""
+    if len(poly) < 3 or not (poly[:, 3] > 0).all() or not np.isfinite(poly).all():
+        return set()
+    ndc = poly[:, :3] / poly[:, 3:4]
+    win = np.c_[(ndc[:, 0] + 1) * width / 2, (ndc[:, 1] + 1) * height / 2]
+    tris = np.array([[win[0], win[k], win[k + 1]] for k in range(1, len(win) - 1)])
+    return set(coverage(tris, width, height).pixels())
+
+
+def check_clipping(clip_polygon: Callable, trace, *, plane=NEAR_PLANE, show: Optional[bool] = None) -> Difference:
+    """A student's ``clip_polygon(polygon, plane)`` (Sutherland–Hodgman against one plane in clip space)
+    against softpipe's primitive assembly.
+
+    ``polygon`` is the corners' clip coordinates (float64 [n, 4], in order), ``plane`` a row (a, b, c, d):
+    inside where a·x + b·y + c·z + d·w ≥ 0; the answer is the clipped polygon's corners [m, 4] (m = 0 when
+    nothing is left). First every triangle of ``trace`` (a triangle list of clip coordinates) against
+    ``plane`` (the near plane z ≥ −w by default: the one that cuts the lesson's triangle), softpipe's
+    answer being the clipped pieces it emitted (the fan of its polygon, the divide and the viewport
+    undone); then the triangles and planes of :data:`CLIP_CASES`, each drawn with its plane as a user clip
+    plane. Corners agree to :data:`CLIP_TOLERANCE`, starting anywhere in the polygon but in its order.
+    The picture shows the pixels of your polygon and of softpipe's, as :func:`check_coverage`'s does.
+
+    Raises
+    ------
+    AssertionError
+        ``"clipping <case> against the plane (a, b, c, d): your polygon differs from softpipe's"``, both
+        polygons, and the mistake when it is a classic one (a corner outside kept, the crossing points left
+        out, a corner on the plane counted out, a crossing off the plane, the order reversed).
+    ValueError
+        When ``trace`` is not a draw of a triangle list, or the answer is not [m, 4].
+    """
+    width, height = trace.width, trace.height
+    position = np.asarray(trace.vertex.position, np.float64)
+    indices = trace.call.indices
+    corners = np.arange(len(position)) if indices is None else np.asarray(indices, np.int64).reshape(-1)
+    if (trace.call.topology != "triangles" or trace.primitives.kind != "triangles" or len(corners) % 3
+            or trace.primitives.input_count != len(corners) // 3):
+        raise ValueError("check_clipping needs a trace of a triangle list (sp.draw(fb, clip, ..., trace=True)); this "
+                         f"one drew {trace.primitives.input_count} {trace.primitives.kind} by the topology "
+                         f"{trace.call.topology!r}")
+    cases = []
+    p = trace.primitives
+    for t in range(len(corners) // 3):
+        rows = p.primitive_id == t
+        cases.append((f"the draw's triangle {t}", position[corners[3 * t:3 * t + 3]], tuple(float(c) for c in plane),
+                      _polygon_of_pieces(p.window[rows], p.inv_w[rows], width, height)))
+    for name, tri, pl in CLIP_CASES:
+        tri = np.asarray(tri, np.float64)
+        cases.append((name, tri, pl, _softpipe_polygon(tri, pl, width, height)))
+    results = []
+    for name, tri, pl, ref in cases:
+        got = clip_polygon(tri.copy(), np.array(pl))
+        mine = np.asarray([] if got is None else got, dtype=np.float64)
+        if mine.size == 0:
+            mine = np.zeros((0, 4))
+        if mine.ndim != 2 or mine.shape[1] != 4:
+            raise ValueError(f"clip_polygon must return the clipped polygon's corners as an array [m, 4] of clip "
+                             f"coordinates (x, y, z, w), got an array of shape {mine.shape} for {name}")
+        results.append((name, tri, pl, mine, ref))
+        if not _same_polygon(mine, ref):
+            break
+    name, tri, pl, mine, ref = results[-1] if not _same_polygon(results[-1][3], results[-1][4]) else results[0]
+    failed = not _same_polygon(mine, ref)
+    yours, theirs = _fan_pixels(mine, width, height), _fan_pixels(ref, width, height)
+    adds, misses = sorted(yours - theirs), sorted(theirs - yours)
+    picture = _picture(yours, theirs, width, height)
+    if not failed:
+        return Difference(adds, misses, picture, f"clipping: your polygons and softpipe's agree on all {len(cases)} "
+                          f"triangles ({len(cases) - len(CLIP_CASES)} of the draw, {len(CLIP_CASES)} further cases)")
+    plane_text = "(" + ", ".join(f"{c:g}" for c in pl) + ")"
+    lines = [f"clipping {name} against the plane {plane_text}: your polygon differs from softpipe's "
+             f"({len(mine)} corners, softpipe's {len(ref)}):",
+             "  the triangle:  " + ", ".join(_vector(c) for c in tri),
+             "  its distances: " + _vector(_distance(pl, tri)) + " (a·x + b·y + c·z + d·w; inside where ≥ 0)",
+             "  yours:         " + (", ".join(_vector(c) for c in mine) or "nothing"),
+             "  softpipe's:    " + (", ".join(_vector(c) for c in ref) or "nothing (every corner is outside)")]
+    hint = _clip_hint(tri, pl, mine, ref)
+    if hint:
+        lines.append(hint)
+    lines.append("(the picture: the pixels of your polygon and of softpipe's, drawn as fans: red = only yours covers "
+                 "the pixel, blue = only softpipe's, gray = both; window coordinates (x, y), y up)")
+    d = Difference(adds, misses, picture, "\n".join(lines))
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+# ------------------------------------------------------------------------------ shading
+
+#: How far a shaded color may be from the fragment shader's and still agree (the shader's output is
+#: float32: colors near 1 keep about 7 digits).
+SHADING_TOLERANCE = 1e-5
+
+#: One light's colors as :func:`check_blinn_phong` hands them to the answer: I_a, I_d, I_s (FORMULAS §10).
+LightColors = namedtuple("LightColors", ["ambient", "diffuse", "specular"])
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 0)
+
+
+def _blinn_phong_rows(P, N, L, m, light, global_ambient, *, normalize_n=True, toward_eye=True, blinn=True,
+                      b_factor=True, clamp_diffuse=True, with_ambient=True, unit_h=True, l_sign=1.0) -> np.ndarray:
+    """FORMULAS §10 for one directional light at many fragments (rows), and its classic mistakes by flag."""
+    N = _unit_rows(N) if normalize_n else N
+    V = _unit_rows(-P if toward_eye else P)
+    L = np.broadcast_to(l_sign * np.asarray(L, np.float64), N.shape)
+    n_dot_l = (N * L).sum(axis=1)
+    if blinn:
+        S = L + V
+        H = _unit_rows(S) if unit_h else S
+        lobe = (N * H).sum(axis=1)
+    else:
+        R = 2 * n_dot_l[:, None] * N - L
+        lobe = (R * V).sum(axis=1)
+    base = np.maximum(lobe, 0.0)
+    spec = np.where(base > 0, base ** m.shininess, 0.0) if m.shininess else np.ones_like(base)
+    lit = n_dot_l > 0
+    diffuse = n_dot_l if not clamp_diffuse else np.where(lit, n_dot_l, 0.0)
+    spec = np.where(lit, spec, 0.0) if b_factor else spec
+    kd, ks, ka, ke = (np.asarray(c, np.float64) for c in (m.kd, m.ks, m.ka, m.ke))
+    color = ke + (ka * (np.asarray(global_ambient) + np.asarray(light.ambient)) if with_ambient else 0.0)
+    return (color + diffuse[:, None] * kd * np.asarray(light.diffuse)
+            + spec[:, None] * ks * np.asarray(light.specular))
+
+
+#: The classic mistakes :func:`check_blinn_phong` recognizes: the flags of :func:`_blinn_phong_rows` that
+#: reproduce the answer, and what to say.
+SHADING_MISTAKES = [
+    (dict(blinn=False), "you compute Phong's specular (R·V)ⁿ (FORMULAS §5); Blinn–Phong's is (N·H)₊ⁿ with the half "
+                        "vector H = normalize(L + V) (FORMULAS §6)"),
+    (dict(normalize_n=False), "the interpolated normal N is not of unit length: normalize it first (FORMULAS §12, "
+                              "Phong shading: interpolate the normals, renormalize, shade every fragment)"),
+    (dict(toward_eye=False), "your V points from the eye to the point: V is the unit vector from the point toward the "
+                             "eye, normalize(−P) (the eye sits at the origin of eye space)"),
+    (dict(l_sign=-1.0), "your L points the way the light travels: L is the unit vector from the point toward the "
+                        "light"),
+    (dict(unit_h=False), "your half vector L + V is not normalized: H = (L + V)/|L + V|"),
+    (dict(b_factor=False), "your specular shines where N·L ≤ 0: the factor B (FORMULAS §4) is 0 there, for the "
+                           "specular term as for the diffuse one"),
+    (dict(clamp_diffuse=False), "your diffuse term goes negative where N·L < 0: with B (FORMULAS §4) it is 0 there"),
+    (dict(with_ambient=False), "the ambient terms are missing: k_a · I_a,global + k_a · I_a of the light (FORMULAS §2, "
+                               "§10)"),
+]
+
+
+def check_blinn_phong(blinn_phong: Callable, trace, *, show: Optional[bool] = None) -> Difference:
+    """A student's ``blinn_phong(P, N, L, material, light, global_ambient)`` against the fragment shader's colors
+    at every fragment of ``trace``, a draw with a per-fragment Blinn–Phong program (``"phong"``) lit by one
+    directional light.
+
+    The answer gets, for each fragment: P and N, the eye-space point and the interpolated (not yet
+    unit) normal the shader received (its varyings ``position`` and ``normal``); L, the unit vector
+    toward the light, in eye space; the material (``ke``, ``ka``, ``kd``, ``ks``, ``shininess``); the light's
+    colors (:class:`LightColors`) and the global ambient light. It returns the color (r, g, b) of FORMULAS
+    §10 for that one light. softpipe's is what the shader returned (:attr:`Trace.shaded`), to
+    :data:`SHADING_TOLERANCE`. The picture shows your colors, softpipe's, and where they differ (red,
+    brighter the larger the difference).
+
+    Raises
+    ------
+    AssertionError
+        ``"your Blinn–Phong differs from softpipe's at N of M fragment(s) …"``, the first few fragments, and
+        the mistake when it is a classic one (:data:`SHADING_MISTAKES`: Phong's specular, N not normalized,
+        V or L the wrong way, H not normalized, no B, no ambient).
+    ValueError
+        When the draw is not the ``phong`` program's, not lit by exactly one directional light without
+        shadows, or the answer is not 3 (or 4) numbers.
+    """
+    from softpipe.language.contract import shader_name
+    from softpipe.light.lighting import light_at, light_colors
+    shader = shader_name(trace.call.fragment_shader) if trace.call.fragment_shader is not None else "the default"
+    if shader != "softpipe.programs.phong.phong_fragment":
+        raise ValueError(f"check_blinn_phong compares with the built-in program 'phong' (per-fragment Blinn–Phong, "
+                         f"sp.draw_mesh(fb, mesh, camera, 'phong', ..., trace=True)); this draw's fragment shader is "
+                         f"{shader}")
+    uniforms = trace.call.uniforms
+    lighting, m = getattr(uniforms, "lighting", None), getattr(uniforms, "material", None)
+    if lighting is None or m is None or len(lighting.lights) != 1 or lighting.shadows is not None:
+        count = "no" if lighting is None else len(lighting.lights)
+        raise ValueError(f"check_blinn_phong needs a draw of a lit program (uniforms material and lighting) with one "
+                         f"light and no shadows; this draw has {count} light(s)")
+    L, f = light_at((0.0, 0.0, 0.0), lighting.lights, 0)
+    probe, _ = light_at((1.0, 2.0, 3.0), lighting.lights, 0)
+    if f != 1.0 or tuple(probe) != tuple(L):
+        raise ValueError("check_blinn_phong needs a directional light (one L everywhere, no attenuation): "
+                         "sp.Light.directional(direction)")
+    names = [fld[0] for fld in trace.primitives.layout.fields]
+    if "position" not in names or "normal" not in names:
+        raise ValueError(f"check_blinn_phong needs the varyings 'position' and 'normal' (eye space, as the built-in "
+                         f"programs pass them); the draw's varyings are {names}")
+    light = LightColors(*light_colors(lighting.lights, 0))
+    f = trace.fragments
+    n = len(f)
+    varyings, _ = trace.fragment_varyings(np.arange(n))
+    layout = trace.primitives.layout
+    P, N = varyings[:, layout.slice("position")], varyings[:, layout.slice("normal")]
+    L = tuple(float(c) for c in L)
+    mine = np.zeros((n, 3))
+    for k in range(n):
+        got = np.asarray(blinn_phong(P[k].copy(), N[k].copy(), L, m, light, tuple(lighting.global_ambient)),
+                         dtype=np.float64).reshape(-1)
+        if got.shape not in ((3,), (4,)):
+            raise ValueError(f"blinn_phong must return the color (r, g, b), got an array of shape {got.shape}")
+        mine[k] = got[:3]
+    ref = np.asarray(trace.shaded.color, np.float64)[:, :3]
+    error = np.abs(mine - ref).max(axis=1) if n else np.zeros(0)
+    error = np.where(np.isnan(error), np.inf, error)
+    h, w = trace.height, trace.width
+    yours, theirs, diff = (np.empty((h, w, 3), np.uint8) for _ in range(3))
+    for img in (yours, theirs, diff):
+        img[:] = COLORS["empty"]
+    rows, cols = np.asarray(f.y), np.asarray(f.x)
+    yours[rows, cols] = np.round(255 * np.clip(np.nan_to_num(mine), 0, 1)).astype(np.uint8)
+    theirs[rows, cols] = np.round(255 * np.clip(ref, 0, 1)).astype(np.uint8)
+    bad = error > SHADING_TOLERANCE
+    diff[rows, cols] = COLORS["both"]
+    if bad.any():
+        level = np.minimum(255, 90 + np.round(1650 * np.minimum(error[bad], 0.1))).astype(np.uint8)
+        diff[rows[bad], cols[bad]] = np.stack([level, np.full_like(level, 40), np.full_like(level, 30)], axis=1)
+    picture = _panels(yours, theirs, diff)
+    legend = {"empty": "no fragment", "both": "your color agrees with softpipe's",
+              "adds": "your color differs (brighter: by more)"}
+    pixels = [(int(cols[k]), h - 1 - int(rows[k])) for k in range(n)]
+    wrong = np.nonzero(bad)[0]
+    if not len(wrong):
+        return Difference([], [], picture, f"Blinn–Phong: your colors and softpipe's agree at all {n} fragments", legend)
+    worst = int(wrong[np.argmax(error[wrong])])
+    lines = [f"your Blinn–Phong differs from softpipe's at {len(wrong)} of {n} fragment(s) (by up to "
+             f"{error[worst]:.3g}, at pixel {pixels[worst]}); the largest differences:"]
+    for k in sorted(wrong, key=lambda k: (-error[k], pixels[k][1], pixels[k][0]))[:SHOWN]:
+        nn = N[k] / np.linalg.norm(N[k])
+        lines.append(f"  pixel {pixels[k]}: yours {_vector(mine[k])}, softpipe's {_vector(ref[k])} "
+                     f"(N·L = {float(nn @ np.asarray(L)):.4g})")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    for flags, text in SHADING_MISTAKES:
+        guess = _blinn_phong_rows(P[wrong], N[wrong], L, m, light, lighting.global_ambient, **flags)
+        if np.allclose(guess, mine[wrong], rtol=0, atol=SHADING_TOLERANCE):
+            lines.append(text)
+            break
+    lines.append("(the picture: your colors, softpipe's, and where they differ in red)")
+    d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+# ------------------------------------------------------------------------------ textures
+
+#: How far a filtered texel may be from softpipe's and still agree (texels are float32).
+TEXTURE_TOLERANCE = 1e-5
+
+
+def _wrap_rows(i: np.ndarray, size: int, mode: str) -> np.ndarray:
+    if mode == "repeat":
+        return np.mod(i, size)
+    if mode == "clamp":
+        return np.clip(i, 0, size - 1)
+    m = np.mod(i, 2 * size) - size                          # mirrored repeat (GL Table 8.20)
+    return size - 1 - np.where(m < 0, -(1 + m), m)
+
+
+def _bilinear_rows(image: np.ndarray, u: np.ndarray, v: np.ndarray, wrap_s: str, wrap_t: str, *, half=True,
+                   flip=True, swap=False, nearest=False) -> np.ndarray:
+    """GL's LINEAR (or NEAREST) on one level at many (u, v), and its classic mistakes by flag."""
+    h, w = image.shape[:2]
+    x, y = u * w - (0.5 if half and not nearest else 0.0), v * h - (0.5 if half and not nearest else 0.0)
+    i0, j0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    a, b = x - i0, y - j0
+    if swap:
+        a, b = 1 - a, 1 - b
+
+    def texel(i, j):
+        i, j = _wrap_rows(i, w, wrap_s), _wrap_rows(j, h, wrap_t)
+        return image[h - 1 - j, i] if flip else image[j, i]
+    if nearest:
+        return texel(i0, j0)
+    return ((1 - a) * (1 - b))[:, None] * texel(i0, j0) + (a * (1 - b))[:, None] * texel(i0 + 1, j0) + \
+        ((1 - a) * b)[:, None] * texel(i0, j0 + 1) + (a * b)[:, None] * texel(i0 + 1, j0 + 1)
+
+
+#: The classic mistakes :func:`check_bilinear` recognizes: the flags of :func:`_bilinear_rows` (and the wrap)
+#: that reproduce the answer, and what to say.
+TEXTURE_MISTAKES = [
+    (dict(nearest=True), "your answer is the nearest texel (GL's NEAREST): bilinear filtering weights the four "
+                         "texels around (u·W − ½, v·H − ½) by how near their centres are"),
+    (dict(half=False), "texel centres sit at (i + ½)/W: subtract ½ before the floor, x = u·W − ½, i0 = floor(x), "
+                       "α = x − i0 (and the same in v)"),
+    (dict(flip=False), "your v runs down the image: row 0 of the image is its top, and v = 0 is its bottom, so "
+                       "texel row j (counted from the bottom) is image[H − 1 − j]"),
+    (dict(swap=True), "your weights are the wrong way round: texel i0 + 1 gets α, texel i0 gets 1 − α"),
+    (dict(wrap="clamp"), "you clamp the texel indices at the edges (CLAMP_TO_EDGE): wrap them by the texture's mode "
+                         "(repeat: i mod W and j mod H, each of the four texels on its own)"),
+]
+
+
+def check_bilinear(bilinear: Callable, trace, texture, varying: str = "uv", *,
+                   show: Optional[bool] = None) -> Difference:
+    """A student's ``bilinear(image, u, v)`` against :meth:`softpipe.Texture2D.sample` (GL's LINEAR on
+    level 0, the texture's wrap modes) at every fragment of ``trace``.
+
+    ``image`` is the texture's level 0 (float64 [H, W, 4], row 0 the top, as ``texture.levels[0]``); ``(u, v)``
+    the texture coordinates the fragment shader received there (the varying ``varying``); the answer is
+    the filtered (r, g, b, a). The texture's filter must be ``"bilinear"``. The picture shows your
+    colors, softpipe's, and where they differ (red, brighter the larger the difference).
+
+    Raises
+    ------
+    AssertionError
+        ``"your bilinear filter differs from softpipe's at N of M fragment(s) …"``, the first few fragments
+        with their uv, and the mistake when it is a classic one (:data:`TEXTURE_MISTAKES`: the nearest
+        texel, the half-texel offset, v not flipped, the weights swapped, clamping instead of repeating).
+    ValueError
+        When the texture does not filter bilinearly, the draw has no such varying, or the answer is not 4
+        (or 3) numbers.
+    """
+    if getattr(texture, "filter", None) != "bilinear":
+        raise ValueError(f"check_bilinear compares with a texture whose filter is 'bilinear', got "
+                         f"{getattr(texture, 'filter', type(texture).__name__)!r}: Texture2D(image, filter='bilinear')")
+    layout = trace.primitives.layout
+    if varying not in layout.names:
+        raise ValueError(f"check_bilinear: the draw has no varying {varying!r}; its varyings are {list(layout.names)}")
+    f = trace.fragments
+    n = len(f)
+    values, _ = trace.fragment_varyings(np.arange(n))
+    uv = values[:, layout.slice(varying)][:, :2]
+    image = np.asarray(texture.levels[0], np.float64)
+    mine, ref = np.zeros((n, 4)), np.zeros((n, 4))
+    for k in range(n):
+        u, v = float(uv[k, 0]), float(uv[k, 1])
+        got = np.asarray(bilinear(image.copy(), u, v), dtype=np.float64).reshape(-1)
+        if got.shape not in ((3,), (4,)):
+            raise ValueError(f"bilinear must return the filtered color (r, g, b, a), got an array of shape {got.shape}")
+        mine[k, :len(got)] = got
+        ref[k] = texture.sample(u, v)
+        if len(got) == 3:
+            mine[k, 3] = ref[k, 3]
+    error = np.abs(mine - ref).max(axis=1) if n else np.zeros(0)
+    error = np.where(np.isnan(error), np.inf, error)
+    h, w = trace.height, trace.width
+    yours, theirs, diff = (np.empty((h, w, 3), np.uint8) for _ in range(3))
+    for img in (yours, theirs, diff):
+        img[:] = COLORS["empty"]
+    rows, cols = np.asarray(f.y), np.asarray(f.x)
+    yours[rows, cols] = np.round(255 * np.clip(np.nan_to_num(mine[:, :3]), 0, 1)).astype(np.uint8)
+    theirs[rows, cols] = np.round(255 * np.clip(ref[:, :3], 0, 1)).astype(np.uint8)
+    bad = error > TEXTURE_TOLERANCE
+    diff[rows, cols] = COLORS["both"]
+    if bad.any():
+        level = np.minimum(255, 90 + np.round(1650 * np.minimum(error[bad], 0.1))).astype(np.uint8)
+        diff[rows[bad], cols[bad]] = np.stack([level, np.full_like(level, 40), np.full_like(level, 30)], axis=1)
+    picture = _panels(yours, theirs, diff)
+    legend = {"empty": "no fragment", "both": "your color agrees with softpipe's",
+              "adds": "your color differs (brighter: by more)"}
+    pixels = [(int(cols[k]), h - 1 - int(rows[k])) for k in range(n)]
+    wrong = np.nonzero(bad)[0]
+    if not len(wrong):
+        return Difference([], [], picture, f"bilinear filtering: your colors and softpipe's agree at all {n} "
+                          "fragments", legend)
+    worst = int(wrong[np.argmax(error[wrong])])
+    lines = [f"your bilinear filter differs from softpipe's at {len(wrong)} of {n} fragment(s) (by up to "
+             f"{error[worst]:.3g}, at pixel {pixels[worst]}):"]
+    for k in sorted(wrong, key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
+        lines.append(f"  pixel {pixels[k]}: uv {_vector(uv[k])}: yours {_vector(mine[k])}, softpipe's "
+                     f"{_vector(ref[k])}")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    for flags, text in TEXTURE_MISTAKES:
+        flags = dict(flags)
+        ws = wt = flags.pop("wrap", None)
+        if ws is not None and ws == texture.wrap_s and wt == texture.wrap_t:
+            continue
+        guess = _bilinear_rows(image, uv[wrong, 0], uv[wrong, 1], ws or texture.wrap_s, wt or texture.wrap_t, **flags)
+        if np.allclose(guess, mine[wrong], rtol=0, atol=TEXTURE_TOLERANCE):
+            lines.append(text)
+            break
+    lines.append(f"(the picture: your colors, softpipe's, and where they differ in red; a {texture.width}×"
+                 f"{texture.height} texture, wrap {texture.wrap_s!r})")
+    d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+# ------------------------------------------------------------------------------ shadows
+
+#: How far a shadow-map visibility may be from softpipe's and still agree (both average whole taps).
+SHADOW_TOLERANCE = 1e-9
+
+
+def _compare_rows(depth: np.ndarray, x: np.ndarray, y: np.ndarray, ref: np.ndarray, r: int, *, reversed_test=False,
+                  outside_lit=True, average_depths=False, flip=False, rounded=False) -> np.ndarray:
+    """The shadow-map compare with percentage-closer filtering at many points, and its classic mistakes by flag."""
+    h, w = depth.shape
+    i0 = (np.floor(x + 0.5) if rounded else np.floor(x)).astype(np.int64)
+    j0 = (np.floor(y + 0.5) if rounded else np.floor(y)).astype(np.int64)
+    lit, depths, inside_taps = np.zeros(len(x)), np.zeros(len(x)), np.zeros(len(x))
+    for dj in range(-r, r + 1):
+        for di in range(-r, r + 1):
+            i, j = i0 + di, j0 + dj
+            inside = (i >= 0) & (j >= 0) & (i < w) & (j < h)
+            d = np.where(inside, depth[np.clip(h - 1 - j if flip else j, 0, h - 1), np.clip(i, 0, w - 1)], 1.0)
+            passes = (ref >= d) if reversed_test else (ref <= d)
+            lit += np.where(inside, passes, 1.0 if outside_lit else 0.0)
+            depths += d
+            inside_taps += 1
+    if average_depths:
+        return (ref <= depths / inside_taps).astype(np.float64)
+    return lit / (2 * r + 1) ** 2
+
+
+#: The classic mistakes :func:`check_shadow_compare` recognizes: the flags of :func:`_compare_rows` that
+#: reproduce the answer, and what to say.
+SHADOW_MISTAKES = [
+    (dict(reversed_test=True), "your test is the wrong way round: a point is lit where its depth from the light is "
+                               "less than or equal to the map's (ref ≤ depth, GL_LEQUAL): nothing stands between it "
+                               "and the light"),
+    (dict(average_depths=True), "you average the depths and compare once: percentage-closer filtering compares "
+                                "at each of the (2r+1)² taps and averages the results (0 or 1 each), not the depths"),
+    (dict(outside_lit=False), "a tap outside the map must count as lit (GL's CLAMP_TO_BORDER with border depth 1: "
+                              "no caster there)"),
+    (dict(flip=True), "your rows run down the map: depth[j, i] is texel column i, row j counted from the bottom "
+                      "(window coordinates, like x and y)"),
+    (dict(rounded=True), "you round x and y to the nearest texel: the point lies in texel (floor(x), floor(y)), "
+                         "texel i covering [i, i + 1)"),
+]
+
+
+def check_shadow_compare(shadow_compare: Callable, trace, shadow_maps, light: int = 0, *,
+                         show: Optional[bool] = None) -> Difference:
+    """A student's ``shadow_compare(depth, x, y, ref, r)`` against softpipe's shadow lookup
+    (:meth:`softpipe.ShadowMaps.visibility`'s V_j, FORMULAS §21) at every fragment of ``trace``.
+
+    ``trace`` is a draw of the surface that receives the shadow by a built-in program (its varying
+    ``position`` is the eye-space point; its uniform ``view`` the camera's). For each fragment the answer
+    gets light ``light``'s shadow map ``depth`` (float64 [res, res], row 0 at the bottom: ``depth[j, i]``
+    is texel (i, j)), the point's position (x, y) on the map in texels and its depth ``ref`` from the
+    light (as :func:`softpipe.light.shadowmap.map_coordinates` finds them), and the PCF radius ``r``; it
+    returns the share of the light that reaches the point, 0 to 1. The picture shows your visibility,
+    softpipe's (bright: lit) and where they differ.
+
+    Raises
+    ------
+    AssertionError
+        ``"your shadow compare differs from softpipe's at N of M fragment(s) …"``, the first few fragments,
+        and the mistake when it is a classic one (:data:`SHADOW_MISTAKES`).
+    ValueError
+        When the light has not exactly one opaque shadow map (a directional light, or a spot light up to
+        70°), the draw has no varying ``position`` or uniform ``view``, or the answer is not one number.
+    """
+    from softpipe.light.material import Lighting
+    from softpipe.light.shadowmap import light_visibility, map_coordinates
+    if not 0 <= light < len(shadow_maps.lights):
+        raise ValueError(f"check_shadow_compare: light {light} is not one of the {len(shadow_maps.lights)} light(s) "
+                         "of these shadow maps")
+    first, count, _ = (int(c) for c in shadow_maps.light_maps[light])
+    if count != 1 or shadow_maps.maps[first].transparent_depth is not None:
+        raise ValueError(f"check_shadow_compare needs a light with one shadow map and opaque casters only (a directional "
+                         f"light, or a spot light up to 70°); light {light} has {count} map(s)"
+                         + ("" if count != 1 else " with transparent casters"))
+    names = trace.primitives.layout.names
+    view = getattr(trace.call.uniforms, "view", None)
+    if "position" not in names or view is None:
+        raise ValueError(f"check_shadow_compare needs a draw by a built-in program (the eye-space varying 'position' "
+                         f"and the uniform 'view'); the draw's varyings are {list(names)}")
+    shadow_map = shadow_maps.maps[first]
+    depth = np.asarray(shadow_map.depth, np.float64)
+    r = shadow_map.settings.pcf
+    lighting = shadow_maps.lighting_uniform(Lighting(shadow_maps.lights), np.asarray(view, np.float64))
+    f = trace.fragments
+    n = len(f)
+    varyings, _ = trace.fragment_varyings(np.arange(n))
+    P = varyings[:, trace.primitives.layout.slice("position")]
+    xs, ys, refs = np.zeros(n), np.zeros(n), np.zeros(n)
+    mine, ref = np.ones(n), np.ones(n)
+    inside = np.zeros(n, bool)
+    for k in range(n):
+        p = tuple(float(c) for c in P[k])
+        x, y, z, ok = map_coordinates(lighting.shadows, first, p)
+        ref[k] = light_visibility(lighting, light, p)[0]
+        if not ok:                                        # behind the light: lit, nothing to compare
+            continue
+        inside[k], xs[k], ys[k], refs[k] = True, x, y, z
+        got = np.asarray(shadow_compare(depth.copy(), float(x), float(y), float(z), r), dtype=np.float64)
+        if got.size != 1:
+            raise ValueError(f"shadow_compare must return one number, the share of the light that passes (0 to 1), "
+                             f"got an array of shape {got.shape}")
+        mine[k] = float(got.reshape(-1)[0])
+    error = np.abs(mine - ref)
+    error = np.where(np.isnan(error), np.inf, error)
+    h, w = trace.height, trace.width
+    yours, theirs, diff = (np.empty((h, w, 3), np.uint8) for _ in range(3))
+    for img in (yours, theirs, diff):
+        img[:] = COLORS["empty"]
+    rows, cols = np.asarray(f.y), np.asarray(f.x)
+    yours[rows, cols] = np.round(40 + 200 * np.clip(np.nan_to_num(mine), 0, 1))[:, None].astype(np.uint8)
+    theirs[rows, cols] = np.round(40 + 200 * np.clip(ref, 0, 1))[:, None].astype(np.uint8)
+    bad = error > SHADOW_TOLERANCE
+    diff[rows, cols] = COLORS["both"]
+    diff[rows[bad], cols[bad]] = COLORS["adds"]
+    picture = _panels(yours, theirs, diff)
+    legend = {"empty": "no fragment", "both": "your visibility agrees with softpipe's",
+              "adds": "your visibility differs"}
+    pixels = [(int(cols[k]), h - 1 - int(rows[k])) for k in range(n)]
+    wrong = np.nonzero(bad)[0]
+    if not len(wrong):
+        return Difference([], [], picture, f"the shadow compare: your visibility and softpipe's agree at all {n} "
+                          f"fragments ({int((ref < 1).sum())} of them in shadow, wholly or in part)", legend)
+    lines = [f"your shadow compare differs from softpipe's at {len(wrong)} of {n} fragment(s) (PCF radius r = {r}, "
+             f"a {depth.shape[1]}×{depth.shape[0]} map):"]
+    for k in sorted(wrong, key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
+        i, j = int(np.floor(xs[k])), int(np.floor(ys[k]))
+        stored = f"{depth[j, i]:.6g}" if 0 <= i < depth.shape[1] and 0 <= j < depth.shape[0] else "none (outside)"
+        lines.append(f"  pixel {pixels[k]}: yours {mine[k]:.4g}, softpipe's {ref[k]:.4g} (x = {xs[k]:.4g}, "
+                     f"y = {ys[k]:.4g}, ref = {refs[k]:.6g}; texel ({i}, {j}) holds {stored})")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    for flags, text in SHADOW_MISTAKES:
+        guess = _compare_rows(depth, xs[wrong], ys[wrong], refs[wrong], r, **flags)
+        if np.allclose(guess, mine[wrong], rtol=0, atol=SHADOW_TOLERANCE):
+            lines.append(text)
+            break
+    else:
+        if r and np.allclose(_compare_rows(depth, xs[wrong], ys[wrong], refs[wrong], 0), mine[wrong], rtol=0,
+                             atol=SHADOW_TOLERANCE):
+            lines.append(f"you compare one texel: with PCF radius r = {r}, compare at each of the (2r+1)² = "
+                         f"{(2 * r + 1) ** 2} texels (floor(x) + di, floor(y) + dj), −r ≤ di, dj ≤ r, and average")
+    lines.append("(the picture: your visibility, softpipe's (bright: lit, dark: in shadow), and where they differ "
+                 "in red)")
+    d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+# ------------------------------------------------------------------------------ rays
+
+#: How far a hit's t and barycentrics may be from softpipe's and still agree (Möller–Trumbore and softpipe's
+#: watertight test round differently).
+RAY_TOLERANCE = 1e-9
+
+
+def camera_rays(camera, width: int, height: int) -> Tuple[np.ndarray, np.ndarray]:
+    """One ray per pixel of a ``width``×``height`` picture seen by ``camera`` (a :class:`softpipe.Camera`):
+    (origins [H·W, 3], directions [H·W, 3], unit length), row by row from the top, each from the eye
+    through its pixel's centre (x + ½, y + ½) on the near plane (the inverse of projection · view)."""
+    view = camera.view
+    inverse = np.linalg.inv(camera.projection(width / height) @ view)
+    rows, cols = np.mgrid[0:height, 0:width]
+    ndc_x = 2 * (cols.ravel() + 0.5) / width - 1
+    ndc_y = 1 - 2 * (rows.ravel() + 0.5) / height                  # row 0 is the top
+    near = inverse @ np.stack([ndc_x, ndc_y, -np.ones_like(ndc_x), np.ones_like(ndc_x)])
+    points = (near[:3] / near[3]).T
+    eye = np.asarray(camera.eye, np.float64)
+    directions = points - eye
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return np.tile(eye, (len(points), 1)), directions
+
+
+def _moller_trumbore_rows(o, d, v0, v1, v2, *, cull=False, behind=False, swap=False, no_sum=False,
+                          raw_t=False) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Möller–Trumbore for one triangle and many rays: (hit, t, b1, b2), and its classic mistakes by flag."""
+    e1, e2 = v1 - v0, v2 - v0
+    p = np.cross(d, e2)
+    det = p @ e1
+    ok = det > 0 if cull else det != 0
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=det != 0)
+    s = o - v0
+    u = (s * p).sum(axis=1) * inv
+    q = np.cross(s, e1)
+    v = (d * q).sum(axis=1) * inv
+    t = (q @ e2) * (1.0 if raw_t else inv)
+    hit = ok & (u >= 0) & (v >= 0) & ((u + v <= 1) | no_sum) & ((t > 0) | behind)
+    return (hit, t, v, u) if swap else (hit, t, u, v)
+
+
+#: The classic mistakes :func:`check_ray_triangle` recognizes: the flags of :func:`_moller_trumbore_rows`
+#: that reproduce the answer, and what to say.
+RAY_MISTAKES = [
+    (dict(cull=True), "your test misses triangles seen from behind (det < 0): softpipe's rays hit both sides of a "
+                      "triangle, so only det = 0 (the ray parallel to the plane) is no hit"),
+    (dict(behind=True), "your test counts hits behind the ray's origin: a hit needs t > 0 (the ray starts at the eye)"),
+    (dict(swap=True), "your barycentrics are swapped: b1 is the weight of v1 (Möller–Trumbore's u = (s·p)/det) and b2 "
+                      "of v2 (v = (d·q)/det)"),
+    (dict(no_sum=True), "your test accepts points beyond the edge v1–v2: a hit needs u ≥ 0, v ≥ 0 and u + v ≤ 1"),
+    (dict(raw_t=True), "your t is not divided by det: t = (e2·q)/det"),
+]
+
+
+def check_ray_triangle(intersect: Callable, vertices, triangles, camera, width: int, height: int, *,
+                       show: Optional[bool] = None) -> Difference:
+    """A student's ray–triangle test ``intersect(origin, direction, v0, v1, v2)`` (Möller–Trumbore), used for
+    the closest hit, against softpipe's BVH (:meth:`softpipe.rays.bvh.BVH.closest`) on a grid of rays: one
+    per pixel of a ``width``×``height`` picture seen by ``camera`` (:func:`camera_rays`).
+
+    ``intersect`` returns None for a miss or (t, b1, b2): the hit point is origin + t·direction =
+    (1 − b1 − b2)·v0 + b1·v1 + b2·v2, t > 0, either side of the triangle. For each ray the check calls it
+    on every triangle in order and keeps the nearest hit (the first at equal t, as softpipe does). Triangle,
+    t and barycentrics must agree, t and b to :data:`RAY_TOLERANCE`. The picture shows the triangle each
+    ray hits, yours and softpipe's (a color per triangle), and the rays that differ in red.
+
+    Raises
+    ------
+    AssertionError
+        ``"your closest hits differ from softpipe's for N of M ray(s) …"``, the first few rays, and the
+        mistake when it is a classic one (:data:`RAY_MISTAKES`).
+    ValueError
+        When ``vertices`` is not [V, 3] or ``triangles`` not [T, 3] indices into it, or the answer is not
+        None or three numbers.
+    """
+    from softpipe.rays.bvh import BVH
+    verts = np.asarray(vertices, np.float64)
+    tris = np.asarray(triangles)
+    if verts.ndim != 2 or verts.shape[1] != 3 or tris.ndim != 2 or tris.shape[1] != 3 or len(tris) == 0:
+        raise ValueError(f"check_ray_triangle needs vertices [V, 3] and triangles [T, 3] (T ≥ 1), got arrays of "
+                         f"shape {verts.shape} and {tris.shape}")
+    if not np.issubdtype(tris.dtype, np.integer) or tris.min() < 0 or tris.max() >= len(verts):
+        raise ValueError(f"check_ray_triangle: triangles must be whole-number indices into the {len(verts)} vertices")
+    origins, directions = camera_rays(camera, width, height)
+    ref_id, ref_t, ref_b = BVH.build(verts, tris).closest(origins, directions)
+    n = len(origins)
+    mine_id, mine_t, mine_b = np.full(n, -1), np.full(n, np.inf), np.zeros((n, 2))
+    corners = verts[tris]
+    for r in range(n):
+        for k, (a, b, c) in enumerate(corners):
+            got = intersect(origins[r].copy(), directions[r].copy(), a.copy(), b.copy(), c.copy())
+            if got is None or got is False:
+                continue
+            values = np.asarray(got, dtype=np.float64).reshape(-1)
+            if values.shape != (3,):
+                raise ValueError(f"intersect must return None for a miss or (t, b1, b2) for a hit, got an array of "
+                                 f"shape {values.shape}")
+            if values[0] < mine_t[r]:
+                mine_id[r], mine_t[r], mine_b[r] = k, values[0], values[1:]
+    same_id = mine_id == ref_id
+    hit = ref_id >= 0
+    t_mine, t_ref = np.where(hit, mine_t, 0.0), np.where(hit, ref_t, 0.0)       # a miss's t is inf on both sides
+    close = same_id & (~hit | ((np.abs(t_mine - t_ref) <= RAY_TOLERANCE * np.maximum(1.0, np.abs(t_ref)))
+                               & (np.abs(mine_b - ref_b) <= RAY_TOLERANCE).all(axis=1)))
+    palette = np.array([(230, 60, 40), (250, 200, 40), (60, 160, 70), (40, 90, 220), (200, 90, 200), (90, 200, 210),
+                        (240, 140, 60), (150, 110, 70), (170, 210, 90), (120, 120, 240), (240, 120, 160),
+                        (200, 200, 200)], np.uint8)
+
+    def ids_picture(ids):
+        img = np.empty((n, 3), np.uint8)
+        img[:] = COLORS["empty"]
+        img[ids >= 0] = palette[ids[ids >= 0] % len(palette)]
+        return img.reshape(height, width, 3)
+    diff = np.empty((n, 3), np.uint8)
+    diff[:] = COLORS["empty"]
+    diff[hit | (mine_id >= 0)] = COLORS["both"]
+    diff[~close] = COLORS["adds"]
+    picture = _panels(ids_picture(mine_id), ids_picture(ref_id), diff.reshape(height, width, 3))
+    legend = {"empty": "no triangle hit", "both": "your closest hit agrees with softpipe's",
+              "adds": "your closest hit differs"}
+    pixels = [(r % width, height - 1 - r // width) for r in range(n)]
+    wrong = np.nonzero(~close)[0]
+    if not len(wrong):
+        return Difference([], [], picture, f"the closest hits: yours and softpipe's agree for all {n} rays "
+                          f"({int(hit.sum())} hit one of the {len(tris)} triangles)", legend)
+
+    def what(i, t, b):
+        return "no triangle" if i < 0 else f"triangle {i} at t = {t:.6g}, b = {_vector(b)}"
+    lines = [f"your closest hits differ from softpipe's for {len(wrong)} of {n} ray(s) (one per pixel of a "
+             f"{width}×{height} picture):"]
+    for r in sorted(wrong, key=lambda r: (pixels[r][1], pixels[r][0]))[:SHOWN]:
+        lines.append(f"  pixel {pixels[r]}: yours {what(mine_id[r], mine_t[r], mine_b[r])}, softpipe's "
+                     f"{what(ref_id[r], ref_t[r], ref_b[r])}")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    for flags, text in RAY_MISTAKES:
+        best_id, best_t, best_b = np.full(len(wrong), -1), np.full(len(wrong), np.inf), np.zeros((len(wrong), 2))
+        for k, (a, b, c) in enumerate(corners):
+            h, t, b1, b2 = _moller_trumbore_rows(origins[wrong], directions[wrong], a, b, c, **flags)
+            better = h & (t < best_t)
+            best_id[better], best_t[better], best_b[better] = k, t[better], np.stack([b1, b2], axis=1)[better]
+        if np.array_equal(best_id, mine_id[wrong]) and np.allclose(
+                np.where(best_id >= 0, best_t, 0.0), np.where(best_id >= 0, mine_t[wrong], 0.0), rtol=1e-9, atol=1e-9) \
+                and np.allclose(best_b, mine_b[wrong], rtol=0, atol=1e-9):
+            lines.append(text)
+            break
+    lines.append("(the picture: the triangle each ray hits first, yours and softpipe's, a color per triangle; the rays "
+                 "that differ in red)")
+    d = Difference([pixels[r] for r in wrong], [], picture, "\n".join(lines), legend)
     _show(d, show)
     raise AssertionError(d.message)

@@ -1,0 +1,18 @@
+# Lesson 08, the exercise completed: GL's LINEAR filter on one level, the texture repeating.
+
+import math
+
+
+def bilinear(image, u, v):
+    """The four texels whose centres surround (u·W − ½, v·H − ½), weighted by nearness; v = 0 is the
+    image's bottom row; each index wrapped on its own (repeat)."""
+    h, w = image.shape[:2]
+    x, y = u * w - 0.5, v * h - 0.5
+    i0, j0 = math.floor(x), math.floor(y)
+    a, b = x - i0, y - j0
+
+    def texel(i, j):
+        return image[h - 1 - (j % h), i % w]
+
+    return ((1 - a) * (1 - b) * texel(i0, j0) + a * (1 - b) * texel(i0 + 1, j0)
+            + (1 - a) * b * texel(i0, j0 + 1) + a * b * texel(i0 + 1, j0 + 1))
