@@ -57,8 +57,8 @@ def test_help_examples_use_the_bundled_models(capsys):
 
 def test_no_command_is_an_error(capsys):
     code, _, err = run_cli(capsys)
-    assert code == 2 and err.strip() == ("softpipe: error: a command is required: render, turntable, batch, explore, "
-                                         "demo or programs (see 'softpipe --help')")
+    assert code == 2 and err.strip() == ("softpipe: error: a command is required: render, turntable, demo, explore, "
+                                         "view, programs or batch (see 'softpipe --help')")
 
 
 def test_python_dash_m_softpipe():

@@ -36,6 +36,31 @@ def test_the_pages_show_commands():
     assert len(COMMANDS) >= 8
 
 
+def _view_once(monkeypatch):
+    """``softpipe view`` serves until Ctrl-C: instead of serving forever, its server answers the page and
+    one frame, then stops as Ctrl-C stops it."""
+    import urllib.request
+
+    from softpipe.tools.viewer import ViewerServer
+
+    def serve_once(server):
+        import threading
+        answered = {}
+
+        def fetch():
+            for path in ("/", "/api/frame"):
+                with urllib.request.urlopen(server.url.rstrip("/") + path, timeout=120) as reply:
+                    answered[path] = (reply.status, reply.headers.get_content_type())
+        client = threading.Thread(target=fetch)
+        client.start()
+        server.timeout = 0.2                         # handle_request returns when the client has gone
+        while client.is_alive():
+            server.handle_request()
+        assert answered == {"/": (200, "text/html"), "/api/frame": (200, "image/png")}, answered
+        raise KeyboardInterrupt
+    monkeypatch.setattr(ViewerServer, "serve_forever", serve_once)
+
+
 @pytest.mark.parametrize("argv", COMMANDS)
 def test_the_command_runs_as_written(argv, tmp_path, monkeypatch, capsys):
     for name in ("examples", "softpipe"):           # inputs as a clone has them; outputs into tmp_path
@@ -47,8 +72,13 @@ def test_the_command_runs_as_written(argv, tmp_path, monkeypatch, capsys):
         argv = argv + ["--scheduler", "serial"]
     if argv[0] in ("render", "explore") and not {"--size", "--width", "--height"} & set(argv):
         argv = argv + ["--size", "96x72"]            # a smaller picture, the same command otherwise
+    if argv[0] == "view":                            # serves until Ctrl-C: fetch the page and a frame, then "press" it
+        _view_once(monkeypatch)
     assert main(argv + (["-q"] if argv[0] in ("render", "turntable", "batch") else [])) == 0
     out = capsys.readouterr().out
+    if argv[0] == "view":
+        assert "serving" in out and "stopped" in out, out
+        return
     if "-o" in argv:
         written = tmp_path / argv[argv.index("-o") + 1]
         if argv[0] == "batch":                       # a folder of frames, its manifest and contact sheet

@@ -28,7 +28,7 @@ import threading
 from pathlib import Path
 from typing import IO, Callable, Union
 
-__all__ = ["PathPolicyError", "resolve_inside", "check_regular_file", "atomic_write", "check_writable", "excerpt",
+__all__ = ["PathPolicyError", "resolve_inside", "check_regular_file", "atomic_write", "atomic_write_bytes", "check_writable", "excerpt",
            "excerpt_path"]
 
 PathLike = Union[str, os.PathLike]
@@ -145,6 +145,11 @@ def atomic_write(path: PathLike, write: Callable[[IO[bytes]], object]) -> None:
             raise
         finally:
             pending.discard(tmp)
+
+
+def atomic_write_bytes(path: PathLike, data: bytes) -> None:
+    """:func:`atomic_write` of ``data``: ``path`` holds all of it or is left as it was."""
+    atomic_write(path, lambda f: f.write(data))
 
 
 # The temporary files being written, and how many writes of the main thread have SIGTERM's handler up.

@@ -340,7 +340,7 @@ class DrawCall:
             except BaseException:
                 if saved is not None:
                     fb.samples_color[...], fb.samples_depth[...], fb.samples_stencil[...] = saved[:3]
-                    if saved[3] is not None:
+                    if saved[3] is not None and fb.record is not None:
                         fb.record[...] = saved[3]
                 raise
             clock("fragment")

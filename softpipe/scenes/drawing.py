@@ -37,7 +37,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 
@@ -669,6 +669,7 @@ def _safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-") or "draw"
 
 
+@overload
 def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
            program: Union[str, Program, Callable, None] = None, texture=None, background=None, samples: Optional[str] = None, msaa: bool = False,
            cull: Optional[str] = None, wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
@@ -677,7 +678,30 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
            progress: Optional[Callable[[int, int, SceneObject], None]] = None,
            allow_outside: bool = False, shadows: bool = False, point_size: Optional[float] = None,
            line_width: Optional[float] = None, srgb: bool = False,
-           outputs: Optional[Sequence[str]] = None) -> Union[Framebuffer, "RenderOutputs"]:
+           outputs: None = None) -> Framebuffer: ...
+
+
+@overload
+def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
+           program: Union[str, Program, Callable, None] = None, texture=None, background=None, samples: Optional[str] = None, msaa: bool = False,
+           cull: Optional[str] = None, wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
+           elevation: Optional[float] = None, fovy: Optional[float] = None, camera: Optional[Camera] = None,
+           stages=None, trace: bool = False, results: Optional[list] = None,
+           progress: Optional[Callable[[int, int, SceneObject], None]] = None,
+           allow_outside: bool = False, shadows: bool = False, point_size: Optional[float] = None,
+           line_width: Optional[float] = None, srgb: bool = False,
+           outputs: Sequence[str]) -> RenderOutputs: ...
+
+
+def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
+           program: Union[str, Program, Callable, None] = None, texture=None, background=None, samples: Optional[str] = None, msaa: bool = False,
+           cull: Optional[str] = None, wireframe: bool = False, wire_color=None, azimuth: Optional[float] = None,
+           elevation: Optional[float] = None, fovy: Optional[float] = None, camera: Optional[Camera] = None,
+           stages=None, trace: bool = False, results: Optional[list] = None,
+           progress: Optional[Callable[[int, int, SceneObject], None]] = None,
+           allow_outside: bool = False, shadows: bool = False, point_size: Optional[float] = None,
+           line_width: Optional[float] = None, srgb: bool = False,
+           outputs: Optional[Sequence[str]] = None) -> Union[Framebuffer, RenderOutputs]:
     """``softpipe render MODEL`` in Python: the same picture, as a :class:`Framebuffer`.
 
     ``softpipe.render("teapot").save("teapot.png")`` writes what ``softpipe render

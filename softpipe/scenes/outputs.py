@@ -107,11 +107,12 @@ class RenderOutputs(Mapping):
 
 def _pixel_sample(fb: Framebuffer) -> Tuple[np.ndarray, np.ndarray]:
     """Each pixel's record value and depth, from its sample of least depth (the first of equals)."""
-    depth = fb.samples_depth
+    depth, record = fb.samples_depth, fb.record
+    assert record is not None                   # render made the framebuffer with record=True
     if fb.samples == 1:
-        return fb.record[0].copy(), depth[0].copy()
+        return record[0].copy(), depth[0].copy()
     pick = np.argmin(depth, axis=0)[None]
-    return (np.take_along_axis(fb.record, pick, axis=0)[0],
+    return (np.take_along_axis(record, pick, axis=0)[0],
             np.take_along_axis(depth, pick, axis=0)[0].copy())
 
 
@@ -305,9 +306,9 @@ def output_picture(name: str, buffer: np.ndarray, framebuffer: Optional[Framebuf
         return np.rint(np.clip(np.nan_to_num(buffer[..., :3]), 0, 1) * 255).astype(np.uint8)
     if name in ("object_id", "triangle_id"):
         shown = buffer >= 0
-        rgb = np.zeros(buffer.shape + (3,), np.uint8)
-        rgb[shown] = ID_PALETTE[buffer[shown] % len(ID_PALETTE)]
-        return rgb
+        ids = np.zeros(buffer.shape + (3,), np.uint8)
+        ids[shown] = ID_PALETTE[buffer[shown] % len(ID_PALETTE)]
+        return ids
     if name in ("depth", "linear_depth"):
         shown = np.isfinite(buffer) & ((buffer < 1.0) if name == "depth" else True)
         gray = np.where(shown, 1.0 - 0.8 * _normalized(buffer, shown), 0.0)
@@ -348,12 +349,12 @@ def save_outputs(outputs: Mapping[str, np.ndarray], stem: Union[str, "os.PathLik
     Each file is written whole or not at all (:func:`softpipe.core.files.atomic_write`); a missing
     folder is made. Returns the paths written, two per output, in order.
     """
-    from softpipe.core.files import atomic_write
+    from softpipe.core.files import atomic_write_bytes
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     written: List[Path] = []
     for suffix, data in output_files(outputs, framebuffer).items():
         path = stem.with_name(f"{stem.name}.{suffix}")
-        atomic_write(path, lambda f, d=data: f.write(d))
+        atomic_write_bytes(path, data)
         written.append(path)
     return written

@@ -42,7 +42,7 @@ import base64
 from collections import namedtuple
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Callable, Dict, List, Mapping, Optional, Sequence, Set, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
@@ -819,7 +819,7 @@ def _fan_pixels(poly: np.ndarray, width: int, height: int) -> Set[Pixel]:
     ndc = poly[:, :3] / poly[:, 3:4]
     win = np.c_[(ndc[:, 0] + 1) * width / 2, (ndc[:, 1] + 1) * height / 2]
     tris = np.array([[win[0], win[k], win[k + 1]] for k in range(1, len(win) - 1)])
-    return set(coverage(tris, width, height).pixels())
+    return {(int(x), int(y)) for x, y in coverage(tris, width, height).pixels()}
 
 
 def check_clipping(clip_polygon: Callable, trace, *, plane=NEAR_PLANE, show: Optional[bool] = None) -> Difference:
@@ -853,16 +853,16 @@ def check_clipping(clip_polygon: Callable, trace, *, plane=NEAR_PLANE, show: Opt
         raise ValueError("check_clipping needs a trace of a triangle list (sp.draw(fb, clip, ..., trace=True)); this "
                          f"one drew {trace.primitives.input_count} {trace.primitives.kind} by the topology "
                          f"{trace.call.topology!r}")
-    cases = []
+    cases: List[Tuple[str, np.ndarray, Tuple[float, ...], np.ndarray]] = []
     p = trace.primitives
     for t in range(len(corners) // 3):
         rows = p.primitive_id == t
         cases.append((f"the draw's triangle {t}", position[corners[3 * t:3 * t + 3]], tuple(float(c) for c in plane),
                       _polygon_of_pieces(p.window[rows], p.inv_w[rows], width, height)))
-    for name, tri, pl in CLIP_CASES:
-        tri = np.asarray(tri, np.float64)
-        cases.append((name, tri, pl, _softpipe_polygon(tri, pl, width, height)))
-    results = []
+    for case, listed, case_plane in CLIP_CASES:
+        corners3 = np.asarray(listed, np.float64)
+        cases.append((case, corners3, case_plane, _softpipe_polygon(corners3, case_plane, width, height)))
+    results: List[Tuple[str, np.ndarray, Tuple[float, ...], np.ndarray, np.ndarray]] = []
     for name, tri, pl, ref in cases:
         got = clip_polygon(tri.copy(), np.array(pl))
         mine = np.asarray([] if got is None else got, dtype=np.float64)
@@ -941,7 +941,7 @@ def _blinn_phong_rows(P, N, L, m, light, global_ambient, *, normalize_n=True, to
 
 #: The classic mistakes :func:`check_blinn_phong` recognizes: the flags of :func:`_blinn_phong_rows` that
 #: reproduce the answer, and what to say.
-SHADING_MISTAKES = [
+SHADING_MISTAKES: List[Tuple[Dict[str, Any], str]] = [
     (dict(blinn=False), "you compute Phong's specular (R·V)ⁿ (FORMULAS §5); Blinn–Phong's is (N·H)₊ⁿ with the half "
                         "vector H = normalize(L + V) (FORMULAS §6)"),
     (dict(normalize_n=False), "the interpolated normal N is not of unit length: normalize it first (FORMULAS §12, "
@@ -1043,7 +1043,7 @@ def check_blinn_phong(blinn_phong: Callable, trace, *, show: Optional[bool] = No
     worst = int(wrong[np.argmax(error[wrong])])
     lines = [f"your Blinn–Phong differs from softpipe's at {len(wrong)} of {n} fragment(s) (by up to "
              f"{error[worst]:.3g}, at pixel {pixels[worst]}); the largest differences:"]
-    for k in sorted(wrong, key=lambda k: (-error[k], pixels[k][1], pixels[k][0]))[:SHOWN]:
+    for k in sorted(wrong.tolist(), key=lambda k: (-error[k], pixels[k][1], pixels[k][0]))[:SHOWN]:
         nn = N[k] / np.linalg.norm(N[k])
         lines.append(f"  pixel {pixels[k]}: yours {_vector(mine[k])}, softpipe's {_vector(ref[k])} "
                      f"(N·L = {float(nn @ np.asarray(L)):.4g})")
@@ -1096,7 +1096,7 @@ def _bilinear_rows(image: np.ndarray, u: np.ndarray, v: np.ndarray, wrap_s: str,
 
 #: The classic mistakes :func:`check_bilinear` recognizes: the flags of :func:`_bilinear_rows` (and the wrap)
 #: that reproduce the answer, and what to say.
-TEXTURE_MISTAKES = [
+TEXTURE_MISTAKES: List[Tuple[Dict[str, Any], str]] = [
     (dict(nearest=True), "your answer is the nearest texel (GL's NEAREST): bilinear filtering weights the four "
                          "texels around (u·W − ½, v·H − ½) by how near their centres are"),
     (dict(half=False), "texel centres sit at (i + ½)/W: subtract ½ before the floor, x = u·W − ½, i0 = floor(x), "
@@ -1175,7 +1175,7 @@ def check_bilinear(bilinear: Callable, trace, texture, varying: str = "uv", *,
     worst = int(wrong[np.argmax(error[wrong])])
     lines = [f"your bilinear filter differs from softpipe's at {len(wrong)} of {n} fragment(s) (by up to "
              f"{error[worst]:.3g}, at pixel {pixels[worst]}):"]
-    for k in sorted(wrong, key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
+    for k in sorted(wrong.tolist(), key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
         lines.append(f"  pixel {pixels[k]}: uv {_vector(uv[k])}: yours {_vector(mine[k])}, softpipe's "
                      f"{_vector(ref[k])}")
     if len(wrong) > SHOWN:
@@ -1225,7 +1225,7 @@ def _compare_rows(depth: np.ndarray, x: np.ndarray, y: np.ndarray, ref: np.ndarr
 
 #: The classic mistakes :func:`check_shadow_compare` recognizes: the flags of :func:`_compare_rows` that
 #: reproduce the answer, and what to say.
-SHADOW_MISTAKES = [
+SHADOW_MISTAKES: List[Tuple[Dict[str, Any], str]] = [
     (dict(reversed_test=True), "your test is the wrong way round: a point is lit where its depth from the light is "
                                "less than or equal to the map's (ref ≤ depth, GL_LEQUAL): nothing stands between it "
                                "and the light"),
@@ -1322,7 +1322,7 @@ def check_shadow_compare(shadow_compare: Callable, trace, shadow_maps, light: in
                           f"fragments ({int((ref < 1).sum())} of them in shadow, wholly or in part)", legend)
     lines = [f"your shadow compare differs from softpipe's at {len(wrong)} of {n} fragment(s) (PCF radius r = {r}, "
              f"a {depth.shape[1]}×{depth.shape[0]} map):"]
-    for k in sorted(wrong, key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
+    for k in sorted(wrong.tolist(), key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
         i, j = int(np.floor(xs[k])), int(np.floor(ys[k]))
         stored = f"{depth[j, i]:.6g}" if 0 <= i < depth.shape[1] and 0 <= j < depth.shape[0] else "none (outside)"
         lines.append(f"  pixel {pixels[k]}: yours {mine[k]:.4g}, softpipe's {ref[k]:.4g} (x = {xs[k]:.4g}, "
@@ -1389,7 +1389,7 @@ def _moller_trumbore_rows(o, d, v0, v1, v2, *, cull=False, behind=False, swap=Fa
 
 #: The classic mistakes :func:`check_ray_triangle` recognizes: the flags of :func:`_moller_trumbore_rows`
 #: that reproduce the answer, and what to say.
-RAY_MISTAKES = [
+RAY_MISTAKES: List[Tuple[Dict[str, Any], str]] = [
     (dict(cull=True), "your test misses triangles seen from behind (det < 0): softpipe's rays hit both sides of a "
                       "triangle, so only det = 0 (the ray parallel to the plane) is no hit"),
     (dict(behind=True), "your test counts hits behind the ray's origin: a hit needs t > 0 (the ray starts at the eye)"),
@@ -1476,7 +1476,7 @@ def check_ray_triangle(intersect: Callable, vertices, triangles, camera, width: 
         return "no triangle" if i < 0 else f"triangle {i} at t = {t:.6g}, b = {_vector(b)}"
     lines = [f"your closest hits differ from softpipe's for {len(wrong)} of {n} ray(s) (one per pixel of a "
              f"{width}×{height} picture):"]
-    for r in sorted(wrong, key=lambda r: (pixels[r][1], pixels[r][0]))[:SHOWN]:
+    for r in sorted(wrong.tolist(), key=lambda r: (pixels[r][1], pixels[r][0]))[:SHOWN]:
         lines.append(f"  pixel {pixels[r]}: yours {what(mine_id[r], mine_t[r], mine_b[r])}, softpipe's "
                      f"{what(ref_id[r], ref_t[r], ref_b[r])}")
     if len(wrong) > SHOWN:

@@ -430,6 +430,7 @@ def build_parser() -> argparse.ArgumentParser:
     jobs.add_argument("--force", action="store_true", help="render every frame, even those already written")
     jobs.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
     jobs.set_defaults(run=_batch)
+    parser.set_defaults(commands=tuple(sub.choices))     # for the message when none is given
     return parser
 
 
@@ -679,6 +680,7 @@ def _wrote(args, output: str, message: str) -> None:
 
 def _render(args) -> int:
     from softpipe.scenes.drawing import RENDER_SIZE, render
+    from softpipe.scenes.outputs import RenderOutputs, save_outputs
     start = time.perf_counter()
     output = _checked_output(args, _default_output(args, ".png"), _image_format)
     if args.stages and os.path.exists(args.stages) and not os.path.isdir(args.stages):
@@ -749,15 +751,15 @@ def _render(args) -> int:
         return 0
     if args.outputs and output == STDOUT:
         raise CLIError("--outputs writes files named after -o IMAGE; it does not apply with -o -")
-    fb = render(scene, stages=args.stages, results=results, progress=progress, outputs=args.outputs)
+    made = render(scene, stages=args.stages, results=results, progress=progress, outputs=args.outputs)
     for r in results:
         for path in r.pictures.values():
             _wrote(args, output, f"stage picture {path}")
-    if args.outputs:
-        from softpipe.scenes.outputs import save_outputs
-        for path in save_outputs(fb, Path(output).with_suffix(""), fb.framebuffer):
+    if isinstance(made, RenderOutputs):
+        for path in save_outputs(made, Path(output).with_suffix(""), made.framebuffer):
             _wrote(args, output, f"output {path.resolve()}")
-        fb = fb.framebuffer
+        made = made.framebuffer
+    fb = made
     where = _save_image(fb, output)
     programs = ", ".join(dict.fromkeys(r.program for r in results))
     _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
@@ -981,7 +983,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except SystemExit as e:  # --help, --version
         return int(e.code or 0) if not isinstance(e.code, str) else 2
     if not getattr(args, "command", None):
-        print("softpipe: error: a command is required: render, turntable, batch, explore, demo or programs "
+        names = args.commands
+        print(f"softpipe: error: a command is required: {', '.join(names[:-1])} or {names[-1]} "
               "(see 'softpipe --help')", file=sys.stderr)
         return 2
     keep_freed_memory()     # a program of softpipe's own: frames' large arrays reuse memory (core/runtime.py)

@@ -602,14 +602,14 @@ class _Run:
         ``.png`` first, the picture last), then its manifest line, which lists the outputs' files
         with their SHA-256; a file that cannot be written (a folder in its place, a full disk)
         fails the frame alone."""
-        from softpipe.core.files import atomic_write
+        from softpipe.core.files import atomic_write_bytes
         path = self.out / f"{frame.name}.png"
         listed: Dict[str, Dict[str, str]] = {}
         try:
             for suffix, data in (files or {}).items():
-                atomic_write(self.out / f"{frame.name}.{suffix}", lambda f, d=data: f.write(d))
+                atomic_write_bytes(self.out / f"{frame.name}.{suffix}", data)
                 listed[suffix] = {"file": f"{frame.name}.{suffix}", "sha256": hashlib.sha256(data).hexdigest()}
-            atomic_write(path, lambda f: f.write(png))
+            atomic_write_bytes(path, png)
         except OSError as e:
             self.failed(frame, _error_line(e))
             return
