@@ -379,6 +379,31 @@ def test_a_dielectric_gets_index_1_5_and_a_white_specular(tmp_path):
     assert material.kd == (0.2, 0.4, 0.6) and material.roughness == 1.0 and material.shininess == 1.0
 
 
+def test_emission_and_blended_alpha_are_read(tmp_path):
+    g = GLTF()
+    mat = g.material("glow", baseColorFactor=[1.0, 1.0, 1.0, 0.25], metallicFactor=0.0)
+    g.doc["materials"][mat].update(emissiveFactor=[0.5, 0.25, 0.0], alphaMode="BLEND")
+    opaque = g.material("mask", baseColorFactor=[1.0, 1.0, 1.0, 0.25], metallicFactor=0.0)
+    g.node(mesh=g.mesh(TETRA_P, TETRA_F, material=mat))
+    g.node(mesh=g.mesh(QUAD_P, QUAD_F, material=opaque))
+    glow, mask = load_mesh(g.write(tmp_path / "glow.gltf")).materials
+    assert glow.ke == (0.5, 0.25, 0.0) and glow.opacity == 0.25
+    assert mask.opacity == 1.0                   # alphaMode OPAQUE (the default): alpha is not read
+
+
+def test_a_texture_without_texture_coordinates_is_warned_about(tmp_path):
+    g = GLTF()
+    mat = g.material("painted", baseColorTexture={"index": g.image(png(IMAGE))})
+    g.node(mesh=g.mesh(QUAD_P, QUAD_F, material=mat))
+    path = g.write(tmp_path / "nouv.glb")
+    with pytest.warns(FormatWarning) as caught:
+        mesh = load_mesh(path)
+    assert [str(w.message) for w in caught] == [
+        f"{path}: material 'painted' has a base color texture but its mesh no texture coordinates (TEXCOORD_0); "
+        "drawn without it"]
+    assert mesh.source.textures == {} and mesh.material.ks == (1.0, 1.0, 1.0)   # drawn by cook_torrance
+
+
 def test_gltf_nodes_are_flattened_with_their_world_transforms(tmp_path):
     g = GLTF()
     red = g.material("red", baseColorFactor=[1.0, 0.0, 0.0, 1.0], metallicFactor=0.0)
@@ -405,13 +430,13 @@ def test_gltf_nodes_are_flattened_with_their_world_transforms(tmp_path):
     assert mesh.source.counts["nodes"] == 3 and mesh.source.pbr == ("red", "blue")
 
 
-def test_a_gltf_buffer_outside_its_folder_is_refused(tmp_path):
-    (tmp_path / "data.bin").write_bytes(b"\0" * 64)
+def test_a_gltf_buffer_outside_its_folder_is_refused_unless_allowed(tmp_path):
     folder = tmp_path / "model"
     folder.mkdir()
     g = GLTF()
     g.node(mesh=g.mesh(TETRA_P, TETRA_F))
     path = g.write(folder / "m.gltf")
+    (tmp_path / "data.bin").write_bytes(bytes(g.bin))
     doc = json.loads(path.read_text())
     doc["buffers"][0]["uri"] = "../data.bin"
     path.write_text(json.dumps(doc))
@@ -419,6 +444,7 @@ def test_a_gltf_buffer_outside_its_folder_is_refused(tmp_path):
         load_mesh(path)
     assert str(e.value).startswith(f"{path}: cannot read it as glTF 2.0 (damaged or unsupported): trimesh says ")
     assert "leads out of the folder" in str(e.value) and "allow_outside=True" in str(e.value)
+    assert np.array_equal(load_mesh(path, allow_outside=True).positions, TETRA_P)
 
 
 def test_a_gltf_texture_that_cannot_be_read_is_warned_about(tmp_path):

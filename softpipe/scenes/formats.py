@@ -138,9 +138,9 @@ def load_mesh(path: PathLike, *, allow_outside: bool = False) -> Mesh:
     trimesh = _trimesh(path, suffix)
     if not os.path.exists(path):
         raise FileNotFoundError(f"{path}: no such file")
-    check_regular_file(path)
     if os.path.isdir(path):
         raise IsADirectoryError(f"{path}: is a directory, not a model file")
+    check_regular_file(path)        # a FIFO or device: refused before it is opened
     name = os.path.splitext(os.path.basename(path))[0]
     report = FormatReport(path=path, format=FORMATS[suffix])
     with warnings.catch_warnings(record=True) as caught:
@@ -159,7 +159,7 @@ def load_mesh(path: PathLike, *, allow_outside: bool = False) -> Mesh:
 
 
 def model_scene(path: PathLike, *, label: Optional[str] = None, texture: Any = None,
-                srgb_textures: bool = False, allow_outside: bool = False, **settings: Any):
+                srgb_textures: bool = False, allow_outside: bool = False, **settings: Any) -> Scene:
     """The scene ``softpipe render MODEL`` draws for a PLY, STL or glTF file.
 
     :meth:`Scene.from_model <softpipe.scenes.scene.Scene.from_model>` of :func:`load_mesh`'s
@@ -449,7 +449,10 @@ def _from_gltf(trimesh, path: str, suffix: str, name: str, report: FormatReport,
         tree = {}
     geometry: Dict[str, Dict[str, Any]] = dict(kwargs.get("geometry") or {})
     prim_materials = _primitive_materials(tree)
-    if len(prim_materials) != len(geometry):     # not as expected: trimesh's own (8-bit) colors instead
+    if len(prim_materials) != len(geometry):     # trimesh read the primitives otherwise than expected
+        if any(i is not None for i in prim_materials):
+            warnings.warn(f"{path}: the materials could not be matched with the {len(geometry)} primitives trimesh "
+                          "read; drawn with the default material", FormatWarning, stacklevel=3)
         prim_materials = [None] * len(geometry)
     material_of = dict(zip(geometry, prim_materials))
     specs = tree.get("materials", []) if isinstance(tree.get("materials"), list) else []
