@@ -198,16 +198,20 @@ def test_polygons_of_a_ply_are_split_into_triangles(tmp_path):
     assert pent.indices.tolist() == [[0, 1, 2], [0, 2, 4], [0, 4, 3]]
 
 
-@pytest.mark.parametrize("kind", ["ascii.ply", "ascii.stl", "binary.ply"])
-def test_ply_and_stl_render_byte_for_byte_as_the_same_obj(tmp_path, kind):
+@pytest.mark.parametrize("kind", ["ascii.ply", "ascii.stl", "binary.ply", "plain.glb"])
+def test_ply_stl_and_gltf_render_byte_for_byte_as_the_same_obj(tmp_path, kind):
     (tmp_path / "t.obj").write_text(TETRA_OBJ)
     path = tmp_path / f"t.{kind.split('.')[1]}"
     if kind == "ascii.ply":
         write_ply(path, TETRA_P, TETRA_F)
     elif kind == "ascii.stl":
         write_stl(path, TETRA_P, TETRA_F)
-    else:
+    elif kind == "binary.ply":
         path.write_bytes(trimesh.Trimesh(TETRA_P, TETRA_F, process=False).export(file_type="ply"))
+    else:       # no material, no normals: softpipe's default material and normals, as the OBJ's
+        g = GLTF()
+        g.node(mesh=g.mesh(TETRA_P, TETRA_F))
+        g.write(path)
     assert np.array_equal(load_obj(tmp_path / "t.obj").positions, TETRA_P)
     expected = render_bytes(tmp_path / "t.obj")
     assert len(np.unique(expected.reshape(-1, 3), axis=0)) > 10      # a shaded solid, not a blank
