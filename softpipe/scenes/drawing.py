@@ -51,6 +51,7 @@ from softpipe.pipeline.sampling import pattern_named
 from softpipe.pipeline.transforms import compose, normal_matrix
 from softpipe.programs import PROGRAMS, Program, get_program
 from softpipe.programs.common import lighting_uniform
+from softpipe.scenes.formats import FORMATS, model_scene
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.outputs import RenderOutputs, check_outputs, derive_outputs
 from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
@@ -515,7 +516,8 @@ def _angle_value(name: str, v, low: Optional[float] = None, high: Optional[float
 
 
 def input_kind(model) -> str:
-    """``".obj"`` or ``".toml"``: what a model name or path given to :func:`render` is.
+    """``".obj"``, ``".toml"``, or a suffix of :data:`softpipe.scenes.formats.FORMATS` (``".ply"``,
+    ``".stl"``, ``".gltf"``, ``".glb"``): what a model name or path given to :func:`render` is.
 
     A bundled model's name is its OBJ file. Raises one line naming the input: an
     unknown bare name (ValueError listing the models), a missing file
@@ -528,14 +530,16 @@ def input_kind(model) -> str:
     if os.path.isdir(path):
         raise IsADirectoryError(f"{path}: is a directory, not a model or scene file")
     kind = Path(path).suffix.lower()
-    if kind not in (".obj", ".toml"):
-        raise ValueError(f"{path}: expected a .obj model or a .toml scene file")
+    if kind not in (".obj", ".toml") and kind not in FORMATS:
+        raise ValueError(f"{path}: expected a .obj model or a .toml scene file (or a {', '.join(FORMATS)} model, "
+                         "read through trimesh)")
     return kind
 
 
 def _load_input(model, default_size, width, height, texture, azimuth, elevation, fovy,
                 allow_outside: bool = False, srgb_textures: bool = False) -> Tuple[Scene, bool]:
-    """The Scene for a model name, an OBJ or TOML path, a mesh or a Scene; and whether it is one model."""
+    """The Scene for a model name, an OBJ, PLY, STL, glTF or TOML path, a mesh or a Scene; and whether it is one
+    model."""
     size = {"width": width or default_size[0], "height": height or default_size[1]}
     angles = {"azimuth": 30.0 if azimuth is None else azimuth, "elevation": 20.0 if elevation is None else elevation,
               "fovy": 35.0 if fovy is None else fovy}
@@ -556,6 +560,9 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
                     raise ValueError(f"{label}: the file has no faces (f), lines (l) or points (p) to render")
             return Scene.from_model(model, texture=texture, srgb_textures=srgb_textures, **angles, **size,
                                     path=label), True
+        if kind in FORMATS:     # PLY, STL, glTF: read through trimesh (softpipe.scenes.formats)
+            return model_scene(path, label=os.fspath(model), texture=texture, srgb_textures=srgb_textures,
+                               allow_outside=allow_outside, **angles, **size), True
         from softpipe.scenes.scenefile import load_scene  # the one place drawing reads a scene file: render()'s input
         scene = load_scene(path, allow_outside=allow_outside)
     # a scene (file or object): its own settings, changed only by what is given
@@ -711,6 +718,7 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
     ----------
     model : str, path-like, Mesh, trimesh-like or Scene
         A bundled model's name (``"teapot"``, see :mod:`softpipe.scenes.models`), an OBJ file,
+        a PLY, STL or glTF 2.0 file (read through trimesh, :mod:`softpipe.scenes.formats`),
         a TOML scene file (:mod:`softpipe.scenes.scenefile`), a :class:`~softpipe.scenes.mesh.Mesh` or
         anything with ``.vertices`` and ``.faces``, or a :class:`~softpipe.scenes.scene.Scene`.
         A model is framed by the camera (azimuth 30°, elevation 20°, field of view 35°)

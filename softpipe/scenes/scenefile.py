@@ -48,6 +48,7 @@ from softpipe.pipeline.sampling import pattern_named
 from softpipe.pipeline.transforms import compose, rotate, rotate_x, rotate_y, rotate_z, scale, translate
 from softpipe.programs import PROGRAMS, get_program
 from softpipe.scenes import shapes
+from softpipe.scenes.formats import FORMATS, GLTF_PROGRAM, FormatError, FormatReport, load_mesh
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.models import MODELS, load_model, model_path, texture_path
 from softpipe.scenes.obj import OBJError, load_obj
@@ -346,6 +347,8 @@ class SceneReader(Reader):
             mesh = self.shape(t, shape, params)
         else:
             mesh = self.obj(t)
+        # a glTF's base color textures and which materials are its (softpipe.scenes.formats)
+        report = mesh.source if isinstance(mesh.source, FormatReport) else FormatReport("", "")
         name = t.get("name", string, mesh.name or f"mesh {index}")
         mesh = mesh.replace(name=name)
         if "fit" in t:
@@ -377,8 +380,12 @@ class SceneReader(Reader):
         for material, part in parts:
             texture = self.texture(material.diffuse_texture, t, "material" if "material" in t else "obj") \
                 if material.diffuse_texture else None
+            part_program = program
+            if "material" not in t and material.name in report.pbr:
+                texture = report.textures.get(material.name) if part.uvs is not None else None
+                part_program = part_program or (None if texture is not None else GLTF_PROGRAM)
             part_name = name if len(parts) == 1 else part.name
-            objects.append(SceneObject(part_name, part.replace(name=part_name), model, program, cull, texture,
+            objects.append(SceneObject(part_name, part.replace(name=part_name), model, part_program, cull, texture,
                                        cast_shadows))
         return objects
 
@@ -416,9 +423,13 @@ class SceneReader(Reader):
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 try:
-                    # a bundled model by name: load_model also gives "spot" its texture
-                    mesh = load_obj(path, allow_outside=self.allow_outside) if name is None else load_model(name)
-                except OBJError as e:
+                    if name is None and os.path.splitext(path)[1].lower() in FORMATS:
+                        # PLY, STL, glTF through trimesh; a glTF's base color textures come with it
+                        mesh = load_mesh(path, allow_outside=self.allow_outside)
+                    else:
+                        # a bundled model by name: load_model also gives "spot" its texture
+                        mesh = load_obj(path, allow_outside=self.allow_outside) if name is None else load_model(name)
+                except (OBJError, FormatError) as e:
                     raise self.error(f"key 'obj' in {t.label}: {e}", table=t.label, key="obj") from None
                 except (OSError, UnicodeError) as e:
                     raise self.error(f"key 'obj' in {t.label}: cannot read {path}: {e}", table=t.label,
