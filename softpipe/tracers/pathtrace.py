@@ -63,6 +63,7 @@ from softpipe.tracers.lobes import (
     LOBE_NAMES,
     NO_LOBE,
     conductor_fresnel,
+    cook_torrance_conductor,
     lobe_code,
     lobe_eval,
     lobe_sample,
@@ -112,6 +113,16 @@ def _pick_light(cdf, u):
         else:
             hi = mid
     return lo
+
+
+@njit(cache=True, inline="always")
+def _glossy(lobe, N, V, L, m):
+    """The glossy lobe's (f/ks per channel, p) toward L: :func:`lobe_eval`'s f in every channel, or for a
+    conductor's Cook-Torrance (k ≠ 0) its F per channel (§30, :func:`cook_torrance_conductor`)."""
+    if lobe == COOK_TORRANCE_LOBE and m[19] > 0.0:
+        return cook_torrance_conductor(N, V, L, m[17], m[20], m[21], m[22], m[23], m[24], m[25])
+    fs, pdf = lobe_eval(lobe, N, V, L, m[16], m[17], m[12])
+    return fs, fs, fs, pdf
 
 
 @njit(cache=True)
@@ -228,17 +239,19 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
                     green += tg * m[4] * le[1] * f
                     blue += tb * m[5] * le[2] * f
                     if w_s > 0.0:                 # the glossy lobe's share, weighted against its own sampling
-                        fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
-                        if fs > 0.0:
+                        fsr, fsg, fsb, pdf_s = _glossy(lobe, N, V, wi, m)
+                        if fsr > 0.0 or fsg > 0.0 or fsb > 0.0:
                             w_l = _power_heuristic(pdf_l, p_s * pdf_s) if strategy == 0 else 1.0
-                            g = w_l * fs * cos_s / pdf_l
+                            gr = w_l * fsr * cos_s / pdf_l
+                            gg = w_l * fsg * cos_s / pdf_l
+                            gb = w_l * fsb * cos_s / pdf_l
                             if row >= 0:
-                                record[row, 25:28] = (tr * m[13] * le[0] * g, tg * m[14] * le[1] * g,
-                                                      tb * m[15] * le[2] * g)
+                                record[row, 25:28] = (tr * m[13] * le[0] * gr, tg * m[14] * le[1] * gg,
+                                                      tb * m[15] * le[2] * gb)
                                 record[row, 29] = w_l
-                            red += tr * m[13] * le[0] * g
-                            green += tg * m[14] * le[1] * g
-                            blue += tb * m[15] * le[2] * g
+                            red += tr * m[13] * le[0] * gr
+                            green += tg * m[14] * le[1] * gg
+                            blue += tb * m[15] * le[2] * gb
         u = uniform(seed, pixel, sample, base) * total
         if u < w_d:                               # Lambert: f·cos/pdf = (kd/π)·cos / (p_d·cos/π) = kd/p_d
             wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 4),
@@ -256,16 +269,18 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
             wi = lobe_sample(lobe, N, V, m[16], m[17], uniform(seed, pixel, sample, base + 4),
                              uniform(seed, pixel, sample, base + 5))
             cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
-            fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
+            fsr, fsg, fsb, pdf_s = _glossy(lobe, N, V, wi, m)
             if row >= 0:
-                record[row, 7:13] = (1.0, m[13] * fs, m[14] * fs, m[15] * fs, cos_s, p_s * pdf_s)
+                record[row, 7:13] = (1.0, m[13] * fsr, m[14] * fsg, m[15] * fsb, cos_s, p_s * pdf_s)
                 record[row, 35:38] = wi
-            if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0 or fs <= 0.0 or pdf_s <= 0.0:
+            if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0 or \
+                    (fsr <= 0.0 and fsg <= 0.0 and fsb <= 0.0) or pdf_s <= 0.0:
                 if row >= 0:
                     record[row, 38] = _END_BELOW
                 break                             # below the surface: f = 0 there
-            k = fs * cos_s / (p_s * pdf_s)
-            tr, tg, tb = tr * m[13] * k, tg * m[14] * k, tb * m[15] * k
+            tr = tr * m[13] * (fsr * cos_s / (p_s * pdf_s))
+            tg = tg * m[14] * (fsg * cos_s / (p_s * pdf_s))
+            tb = tb * m[15] * (fsb * cos_s / (p_s * pdf_s))
             prev_pdf, prev_delta = p_s * pdf_s, False
         else:
             if u < w_d + w_s + w_m:                     # a perfect mirror (§16), weight kr
@@ -399,15 +414,14 @@ def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
                     np.float64).reshape(-1, _MATERIAL_COLUMNS)
     for obj in objects:
         m = obj.mesh.material
-        if max(m.ks) > 0.0 and m.ior == 1.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
+        if max(m.ks) > 0.0 and m.ior == 1.0 and max(m.k) == 0.0 and \
+                lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
             notes.append(f"{obj.name}: Cook-Torrance with ior 1 reflects nothing (Fresnel's F is 0): its ks "
                          f"lobe is black")
-        if max(m.k) > 0.0 and max(m.kr) == 0.0:
+        rough_metal = max(m.ks) > 0.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE
+        if max(m.k) > 0.0 and max(m.kr) == 0.0 and not rough_metal:
             notes.append(f"{obj.name}: a conductor's k weights the mirror lobe kr by its Fresnel reflectance, "
                          f"but kr is 0: set kr = 1 for a bare metal")
-        if max(m.k) > 0.0 and max(m.ks) > 0.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
-            notes.append(f"{obj.name}: Cook-Torrance's F is §20's dielectric one into ior; the conductor's k "
-                         f"weights only the mirror lobe kr")
         if obj.texture is not None:
             notes.append(f"{obj.name}: textures are not sampled by the path tracer yet; its kd is used")
     if scene.lights is None or len(scene.lights):
