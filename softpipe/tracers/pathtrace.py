@@ -14,10 +14,12 @@ soft shadows and light from emissive surfaces come out of it:
   sees the scene's ``background`` as radiance from every direction. The scene's
   point, directional and spot lights have no area and are not used (a note says so);
 - **materials** (a material may mix them; one is picked per bounce with probability
-  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a glossy lobe of
+  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π, kd times the
+  object's texture at the hit's uv where its program is "textured"; a glossy lobe of
   reflectance ks, normalized to conserve energy and sampled by its own density
   (:mod:`.lobes`, FORMULAS §27): Blinn-Phong, Phong or Cook-Torrance (§26) as the
-  object's program says; a perfect mirror of reflectance kr (§16), times a
+  object's program says, Cook-Torrance's F a conductor's per channel where k ≠ 0 (§30);
+  a perfect mirror of reflectance kr (§16), times a
   conductor's exact Fresnel F_R per channel where the material has an extinction
   coefficient k ≠ 0 (its complex index η + ik, §30); glass when
   kt ≠ 0: reflected with Fresnel's F_R (§20, n = 1 outside, ``ior`` inside), else
@@ -28,7 +30,9 @@ soft shadows and light from emissive surfaces come out of it:
   uniformly), a shadow ray (§21) tests it, and its light is combined with the
   light that the sampled direction finds by the power heuristic (multiple
   importance sampling), lobe by lobe: each lobe's share of the light sample is
-  weighted against the density with which that lobe draws the same direction;
+  weighted against the density with which that lobe draws the same direction; with
+  ``background_light``, the uniform background is a light too (a direction ∝ cos θ
+  about N, picked beside the triangles by power);
 - **Russian roulette** ends a path from its ``rr_depth``-th bounce on with
   probability 1 − min(0.95, strongest channel of its throughput), dividing the
   survivors by the probability that they survived: unbiased;
