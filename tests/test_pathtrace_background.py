@@ -132,3 +132,14 @@ def test_the_sky_and_a_lamp_share_the_light_samples_by_power():
     lights = {b.light for path in traced.path_story(12, 21) for b in path.bounces[:1]}
     assert BACKGROUND_LIGHT in lights and any(k >= 0 for k in lights)
     assert math.isfinite(float(traced.image.sum()))
+
+
+def test_a_path_story_with_the_sky_as_a_light_adds_up_to_the_sample_to_the_last_bit():
+    traced = pathtrace(sky_scene(lamp=True, size=8), spp=3, seed=8, background_light=True)
+    kinds = set()
+    for y in range(8):
+        for x in range(8):
+            for path in traced.path_story(x, y):
+                assert path.total() == path.value, (x, y, path.sample)
+                kinds.update(b.light for b in path.bounces)
+    assert BACKGROUND_LIGHT in kinds
