@@ -157,11 +157,40 @@ def test_the_fresnel_reflectance_agrees_with_mitsubas_conductor():
             assert [weight[0], weight[1], weight[2]] == pytest.approx(ours, rel=1e-5), (name, degrees)
 
 
-def test_the_whitted_tracer_says_it_does_not_read_k():
+@pytest.mark.parametrize("program", ["mirror", "phong", "hall"])
+def test_the_whitted_tracer_weights_a_conductor_reflection_by_its_fresnel_reflectance_per_channel(program):
+    """A gold plane seen at about 60° under a white background: the reflected ray's weight is kr·F_R(N·V) per
+    channel, F_R the conductor's (FORMULAS §30) evaluated here with complex numbers at the ray's own angle."""
+    from softpipe.tracers.whitted import ray_tree, raytrace_scene
+    a = math.radians(60.0)
+    camera = Camera(eye=(0.0, 4.0 * math.cos(a), 4.0 * math.sin(a)), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
+                    fovy=10.0, near=0.01, far=50.0)
+    gold = Material(ka=0.0, kd=0.0, ks=0.0, kr=(1.0, 0.9, 0.8), **GOLD)
+    scene = Scene(objects=[SceneObject("metal", shapes.plane(4.0, material=gold), np.eye(4), program=program)],
+                  camera=camera, width=4, height=4, background=(1.0, 1.0, 1.0, 1.0), lights=())
+    notes = []
+    image = raytrace_scene(scene, notes=notes).color[..., :3]
+    assert notes == []                                   # k is read: nothing to say about it
+    for x, y in ((0, 0), (2, 1), (3, 3)):
+        tree = ray_tree(scene, x, y)
+        primary, reflected = tree[0], tree[1]
+        assert primary.object == "metal" and reflected.kind == "reflected" and reflected.object == ""
+        c = -primary.direction[1]                        # N = +y: cos θ = N·V
+        expected = tuple(kr * fresnel_complex(c, e, k) for kr, e, k in zip(gold.kr, GOLD["eta"], GOLD["k"]))
+        assert reflected.weight == pytest.approx(expected, rel=1e-12)
+        assert tree.color[:3] == pytest.approx(expected, rel=1e-6)           # the white background times kr·F (float32)
+        assert image[y, x] == pytest.approx(expected, rel=1e-6)                # row 0 the top, as ray_tree
+    c60 = math.cos(a)
+    assert image.mean(axis=(0, 1)) == pytest.approx(
+        [kr * fresnel_complex(c60, e, k) for kr, e, k in zip(gold.kr, GOLD["eta"], GOLD["k"])], abs=5e-3)
+
+
+def test_the_whitted_tracers_glass_program_says_it_does_not_read_k():
     from softpipe.tracers.whitted import raytrace_scene
-    scene = Scene(objects=[SceneObject("metal", shapes.plane(4.0, material=Material(kr=1.0, **GOLD)), np.eye(4))],
+    scene = Scene(objects=[SceneObject("metal", shapes.plane(4.0, material=Material(kr=1.0, **GOLD)), np.eye(4),
+                                       program="glass")],
                   camera=Camera(eye=(0.0, 3.0, 1.0), target=(0.0, 0.0, 0.0)), width=4, height=4, lights=())
     notes = []
     raytrace_scene(scene, notes=notes)
-    assert "metal: a conductor's k (its complex index, FORMULAS §30) is the path tracer's; the ray tracer reflects " \
-           "kr as the notes' Hall model does (§13)" in notes
+    assert "metal: the glass program's reflection is §20's dielectric Fresnel into ior; the conductor's k " \
+           "(FORMULAS §30) is not read by it" in notes

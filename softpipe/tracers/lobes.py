@@ -16,13 +16,16 @@ integrates, with the cosine, to at most ks, so each is *normalized* here:
 - **Cook-Torrance** (§26, its normalized microfacet form): f = ks·D·G·F/(4 (N·L)(N·V)),
   Beckmann's D with m = ``roughness``, F exact (§20) from air into ``ior``. H is drawn
   from D (density D·(N·H), tan²α = −m²·ln(1 − u)), so f·(N·L)/p = ks·F·G·(V·H)/((N·V)(N·H)).
+  A conductor (k ≠ 0) takes its exact F per channel instead (§30, :func:`conductor_fresnel`), from
+  its complex index η + ik at cos θ = V·H: :func:`cook_torrance_conductor`, the same D, G and density.
 
 Which lobe an object has follows its program, as the Whitted tracer's local colour
 does (:data:`LOBE_CODES`): "phong" and the other OpenGL programs are Blinn-Phong (§10's
 choice), the "*_phong_specular" ones Phong, "cook_torrance" Cook-Torrance.
 
 :func:`lobe_eval` gives (f/ks, p) for a pair of directions, :func:`lobe_sample` draws one
-direction; the path tracer combines them with next-event estimation by multiple
+direction (:func:`cook_torrance_conductor` is Cook-Torrance's (f/ks per channel, p) for a
+conductor); the path tracer combines them with next-event estimation by multiple
 importance sampling. All vectors are unit, world space, N on V's side.
 """
 from __future__ import annotations
@@ -31,11 +34,11 @@ import math
 
 from numba import njit
 
-from softpipe.light.lighting import beckmann_d, cook_torrance
+from softpipe.light.lighting import beckmann_d, cook_torrance, geometry_g
 from softpipe.tracers.montecarlo import basis
 
 __all__ = ["NO_LOBE", "PHONG_LOBE", "BLINN_PHONG_LOBE", "COOK_TORRANCE_LOBE", "LOBE_CODES", "LOBE_NAMES",
-           "lobe_eval", "lobe_sample", "lobe_code", "conductor_fresnel"]
+           "lobe_eval", "lobe_sample", "lobe_code", "conductor_fresnel", "cook_torrance_conductor"]
 
 NO_LOBE, PHONG_LOBE, BLINN_PHONG_LOBE, COOK_TORRANCE_LOBE = 0, 1, 2, 3
 #: The glossy lobe of each program (the others: Blinn-Phong, §10's lobe, with a note).
@@ -132,6 +135,38 @@ def lobe_eval(code, N, V, L, n, m, ior):
     if code == COOK_TORRANCE_LOBE:
         return cook_torrance(N, L, V, m, 1.0, ior), beckmann_d(nh, m) * nh / (4.0 * vh)
     return 0.0, 0.0
+
+
+@njit(cache=True)
+def cook_torrance_conductor(N, V, L, m, eta_r, eta_g, eta_b, k_r, k_g, k_b):
+    """(f_R, f_G, f_B, p): Cook-Torrance (§26) over ks for a conductor, F its exact one per channel (§30).
+
+    f_c = D·G·F_c/(4 (N·L)(N·V)), F_c = :func:`conductor_fresnel` (V·H, η_c, k_c): the
+    metal's colour comes from F, as its mirror lobe's does. D, G and the density p are
+    :func:`lobe_eval`'s for ``COOK_TORRANCE_LOBE`` (the same H, to the last bit), so the
+    lobe is drawn by :func:`lobe_sample` as the dielectric one is. (0, 0, 0, 0) when L or
+    V is below the surface.
+    """
+    nl = _dot(N, L)
+    nv = _dot(N, V)
+    if nl <= 0.0 or nv <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    hx, hy, hz = V[0] + L[0], V[1] + L[1], V[2] + L[2]
+    h = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if h == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    H = (hx / h, hy / h, hz / h)
+    nh = _dot(N, H)
+    vh = _dot(V, H)
+    if nh <= 0.0 or vh <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    d = beckmann_d(nh, m)
+    denominator = 4.0 * nl * nv
+    if denominator == 0.0:                           # the product underflowed at a grazing angle
+        return 0.0, 0.0, 0.0, d * nh / (4.0 * vh)
+    base = d * geometry_g(nh, nv, nl, vh) / denominator
+    return (base * conductor_fresnel(vh, eta_r, k_r), base * conductor_fresnel(vh, eta_g, k_g),
+            base * conductor_fresnel(vh, eta_b, k_b), d * nh / (4.0 * vh))
 
 
 @njit(cache=True)

@@ -14,10 +14,12 @@ soft shadows and light from emissive surfaces come out of it:
   sees the scene's ``background`` as radiance from every direction. The scene's
   point, directional and spot lights have no area and are not used (a note says so);
 - **materials** (a material may mix them; one is picked per bounce with probability
-  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π; a glossy lobe of
+  ∝ its strongest channel): Lambert, f = kd/π, sampled by cos θ/π, kd times the
+  object's texture at the hit's uv where its program is "textured"; a glossy lobe of
   reflectance ks, normalized to conserve energy and sampled by its own density
   (:mod:`.lobes`, FORMULAS §27): Blinn-Phong, Phong or Cook-Torrance (§26) as the
-  object's program says; a perfect mirror of reflectance kr (§16), times a
+  object's program says, Cook-Torrance's F a conductor's per channel where k ≠ 0 (§30);
+  a perfect mirror of reflectance kr (§16), times a
   conductor's exact Fresnel F_R per channel where the material has an extinction
   coefficient k ≠ 0 (its complex index η + ik, §30); glass when
   kt ≠ 0: reflected with Fresnel's F_R (§20, n = 1 outside, ``ior`` inside), else
@@ -28,7 +30,9 @@ soft shadows and light from emissive surfaces come out of it:
   uniformly), a shadow ray (§21) tests it, and its light is combined with the
   light that the sampled direction finds by the power heuristic (multiple
   importance sampling), lobe by lobe: each lobe's share of the light sample is
-  weighted against the density with which that lobe draws the same direction;
+  weighted against the density with which that lobe draws the same direction; with
+  ``background_light``, the uniform background is a light too (a direction ∝ cos θ
+  about N, picked beside the triangles by power);
 - **Russian roulette** ends a path from its ``rr_depth``-th bounce on with
   probability 1 − min(0.95, strongest channel of its throughput), dividing the
   survivors by the probability that they survived: unbiased;
@@ -54,6 +58,7 @@ from numba import njit
 from softpipe.core.parallel import in_bands
 from softpipe.language.glsl import reflect
 from softpipe.light.lighting import fresnel_directions
+from softpipe.light.texture import TextureUniform, texture
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.rays.bvh import any_hit, closest_hit
@@ -63,13 +68,14 @@ from softpipe.tracers.lobes import (
     LOBE_NAMES,
     NO_LOBE,
     conductor_fresnel,
+    cook_torrance_conductor,
     lobe_code,
     lobe_eval,
     lobe_sample,
 )
 from softpipe.tracers.montecarlo import cosine_hemisphere, triangle_point, uniform
 
-__all__ = ["pathtrace", "PathTrace", "PathStory", "PathSample", "Bounce", "MAX_STORY_BOUNCES", "STORY_COLUMNS", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE", "STRATEGIES"]
+__all__ = ["pathtrace", "PathTrace", "PathStory", "PathSample", "Bounce", "MAX_STORY_BOUNCES", "BACKGROUND_LIGHT", "STORY_COLUMNS", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE", "STRATEGIES"]
 
 #: The most samples per pixel one call renders (a guard against a typo such as 1e9).
 MAX_SPP = 1 << 20
@@ -88,6 +94,8 @@ _INV_PI = 1.0 / math.pi
 #: their MIS weights (2), light triangle, NEE outcome, background (3), direction (3), why the path ended.
 STORY_COLUMNS = 39
 _HIT, _MISS = 0, 1
+#: A path story's ``Bounce.light`` when the light sample went toward the background (not a triangle).
+BACKGROUND_LIGHT = -2
 _END_MORE, _END_DEPTH, _END_BLACK, _END_BELOW, _END_ROULETTE, _END_MISS, _END_DEGENERATE = 0, 1, 2, 3, 4, 5, 6
 
 
@@ -114,35 +122,77 @@ def _pick_light(cdf, u):
     return lo
 
 
+@njit(cache=True, inline="always")
+def _diffuse(textures, obj, tri, b1, b2, m):
+    """kd at the hit: the material's, times the object's texture at the hit's uv where it has one.
+
+    As the rasterizer's ``textured`` program scales kd by ``texture(uv)``; here at level of detail 0 with
+    the texture's own filter and wrap modes (:func:`~softpipe.light.texture.texture`): the path tracer's
+    jittered samples average the texture over the pixel instead of a mipmap. ``textures`` is (texels
+    float32 [total, 4], tex_info int64 [objects, 7]: textured (0/1), offset, width, height, wrap s, wrap t,
+    filter; uv_corners float64 [T, 3, 2]), the uv interpolated with the hit's barycentrics as the normal is.
+    """
+    texels, info, uvs = textures
+    if info[obj, 0] == 0:
+        return m[3], m[4], m[5]
+    b0 = 1.0 - b1 - b2
+    u = b0 * uvs[tri, 0, 0] + b1 * uvs[tri, 1, 0] + b2 * uvs[tri, 2, 0]
+    v = b0 * uvs[tri, 0, 1] + b1 * uvs[tri, 1, 1] + b2 * uvs[tri, 2, 1]
+    level0 = TextureUniform(texels, info[obj, 2:3], info[obj, 3:4], info[obj, 1:2], info[obj, 4], info[obj, 5],
+                            info[obj, 6])
+    t = texture(level0, (u, v))
+    return m[3] * t[0], m[4] * t[1], m[5] * t[2]
+
+
+@njit(cache=True, inline="always")
+def _glossy(lobe, N, V, L, m):
+    """The glossy lobe's (f/ks per channel, p) toward L: :func:`lobe_eval`'s f in every channel, or for a
+    conductor's Cook-Torrance (k ≠ 0) its F per channel (§30, :func:`cook_torrance_conductor`)."""
+    if lobe == COOK_TORRANCE_LOBE and m[19] > 0.0:
+        return cook_torrance_conductor(N, V, L, m[17], m[20], m[21], m[22], m[23], m[24], m[25])
+    fs, pdf = lobe_eval(lobe, N, V, L, m[16], m[17], m[12])
+    return fs, fs, fs, pdf
+
+
 @njit(cache=True)
-def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth, rr_depth,
-              seed, pixel, sample, strategy, record):
+def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth,
+              rr_depth, seed, pixel, sample, strategy, record):
     """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc.
 
     ``record`` [rows, STORY_COLUMNS] (rows 0 when rendering) gets one row per bounce, row k for the k-th
     ray of the path, as :meth:`PathTrace.path_story` reads it; recording changes no arithmetic.
+    ``textures`` is (texels, tex_info, uv_corners): :func:`_setup`'s textures, see :func:`_diffuse`.
     """
     bvh = scene.bvh
     eps = scene.epsilon
     red, green, blue = 0.0, 0.0, 0.0
     tr, tg, tb = 1.0, 1.0, 1.0                    # the path's throughput
     prev_pdf = 0.0                                # the pdf (solid angle) the last direction was drawn with
+    prev_cos = 0.0                                # N·ω of that direction at its vertex (the background's pdf)
     prev_delta = True                             # the eye, or a mirror or glass bounce: no light sampling there
     t_min, t_max = 0.0, t_far
-    have_lights = light_tris.shape[0] > 0
+    p_bg = background[3]                          # the probability that a light sample goes to the background
+    have_lights = light_tris.shape[0] > 0 or p_bg > 0.0
     depth = 0
     while True:
         row = depth if depth < record.shape[0] else -1
         tri, t, b1, b2 = closest_hit(bvh, o, d, t_min, t_max)
         if tri < 0:
+            w = 1.0
+            if not prev_delta and p_bg > 0.0:     # a direction the background's light sample could have drawn too
+                if strategy == 0:
+                    w = _power_heuristic(prev_pdf, p_bg * prev_cos * _INV_PI)
+                elif strategy == 2:               # light sampling alone: it counts the background
+                    w = 0.0
             if row >= 0:
                 record[row, 0:2] = (float(_MISS), float(depth))
                 record[row, 13:16] = (tr, tg, tb)         # the throughput the ray carried out of the scene
-                record[row, 32:35] = (tr * background[0], tg * background[1], tb * background[2])
+                record[row, 32:35] = (tr * background[0] * w, tg * background[1] * w, tb * background[2] * w)
+                record[row, 21] = w
                 record[row, 38] = _END_MISS
-            red += tr * background[0]
-            green += tg * background[1]
-            blue += tb * background[2]
+            red += tr * background[0] * w
+            green += tg * background[1] * w
+            blue += tb * background[2] * w
             break
         P = (o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2])
         fn = scene.face_normals[tri]
@@ -183,7 +233,8 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
             N = ng
         V = (-d[0], -d[1], -d[2])
         lobe = int(m[18])
-        w_d = max(m[3], m[4], m[5])
+        kd = _diffuse(textures, scene.triangle_object[tri], tri, b1, b2, m)
+        w_d = max(kd[0], kd[1], kd[2])
         w_s = max(m[13], m[14], m[15]) if lobe != NO_LOBE else 0.0
         w_m = max(m[6], m[7], m[8])
         w_g = max(m[9], m[10], m[11])
@@ -195,78 +246,99 @@ def _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, back
         base = 2 + depth * DIMENSIONS_PER_BOUNCE
         p_d = w_d / total
         p_s = w_s / total
-        if (w_d > 0.0 or w_s > 0.0) and have_lights and strategy != 1:    # next-event estimation toward an emissive triangle
-            li = _pick_light(light_cdf, uniform(seed, pixel, sample, base + 1))
-            k = light_tris[li]
-            c = light_corners[li]
-            Q = triangle_point((c[0], c[1], c[2]), (c[3], c[4], c[5]), (c[6], c[7], c[8]),
-                               uniform(seed, pixel, sample, base + 2), uniform(seed, pixel, sample, base + 3))
-            if row >= 0:
-                record[row, 30:32] = (float(k), 1.0)            # 1: in shadow or facing away, until found lit
-            lx, ly, lz = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
-            dist2 = lx * lx + ly * ly + lz * lz
-            dist = math.sqrt(dist2)
-            if dist > 0.0:
-                wi = (lx / dist, ly / dist, lz / dist)
-                ln = scene.face_normals[k]
-                cos_l = -(ln[0] * wi[0] + ln[1] * wi[1] + ln[2] * wi[2]) / math.sqrt(
-                    ln[0] * ln[0] + ln[1] * ln[1] + ln[2] * ln[2])
-                cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
-                cos_g = ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2]
-                if cos_l > 0.0 and cos_s > 0.0 and cos_g > 0.0 and \
-                        not any_hit(bvh, P, wi, eps, dist * (1.0 - 1e-7) - eps):
-                    pdf_l = light_pdf[k] * dist2 / cos_l
-                    pdf_b = p_d * cos_s * _INV_PI
-                    w_l = _power_heuristic(pdf_l, pdf_b) if strategy == 0 else 1.0
-                    f = w_l * cos_s * _INV_PI / pdf_l
-                    le = mats[scene.triangle_object[k]]
-                    if row >= 0:
-                        record[row, 22:25] = (tr * m[3] * le[0] * f, tg * m[4] * le[1] * f, tb * m[5] * le[2] * f)
-                        record[row, 28] = w_l
-                        record[row, 31] = 2.0
-                    red += tr * m[3] * le[0] * f
-                    green += tg * m[4] * le[1] * f
-                    blue += tb * m[5] * le[2] * f
-                    if w_s > 0.0:                 # the glossy lobe's share, weighted against its own sampling
-                        fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
-                        if fs > 0.0:
-                            w_l = _power_heuristic(pdf_l, p_s * pdf_s) if strategy == 0 else 1.0
-                            g = w_l * fs * cos_s / pdf_l
-                            if row >= 0:
-                                record[row, 25:28] = (tr * m[13] * le[0] * g, tg * m[14] * le[1] * g,
-                                                      tb * m[15] * le[2] * g)
-                                record[row, 29] = w_l
-                            red += tr * m[13] * le[0] * g
-                            green += tg * m[14] * le[1] * g
-                            blue += tb * m[15] * le[2] * g
+        if (w_d > 0.0 or w_s > 0.0) and have_lights and strategy != 1:    # next-event estimation
+            lit = False
+            wi, cos_s, pdf_l, le = (0.0, 0.0, 0.0), 0.0, 1.0, (0.0, 0.0, 0.0)
+            u_l = uniform(seed, pixel, sample, base + 1)
+            if u_l < p_bg:                        # toward the background: a direction drawn ∝ cos θ about N
+                wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 2),
+                                              uniform(seed, pixel, sample, base + 3))
+                if row >= 0:
+                    record[row, 30:32] = (-2.0, 1.0)            # 1: in shadow or below, until found lit
+                if cos_s > 0.0 and ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] > 0.0 and \
+                        not any_hit(bvh, P, wi, eps, np.inf):
+                    lit = True
+                    pdf_l = p_bg * cos_s * _INV_PI
+                    le = (background[0], background[1], background[2])
+            else:                                 # toward an emissive triangle, picked ∝ area × mean ke
+                li = _pick_light(light_cdf, (u_l - p_bg) / (1.0 - p_bg))
+                k = light_tris[li]
+                c = light_corners[li]
+                Q = triangle_point((c[0], c[1], c[2]), (c[3], c[4], c[5]), (c[6], c[7], c[8]),
+                                   uniform(seed, pixel, sample, base + 2), uniform(seed, pixel, sample, base + 3))
+                if row >= 0:
+                    record[row, 30:32] = (float(k), 1.0)        # 1: in shadow or facing away, until found lit
+                lx, ly, lz = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
+                dist2 = lx * lx + ly * ly + lz * lz
+                dist = math.sqrt(dist2)
+                if dist > 0.0:
+                    wi = (lx / dist, ly / dist, lz / dist)
+                    ln = scene.face_normals[k]
+                    cos_l = -(ln[0] * wi[0] + ln[1] * wi[1] + ln[2] * wi[2]) / math.sqrt(
+                        ln[0] * ln[0] + ln[1] * ln[1] + ln[2] * ln[2])
+                    cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
+                    cos_g = ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2]
+                    if cos_l > 0.0 and cos_s > 0.0 and cos_g > 0.0 and \
+                            not any_hit(bvh, P, wi, eps, dist * (1.0 - 1e-7) - eps):
+                        lit = True
+                        pdf_l = light_pdf[k] * dist2 / cos_l
+                        e = mats[scene.triangle_object[k]]
+                        le = (e[0], e[1], e[2])
+            if lit:
+                pdf_b = p_d * cos_s * _INV_PI
+                w_l = _power_heuristic(pdf_l, pdf_b) if strategy == 0 else 1.0
+                f = w_l * cos_s * _INV_PI / pdf_l
+                if row >= 0:
+                    record[row, 22:25] = (tr * kd[0] * le[0] * f, tg * kd[1] * le[1] * f, tb * kd[2] * le[2] * f)
+                    record[row, 28] = w_l
+                    record[row, 31] = 2.0
+                red += tr * kd[0] * le[0] * f
+                green += tg * kd[1] * le[1] * f
+                blue += tb * kd[2] * le[2] * f
+                if w_s > 0.0:                     # the glossy lobe's share, weighted against its own sampling
+                    fsr, fsg, fsb, pdf_s = _glossy(lobe, N, V, wi, m)
+                    if fsr > 0.0 or fsg > 0.0 or fsb > 0.0:
+                        w_l = _power_heuristic(pdf_l, p_s * pdf_s) if strategy == 0 else 1.0
+                        gr = w_l * fsr * cos_s / pdf_l
+                        gg = w_l * fsg * cos_s / pdf_l
+                        gb = w_l * fsb * cos_s / pdf_l
+                        if row >= 0:
+                            record[row, 25:28] = (tr * m[13] * le[0] * gr, tg * m[14] * le[1] * gg,
+                                                  tb * m[15] * le[2] * gb)
+                            record[row, 29] = w_l
+                        red += tr * m[13] * le[0] * gr
+                        green += tg * m[14] * le[1] * gg
+                        blue += tb * m[15] * le[2] * gb
         u = uniform(seed, pixel, sample, base) * total
         if u < w_d:                               # Lambert: f·cos/pdf = (kd/π)·cos / (p_d·cos/π) = kd/p_d
             wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 4),
                                           uniform(seed, pixel, sample, base + 5))
             if row >= 0:
-                record[row, 7:13] = (0.0, m[3] * _INV_PI, m[4] * _INV_PI, m[5] * _INV_PI, cos_s, p_d * cos_s * _INV_PI)
+                record[row, 7:13] = (0.0, kd[0] * _INV_PI, kd[1] * _INV_PI, kd[2] * _INV_PI, cos_s, p_d * cos_s * _INV_PI)
                 record[row, 35:38] = wi
             if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0:
                 if row >= 0:
                     record[row, 38] = _END_BELOW
                 break                             # below the surface: the interpolated normal leans too far
-            tr, tg, tb = tr * m[3] / p_d, tg * m[4] / p_d, tb * m[5] / p_d
-            prev_pdf, prev_delta = p_d * cos_s * _INV_PI, False
+            tr, tg, tb = tr * kd[0] / p_d, tg * kd[1] / p_d, tb * kd[2] / p_d
+            prev_pdf, prev_cos, prev_delta = p_d * cos_s * _INV_PI, cos_s, False
         elif u < w_d + w_s:                       # the glossy lobe: f·cos/(p_s·pdf), ks times the lobe's weight
             wi = lobe_sample(lobe, N, V, m[16], m[17], uniform(seed, pixel, sample, base + 4),
                              uniform(seed, pixel, sample, base + 5))
             cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
-            fs, pdf_s = lobe_eval(lobe, N, V, wi, m[16], m[17], m[12])
+            fsr, fsg, fsb, pdf_s = _glossy(lobe, N, V, wi, m)
             if row >= 0:
-                record[row, 7:13] = (1.0, m[13] * fs, m[14] * fs, m[15] * fs, cos_s, p_s * pdf_s)
+                record[row, 7:13] = (1.0, m[13] * fsr, m[14] * fsg, m[15] * fsb, cos_s, p_s * pdf_s)
                 record[row, 35:38] = wi
-            if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0 or fs <= 0.0 or pdf_s <= 0.0:
+            if cos_s <= 0.0 or ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] <= 0.0 or \
+                    (fsr <= 0.0 and fsg <= 0.0 and fsb <= 0.0) or pdf_s <= 0.0:
                 if row >= 0:
                     record[row, 38] = _END_BELOW
                 break                             # below the surface: f = 0 there
-            k = fs * cos_s / (p_s * pdf_s)
-            tr, tg, tb = tr * m[13] * k, tg * m[14] * k, tb * m[15] * k
-            prev_pdf, prev_delta = p_s * pdf_s, False
+            tr = tr * m[13] * (fsr * cos_s / (p_s * pdf_s))
+            tg = tg * m[14] * (fsg * cos_s / (p_s * pdf_s))
+            tb = tb * m[15] * (fsb * cos_s / (p_s * pdf_s))
+            prev_pdf, prev_cos, prev_delta = p_s * pdf_s, cos_s, False
         else:
             if u < w_d + w_s + w_m:                     # a perfect mirror (§16), weight kr
                 p = w_m / total
@@ -332,8 +404,8 @@ def _unproject(M, x, y, z):
 
 
 @njit(cache=True, nogil=True)
-def _sample(i, j, s, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf, light_pdf, background,
-            max_depth, rr_depth, seed, strategy, record):
+def _sample(i, j, s, width, height, unproject, scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf,
+            background, max_depth, rr_depth, seed, strategy, record):
     """Sample s of pixel (i, image row j): its ray through a jittered point of the pixel, and the radiance it brings."""
     pixel = j * width + i
     # the box filter: a uniform point of the pixel (image row j counts down from the top)
@@ -344,20 +416,20 @@ def _sample(i, j, s, width, height, unproject, scene, mats, light_tris, light_co
     dx, dy, dz = far[0] - near[0], far[1] - near[1], far[2] - near[2]
     length = math.sqrt(dx * dx + dy * dy + dz * dz)
     d = (dx / length, dy / length, dz / length)
-    return _radiance(scene, mats, light_tris, light_corners, light_cdf, light_pdf, background, near, d, length,
-                     max_depth, rr_depth, seed, pixel, s, strategy, record)
+    return _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf, background, near, d,
+                     length, max_depth, rr_depth, seed, pixel, s, strategy, record)
 
 
 @njit(cache=True, nogil=True)
-def _render_rows(lo, hi, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf, light_pdf, background,
-                 max_depth, rr_depth, seed, first, count, total, squares, strategy):
+def _render_rows(lo, hi, width, height, unproject, scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf,
+                 background, max_depth, rr_depth, seed, first, count, total, squares, strategy):
     """Samples first … first + count − 1 of every pixel of image rows lo:hi, added to the float64 sums in order."""
     no_record = np.zeros((0, STORY_COLUMNS))
     for j in range(lo, hi):
         for i in range(width):
             for s in range(first, first + count):
-                r, g, b = _sample(i, j, s, width, height, unproject, scene, mats, light_tris, light_corners, light_cdf,
-                                  light_pdf, background, max_depth, rr_depth, seed, strategy, no_record)
+                r, g, b = _sample(i, j, s, width, height, unproject, scene, mats, textures, light_tris, light_corners,
+                                  light_cdf, light_pdf, background, max_depth, rr_depth, seed, strategy, no_record)
                 total[j, i, 0] += r
                 total[j, i, 1] += g
                 total[j, i, 2] += b
@@ -381,6 +453,7 @@ class _Setup:
     scene: RayScene
     uniform: tuple
     mats: np.ndarray
+    textures: tuple
     light_tris: np.ndarray
     light_corners: np.ndarray
     light_cdf: np.ndarray
@@ -389,7 +462,7 @@ class _Setup:
     unproject: np.ndarray
 
 
-def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
+def _setup(scene, camera: Camera, notes: List[str], background_light: bool = False) -> _Setup:
     objects = scene.drawn_objects(camera)
     rays = RayScene(objects)
     uniform_ = rays.uniform()
@@ -399,17 +472,14 @@ def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
                     np.float64).reshape(-1, _MATERIAL_COLUMNS)
     for obj in objects:
         m = obj.mesh.material
-        if max(m.ks) > 0.0 and m.ior == 1.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
+        if max(m.ks) > 0.0 and m.ior == 1.0 and max(m.k) == 0.0 and \
+                lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
             notes.append(f"{obj.name}: Cook-Torrance with ior 1 reflects nothing (Fresnel's F is 0): its ks "
                          f"lobe is black")
-        if max(m.k) > 0.0 and max(m.kr) == 0.0:
+        rough_metal = max(m.ks) > 0.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE
+        if max(m.k) > 0.0 and max(m.kr) == 0.0 and not rough_metal:
             notes.append(f"{obj.name}: a conductor's k weights the mirror lobe kr by its Fresnel reflectance, "
                          f"but kr is 0: set kr = 1 for a bare metal")
-        if max(m.k) > 0.0 and max(m.ks) > 0.0 and lobe_code(scene.program_of(obj)) == COOK_TORRANCE_LOBE:
-            notes.append(f"{obj.name}: Cook-Torrance's F is §20's dielectric one into ior; the conductor's k "
-                         f"weights only the mirror lobe kr")
-        if obj.texture is not None:
-            notes.append(f"{obj.name}: textures are not sampled by the path tracer yet; its kd is used")
     if scene.lights is None or len(scene.lights):
         notes.append("the scene's point, directional and spot lights have no area and do not light the path "
                      "tracer's image: only emissive surfaces (material ke) and the background do")
@@ -420,20 +490,59 @@ def _setup(scene, camera: Camera, notes: List[str]) -> _Setup:
     area = 0.5 * np.linalg.norm(rays.face_normals, axis=1) if n else np.zeros(0)
     weight = emissive * area
     light_tris = np.flatnonzero(weight > 0.0).astype(np.int64)
-    if len(light_tris):
-        light_cdf = np.cumsum(weight[light_tris])
-        light_pdf[light_tris] = emissive[light_tris] / light_cdf[-1]     # (area·power/Σ) / area: per unit area
-    else:
-        light_cdf = np.zeros(1, np.float64)
-        if not np.any(np.asarray(scene.background[:3]) > 0):
-            notes.append("nothing emits light (no material has ke and the background is black): the image is black")
     corners = np.empty((n, 9), np.float64)
     corners[rays.bvh.order] = rays.bvh.corners          # the BVH keeps them in leaf order: back to triangle ids
+    # the background as a light: a uniform sky of radiance L sends π·L·4πR² into the sphere of radius R around
+    # the scene, as a triangle of area A sends π·ke·A out of its front; so its weight beside theirs is
+    # mean(L)·4πR², and a light sample goes to it with probability p_bg (docs/pathtracing.md); without
+    # background_light, p_bg = 0: no light sample goes there, and a path that leaves counts in full
+    sky = float(np.mean(scene.background[:3]))
+    p_bg = 0.0
+    if sky > 0.0 and background_light:
+        if len(light_tris) and n:
+            points = corners.reshape(-1, 3)
+            radius = 0.5 * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+            sky_weight = sky * 4.0 * math.pi * radius * radius
+            p_bg = sky_weight / (sky_weight + float(weight[light_tris].sum()))
+        else:
+            p_bg = 1.0
+    if len(light_tris):
+        light_cdf = np.cumsum(weight[light_tris])
+        # (area·power/Σ) / area: per unit area, times the probability that the sample goes to a triangle
+        light_pdf[light_tris] = emissive[light_tris] / light_cdf[-1] * (1.0 - p_bg)
+    else:
+        light_cdf = np.zeros(1, np.float64)
+        if sky <= 0.0:
+            notes.append("nothing emits light (no material has ke and the background is black): the image is black")
     light_corners = np.ascontiguousarray(corners[light_tris])
     aspect = scene.width / scene.height
     unproject = np.linalg.inv(camera.projection(aspect) @ camera.view)
-    background = np.asarray(scene.background[:3], np.float64)
-    return _Setup(rays, uniform_, mats, light_tris, light_corners, light_cdf, light_pdf, background, unproject)
+    background = np.array([*scene.background[:3], p_bg], np.float64)      # RGB radiance, then p_bg
+    return _Setup(rays, uniform_, mats, _textures(scene, objects, len(rays)), light_tris, light_corners, light_cdf, light_pdf, background, unproject)
+
+def _textures(scene, objects, triangles: int) -> tuple:
+    """(texels, tex_info, uv_corners) for :func:`_diffuse`: the level 0 of each texture an object is drawn with.
+
+    An object's texture counts where its program is ``textured`` (the program that reads it), as in the
+    rasterizer; the others' kd is their material's.
+    """
+    texels = [np.zeros((1, 4), np.float32)]
+    info = np.zeros((len(objects), 7), np.int64)
+    uvs = np.zeros((triangles, 3, 2), np.float64)
+    start = offset = 0
+    for k, obj in enumerate(objects):
+        corners = np.asarray(obj.mesh.indices).reshape(-1, 3)
+        count = len(corners)
+        if obj.texture is not None and obj.mesh.uvs is not None and scene.program_of(obj) == "textured":
+            tex = obj.texture.__softpipe_uniform__()
+            w, h = int(tex.widths[0]), int(tex.heights[0])
+            offset += len(texels[-1])
+            texels.append(np.asarray(tex.texels[:w * h], np.float32))
+            info[k] = (1, offset, w, h, tex.wrap_s, tex.wrap_t, tex.filter)
+            uvs[start:start + count] = np.asarray(obj.mesh.uvs, np.float64)[corners]
+        start += count
+    return np.ascontiguousarray(np.concatenate(texels)), info, uvs
+
 
 #: The most bounces a path's story records (a longer path's story is cut there, and says so).
 MAX_STORY_BOUNCES = 1024
@@ -469,8 +578,8 @@ class Bounce:
     throughput: tuple
     roulette: float              # the survival probability q, 1 before rr_depth
     emitted: tuple
-    emission_weight: float
-    light: int                   # the light triangle sampled, −1 for none
+    emission_weight: float      # for a ray that left the scene: the background's MIS weight
+    light: int                   # the light triangle sampled, −1 for none, −2 the background (BACKGROUND_LIGHT)
     nee: str
     nee_lambert: tuple
     nee_lambert_weight: float
@@ -521,13 +630,14 @@ class PathStory(list):
             for b in ps.bounces:
                 pad = "    " * (b.depth + 1)
                 if b.triangle < 0:
-                    lines.append(f"{pad}#{b.depth} left the scene: background {f(b.background)}")
+                    weight = f" (MIS weight {b.emission_weight:.4g})" if b.emission_weight != 1.0 else ""
+                    lines.append(f"{pad}#{b.depth} left the scene: background {f(b.background)}{weight}")
                     continue
                 text = f"{pad}#{b.depth} hits {b.object} (triangle {b.triangle}) at {f(b.point)}"
                 if any(b.emitted):
                     text += f"; emitted {f(b.emitted)} (MIS weight {b.emission_weight:.4g})"
-                if b.light >= 0:
-                    text += f"; {b.nee} (triangle {b.light})"
+                if b.light != -1:
+                    text += f"; {b.nee} ({'the background' if b.light == BACKGROUND_LIGHT else f'triangle {b.light}'})"
                     if any(b.nee_lambert) or any(b.nee_glossy):
                         text += f": Lambert {f(b.nee_lambert)} (w {b.nee_lambert_weight:.4g})"
                     if any(b.nee_glossy):
@@ -559,6 +669,8 @@ class PathTrace:
         What the path tracer leaves out of this scene (the lights it cannot use, textures).
     strategy : str
         How light is found: one of :data:`STRATEGIES` (:func:`pathtrace`).
+    background_light : bool
+        Whether light samples go to the background too (:func:`pathtrace`).
     timings : dict
         "setup" (the BVH and lights) and "trace" seconds, summed over every call.
     """
@@ -571,6 +683,7 @@ class PathTrace:
     notes: List[str] = field(default_factory=list)
     strategy: str = "mis"
     timings: dict = field(default_factory=dict)
+    background_light: bool = False
     spp: int = 0
     _setup: Optional[_Setup] = field(default=None, repr=False)
     _total: Optional[np.ndarray] = field(default=None, repr=False)
@@ -589,7 +702,7 @@ class PathTrace:
             # in passes, so that Ctrl-C is heard between them (in_bands starts no band after it); each pixel
             # still adds its samples in order, so the sums are the same bytes as one pass
             count = min(PASS_SPP, self.spp + spp - first)
-            in_bands(_render_rows, self.height, self.width, self.height, s.unproject, s.uniform, s.mats,
+            in_bands(_render_rows, self.height, self.width, self.height, s.unproject, s.uniform, s.mats, s.textures,
                      s.light_tris, s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth,
                      self.rr_depth, np.uint64(self.seed), first, count, self._total, self._squares,
                      STRATEGIES.index(self.strategy), grain=1)
@@ -657,7 +770,8 @@ class PathTrace:
             record[:, 16] = 1.0
             record[:, 30] = -1.0
             record[:, 38] = _END_MORE
-            value = _sample(int(x), int(y), k, self.width, self.height, s.unproject, s.uniform, s.mats, s.light_tris,
+            value = _sample(int(x), int(y), k, self.width, self.height, s.unproject, s.uniform, s.mats, s.textures,
+                            s.light_tris,
                             s.light_corners, s.light_cdf, s.light_pdf, s.background, self.max_depth, self.rr_depth,
                             np.uint64(self.seed), STRATEGIES.index(self.strategy), record)
             bounces = []
@@ -672,8 +786,8 @@ class PathTrace:
                     point=tuple(row[2:5]) if hit else (), lobe=lobe, direction=tuple(row[35:38]) if lobe else (),
                     f=tuple(row[8:11]) if lobe else (), cos=float(row[11]) if lobe else 0.0,
                     pdf=float(row[12]) if lobe else 0.0, throughput=tuple(row[13:16]), roulette=float(row[16]),
-                    emitted=tuple(row[18:21]), emission_weight=float(row[21]) if hit and not np.isnan(row[21]) else 0.0,
-                    light=int(row[30]), nee=_NEE[0 if int(row[30]) < 0 else int(row[31])],
+                    emitted=tuple(row[18:21]), emission_weight=float(row[21]),
+                    light=int(row[30]), nee=_NEE[0 if int(row[30]) == -1 else int(row[31])],
                     nee_lambert=tuple(row[22:25]), nee_lambert_weight=float(row[28]), nee_glossy=tuple(row[25:28]),
                     nee_glossy_weight=float(row[29]), background=tuple(row[32:35]), end=_ENDS[int(row[38])]))
             truncated = len(bounces) == MAX_STORY_BOUNCES and not bounces[-1].end
@@ -686,7 +800,7 @@ class PathTrace:
 
 
 def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] = None, max_depth: int = -1,
-              rr_depth: int = 5, strategy: str = "mis") -> PathTrace:
+              rr_depth: int = 5, strategy: str = "mis", background_light: bool = False) -> PathTrace:
     """Path trace ``scene`` (docs/pathtracing.md): ``spp`` samples per pixel, deterministic per ``seed``.
 
     Parameters
@@ -713,6 +827,15 @@ def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] =
         sampled direction hits counts only after a mirror or glass bounce, or seen
         directly). All three estimate the same image; the last two are noisier, and
         comparing them checks that the lobes' densities match their sampling.
+    background_light : bool
+        Also sample the background as a light: a light sample goes to it with
+        probability ∝ its power beside the emissive triangles', drawing a direction
+        ∝ cos θ about the normal, weighted by MIS against the lobes like any light
+        sample (a drawn direction that leaves the scene is weighted against it). The
+        same image in expectation; less noise where what hides the sky is much darker
+        than it, more where it is about as bright (docs/pathtracing.md, "The
+        background as a light"). False (the default): the background is found only by
+        the paths that leave the scene.
 
     Returns
     -------
@@ -725,11 +848,13 @@ def pathtrace(scene, spp: int = 64, seed: int = 0, *, camera: Optional[Camera] =
     spp = _whole("spp", spp, 1, MAX_SPP)
     if strategy not in STRATEGIES:
         raise ValueError(f"pathtrace: strategy must be one of {', '.join(map(repr, STRATEGIES))}, got {strategy!r}")
+    if not isinstance(background_light, (bool, np.bool_)):
+        raise ValueError(f"pathtrace: background_light must be True or False, got {background_light!r}")
     start = time.perf_counter()
     camera = camera or scene.view_camera()
     notes: List[str] = []
-    s = _setup(scene, camera, notes)
+    s = _setup(scene, camera, notes, bool(background_light))
     h, w = scene.height, scene.width
     result = PathTrace(seed, w, h, max_depth, rr_depth, notes, strategy, {"setup": time.perf_counter() - start},
-                       _setup=s, _total=np.zeros((h, w, 3)), _squares=np.zeros((h, w, 3)))
+                       background_light=bool(background_light), _setup=s, _total=np.zeros((h, w, 3)), _squares=np.zeros((h, w, 3)))
     return result.add(spp)

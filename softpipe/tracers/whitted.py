@@ -9,7 +9,8 @@ second way, so that the two can be put side by side and any pixel asked why:
   sample pattern, the pixel their mean (§24), or adaptively more where neighbours differ —, the local color by
   the *same* functions of :mod:`softpipe.light.lighting` the rasterizer's shaders call,
   V_j by shadow rays (:func:`softpipe.rays.queries.ray_visibility`), and the ray tree
-  of reflected and refracted rays (§16–§19, §22) with the falloff of §13 and §15;
+  of reflected and refracted rays (§16–§19, §22) with the falloff of §13 and §15, a
+  conductor's (material ``k`` ≠ 0) reflected ray weighted by kr·F_R(N·V) per channel (§30);
 - :func:`raytrace_samples`: every sample's color before the pixel filter;
 - :func:`ray_tree`: one pixel's tree as data, printed — the ray tracer's pixel history;
 - :class:`RayTracer`, :func:`tracer_uniform`, :func:`trace_ray`: the tracer as one
@@ -53,6 +54,7 @@ from softpipe.pipeline.framebuffer import Framebuffer
 from softpipe.pipeline.sampling import CENTER, SamplePattern, pattern_named
 from softpipe.rays.bvh import closest_hit
 from softpipe.rays.queries import RayScene, direction_to_world, hit_normal, medium_falloff, point_to_world
+from softpipe.tracers.lobes import conductor_fresnel
 
 __all__ = ["raytrace_scene", "raytrace_samples", "ray_tree", "primary_visibility", "tracer_uniform", "trace_ray",
            "RayTracer", "RayTree", "RayNode", "PROGRAM_CODES", "RAY_KINDS", "MAX_DEPTH_LIMIT",
@@ -73,14 +75,15 @@ ADAPTIVE_THRESHOLD = 0.1
 ADAPTIVE_DEPTH = 2
 #: … and at most this many (3: an 8×8 grid, 64 rays = the sample patterns' MAX_SAMPLES).
 MAX_ADAPTIVE_DEPTH = 3
-_MATERIAL_COLUMNS = 28          # MaterialUniform's 23 numbers, then T (RGB), Glassner's form (0/1) and its a
+_MATERIAL_COLUMNS = 35          # MaterialUniform's 23 numbers, then T (RGB), Glassner's form (0/1) and its a,
+#                                 a conductor (1: k ≠ 0), its η (RGB) and k (RGB)
 _RECORD_COLUMNS = 21
 
 
 def _pack_material(m) -> np.ndarray:
     return np.array([*m.ke, *m.ka, *m.kd, *m.ks, m.shininess, *m.kr, *m.kt, m.transmission_shininess,
                      m.ior, m.opacity, m.roughness, *m.transmittance, float(m.falloff == "glassner"),
-                     m.falloff_a], np.float64)
+                     m.falloff_a, float(max(m.k) > 0.0), *m.conductor_eta, *m.k], np.float64)
 
 
 @njit(cache=True, inline="always")
@@ -144,6 +147,18 @@ def _branches(code, m, N, V, d, entering):
     if T[0] == 0.0 and T[1] == 0.0 and T[2] == 0.0:                # §19: all of it reflected
         return R, 1, m.kr, R, 3, m.kt
     return R, 1, m.kr, T, 2, m.kt
+
+
+@njit(cache=True)
+def _conductor_kr(row, kr, N, V):
+    """A conductor's reflected weight: kr times its exact Fresnel reflectance F_R(N·V) per channel (FORMULAS §30).
+
+    The metal's colour at normal incidence, white toward grazing; ``row`` the packed material (its η at
+    columns 29–31, k at 32–34). The path tracer's mirror lobe weighs a conductor the same way.
+    """
+    c = N[0] * V[0] + N[1] * V[1] + N[2] * V[2]
+    return (kr[0] * conductor_fresnel(c, row[29], row[32]), kr[1] * conductor_fresnel(c, row[30], row[33]),
+            kr[2] * conductor_fresnel(c, row[31], row[34]))
 
 
 @njit(cache=True)
@@ -221,6 +236,8 @@ def _trace_tree(tracer, origin, direction, depth0, kind0, weight, far, record):
         if tri < 0 or depth >= max_depth:
             continue
         R, r_kind, kr, T, t_kind, kt = _branches(code, m, N, V, d, entering)
+        if code != 6 and materials[obj, 28] > 0.0:
+            kr = _conductor_kr(materials[obj], kr, N, V)
         for branch in range(2):
             nd, nk, k = (R, r_kind, kr) if branch == 0 else (T, t_kind, kt)
             nw = (w[0] * k[0], w[1] * k[1], w[2] * k[2])
@@ -453,9 +470,9 @@ def _prepare(scene, camera: Optional[Camera], max_depth: int = 5, min_weight: fl
             notes.append(f"{obj.name}: program {name!r} has no lighting equation for rays; lit as 'phong'")
         elif name == "textured":
             notes.append(f"{obj.name}: textures are not sampled by the ray tracer yet; lit with the material's kd")
-        if max(obj.mesh.material.k) > 0.0:
-            notes.append(f"{obj.name}: a conductor's k (its complex index, FORMULAS §30) is the path tracer's; the "
-                         f"ray tracer reflects kr as the notes' Hall model does (§13)")
+        if max(obj.mesh.material.k) > 0.0 and name == "glass":
+            notes.append(f"{obj.name}: the glass program's reflection is §20's dielectric Fresnel into ior; the "
+                         f"conductor's k (FORMULAS §30) is not read by it")
         programs.append(PROGRAM_CODES.get(name, 0))
     lights = scene.lighting_for(camera)
     packed = pack_lights(lights.lights, np.eye(4))          # world space: the ray tracer's "eye" space
