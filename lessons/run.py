@@ -45,6 +45,43 @@ def run(path: Path, solutions: bool = False, timeout: int = 600):
     return nb
 
 
+def run_both(path: Path, timeout: int = 600):
+    """The notebook as a student gets it, then with the solutions, in one kernel: (the error text the
+    first failing cell stops with, or None if none fails; the notebook executed with the solutions).
+
+    The cells before the first exercise cell run once; the notebook as given runs on to its first
+    failing cell (or to the end), then the run goes back to the first exercise cell and runs from there
+    to the end with the solutions in the exercise cells, as :func:`run` with ``solutions`` would (the
+    cells before it are the same in both).
+    Raises CellExecutionError when a cell fails with the solutions.
+    """
+    from nbclient import NotebookClient
+    from nbclient.exceptions import CellExecutionError
+
+    given, solved = load(path), load(path, solutions=True)
+    first = next(i for i, c in enumerate(given.cells) if "exercise" in c.get("metadata", {}).get("tags", []))
+    client = NotebookClient(given, timeout=timeout, kernel_name="python3",
+                            resources={"metadata": {"path": str(path.parent)}})
+    failure = None
+    with client.setup_kernel():
+        for i, cell in enumerate(given.cells):
+            if cell.cell_type != "code":
+                continue
+            try:
+                client.execute_cell(cell, i)
+            except CellExecutionError as e:
+                if i < first:
+                    raise                            # before any exercise: the lesson itself is broken
+                failure = str(e)
+                break
+        for i in range(first, len(solved.cells)):
+            if solved.cells[i].cell_type == "code":
+                client.execute_cell(solved.cells[i], i)
+    for i in range(first):                           # the cells both runs share, as they ran
+        solved.cells[i] = given.cells[i]
+    return failure, solved
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--solutions", action="store_true", help="run with the solutions in the exercise cells")

@@ -21,6 +21,13 @@ def runner():
     return module
 
 
+def run_both(name: str):
+    """The notebook as given and with the solutions, in one kernel (lessons/run.py's ``run_both``): the text
+    of the error it stops with as given (None if none), without colors, and the solutions' notebook."""
+    failure, nb = runner().run_both(LESSONS / f"{name}.ipynb")
+    return (None if failure is None else re.sub(r"\x1b\[[0-9;]*m", "", failure)), nb
+
+
 def failure(name: str) -> str:
     """The text of the error the notebook stops with, run as it is (the skeleton), without colors."""
     from nbclient.exceptions import CellExecutionError

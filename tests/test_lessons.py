@@ -1,7 +1,7 @@
 """The lessons (lessons/, issue #33): every notebook passes its checks with the solutions in its
 exercise cells; the check helpers' messages (softpipe.testing.lessons); the zoomed pictures a small
-framebuffer shows in a notebook (softpipe.views.zoom). The skeletons' runs are in
-tests/test_lessons_skeletons.py (another worker under xdist)."""
+framebuffer shows in a notebook (softpipe.views.zoom). The notebooks' runs, as given and with the
+solutions, are in tests/test_lessons_skeletons.py (another worker under xdist)."""
 from __future__ import annotations
 
 import io
@@ -30,17 +30,7 @@ from softpipe.testing import (
 )
 from softpipe.views.zoom import GRID, INK, PAPER, glyph, zoom_layout, zoom_scale, zoomed
 
-# ------------------------------------------------------------------ the notebooks, with the solutions
-
-
-@pytest.mark.parametrize("name", NOTEBOOKS)
-def test_a_notebook_passes_its_checks_with_the_solutions(name):
-    nb = runner().run(LESSONS / f"{name}.ipynb", solutions=True)
-    check = [c for c in nb.cells if "check" in c.metadata.get("tags", [])]
-    assert len(check) == 1
-    text = "".join(o.get("text", "") for o in check[0].outputs if o.output_type == "stream")
-    assert "agree" in text, check[0].outputs
-    assert not any(o.output_type == "error" for c in nb.cells for o in c.get("outputs", []))
+# ------------------------------------------------------------------ the notebooks (their runs: test_lessons_skeletons.py)
 
 
 def test_every_lesson_has_one_exercise_cell_and_a_solution():

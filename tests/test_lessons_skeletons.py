@@ -1,13 +1,14 @@
-"""The lessons' notebooks run as a student first gets them (lessons/README.md): each check cell
-fails, and its message names the rule the skeleton breaks. (In a file of its own so that under
-``make test``'s --dist loadfile these runs go to another worker than tests/test_lessons.py's.)"""
+"""The lessons' notebooks, run headless twice (issue #33): as a student first gets them (lessons/README.md)
+each check cell fails, and its message names the rule the skeleton breaks; with the solutions in the
+exercise cells every check passes. Both runs share one kernel (lessons/run.py's ``run_both``: the cells
+before the exercise run once). (In a file of its own so that under ``make test``'s --dist loadfile these
+runs go to another worker than tests/test_lessons.py's.)"""
 from __future__ import annotations
 
 import pytest
-from lessons_run import failure
+from lessons_run import NOTEBOOKS, run_both
 
-
-@pytest.mark.parametrize("name, expected", [
+CASES = [pytest.param(*case, id=case[0]) for case in [
     ("01_lines", "pixel (13, 6): your answer draws it, softpipe does not: it holds the end point pb = (13.5, 6.5): "
                  "the diamond-exit rule leaves the last pixel out"),
     ("02_triangles", "pixel (5, 4): your answer draws it, softpipe does not: its centre lies exactly on triangle 0's "
@@ -29,7 +30,20 @@ from lessons_run import failure
                    "(floor(x) + di, floor(y) + dj), −r ≤ di, dj ≤ r, and average"),
     ("10_rays", "your test misses triangles seen from behind (det < 0): softpipe's rays hit both sides of a triangle, "
                 "so only det = 0 (the ray parallel to the plane) is no hit"),
-])
-def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
-    text = failure(name)
+]]
+
+
+@pytest.mark.parametrize("name, expected", CASES)
+def test_a_skeleton_fails_with_a_message_that_names_the_rule_and_the_solution_passes(name, expected):
+    text, nb = run_both(name)
+    assert text is not None, f"{name}: the notebook as given ran without an error: its check did not fail"
     assert "AssertionError" in text and expected in text, text[-3000:]
+    check = [c for c in nb.cells if "check" in c.metadata.get("tags", [])]
+    assert len(check) == 1
+    shown = "".join(o.get("text", "") for o in check[0].outputs if o.output_type == "stream")
+    assert "agree" in shown, check[0].outputs
+    assert not any(o.output_type == "error" for c in nb.cells for o in c.get("outputs", []))
+
+
+def test_every_notebook_is_run():
+    assert [p.values[0] for p in CASES] == NOTEBOOKS
