@@ -21,9 +21,21 @@ def runner():
     return module
 
 
-def failure(name: str) -> str:
-    """The text of the error the notebook stops with, run as it is (the skeleton), without colors."""
+def failure(name: str, solved: int = 0) -> str:
+    """The text of the error the notebook stops with, run as it is (the skeleton), without colors; with
+    ``solved`` = n, its first n exercise cells completed by the solution (to reach a later exercise's check)."""
     from nbclient.exceptions import CellExecutionError
+    path = LESSONS / f"{name}.ipynb"
     with pytest.raises(CellExecutionError) as info:
-        runner().run(LESSONS / f"{name}.ipynb", solutions=False)
+        if not solved:
+            runner().run(path, solutions=False)
+        else:
+            from nbclient import NotebookClient
+            nb = runner().load(path)
+            exercises = [c for c in nb.cells if "exercise" in c.metadata.get("tags", [])]
+            assert len(exercises) > solved, f"{name} has {len(exercises)} exercise cell(s)"
+            for cell in exercises[:solved]:
+                cell.source = (LESSONS / "solutions" / f"{name}.py").read_text()
+            NotebookClient(nb, timeout=600, kernel_name="python3",
+                           resources={"metadata": {"path": str(LESSONS)}}).execute()
     return re.sub(r"\x1b\[[0-9;]*m", "", str(info.value))

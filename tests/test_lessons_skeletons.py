@@ -33,3 +33,11 @@ from lessons_run import failure
 def test_a_skeleton_fails_with_a_message_that_names_the_rule(name, expected):
     text = failure(name)
     assert "AssertionError" in text and expected in text, text[-3000:]
+
+
+def test_lesson_08s_second_exercise_fails_with_a_message_that_names_the_units():
+    """Lesson 08 has two exercises: with the bilinear filter done, the level of detail's skeleton (uv units) fails."""
+    text = failure("08_textures", solved=1)
+    assert "AssertionError" in text and "your level of detail differs from softpipe's at " in text, text[-3000:]
+    assert ("your ρ is in uv units: measure the derivatives in texels of level 0, ∂u·W and ∂v·H (W × H the "
+            "texture's size), before taking their lengths") in text, text[-3000:]
