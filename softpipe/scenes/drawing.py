@@ -546,7 +546,8 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
     if isinstance(model, Scene) or not isinstance(model, (str, os.PathLike)):
         if not isinstance(model, Scene):
             mesh = as_mesh(model)
-            return Scene.from_model(mesh, texture=texture, srgb_textures=srgb_textures, **angles, **size), True
+            return Scene.from_model(mesh, texture=texture, srgb_textures=srgb_textures, allow_outside=allow_outside,
+                                    **angles, **size), True
         scene = model
     else:
         from softpipe.scenes.models import model_path
