@@ -46,40 +46,41 @@ def run(path: Path, solutions: bool = False, timeout: int = 600):
 
 
 def run_both(path: Path, timeout: int = 600):
-    """The notebook as a student gets it, then with the solutions, in one kernel: (the error text the
-    first failing cell stops with, or None if none fails; the notebook executed with the solutions).
+    """The notebook as a student gets it, and with the solutions, in one kernel: (the error text of each
+    exercise's failing cell as given, in order; the notebook executed with the solutions).
 
-    The cells before the first exercise cell run once; the notebook as given runs on to its first
-    failing cell (or to the end), then the run goes back to the first exercise cell and runs from there
-    to the end with the solutions in the exercise cells, as :func:`run` with ``solutions`` would (the
-    cells before it are the same in both).
-    Raises CellExecutionError when a cell fails with the solutions.
+    The cells run in order as given. When one fails, the first exercise cell before it still as given
+    gets the solution's text, and the run goes back to that exercise cell; so each exercise's skeleton
+    is met with the exercises before it solved, as a student meets it, and the run ends with every
+    exercise that failed solved (the cells before the first exercise run once). Raises
+    CellExecutionError when a cell fails with every exercise before it solved.
     """
     from nbclient import NotebookClient
     from nbclient.exceptions import CellExecutionError
 
-    given, solved = load(path), load(path, solutions=True)
-    first = next(i for i, c in enumerate(given.cells) if "exercise" in c.get("metadata", {}).get("tags", []))
-    client = NotebookClient(given, timeout=timeout, kernel_name="python3",
+    nb = load(path)
+    solution = (path.parent / "solutions" / (path.stem + ".py")).read_text()
+    exercises = [i for i, c in enumerate(nb.cells) if "exercise" in c.get("metadata", {}).get("tags", [])]
+    client = NotebookClient(nb, timeout=timeout, kernel_name="python3",
                             resources={"metadata": {"path": str(path.parent)}})
-    failure = None
+    failures, solved = [], set()
     with client.setup_kernel():
-        for i, cell in enumerate(given.cells):
-            if cell.cell_type != "code":
-                continue
-            try:
-                client.execute_cell(cell, i)
-            except CellExecutionError as e:
-                if i < first:
-                    raise                            # before any exercise: the lesson itself is broken
-                failure = str(e)
-                break
-        for i in range(first, len(solved.cells)):
-            if solved.cells[i].cell_type == "code":
-                client.execute_cell(solved.cells[i], i)
-    for i in range(first):                           # the cells both runs share, as they ran
-        solved.cells[i] = given.cells[i]
-    return failure, solved
+        i = 0
+        while i < len(nb.cells):
+            if nb.cells[i].cell_type == "code":
+                try:
+                    client.execute_cell(nb.cells[i], i)
+                except CellExecutionError as e:
+                    given = [j for j in exercises if j <= i and j not in solved]
+                    if not given:
+                        raise                        # it fails with the solutions: the lesson is broken
+                    failures.append(str(e))
+                    i = given[0]
+                    nb.cells[i].source = solution
+                    solved.add(i)
+                    continue
+            i += 1
+    return failures, nb
 
 
 def main(argv=None) -> int:

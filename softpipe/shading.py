@@ -132,6 +132,14 @@ The packed lights (:mod:`softpipe.light.lighting`, :mod:`softpipe.light.packed`,
     LIGHT_ATTENUATION, LIGHT_SPOT_DIRECTION, LIGHT_SPOT_COS_CUTOFF,
     LIGHT_SPOT_EXPONENT, LIGHT_COLUMNS     the columns of a packed light
     LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT             the values of LIGHT_KIND
+Textures (:mod:`softpipe.light.texture`; docs/texture-mapping.md, docs/textures.md)
+    texture                  RGBA of a texture uniform at uv, level 0 (GLSL ``texture``)
+    texture_grad             sampled at the level λ its uv derivatives give: ``texture_grad(uniforms.tex,
+                             varyings.uv, derivatives.dx.uv, derivatives.dy.uv)`` (GLSL ``textureGrad``)
+    texture_lod              sampled at a level λ given (GLSL ``textureLod``)
+    mip_level                λ = log2 ρ of the derivatives, ρ in texels of level 0 per pixel
+    texture_size             (width, height) of a level (GLSL ``textureSize``)
+    Texture2D, TextureUniform   the image and mipmaps, and its uniform: ``uniforms={"tex": Texture2D(...)}``
 Ray queries (:mod:`softpipe.rays.queries`; GLSL's ``rayQueryEXT`` in spirit)
     RayScene                 the scene as a uniform: ``uniforms={"scene": RayScene(objects)}``
                              (the draw's ``view`` turns it to eye space: ``scene.uniform(view)``)
@@ -234,6 +242,15 @@ from softpipe.light.packed import (
                    light_vec3,
 )
 from softpipe.light.shadowmap import ShadowSettings, casts_shadows, light_visibility
+from softpipe.light.texture import (
+    Texture2D,
+    TextureUniform,
+    mip_level,
+    texture,
+    texture_grad,
+    texture_lod,
+    texture_size,
+)
 from softpipe.programs.common import (
                    StandardVaryings,
                    eye_space,
@@ -284,6 +301,8 @@ __all__ = [
     "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR", "LIGHT_POSITION",
     "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF", "LIGHT_SPOT_EXPONENT",
     "LIGHT_COLUMNS", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT",
+    # textures
+    "texture", "texture_grad", "texture_lod", "mip_level", "texture_size", "Texture2D", "TextureUniform",
     # ray queries
     "RayScene", "trace_closest", "trace_any", "hit_position", "hit_normal", "ray_visibility", "medium_falloff",
     "tracer_uniform", "trace_ray",

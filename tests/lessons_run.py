@@ -22,15 +22,7 @@ def runner():
 
 
 def run_both(name: str):
-    """The notebook as given and with the solutions, in one kernel (lessons/run.py's ``run_both``): the text
-    of the error it stops with as given (None if none), without colors, and the solutions' notebook."""
-    failure, nb = runner().run_both(LESSONS / f"{name}.ipynb")
-    return (None if failure is None else re.sub(r"\x1b\[[0-9;]*m", "", failure)), nb
-
-
-def failure(name: str) -> str:
-    """The text of the error the notebook stops with, run as it is (the skeleton), without colors."""
-    from nbclient.exceptions import CellExecutionError
-    with pytest.raises(CellExecutionError) as info:
-        runner().run(LESSONS / f"{name}.ipynb", solutions=False)
-    return re.sub(r"\x1b\[[0-9;]*m", "", str(info.value))
+    """The notebook as given and with the solutions, in one kernel (lessons/run.py's ``run_both``): the texts
+    of the errors its exercises' skeletons stop with, in order, without colors, and the solutions' notebook."""
+    failures, nb = runner().run_both(LESSONS / f"{name}.ipynb")
+    return [re.sub(r"\x1b\[[0-9;]*m", "", text) for text in failures], nb

@@ -49,6 +49,17 @@ def test_each_command_has_complete_help(capsys, command, options):
             assert name in out
 
 
+@pytest.mark.parametrize("command", ["render", "turntable", "explore", "view"])
+def test_help_names_the_model_formats_input_takes(capsys, command):
+    code, out, _ = run_cli(capsys, command, "--help")
+    text = " ".join(out.split())
+    assert code == 0
+    assert ("INPUT a .obj model (or .ply, .stl, .gltf, .glb, read through trimesh), a bundled model's name or a "
+            ".toml scene file") in text
+    if command == "render":
+        assert "INPUT.ply, INPUT.stl, INPUT.gltf, INPUT.glb: a PLY, STL or glTF 2.0 model read through trimesh" in text
+
+
 def test_help_examples_use_the_bundled_models(capsys):
     out = run_cli(capsys, "--help")[1]
     assert "softpipe render bunny -o bunny.png" in out and "shared" not in out      # no folder a clone lacks

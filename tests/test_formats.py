@@ -500,3 +500,76 @@ def test_a_scene_file_names_ply_and_glb_models(tmp_path):
     results = []
     sp.render(tmp_path / "s.toml", results=results)
     assert [r.program for r in results] == ["phong", "textured", "cook_torrance"]
+
+
+# ---------------------------------------------------------------------------- one dispatch: load_model, from_model, jobs
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".stl", ".glb"])
+def test_load_model_and_scene_from_model_read_the_formats_by_suffix(tmp_path, suffix):
+    """models.load_model is the one suffix dispatch: Scene.from_model(path) draws what sp.render(path) does."""
+    path = tmp_path / f"t{suffix}"
+    if suffix == ".ply":
+        write_ply(path, TETRA_P, TETRA_F)
+    elif suffix == ".stl":
+        write_stl(path, TETRA_P, TETRA_F)
+    else:
+        g = GLTF()
+        g.node(mesh=g.mesh(TETRA_P, TETRA_F))
+        g.write(path)
+    mesh, expected = sp.load_model(path), load_mesh(path)    # (STL's corners welded: in another order)
+    assert np.array_equal(mesh.positions, expected.positions) and np.array_equal(mesh.indices, expected.indices)
+    assert np.array_equal(np.sort(mesh.positions, axis=0), np.sort(TETRA_P, axis=0))
+    assert mesh.source.format == {".glb": "glTF"}.get(suffix, suffix[1:].upper())
+    scene = sp.Scene.from_model(str(path), width=W, height=H)
+    assert scene.path == str(path) and np.array_equal(scene.objects[0].mesh.positions, expected.positions)
+    assert np.array_equal(np.asarray(sp.render(scene).to_image()), render_bytes(path))
+    with pytest.raises(TypeError, match=r"t\.\w+: encoding apply to OBJ files; a \w+ file takes only allow_outside$"):
+        sp.load_model(path, encoding="utf-8")
+
+
+def test_scene_from_model_gives_a_gltf_its_textures_and_programs(tmp_path):
+    path = textured_quad(tmp_path / "quad.glb")
+    g = GLTF()
+    g.node(mesh=g.mesh(TETRA_P, TETRA_F, material=g.material("steel", baseColorFactor=[0.5, 0.5, 0.5, 1.0])))
+    g.write(tmp_path / "steel.glb")
+    (quad,) = sp.Scene.from_model(path).objects
+    assert quad.texture is not None and quad.texture.srgb and quad.program is None
+    (steel,) = sp.Scene.from_model(tmp_path / "steel.glb").objects
+    assert steel.program == "cook_torrance" and steel.texture is None
+    # a Mesh given as it is is drawn as any mesh is (docs/formats.md)
+    (plain,) = sp.Scene.from_model(load_mesh(tmp_path / "steel.glb")).objects
+    assert plain.program is None and plain.texture is None
+
+
+def test_scene_from_model_keeps_a_formats_warning_its_kind(tmp_path):
+    path = write_ply(tmp_path / "cloud.ply", TETRA_P)
+    with pytest.warns(FormatWarning) as caught:
+        scene = sp.Scene.from_model(path)
+    message = f"{path}: no faces: its 4 vertices are read as points (a point cloud)"
+    assert [(w.category, str(w.message)) for w in caught] == [(FormatWarning, message)]
+    assert scene.warnings == [message]
+
+
+def test_a_batch_job_names_ply_stl_and_glb_models(tmp_path):
+    from softpipe.tools.batch import job_from_dict
+    write_ply(tmp_path / "t.ply", TETRA_P, TETRA_F)
+    write_stl(tmp_path / "t.stl", TETRA_P, TETRA_F)
+    g = GLTF()
+    g.node(mesh=g.mesh(TETRA_P, TETRA_F))
+    g.write(tmp_path / "t.glb")
+    job = job_from_dict({"models": {"p": "t.ply", "s": {"obj": "t.stl"}, "g": "t.glb"},
+                         "sweep": {"models": ["p", "s", "g"]}}, base_dir=tmp_path)
+    meshes = job.load_models()
+    assert sorted(meshes) == ["g", "p", "s"]
+    for name, file in (("p", "t.ply"), ("s", "t.stl"), ("g", "t.glb")):
+        expected = load_mesh(tmp_path / file)
+        assert np.array_equal(meshes[name].positions, expected.positions), name
+        assert np.array_equal(meshes[name].indices, expected.indices), name
+        assert np.array_equal(np.sort(meshes[name].positions, axis=0), np.sort(TETRA_P, axis=0)), name
+    (tmp_path / "bad.stl").write_text("solid t\nfacet normal 0 0 0\nouter loop\nvertex 1 2\n")
+    job = job_from_dict({"models": {"bad": "bad.stl"}, "sweep": {"models": ["bad"]}}, base_dir=tmp_path)
+    from softpipe.tools.batch import JobError
+    with pytest.raises(JobError, match=r"^<job>: key 'obj' in \[models\] 'bad': .*bad\.stl: the file holds no "
+                                       r"vertices: nothing to draw$"):
+        job.load_models()

@@ -21,6 +21,7 @@ from softpipe.testing import (
     check_depth_test,
     check_interpolation,
     check_line,
+    check_mip_level,
     check_ray_triangle,
     check_shadow_compare,
     check_triangles,
@@ -33,13 +34,16 @@ from softpipe.views.zoom import GRID, INK, PAPER, glyph, zoom_layout, zoom_scale
 # ------------------------------------------------------------------ the notebooks (their runs: test_lessons_skeletons.py)
 
 
-def test_every_lesson_has_one_exercise_cell_and_a_solution():
+def test_every_lesson_has_its_exercise_cells_and_a_solution():
     found = sorted(p.stem for p in LESSONS.glob("[0-9][0-9]_*.ipynb"))
     assert found == NOTEBOOKS
     for name in NOTEBOOKS:
         nb = runner().load(LESSONS / f"{name}.ipynb", solutions=True)
         exercise = [c for c in nb.cells if "exercise" in c.metadata.get("tags", [])]
-        assert len(exercise) == 1 and exercise[0].source == (LESSONS / "solutions" / f"{name}.py").read_text()
+        # one exercise a lesson, two in lesson 08 (the bilinear filter, the level of detail): the one solution file
+        # completes every exercise cell of its lesson
+        assert len(exercise) == (2 if name == "08_textures" else 1), name
+        assert all(c.source == (LESSONS / "solutions" / f"{name}.py").read_text() for c in exercise)
         original = runner().load(LESSONS / f"{name}.ipynb")
         assert all(not c.get("outputs") for c in original.cells if c.cell_type == "code"), "commit notebooks cleared"
 
@@ -495,6 +499,72 @@ def test_check_bilinear_agrees_with_texture2d_and_names_the_classic_mistakes():
     with pytest.raises(ValueError, match=r"bilinear must return the filtered color \(r, g, b, a\), got an array of "
                                          r"shape \(2,\)"):
         check_bilinear(lambda img, u, v: (u, v), trace, tex)
+
+
+def _floor_trace(tex):
+    """A floor going into the distance (the far edge at w = 4), drawn with texture_grad: λ from about −0.5 to 3."""
+    from softpipe.shading import texture_grad
+
+    def mipmapped(varyings, uniforms, frag, derivatives):
+        c = texture_grad(uniforms.tex, varyings.uv, derivatives.dx.uv, derivatives.dy.uv)
+        return (c[0], c[1], c[2], 1.0)
+
+    floor = np.array([[-1.2, -1, 0, 1], [1.2, -1, 0, 1], [3, 2.8, 0, 4], [-1.2, -1, 0, 1], [3, 2.8, 0, 4],
+                      [-3, 2.8, 0, 4]], float)
+    uv = np.array([[0, 0], [1, 0], [1, 3], [0, 0], [1, 3], [0, 3]], float)
+    return sp.draw(sp.Framebuffer(32, 24), floor, varyings={"uv": uv}, fragment_shader=mipmapped,
+                   uniforms={"tex": tex}, trace=True)
+
+
+def _level_of_detail(duv_dx, duv_dy, width, height):
+    return float(np.log2(max(np.hypot(duv_dx[0] * width, duv_dx[1] * height),
+                             np.hypot(duv_dy[0] * width, duv_dy[1] * height))))
+
+
+def test_check_mip_level_agrees_with_texture_grads_level_and_names_the_classic_mistakes():
+    checker = np.where(np.add.outer(np.arange(16) // 2, np.arange(32) // 2) % 2 == 0, 230, 40).astype(np.uint8)
+    tex = sp.Texture2D(checker, wrap="repeat", filter="trilinear")
+    trace = _floor_trace(tex)
+    n = len(trace.fragments)
+    result = check_mip_level(_level_of_detail, trace, tex)
+    assert result.ok and result.message == f"level of detail: your λ and softpipe's agree at all {n} fragments"
+    # softpipe's level is the one texture_grad sampled at: the shader's colors are texture_lod at it
+    from softpipe.light.texture import mip_level, texture_lod
+    for k in range(0, n, 37):
+        varyings, _, _, d = trace.fragment_inputs(k)
+        lam = mip_level(tex.__softpipe_uniform__(), d.dx.uv, d.dy.uv)
+        assert lam == _level_of_detail(d.dx.uv, d.dy.uv, 32, 16)
+        assert np.allclose(trace.shaded.color[k], texture_lod(tex.__softpipe_uniform__(), varyings.uv, lam),
+                           rtol=0, atol=1e-6)
+
+    def lengths(a, b, w, h):
+        return np.hypot(a[0] * w, a[1] * h), np.hypot(b[0] * w, b[1] * h)
+
+    mistakes = {
+        "your ρ is in uv units: measure the derivatives in texels of level 0": lambda a, b, w, h: _level_of_detail(
+            a, b, 1, 1),
+        "you scale u by the height and v by the width": lambda a, b, w, h: _level_of_detail(a, b, h, w),
+        "you take log2 of ρ² (the squared lengths)": lambda a, b, w, h: 2 * _level_of_detail(a, b, w, h),
+        "your λ is ρ itself (texels per pixel)": lambda a, b, w, h: max(lengths(a, b, w, h)),
+        "you take the natural log": lambda a, b, w, h: float(np.log(max(lengths(a, b, w, h)))),
+        "you add the two lengths": lambda a, b, w, h: float(np.log2(sum(lengths(a, b, w, h)))),
+        "you take the smaller of the two lengths": lambda a, b, w, h: float(np.log2(min(lengths(a, b, w, h)))),
+    }
+    for hint, answer in mistakes.items():
+        with pytest.raises(AssertionError) as info:
+            check_mip_level(answer, trace, tex, show=False)
+        text = str(info.value)
+        assert text.startswith("your level of detail differs from softpipe's at ") and hint in text, text
+        assert text.endswith("(the picture: your λ, softpipe's, and where they differ in red; a 32×16 texture, "
+                             "level 0 to 5)"), text
+    with pytest.raises(ValueError, match=r"^check_mip_level needs a draw whose fragment shader takes derivatives: "
+                                         r"def fragment\(varyings, uniforms, frag, derivatives\)$"):
+        check_mip_level(_level_of_detail, _texture_trace(tex), tex)
+    with pytest.raises(ValueError, match=r"the draw has no varying 'st'; its varyings are \['uv'\]"):
+        check_mip_level(_level_of_detail, trace, tex, "st")
+    with pytest.raises(ValueError, match=r"^level_of_detail must return the level of detail λ \(a number\), got "
+                                         r"tuple \(1, 2\)$"):
+        check_mip_level(lambda a, b, w, h: (1, 2), trace, tex)
 
 
 def _shadow_compare(depth, x, y, ref, r):

@@ -1,7 +1,7 @@
 """The lessons' notebooks, run headless twice (issue #33): as a student first gets them (lessons/README.md)
-each check cell fails, and its message names the rule the skeleton breaks; with the solutions in the
-exercise cells every check passes. Both runs share one kernel (lessons/run.py's ``run_both``: the cells
-before the exercise run once). (In a file of its own so that under ``make test``'s --dist loadfile these
+each exercise's check fails (a later exercise's with the ones before it solved), and its message names the
+rule the skeleton breaks; with the solutions in the exercise cells every check passes. Both runs share one
+kernel (lessons/run.py's ``run_both``: the cells before the first exercise run once). (In a file of its own so that under ``make test``'s --dist loadfile these
 runs go to another worker than tests/test_lessons.py's.)"""
 from __future__ import annotations
 
@@ -24,8 +24,12 @@ CASES = [pytest.param(*case, id=case[0]) for case in [
                     "p_a + t·(p_b − p_a) with t = d_a / (d_a − d_b)"),
     ("07_shading", "you compute Phong's specular (R·V)ⁿ (FORMULAS §5); Blinn–Phong's is (N·H)₊ⁿ with the half "
                    "vector H = normalize(L + V) (FORMULAS §6)"),
-    ("08_textures", "your answer is the nearest texel (GL's NEAREST): bilinear filtering weights the four texels "
-                    "around (u·W − ½, v·H − ½)"),
+    ("08_textures", ("your answer is the nearest texel (GL's NEAREST): bilinear filtering weights the four texels "
+                     "around (u·W − ½, v·H − ½)",
+                     # the second exercise, met with the first solved: the level of detail
+                     "your level of detail differs from softpipe's at ",
+                     "your ρ is in uv units: measure the derivatives in texels of level 0, ∂u·W and ∂v·H (W × H the "
+                     "texture's size), before taking their lengths")),
     ("09_shadows", "you compare one texel: with PCF radius r = 1, compare at each of the (2r+1)² = 9 texels "
                    "(floor(x) + di, floor(y) + dj), −r ≤ di, dj ≤ r, and average"),
     ("10_rays", "your test misses triangles seen from behind (det < 0): softpipe's rays hit both sides of a triangle, "
@@ -34,14 +38,18 @@ CASES = [pytest.param(*case, id=case[0]) for case in [
 
 
 @pytest.mark.parametrize("name, expected", CASES)
-def test_a_skeleton_fails_with_a_message_that_names_the_rule_and_the_solution_passes(name, expected):
-    text, nb = run_both(name)
-    assert text is not None, f"{name}: the notebook as given ran without an error: its check did not fail"
-    assert "AssertionError" in text and expected in text, text[-3000:]
-    check = [c for c in nb.cells if "check" in c.metadata.get("tags", [])]
-    assert len(check) == 1
-    shown = "".join(o.get("text", "") for o in check[0].outputs if o.output_type == "stream")
-    assert "agree" in shown, check[0].outputs
+def test_each_skeleton_fails_with_a_message_that_names_the_rule_and_the_solution_passes(name, expected):
+    failures, nb = run_both(name)
+    exercises = [c for c in nb.cells if "exercise" in c.metadata.get("tags", [])]
+    checks = [c for c in nb.cells if "check" in c.metadata.get("tags", [])]
+    assert len(failures) == len(exercises) == len(checks) >= 1, (
+        f"{name}: {len(failures)} check(s) failed as given, for {len(exercises)} exercise(s)")
+    per_exercise = [[expected]] if isinstance(expected, str) else [[expected[0]], list(expected[1:])]
+    for text, parts in zip(failures, per_exercise):
+        assert "AssertionError" in text and all(p in text for p in parts), text[-3000:]
+    for cell in checks:                              # with the solutions every check passes
+        shown = "".join(o.get("text", "") for o in cell.outputs if o.output_type == "stream")
+        assert "agree" in shown, cell.outputs
     assert not any(o.output_type == "error" for c in nb.cells for o in c.get("outputs", []))
 
 

@@ -180,3 +180,13 @@ def test_a_program_made_from_shading_draws_like_the_built_in_one(name):
         softpipe.draw_mesh(fb, mesh, camera, program)
         pictures.append(fb.color.tobytes())
     assert pictures[0] == pictures[1]
+
+
+def test_it_offers_texture_sampling_and_the_guide_and_lesson_import_it_from_here():
+    from softpipe.light import texture as home
+    for name in ("texture", "texture_grad", "texture_lod", "mip_level", "texture_size", "Texture2D", "TextureUniform"):
+        assert getattr(shading, name) is getattr(home, name), name
+    for page in ("docs/texture-mapping.md", "lessons/08_textures.ipynb"):
+        text = (ROOT / page).read_text()
+        assert "from softpipe.light.texture import" not in text, page
+        assert "from softpipe.shading import" in text, page

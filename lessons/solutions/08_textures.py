@@ -1,4 +1,4 @@
-# Lesson 08, the exercise completed: GL's LINEAR filter on one level, the texture repeating.
+# Lesson 08, the exercises completed: GL's LINEAR filter on one level, the texture repeating; the level of detail.
 
 import math
 
@@ -16,3 +16,11 @@ def bilinear(image, u, v):
 
     return ((1 - a) * (1 - b) * texel(i0, j0) + a * (1 - b) * texel(i0 + 1, j0)
             + (1 - a) * b * texel(i0, j0 + 1) + a * b * texel(i0 + 1, j0 + 1))
+
+
+def level_of_detail(duv_dx, duv_dy, width, height):
+    """GL's λ = log2 ρ: the derivatives in texels of level 0 (u by the width, v by the height), the
+    longer of the footprint's two sides, ρ = max(ρ_x, ρ_y)."""
+    rho_x = math.hypot(duv_dx[0] * width, duv_dx[1] * height)
+    rho_y = math.hypot(duv_dy[0] * width, duv_dy[1] * height)
+    return math.log2(max(rho_x, rho_y))

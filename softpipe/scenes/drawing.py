@@ -51,7 +51,7 @@ from softpipe.pipeline.sampling import pattern_named
 from softpipe.pipeline.transforms import compose, normal_matrix
 from softpipe.programs import PROGRAMS, Program, get_program
 from softpipe.programs.common import lighting_uniform
-from softpipe.scenes.formats import FORMATS, model_scene
+from softpipe.scenes.formats import FORMATS
 from softpipe.scenes.mesh import Mesh
 from softpipe.scenes.outputs import RenderOutputs, check_outputs, derive_outputs
 from softpipe.scenes.scene import Scene, SceneObject, program_for, studio_lights
@@ -546,23 +546,15 @@ def _load_input(model, default_size, width, height, texture, azimuth, elevation,
     if isinstance(model, Scene) or not isinstance(model, (str, os.PathLike)):
         if not isinstance(model, Scene):
             mesh = as_mesh(model)
-            return Scene.from_model(mesh, texture=texture, srgb_textures=srgb_textures, **angles, **size), True
+            return Scene.from_model(mesh, texture=texture, srgb_textures=srgb_textures, allow_outside=allow_outside,
+                                    **angles, **size), True
         scene = model
     else:
         from softpipe.scenes.models import model_path
         kind, path = input_kind(model), os.fspath(model_path(model))
-        if kind == ".obj":
-            label = os.fspath(model)
-            if allow_outside:   # Scene.from_model reads with the default policy (files in the OBJ's folder)
-                from softpipe.scenes.models import load_model
-                model = load_model(model, allow_outside=True)
-                if model.triangle_count == 0 and model.segment_count == 0 and model.point_count == 0:
-                    raise ValueError(f"{label}: the file has no faces (f), lines (l) or points (p) to render")
-            return Scene.from_model(model, texture=texture, srgb_textures=srgb_textures, **angles, **size,
-                                    path=label), True
-        if kind in FORMATS:     # PLY, STL, glTF: read through trimesh (softpipe.scenes.formats)
-            return model_scene(path, label=os.fspath(model), texture=texture, srgb_textures=srgb_textures,
-                               allow_outside=allow_outside, **angles, **size), True
+        if kind == ".obj" or kind in FORMATS:   # a model: its suffix read by models.load_model, the one dispatch
+            return Scene.from_model(model, texture=texture, srgb_textures=srgb_textures, allow_outside=allow_outside,
+                                    **angles, **size, path=os.fspath(model)), True
         from softpipe.scenes.scenefile import load_scene  # the one place drawing reads a scene file: render()'s input
         scene = load_scene(path, allow_outside=allow_outside)
     # a scene (file or object): its own settings, changed only by what is given

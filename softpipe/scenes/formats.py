@@ -8,9 +8,10 @@ the file:
 
 - :func:`load_mesh` reads one file into one Mesh (a glTF scene's nodes flattened: each
   node's mesh moved by its world transform, the materials kept per triangle);
-- :func:`model_scene` is :meth:`Scene.from_model <softpipe.scenes.scene.Scene.from_model>`
-  for such a file: what ``softpipe render model.glb`` draws, the glTF base-color textures
-  attached and each part given the program that reads its material;
+- :meth:`Scene.from_model <softpipe.scenes.scene.Scene.from_model>` of such a file's path
+  (which reads it through :func:`softpipe.scenes.models.load_model`, the one suffix
+  dispatch) is what ``softpipe render model.glb`` draws: the glTF base-color textures
+  attached and each part given the program that reads its material (:data:`GLTF_PROGRAM`);
 - :func:`glb_material` is the mapping of a glTF metallic-roughness material onto
   :class:`~softpipe.light.material.Material` (FORMULAS §26, §20; docs/formats.md).
 
@@ -35,10 +36,9 @@ import numpy as np
 from softpipe.core.files import PathPolicyError, check_regular_file, excerpt, resolve_inside
 from softpipe.light.material import Material
 from softpipe.scenes.mesh import Mesh, concatenate
-from softpipe.scenes.scene import Scene
 
 __all__ = ["FORMATS", "FormatError", "MissingExtraError", "FormatWarning", "FormatReport", "load_mesh",
-           "model_scene", "glb_material", "GLTF_PROGRAM"]
+           "glb_material", "GLTF_PROGRAM"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -156,32 +156,6 @@ def load_mesh(path: PathLike, *, allow_outside: bool = False) -> Mesh:
             report.warnings.append(str(w.message))
         warnings.warn(w.message, w.category, stacklevel=2)
     return mesh
-
-
-def model_scene(path: PathLike, *, label: Optional[str] = None, texture: Any = None,
-                srgb_textures: bool = False, allow_outside: bool = False, **settings: Any) -> Scene:
-    """The scene ``softpipe render MODEL`` draws for a PLY, STL or glTF file.
-
-    :meth:`Scene.from_model <softpipe.scenes.scene.Scene.from_model>` of :func:`load_mesh`'s
-    mesh (``texture``, ``srgb_textures`` and ``settings`` are its), then, unless a
-    ``texture`` was given for the whole model, each part of a glTF material gets that
-    material's base-color texture and, without one, the program :data:`GLTF_PROGRAM`
-    (``cook_torrance``, which reads the metallic-roughness mapping). ``label`` names the
-    scene in messages (the path by default).
-    """
-    label = os.fspath(path) if label is None else label
-    mesh = load_mesh(path, allow_outside=allow_outside)
-    report: FormatReport = mesh.source
-    scene = Scene.from_model(mesh, texture=texture, srgb_textures=srgb_textures, path=label, **settings)
-    scene.warnings.extend(report.warnings)
-    if texture is None:
-        for obj in scene.objects:
-            material = obj.mesh.material
-            if material.name in report.textures and obj.mesh.uvs is not None:
-                obj.texture = report.textures[material.name]
-            elif material.name in report.pbr:
-                obj.program = GLTF_PROGRAM
-    return scene
 
 
 def glb_material(spec: Dict[str, Any], name: str, textured: bool = False) -> Material:

@@ -108,19 +108,31 @@ def texture_path(name: PathLike) -> Optional[Path]:
 
 
 def load_model(name_or_path: PathLike, *, allow_outside: bool = False, **kwargs):
-    """Load a bundled model by name, or any OBJ file by path, as a :class:`~softpipe.scenes.mesh.Mesh`.
+    """Load a bundled model by name, or a model file by path, as a :class:`~softpipe.scenes.mesh.Mesh`.
 
-    ``model_path(name_or_path)`` then :func:`softpipe.scenes.obj.load_obj` (``allow_outside`` and
-    ``kwargs`` are passed on to it: files the OBJ names outside its folder are refused
-    unless ``allow_outside=True``). For a bundled model with a texture (``"spot"``), the mesh's
+    ``model_path(name_or_path)``, then by the file's suffix: a ``.ply``, ``.stl``, ``.gltf`` or
+    ``.glb`` file (:data:`softpipe.scenes.formats.FORMATS`) is read by
+    :func:`softpipe.scenes.formats.load_mesh` (through trimesh), any other file by
+    :func:`softpipe.scenes.obj.load_obj` (``allow_outside`` is passed on to either, and
+    ``kwargs`` to ``load_obj``: files the model names outside its folder are refused
+    unless ``allow_outside=True``). This is the one place a model file's format is
+    decided: ``Scene.from_model``, ``sp.render`` and batch jobs all read through it.
+    For a bundled model with a texture (``"spot"``), the mesh's
     material gets ``diffuse_texture`` = the bundled texture's path, as an MTL
     ``map_Kd`` line would give it; the command line and scene files then draw it
     textured. Nothing else is changed: the mesh is as the file holds it (not
     centred or scaled).
     """
+    from softpipe.scenes.formats import FORMATS, load_mesh  # trimesh is imported only for such a file
     from softpipe.scenes.obj import load_obj
 
-    mesh = load_obj(model_path(name_or_path), allow_outside=allow_outside, **kwargs)
+    path = model_path(name_or_path)
+    if path.suffix.lower() in FORMATS:
+        if kwargs:
+            raise TypeError(f"{path}: {', '.join(sorted(kwargs))} apply to OBJ files; a "
+                            f"{FORMATS[path.suffix.lower()]} file takes only allow_outside")
+        return load_mesh(path, allow_outside=allow_outside)
+    mesh = load_obj(path, allow_outside=allow_outside, **kwargs)
     texture = texture_path(name_or_path)
     if texture is not None and mesh.uvs is not None and not mesh.materials \
             and not mesh.material.diffuse_texture:

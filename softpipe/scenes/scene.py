@@ -125,15 +125,18 @@ class Scene:
     @classmethod
     def from_model(cls, model: Union[str, "os.PathLike[str]", Mesh], *, texture: Any = None,
                    azimuth: float = 30.0, elevation: float = 20.0, fovy: float = 35.0,
-                   srgb_textures: bool = False, **settings: Any) -> "Scene":
+                   srgb_textures: bool = False, allow_outside: bool = False, **settings: Any) -> "Scene":
         """The scene ``softpipe render MODEL`` draws: one model, framed, under the studio lights.
 
         Parameters
         ----------
         model : str, path-like or Mesh
             A bundled model's name (``"bunny"``, ``"spot"``, … see :mod:`softpipe.scenes.models`),
-            an OBJ file's path, or a mesh already loaded. A mesh with several materials
-            becomes one object per material.
+            a model file's path (OBJ, or PLY, STL, glTF read through trimesh: the suffix
+            decides, in :func:`softpipe.scenes.models.load_model`), or a mesh already loaded.
+            A mesh with several materials becomes one object per material. A glTF file's
+            parts get their base-color textures and, without one, the program
+            ``cook_torrance`` (docs/formats.md); a Mesh given as it is is drawn as any mesh is.
         texture : str, path-like or Texture2D, optional
             A diffuse texture for every part of the model (the mesh needs texture
             coordinates). Without it, a part whose material names a ``diffuse_texture``
@@ -147,6 +150,9 @@ class Scene:
             (as softpipe always has). A ``Texture2D`` given as ``texture`` is used as it is.
         azimuth, elevation, fovy : float
             The framed camera's angles and field of view, in degrees (:class:`FrameSpec`).
+        allow_outside : bool
+            Let the model file name files (an MTL, a glTF's buffers and images) outside its
+            own folder.
         **settings
             Any other :class:`Scene` field: ``width``, ``height``, ``program``, ``cull``,
             ``samples``, ``background``, ``wireframe``, ``path`` (the name in messages;
@@ -162,12 +168,14 @@ class Scene:
         ------
         ValueError
             An unknown bare model name, a model without faces, lines or points, or a texture for a mesh
-            without texture coordinates (``OBJError`` for a malformed file, ``OSError``
-            for one that cannot be read).
+            without texture coordinates (``OBJError`` for a malformed OBJ, ``FormatError``
+            for a PLY, STL or glTF that cannot be read, ``OSError`` for a file that cannot be
+            opened).
         """
         from softpipe.light.texture import Texture2D  # only a scene that has a texture pays for the image code
 
         caught: List[str] = []
+        categories: Dict[str, type] = {}    # a loader's warnings are re-issued as what they were
         if isinstance(model, Mesh):
             mesh = model
             label = mesh.name or "<mesh>"
@@ -175,7 +183,7 @@ class Scene:
                 raise ValueError(f"{label}: the mesh has no triangles, lines or points to render")
         else:
             label = os.fspath(model)
-            mesh = _read_model(model, label, caught)
+            mesh = _read_model(model, label, caught, categories, allow_outside)
         settings.setdefault("path", label)
         if mesh.normals is None and len(mesh.materials) > 1:
             # welded smooth normals over the whole model, so the parts meet without a seam
@@ -209,8 +217,10 @@ class Scene:
             objects.append(SceneObject(part.name or mesh.name, part, np.eye(4), texture=part_texture))
         frame = FrameSpec(azimuth=azimuth, elevation=elevation, fovy=fovy)
         scene = cls(objects=objects, frame=frame, warnings=caught, **settings)
+        if not isinstance(model, Mesh) and texture is None:
+            _dress_formats(scene.objects, mesh.source)
         for message in caught:
-            warnings.warn(message, UserWarning, stacklevel=2)
+            warnings.warn(message, categories.get(message, UserWarning), stacklevel=2)
         return scene
 
     def replace(self, **changes: Any) -> "Scene":
@@ -319,20 +329,39 @@ def ground_object(scene: "Scene", camera: Camera) -> SceneObject:
                        cast_shadows=False)
 
 
-def _read_model(model: Union[str, "os.PathLike[str]"], label: str, caught: List[str]) -> Mesh:
-    """Load a bundled model by name or an OBJ file; its warnings go to ``caught`` (and are re-issued)."""
+def _read_model(model: Union[str, "os.PathLike[str]"], label: str, caught: List[str],
+                categories: Dict[str, type], allow_outside: bool = False) -> Mesh:
+    """Load a bundled model by name or a model file (OBJ, PLY, STL, glTF: load_model's suffix dispatch);
+    its warnings go to ``caught`` (and are re-issued, each as its ``categories`` entry)."""
     from softpipe.scenes.models import load_model  # the bundled models: name → file (and spot's texture)
 
     with warnings.catch_warnings(record=True) as recorded:
         warnings.simplefilter("always")
         try:
-            mesh = load_model(model)
+            mesh = load_model(model, allow_outside=allow_outside)
         except UnicodeError as e:
             raise ValueError(f"{label}: cannot read: {e}") from None
-    caught.extend(str(w.message) for w in recorded)
+    for w in recorded:
+        caught.append(str(w.message))
+        categories[str(w.message)] = w.category
     if mesh.triangle_count == 0 and mesh.segment_count == 0 and mesh.point_count == 0:
         raise ValueError(f"{label}: the file has no faces (f), lines (l) or points (p) to render")
     return mesh
+
+
+def _dress_formats(objects: List[SceneObject], source: Any) -> None:
+    """Give each part of a model read from a glTF file its base-color texture or, without one, the
+    program that reads its metallic-roughness material (formats.GLTF_PROGRAM; docs/formats.md)."""
+    from softpipe.scenes.formats import GLTF_PROGRAM, FormatReport
+
+    if not isinstance(source, FormatReport):
+        return
+    for obj in objects:
+        material = obj.mesh.material
+        if material.name in source.textures and obj.mesh.uvs is not None:
+            obj.texture = source.textures[material.name]
+        elif material.name in source.pbr:
+            obj.program = GLTF_PROGRAM
 
 
 def framed_camera(points, f: FrameSpec, azimuth: float, elevation: float, aspect: float, *,

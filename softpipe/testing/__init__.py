@@ -19,7 +19,7 @@
   by depth per sample and composited "over" an opaque picture (docs/transparency.md).
 - :func:`check_line`, :func:`check_triangles`, :func:`check_depth_test`, :func:`check_interpolation`,
   :func:`check_camera`, :func:`check_clipping`, :func:`check_blinn_phong`, :func:`check_bilinear`,
-  :func:`check_shadow_compare`, :func:`check_ray_triangle`, :func:`check_coverage`:
+  :func:`check_mip_level`, :func:`check_shadow_compare`, :func:`check_ray_triangle`, :func:`check_coverage`:
   the lessons' checks (lessons/): an answer against softpipe's stage, pixel for pixel, with a
   difference picture and a message that names the rule most likely broken.
 - :func:`check_golden` and the pytest plugin :mod:`softpipe.testing.plugin`
@@ -40,6 +40,7 @@ from softpipe.testing.lessons import (
            check_depth_test,
            check_interpolation,
            check_line,
+           check_mip_level,
            check_ray_triangle,
            check_shadow_compare,
            check_triangles,
@@ -53,5 +54,5 @@ __all__ = ["coverage", "covered_pixels", "Coverage", "reference_coverage", "refe
            "reference_line_parameter", "assert_pixels_equal", "ascii_picture", "from_ascii", "check_golden",
            "diff_image", "to_8bit", "sorted_composite", "check_coverage", "check_line", "check_triangles",
            "check_depth_test", "check_interpolation", "check_camera", "check_clipping", "check_blinn_phong",
-           "check_bilinear", "check_shadow_compare", "check_ray_triangle", "Difference",
+           "check_bilinear", "check_mip_level", "check_shadow_compare", "check_ray_triangle", "Difference",
            "trace_fragments"]

@@ -27,6 +27,9 @@ test the wrong way round).
   specular §6) against the colors the ``phong`` program's fragment shader returned at every fragment of a trace.
 - :func:`check_bilinear`: bilinear texture filtering against :meth:`softpipe.Texture2D.sample` at the texture
   coordinates of every fragment of a trace, with the classic mistakes named (the half-texel offset, v not flipped).
+- :func:`check_mip_level`: the level of detail λ = log2 ρ from a fragment's uv derivatives against softpipe's
+  level selection (:func:`softpipe.light.texture.mip_level`) at every fragment of a trace, with the classic mistakes
+  named (uv units instead of texels, log2 of ρ², the sum instead of the larger length).
 - :func:`check_shadow_compare`: the shadow-map depth compare with percentage-closer filtering against softpipe's
   shadow lookup (V_j, FORMULAS §21) at every fragment of a trace of the surface that receives the shadow.
 - :func:`check_ray_triangle`: a ray–triangle test (Möller–Trumbore), used for the closest hit, against softpipe's
@@ -51,10 +54,11 @@ from softpipe.testing.line_reference import reference_line
 from softpipe.views.zoom import png, zoomed
 
 __all__ = ["Difference", "check_coverage", "check_line", "check_triangles", "check_depth_test", "check_interpolation",
-           "check_camera", "check_clipping", "check_blinn_phong", "check_bilinear", "check_shadow_compare", "check_ray_triangle",
-           "camera_rays", "pixel_set", "trace_fragments",
+           "check_camera", "check_clipping", "check_blinn_phong", "check_bilinear", "check_mip_level",
+           "check_shadow_compare", "check_ray_triangle", "camera_rays", "pixel_set", "trace_fragments",
            "reference_winners", "COLORS", "LEGEND", "TOLERANCE", "CLIP_TOLERANCE", "NEAR_PLANE", "CLIP_CASES",
            "SHADING_TOLERANCE", "SHADING_MISTAKES", "LightColors", "TEXTURE_TOLERANCE", "TEXTURE_MISTAKES",
+           "MIP_TOLERANCE", "MIP_MISTAKES",
            "SHADOW_TOLERANCE", "SHADOW_MISTAKES", "RAY_TOLERANCE", "RAY_MISTAKES"]
 
 Pixel = Tuple[int, int]
@@ -1191,6 +1195,145 @@ def check_bilinear(bilinear: Callable, trace, texture, varying: str = "uv", *,
             break
     lines.append(f"(the picture: your colors, softpipe's, and where they differ in red; a {texture.width}×"
                  f"{texture.height} texture, wrap {texture.wrap_s!r})")
+    d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
+    _show(d, show)
+    raise AssertionError(d.message)
+
+
+#: How far a student's level of detail λ may be from softpipe's and still agree (both are float64 log2s).
+MIP_TOLERANCE = 1e-9
+
+
+def _mip_rows(dx: np.ndarray, dy: np.ndarray, width: int, height: int, *, texels=True, sqrt=True, log=True,
+              combine="max", swap=False, log2=True) -> np.ndarray:
+    """λ = log2 ρ (GL's scale factor, docs/texture-mapping.md) at many derivative pairs, and its classic
+    mistakes by flag."""
+    sw, sh = (float(height), float(width)) if swap else (float(width), float(height))
+    if not texels:
+        sw = sh = 1.0
+    rx = (dx[:, 0] * sw) ** 2 + (dx[:, 1] * sh) ** 2
+    ry = (dy[:, 0] * sw) ** 2 + (dy[:, 1] * sh) ** 2
+    if sqrt:
+        rx, ry = np.sqrt(rx), np.sqrt(ry)
+    rho = {"max": np.maximum, "sum": np.add, "min": np.minimum}[combine](rx, ry)
+    if not log:
+        return rho
+    with np.errstate(divide="ignore"):
+        return np.log2(rho) if log2 else np.log(rho)
+
+
+#: The classic mistakes :func:`check_mip_level` recognizes: the flags of :func:`_mip_rows` that reproduce the
+#: answer, and what to say.
+MIP_MISTAKES: List[Tuple[Dict[str, Any], str]] = [
+    (dict(texels=False), "your ρ is in uv units: measure the derivatives in texels of level 0, ∂u·W and ∂v·H "
+                         "(W × H the texture's size), before taking their lengths; λ = log2 ρ then counts halvings "
+                         "from level 0"),
+    (dict(swap=True), "you scale u by the height and v by the width: u runs across the image, ∂u·W, and v up it, "
+                      "∂v·H"),
+    (dict(sqrt=False), "you take log2 of ρ² (the squared lengths): ρ is the length sqrt((∂u/∂x·W)² + (∂v/∂x·H)²), "
+                       "so λ = log2 ρ = ½·log2(ρ²)"),
+    (dict(log=False), "your λ is ρ itself (texels per pixel): the level is its log2, λ = log2 ρ (each level halves "
+                      "the texels)"),
+    (dict(log2=False), "you take the natural log: λ = log2 ρ (each level halves the texels), ln ρ / ln 2"),
+    (dict(combine="sum"), "you add the two lengths: ρ is the larger of the footprint along x and along y, "
+                          "max(ρ_x, ρ_y), not their sum"),
+    (dict(combine="min"), "you take the smaller of the two lengths: ρ is the larger, max(ρ_x, ρ_y), so the level "
+                          "is coarse enough for the longer side of the pixel's footprint"),
+]
+
+
+def check_mip_level(level_of_detail: Callable, trace, texture, varying: str = "uv", *,
+                    show: Optional[bool] = None) -> Difference:
+    """A student's ``level_of_detail(duv_dx, duv_dy, width, height)`` against softpipe's level selection
+    (:func:`softpipe.light.texture.mip_level`, what ``texture_grad`` samples at) at every fragment of ``trace``.
+
+    ``duv_dx`` and ``duv_dy`` are the screen-space derivatives of the varying ``varying`` that the fragment
+    shader received there ((∂u/∂x, ∂v/∂x) and (∂u/∂y, ∂v/∂y), ``derivatives.dx.uv``), ``width`` and
+    ``height`` level 0's size in texels; the answer is λ = log2 ρ, unclamped (GL's scale factor:
+    docs/texture-mapping.md, "Far away: mipmaps and the level of detail"). The draw's fragment shader
+    must take derivatives (a fourth parameter). The picture shows your λ, softpipe's (black: λ ≤ 0,
+    white: the last level), and where they differ.
+
+    Raises
+    ------
+    AssertionError
+        ``"your level of detail differs from softpipe's at N of M fragment(s) …"``, the first few fragments
+        with their derivatives, and the mistake when it is a classic one (:data:`MIP_MISTAKES`: uv units
+        instead of texels, W and H swapped, log2 of ρ², ρ without the log, the natural log, the sum or the
+        smaller of the two lengths instead of the larger).
+    ValueError
+        When the draw's fragment shader takes no derivatives, the draw has no such varying, or the answer
+        is not a number.
+    """
+    from softpipe.light.texture import mip_level  # softpipe's own selection, the one texture_grad uses
+
+    layout = trace.primitives.layout
+    if varying not in layout.names:
+        raise ValueError(f"check_mip_level: the draw has no varying {varying!r}; its varyings are {list(layout.names)}")
+    f = trace.fragments
+    n = len(f)
+    uniform = texture.__softpipe_uniform__()
+    width, height = int(texture.width), int(texture.height)
+    dx, dy = np.zeros((n, 2)), np.zeros((n, 2))
+    mine, ref = np.zeros(n), np.zeros(n)
+    for k in range(n):
+        inputs = trace.fragment_inputs(k)
+        if len(inputs) < 4:
+            raise ValueError("check_mip_level needs a draw whose fragment shader takes derivatives: "
+                             "def fragment(varyings, uniforms, frag, derivatives)")
+        derivatives = inputs[3]
+        dx[k] = tuple(getattr(derivatives.dx, varying))[:2]
+        dy[k] = tuple(getattr(derivatives.dy, varying))[:2]
+        got = level_of_detail((float(dx[k, 0]), float(dx[k, 1])), (float(dy[k, 0]), float(dy[k, 1])), width, height)
+        try:
+            mine[k] = float(got)
+        except (TypeError, ValueError):
+            raise ValueError(f"level_of_detail must return the level of detail λ (a number), got "
+                             f"{type(got).__name__} {got!r}") from None
+        ref[k] = mip_level(uniform, (float(dx[k, 0]), float(dx[k, 1])), (float(dy[k, 0]), float(dy[k, 1])))
+    same = (mine == ref) | (np.abs(mine - ref) <= MIP_TOLERANCE)      # equal infinities agree too
+    error = np.where(same, 0.0, np.abs(mine - ref))
+    error = np.where(np.isnan(error), np.inf, error)
+    top = max(len(texture.levels) - 1, 1)
+    h, w = trace.height, trace.width
+    yours, theirs, diff = (np.empty((h, w, 3), np.uint8) for _ in range(3))
+    for img in (yours, theirs, diff):
+        img[:] = COLORS["empty"]
+    rows, cols = np.asarray(f.y), np.asarray(f.x)
+
+    def gray(lam: np.ndarray) -> np.ndarray:
+        g = np.round(255 * np.clip(np.nan_to_num(lam, nan=0.0, posinf=top, neginf=0.0), 0, top) / top)
+        return np.repeat(g.astype(np.uint8)[:, None], 3, axis=1)
+    yours[rows, cols] = gray(mine)
+    theirs[rows, cols] = gray(ref)
+    bad = error > MIP_TOLERANCE
+    diff[rows, cols] = COLORS["both"]
+    if bad.any():
+        level = np.minimum(255, 90 + np.round(165 * np.minimum(error[bad], 1.0))).astype(np.uint8)
+        diff[rows[bad], cols[bad]] = np.stack([level, np.full_like(level, 40), np.full_like(level, 30)], axis=1)
+    picture = _panels(yours, theirs, diff)
+    legend = {"empty": "no fragment", "both": "your λ agrees with softpipe's",
+              "adds": "your λ differs (brighter: by more)"}
+    pixels = [(int(cols[k]), h - 1 - int(rows[k])) for k in range(n)]
+    wrong = np.nonzero(bad)[0]
+    if not len(wrong):
+        return Difference([], [], picture, f"level of detail: your λ and softpipe's agree at all {n} fragments",
+                          legend)
+    worst = int(wrong[np.argmax(error[wrong])])
+    lines = [f"your level of detail differs from softpipe's at {len(wrong)} of {n} fragment(s) (by up to "
+             f"{error[worst]:.3g}, at pixel {pixels[worst]}):"]
+    for k in sorted(wrong.tolist(), key=lambda k: (pixels[k][1], pixels[k][0]))[:SHOWN]:
+        lines.append(f"  pixel {pixels[k]}: duv_dx {_vector(dx[k])}, duv_dy {_vector(dy[k])}: yours "
+                     f"{mine[k]:.6g}, softpipe's {ref[k]:.6g}")
+    if len(wrong) > SHOWN:
+        lines.append(f"  … and {len(wrong) - SHOWN} more")
+    for flags, text in MIP_MISTAKES:
+        guess = _mip_rows(dx[wrong], dy[wrong], width, height, **flags)
+        if np.allclose(guess, mine[wrong], rtol=0, atol=MIP_TOLERANCE):
+            lines.append(text)
+            break
+    lines.append(f"(the picture: your λ, softpipe's, and where they differ in red; a {width}×{height} texture, "
+                 f"level 0 to {len(texture.levels) - 1})")
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
     _show(d, show)
     raise AssertionError(d.message)

@@ -1,7 +1,7 @@
 """The command line: ``softpipe render``, ``softpipe turntable``, ``softpipe demo``, ``softpipe programs``.
 
     softpipe render bunny -o bunny.png              a bundled model (softpipe.scenes.models), framed, three studio lights
-    softpipe render MODEL.obj -o out.png            any OBJ file, the same way
+    softpipe render MODEL.obj -o out.png            any OBJ file (or .ply, .stl, .gltf, .glb through trimesh), the same way
     softpipe render SCENE.toml -o out.png           a scene file (softpipe.scenes.scenefile)
     softpipe turntable MODEL -o spin.gif            an animated GIF, the camera circling the model
     softpipe explore MODEL -o report.html           the pipeline explorer: every stage, every pixel's history (softpipe.views.explorer)
@@ -225,7 +225,7 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
                         f"now: {default_program()!r}), or module:function (file.py:function) naming a Program or a fragment "
                         f"shader of yours; for a scene file it replaces every mesh's program")
     g.add_argument("--texture", metavar="IMAGE",
-                   help="diffuse texture for an OBJ model with texture coordinates (vt), e.g. "
+                   help="diffuse texture for a model with texture coordinates (an OBJ's vt), e.g. "
                         "spot_texture.png (the bundled 'spot' has its own); passed to the program as uniform "
                         "'texture'")
     g.add_argument("--cull", choices=("back", "front", "none"),
@@ -246,14 +246,17 @@ def _add_view_options(p: argparse.ArgumentParser, default_size: str) -> None:
                    help="camera angle above the horizontal (xz) plane (default 20)")
     g.add_argument("--fovy", type=_fovy, metavar="DEG", help="vertical field of view in degrees (default 35)")
     p.add_argument("--allow-outside-paths", action="store_true",
-                   help="let the OBJ or scene file name files outside its own folder (mtllib, map_Kd, meshes, "
+                   help="let the model or scene file name files outside its own folder (mtllib, map_Kd, a glTF's buffers, meshes, "
                         "textures: absolute paths, ~, ..); only for files you trust. FIFOs and devices stay refused")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from softpipe.scenes.formats import FORMATS
     from softpipe.scenes.models import MODELS
     models = ", ".join(MODELS)
+    # INPUT as every command takes it: the suffixes are those models.load_model reads
+    inputs = f"a .obj model (or {', '.join(FORMATS)}, read through trimesh), a bundled model's name or a .toml scene file"
     parser = _Parser(
         prog="softpipe",
         description="softpipe: the graphics pipeline of a GPU, on the CPU, in Python.",
@@ -272,17 +275,20 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     render = sub.add_parser(
-        "render", help="render an OBJ model or a TOML scene file to an image",
+        "render", help="render a model (OBJ, PLY, STL, glTF) or a TOML scene file to an image",
         description="Render INPUT to an image and print where it was written and how long it took.\n\n"
                     "INPUT.obj: a Wavefront OBJ model (with its MTL materials, if any), seen by a camera that "
                     "frames it, under a key/fill/rim set of three directional lights that follow the camera.\n"
+                    f"INPUT{', INPUT'.join(FORMATS)}: a PLY, STL or glTF 2.0 model read through trimesh (pip install "
+                    "'softpipe[formats]'; a glTF's base-color textures and metallic-roughness materials come with "
+                    "it; docs/formats.md), the same way.\n"
                     f"INPUT a bundled model's name ({models}): that model, the same way.\n"
                     "INPUT.toml: a scene file (see examples/scene.toml); the options below override its "
                     "[render] settings, and --azimuth/--elevation its framed camera.\n\n"
                     "In Python: softpipe.render(INPUT, width=..., program=..., ...).save(IMAGE) makes the same "
                     "image (the options are its keywords).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    render.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
+    render.add_argument("input", metavar="INPUT", help=inputs)
     render.add_argument("-o", "--output", metavar="IMAGE",
                         help="image to write; the format follows the extension (.png, .jpg, .bmp, .tif, ...); "
                              "default out/NAME.png; '-' writes a PNG to stdout")
@@ -332,13 +338,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render INPUT from FRAMES camera positions evenly spaced on one turn about the vertical "
                     "axis and write them as an animated GIF (or an animated PNG for a .png output). Progress "
                     "('frame 12/36') goes to stderr.\n\n"
-                    "INPUT is a .obj model, a bundled model's name or a .toml scene file (a scene with its own "
+                    f"INPUT is {inputs} (a scene with its own "
                     "[camera] eye turns that eye about the target). The studio lights follow the camera, so the model is seen turning "
                     "under fixed lights. Frames that come out identical (a symmetric model) are merged by the "
                     "GIF writer. GIF frames get 256 colors each, dithered (Floyd-Steinberg).\n\n"
                     "In Python: softpipe.turntable(INPUT, ANIMATION, frames=..., fps=..., ...) writes the same file.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    turn.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
+    turn.add_argument("input", metavar="INPUT", help=inputs)
     turn.add_argument("-o", "--output", metavar="ANIMATION",
                       help="a .gif (or .png) to write; default out/NAME.gif; '-' writes a GIF to stdout")
     turn.add_argument("--frames", type=_frames, default=36, metavar="N",
@@ -370,7 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "softpipe.views.explorer.write_explorer(results, PAGE).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     explore.add_argument("input", metavar="INPUT", nargs="?",
-                         help="a .obj model, a bundled model's name or a .toml scene file")
+                         help=inputs)
     explore.add_argument("-o", "--output", metavar="PAGE", help="the .html page to write; default out/NAME.html")
     explore.add_argument("--diff", nargs=2, metavar=("A", "B"),
                          help="instead of INPUT: render A and B (models or scene files) with the same options and "
@@ -396,7 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "camera, not every one it passed. Ctrl-C stops it. See docs/viewer.md.\n\n"
                     "In Python (and Jupyter, where it shows in the notebook): softpipe.view(INPUT, ...).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    live.add_argument("input", metavar="INPUT", help="a .obj model, a bundled model's name or a .toml scene file")
+    live.add_argument("input", metavar="INPUT", help=inputs)
     live.add_argument("--port", type=_port, default=0, metavar="N",
                       help="the port to serve on (default 0: a free one, printed)")
     live.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",

@@ -228,7 +228,7 @@ def _number(x: float, digits: int) -> str:
 class Job:
     """Frames to render and what they name: models, materials, light sets, shared settings.
 
-    ``models`` maps a name to a bundled model's name, an OBJ path, a ``{"shape": …}`` table
+    ``models`` maps a name to a bundled model's name, a model file's path (OBJ, PLY, STL, glTF), a ``{"shape": …}`` table
     or a :class:`~softpipe.scenes.mesh.Mesh`; :meth:`load_models` makes the meshes. ``path``
     names the job in errors and ``base_dir`` resolves its file names.
     """
@@ -392,12 +392,15 @@ class _JobReader(SceneReader):
         return mesh
 
     def obj_file(self, t: Table, path: str) -> Mesh:
-        from softpipe.scenes.obj import OBJError, load_obj
+        """A model file's mesh: OBJ, or PLY, STL, glTF through trimesh (load_model decides by the suffix)."""
+        from softpipe.scenes.formats import FormatError
+        from softpipe.scenes.models import load_model
+        from softpipe.scenes.obj import OBJError
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                mesh = load_obj(path)
-        except (OBJError, OSError, UnicodeError) as e:
+                mesh = load_model(path)
+        except (OBJError, FormatError, OSError, UnicodeError) as e:
             raise self.error(f"key 'obj' in {t.label}: {e}", table=t.label, key="obj") from None
         self.warnings.extend(str(w.message) for w in caught)      # Job.load_models issues them
         if mesh.triangle_count == 0:
