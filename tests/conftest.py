@@ -7,6 +7,7 @@ Helpers are plain functions, imported by name (``from conftest import window_to_
 """
 import math
 import os
+import shutil
 import sys
 from pathlib import Path
 from typing import Tuple
@@ -151,3 +152,35 @@ def environment():
     """:func:`env_function` as a 64² cube map, built once per test module."""
     from softpipe.light.cubemap import CubeMap
     return CubeMap.from_function(env_function, 64)
+
+
+# ---------------------------------------------------------------------------- a real browser (explorer, viewer)
+
+
+def _chromium() -> str:
+    """Debian's chromium; skips with the reason where it is not installed (``make test`` installs it)."""
+    found = shutil.which("chromium")
+    if not found:
+        pytest.skip("chromium is not installed: make test installs it (apt-get install -y chromium, as root)")
+    return found
+
+
+def _playwright():
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError as e:
+        pytest.skip(f"playwright is not installed ({e}): pip install -e '.[test]' (make test installs it)")
+    return sync_playwright
+
+
+@pytest.fixture(scope="module")
+def browser():
+    executable = _chromium()
+    sync_playwright = _playwright()
+    with sync_playwright() as pw:
+        try:
+            b = pw.chromium.launch(executable_path=executable, args=["--no-sandbox"])
+        except Exception as e:  # noqa: BLE001 (any reason the browser does not start is the skip's reason)
+            pytest.skip(f"{executable} did not start headless: {str(e).splitlines()[0]}")
+        yield b
+        b.close()

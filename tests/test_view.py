@@ -24,7 +24,6 @@ import fnmatch
 import io
 import json
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -301,33 +300,7 @@ def test_softpipe_view_serves_until_ctrl_c():
 # ---------------------------------------------------------------------------- in a real browser
 
 
-def _chromium() -> str:
-    """Debian's chromium; skips with the reason where it is not installed (``make test`` installs it)."""
-    found = shutil.which("chromium")
-    if not found:
-        pytest.skip("chromium is not installed: make test installs it (apt-get install -y chromium, as root)")
-    return found
-
-
-def _playwright():
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError as e:
-        pytest.skip(f"playwright is not installed ({e}): pip install -e '.[test]' (make test installs it)")
-    return sync_playwright
-
-
-@pytest.fixture(scope="module")
-def browser():
-    executable = _chromium()
-    sync_playwright = _playwright()
-    with sync_playwright() as pw:
-        try:
-            b = pw.chromium.launch(executable_path=executable, args=["--no-sandbox"])
-        except Exception as e:  # noqa: BLE001 (any reason the browser does not start is the skip's reason)
-            pytest.skip(f"{executable} did not start headless: {str(e).splitlines()[0]}")
-        yield b
-        b.close()
+# the `browser` fixture (Debian's chromium through Playwright, or a skip with the reason): conftest.py
 
 
 def _shown_frame(page) -> bytes:

@@ -158,6 +158,12 @@ def _show(diff: Difference, show: Optional[bool]) -> None:
         display(diff)
 
 
+def _failed(diff: Difference, show: Optional[bool]) -> AssertionError:
+    """A check's failure: its picture shown (in Jupyter, or when asked), and the error to raise with its message."""
+    _show(diff, show)
+    return AssertionError(diff.message)
+
+
 def check_coverage(answer, reference, *, width: Optional[int] = None, height: Optional[int] = None,
                    hint: Optional[Callable[[Pixel, str], Optional[str]]] = None, what: str = "pixels",
                    show: Optional[bool] = None) -> Difference:
@@ -213,8 +219,7 @@ def check_coverage(answer, reference, *, width: Optional[int] = None, height: Op
     lines.append("(the picture: red = your answer adds the pixel, blue = it misses it, gray = both draw it; "
                  "pixels are window coordinates (x, y), y up)")
     diff = Difference(adds, misses, picture, "\n".join(lines))
-    _show(diff, show)
-    raise AssertionError(diff.message)
+    raise _failed(diff, show)
 
 
 # ------------------------------------------------------------------------------ lines
@@ -419,8 +424,7 @@ def check_depth_test(answer: Mapping[Pixel, int], trace, *, show: Optional[bool]
     lines.append("(the picture: red = you keep another triangle, blue = you keep none, gray = you agree)")
     diff = Difference(sorted(p for p in wrong if p in mine), sorted(p for p in wrong if p not in mine),
                       zoomed(img), "\n".join(lines), legend)
-    _show(diff, show)
-    raise AssertionError(diff.message)
+    raise _failed(diff, show)
 
 
 def _tri(t: Optional[int]) -> str:
@@ -567,8 +571,7 @@ def check_interpolation(interpolate: Callable, trace, varying: str, *, show: Opt
     lines.append(f"(the picture: yours, softpipe's, and where they differ in red; {varying} drawn as "
                  + ("a checkerboard of 4 squares per unit)" if ref_a.shape[1] >= 2 else "a gray level)"))
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
 
 
 def _vector(v) -> str:
@@ -711,8 +714,7 @@ def check_camera(look_at: Callable, perspective: Callable, width: int = 32, heig
     lines.append("(the picture: two boxes seen through your camera and through softpipe's, near is bright, and "
                  "where they differ: red = only yours draws the pixel, blue = only softpipe's, orange = another depth)")
     d = Difference(adds, misses, picture, "\n".join(lines), legend)
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
 
 
 # ------------------------------------------------------------------------------ clipping
@@ -899,8 +901,7 @@ def check_clipping(clip_polygon: Callable, trace, *, plane=NEAR_PLANE, show: Opt
     lines.append("(the picture: the pixels of your polygon and of softpipe's, drawn as fans: red = only yours covers "
                  "the pixel, blue = only softpipe's, gray = both; window coordinates (x, y), y up)")
     d = Difference(adds, misses, picture, "\n".join(lines))
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
 
 
 # ------------------------------------------------------------------------------ shading
@@ -1060,8 +1061,7 @@ def check_blinn_phong(blinn_phong: Callable, trace, *, show: Optional[bool] = No
             break
     lines.append("(the picture: your colors, softpipe's, and where they differ in red)")
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
 
 
 # ------------------------------------------------------------------------------ textures
@@ -1196,8 +1196,7 @@ def check_bilinear(bilinear: Callable, trace, texture, varying: str = "uv", *,
     lines.append(f"(the picture: your colors, softpipe's, and where they differ in red; a {texture.width}×"
                  f"{texture.height} texture, wrap {texture.wrap_s!r})")
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
 
 
 #: How far a student's level of detail λ may be from softpipe's and still agree (both are float64 log2s).
@@ -1335,8 +1334,7 @@ def check_mip_level(level_of_detail: Callable, trace, texture, varying: str = "u
     lines.append(f"(the picture: your λ, softpipe's, and where they differ in red; a {width}×{height} texture, "
                  f"level 0 to {len(texture.levels) - 1})")
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
 
 
 # ------------------------------------------------------------------------------ shadows
@@ -1485,8 +1483,7 @@ def check_shadow_compare(shadow_compare: Callable, trace, shadow_maps, light: in
     lines.append("(the picture: your visibility, softpipe's (bright: lit, dark: in shadow), and where they differ "
                  "in red)")
     d = Difference([pixels[k] for k in wrong], [], picture, "\n".join(lines), legend)
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
 
 
 # ------------------------------------------------------------------------------ rays
@@ -1638,5 +1635,4 @@ def check_ray_triangle(intersect: Callable, vertices, triangles, camera, width: 
     lines.append("(the picture: the triangle each ray hits first, yours and softpipe's, a color per triangle; the rays "
                  "that differ in red)")
     d = Difference([pixels[r] for r in wrong], [], picture, "\n".join(lines), legend)
-    _show(d, show)
-    raise AssertionError(d.message)
+    raise _failed(d, show)
