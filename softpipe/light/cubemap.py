@@ -130,7 +130,7 @@ a call is handed, so fewer arrays make a lookup cheaper.
 # Shader side
 # --------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _select(x, y, z):
     """(face, s, t) of a direction (the table in the module docstring); face 0's centre for 0 or NaN."""
     ax, ay, az = abs(x), abs(y), abs(z)
@@ -162,7 +162,7 @@ def _select(x, y, z):
     return face, s, t
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _level(size, k):
     """(first texel, face width n) of level k."""
     offset = 0
@@ -173,7 +173,7 @@ def _level(size, k):
     return offset, n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _texel(texels, k):
     return (float(texels[k, 0]), float(texels[k, 1]), float(texels[k, 2]), float(texels[k, 3]))
 
@@ -202,7 +202,7 @@ def _face_nearest(texels, base, n, s, t):
     return _texel(texels, base + j * (n + 2) + i)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _sample_cube(cube, direction, lod):
     face, s, t = _select(float(direction[0]), float(direction[1]), float(direction[2]))
     texels = cube.texels
@@ -262,7 +262,7 @@ def texture_cube_lod(cube, direction, lod):
     return _sample_cube(cube, direction, lod)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _face_st_derivative(face, d, dd):
     """(∂s, ∂t) of the face coordinates when the direction d moves by dd, on d's face (GL 4.6 §8.13.4).
 

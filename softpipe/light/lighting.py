@@ -97,7 +97,7 @@ MIN_ATTENUATION_DENOMINATOR = 1e-12
 MAX_SQUARING_EXPONENT = 128.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def positive_power(x: float, n: float) -> float:
     """(x)₊ⁿ with 0⁰ = 1: the specular lobe's power (§5, §6).
 
@@ -201,14 +201,14 @@ def spot_factor(L: Vec3, S: Vec3, cos_cutoff: float, e: float) -> float:
     return positive_power(cos_angle, e)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def light_colors(lights: np.ndarray, j: int) -> Tuple[Color, Color, Color]:
     """Light j's ambient, diffuse and specular colors (I_a,j, I_d,j, I_s,j)."""
     return (light_vec3(lights, j, LIGHT_AMBIENT), light_vec3(lights, j, LIGHT_DIFFUSE),
             light_vec3(lights, j, LIGHT_SPECULAR))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     """(L, f_att · f_spot) for packed light j at the eye-space point P (FORMULAS §7–§9).
 
@@ -227,7 +227,7 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     return L, f_att * f_spot
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def sum_over_lights(light_terms, P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
                     color: Color, option) -> Color:
     """``color`` + Σ_j f_j · (ambient_j + V_j · direct_j): every lit model's sum over lights, once.
@@ -251,7 +251,7 @@ def sum_over_lights(light_terms, P: Vec3, N: Vec3, V: Vec3, material: MaterialUn
     return color
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
                     specular_model: int) -> Color:
     """The OpenGL lighting equation, summed over all lights (FORMULAS §10), with shadows.
@@ -280,7 +280,7 @@ def opengl_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighti
     return sum_over_lights(opengl_light, P, N, V, m, lighting, color, specular_model)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def opengl_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, j: int,
                  specular_model: int) -> Tuple[float, Color, Color, bool]:
     """Light j's part of §10 (for :func:`sum_over_lights`): f_j, ka·I_a,j, and where B_j = 1
@@ -370,7 +370,7 @@ def hall_local(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: L
     return sum_over_lights(hall_light, P, N, V, material, lighting, color, eta)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def hall_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, j: int,
                eta: float) -> Tuple[float, Color, Color, bool]:
     """Light j's part of §13 (for :func:`sum_over_lights`): f_j, ka·I_a,j, and the reflected
@@ -411,7 +411,7 @@ def two_sided_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lig
     return sum_over_lights(two_sided_light, P, N, V, material, lighting, color, 0.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def two_sided_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, i: int,
                     unused: float) -> Tuple[float, Color, Color, bool]:
     """Light i's part of §11 (for :func:`sum_over_lights`): (ρ_d + ρ_s(N·H_i))·L_i·|N·L_i|,
@@ -580,7 +580,7 @@ def cook_torrance_lighting(P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform,
     return sum_over_lights(cook_torrance_light, P, N, V, material, lighting, color, 0.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def cook_torrance_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.ndarray, j: int,
                         unused: float) -> Tuple[float, Color, Color, bool]:
     """Light j's part of §10 with Cook-Torrance (for :func:`sum_over_lights`): f_j, ka·I_a,j,

@@ -61,7 +61,7 @@ LIGHT_SPOT_EXPONENT = 21
 LIGHT_COLUMNS = 22
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def light_vec3(lights: np.ndarray, j: int, column: int) -> Tuple[float, float, float]:
     """The three values at ``lights[j, column:column + 3]``: a color, a position or a direction."""
     return (lights[j, column], lights[j, column + 1], lights[j, column + 2])

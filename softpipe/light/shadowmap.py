@@ -172,7 +172,7 @@ def cube_face_half_extent(resolution: int, pcf: int) -> float:
     return 1.0 / max(1.0 - 2.0 * margin / resolution, 0.25)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _project(matrices, k, P):
     """Map k's clip coordinates of the eye-space point P."""
     M = matrices[k]
@@ -204,7 +204,7 @@ def cube_face(shadows, first, P):
 # they are inlined into the shader (inline="always"). Called as functions, each call passed the
 # ShadowUniform's six arrays on by value, which made bunny-shadows' lighting about three times as
 # slow (benchmarks/README.md, "The figures behind the pipeline's comments").
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def map_coordinates(shadows, k, P):
     """(x, y, ref, inside): P in map k's window space — texels, y up — and its depth ref.
 
@@ -220,7 +220,7 @@ def map_coordinates(shadows, k, P):
     return (0.5 * x / w + 0.5) * width, (0.5 * y / w + 0.5) * height, ref, True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def shadow_compare(shadows, k, x, y, ref):
     """PCF of map k at window position (x, y) for depth ref: the light that passes, RGB.
 
@@ -278,7 +278,7 @@ def texture_compare(texture, u, v, ref):
     return shadow_compare(texture, 0, u * texture.maps[0, 1], v * texture.maps[0, 2], ref)[0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def shadow_map_visibility(shadows, j, P):
     """V_j from light j's shadow map(s) at the eye-space point P: the RGB share of the light that passes.
 
@@ -317,7 +317,7 @@ def _shadows_type(lighting):
     return lighting.types[list(lighting.fields).index("shadows")] if hasattr(lighting, "fields") else None
 
 
-@overload(casts_shadows, inline="always")
+@overload(casts_shadows, jit_options={"forceinline": True})
 def _casts_shadows_numba(lighting, j):
     if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
         return lambda lighting, j: False
@@ -374,7 +374,7 @@ def _visibility_pass(lighting, points, out):
 
 
 # inlined, as _shadowed_visibility and the map lookups above: per light and lit sample
-@overload(light_visibility, inline="always")
+@overload(light_visibility, jit_options={"forceinline": True})
 def _light_visibility_numba(lighting, j, P):
     if isinstance(_shadows_type(lighting), (types.NoneType, types.Omitted)):
         return lambda lighting, j, P: (1.0, 1.0, 1.0)
@@ -397,7 +397,7 @@ def _shadowed_visibility(lights, shadows, j, P):
     return shadow_map_visibility(shadows, j, P)
 
 
-@overload(_shadowed_visibility, inline="always")
+@overload(_shadowed_visibility, jit_options={"forceinline": True})
 def _shadowed_visibility_numba(lights, shadows, j, P):
     # shadows from rays only (maps None, as the ray tracer's): no map lookup compiled; a light that casts
     # shadows then has method SHADOW_RAY (casts_shadows asked first)

@@ -94,7 +94,7 @@ filter : int
 # --------------------------------------------------------------------------
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _wrap(i, size, mode):
     """Map an integer texel index into [0, size) by wrap mode (GL Table 8.20)."""
     if 0 <= i < size:  # the common case; every mode leaves it alone, and skips an int division
@@ -109,7 +109,7 @@ def _wrap(i, size, mode):
     return size - 1 - m
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _floor_frac(x):
     """Split a texel coordinate into (integer floor, fraction), safe for any float."""
     if x != x:  # NaN: int() of it would raise in Python and be undefined in numba
@@ -133,7 +133,7 @@ def _floor_frac(x):
 # the pipeline's comments").
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _fetch(texels, offset, w, h, i, j):
     """Texel (i, j) of a level, j counted from the BOTTOM row (the v-flip lives here)."""
     k = offset + (h - 1 - j) * w + i
@@ -174,7 +174,7 @@ def _bilinear(texels, offset, w, h, wrap_s, wrap_t, u, v):
     )
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _sample(tex, u, v, lod):
     """Sample at level of detail ``lod`` by the texture's filter (see the module docstring).
 

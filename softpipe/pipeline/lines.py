@@ -125,7 +125,7 @@ def setup_lines(window: np.ndarray, size: np.ndarray) -> LineSetup:
 
 # --------------------------------------------------------------- the rule, exactly
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def _at_most(x, k, e1, e2):
     """x ≤ k + e1·ε + e2·ε² for an infinitesimal ε > 0 (x, k, e1, e2 integers)."""
     if x != k:
@@ -133,7 +133,7 @@ def _at_most(x, k, e1, e2):
     return e1 > 0 or (e1 == 0 and e2 >= 0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def _at_least(x, k, e1, e2):
     """x ≥ k + e1·ε + e2·ε² for an infinitesimal ε > 0."""
     if x != k:
@@ -141,7 +141,7 @@ def _at_least(x, k, e1, e2):
     return e1 < 0 or (e1 == 0 and e2 <= 0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def _apart_along(nx, ny, xa, ya, xb, yb, cx, cy, reach):
     """Is the segment apart from the perturbed diamond along the axis (nx, ny)?
 
@@ -155,7 +155,7 @@ def _apart_along(nx, ny, xa, ya, xb, yb, cx, cy, reach):
     return _at_most(hi, centre - reach, nx, ny) or _at_least(lo, centre + reach, nx, ny)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def crosses_diamond(xa, ya, xb, yb, cx, cy):
     """Does the segment (X_a, Y_a)–(X_b, Y_b), both ends moved by −(ε, ε²), meet the open diamond of
     half-diagonal ½ pixel centred at (cx, cy)? All in fixed point.
@@ -170,7 +170,7 @@ def crosses_diamond(xa, ya, xb, yb, cx, cy):
     return not _apart_along(nx, ny, xa, ya, xb, yb, cx, cy, RADIUS * max(abs(nx), abs(ny)))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def holds_end(xb, yb, cx, cy):
     """Is the end (X_b, Y_b), moved by −(ε, ε²), inside the open diamond centred at (cx, cy)?
 
@@ -183,14 +183,14 @@ def holds_end(xb, yb, cx, cy):
     return d < RADIUS or (d == RADIUS and u > 0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def produces(xa, ya, xb, yb, i, j):
     """The diamond-exit rule: does the segment produce the fragment of pixel (i, j) (window, y up)?"""
     cx, cy = i * SUBPIXEL, j * SUBPIXEL
     return crosses_diamond(xa, ya, xb, yb, cx, cy) and not holds_end(xb, yb, cx, cy)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def _parameter(xa, ya, dx, dy, length2, px, py):
     """t = ((p − a)·(b − a)) / |b − a|² at the fixed-point position (px, py), clamped to [0, 1]."""
     t = ((px - xa) * dx + (py - ya) * dy) / length2

@@ -83,7 +83,7 @@ def setup_points(window: np.ndarray, size: np.ndarray) -> PointSetup:
     return s
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def in_square(c, half):
     """Is a pixel centre ``c`` fixed-point units from the point's (an integer) in [−half, half)?
 

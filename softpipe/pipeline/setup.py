@@ -51,7 +51,7 @@ SHADE_SAMPLE, SHADE_CENTER, SHADE_CENTROID = 0, 1, 2
 # each is not compiled and optimized once on its own and again in its caller, which made the
 # first (cold-cache) compile of triangle setup markedly slower (benchmarks/README.md).
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def snap(v):
     """Window coordinate → fixed point, 1/256 pixel, round half to even; centre of pixel i ↦ 256·i.
 
@@ -61,13 +61,13 @@ def snap(v):
     return np.int64(np.rint(v * SUBPIXEL)) - SUBPIXEL // 2
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def edge_function(xa, ya, xb, yb, px, py):
     """Twice the signed area of (a, b, p): positive when p is left of a→b (y up)."""
     return (xb - xa) * (py - ya) - (yb - ya) * (px - xa)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def owns_samples_on_edge(dx, dy):
     """The fill rule for a counter-clockwise triangle's edge with direction (dx, dy), y up.
 
@@ -77,7 +77,7 @@ def owns_samples_on_edge(dx, dy):
     return dy < 0 or (dy == 0 and dx > 0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def _pixel_range(lo, hi, first_pixel, last_pixel):
     """Pixels i with lo ≤ 256·i ≤ hi, clamped to [first_pixel, last_pixel]: (first, last)."""
     first = -((-lo) // SUBPIXEL)            # ceil(lo / 256)
@@ -85,7 +85,7 @@ def _pixel_range(lo, hi, first_pixel, last_pixel):
     return max(first, first_pixel), min(last, last_pixel)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def offset_bounds(offsets):
     """(x_lo, x_hi, y_lo, y_hi): the extent of the sample offsets [S, 2], in fixed point.
 
@@ -237,7 +237,7 @@ def _polygon_offset_kernel(lo, hi, window, edges, area, plane, factor, units):
 # (inline="always"): a call per sample costs as much as the work inside it (the `fill`
 # benchmark's figure is in benchmarks/README.md).
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def edge_values(edges, t, px, py):
     """E_0, E_1, E_2 of triangle t at the fixed-point position (px, py)."""
     return (edges[t, 0, 0] * px + edges[t, 0, 1] * py + edges[t, 0, 2],
@@ -245,7 +245,7 @@ def edge_values(edges, t, px, py):
             edges[t, 2, 0] * px + edges[t, 2, 1] * py + edges[t, 2, 2])
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def inside_edge(e, bias, t, k):
     """The fill rule at one edge: is a sample where E_k of triangle t is ``e`` on its inner side, E_k + bias_k ≥ 0?
 
@@ -255,7 +255,7 @@ def inside_edge(e, bias, t, k):
     return e + bias[t, k] >= 0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def inside(e0, e1, e2, bias, t):
     """Does triangle t cover a sample whose edge values are (e0, e1, e2)? The fill rule at each edge.
 
@@ -265,7 +265,7 @@ def inside(e0, e1, e2, bias, t):
     return inside_edge(e0, bias, t, 0) and inside_edge(e1, bias, t, 1) and inside_edge(e2, bias, t, 2)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def covers(edges, bias, t, px, py):
     """Does triangle t cover the sample at (px, py)? The fill rule (:func:`inside_edge`) at every edge.
 
@@ -279,7 +279,7 @@ def covers(edges, bias, t, px, py):
     return True
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def plane_depth(z0, dz1, dz2, inv_area, e1, e2):
     """The depth plane (z_0, z_1 − z_0, z_2 − z_0, 1/area) where E_1, E_2 are (e1, e2), clamped to [0, 1].
 
@@ -291,20 +291,20 @@ def plane_depth(z0, dz1, dz2, inv_area, e1, e2):
     return min(max(z, 0.0), 1.0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def depth_at(plane, t, e1, e2):
     """Window depth of triangle t where its E_1, E_2 are (e1, e2) (:func:`plane_depth`)."""
     return plane_depth(plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3], e1, e2)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def sample_depth(edges, plane, t, i, j, s, offsets):
     """Window depth of triangle t at sample s of pixel (i, j) (window row j, y up)."""
     _, e1, e2 = edge_values(edges, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
     return depth_at(plane, t, e1, e2)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def pixel_coverage(edges, bias, t, i, j, offsets):
     """Which samples of pixel (i, j) triangle t covers: (bit mask, first sample or −1, count)."""
     mask, first, count = np.int64(0), -1, 0
@@ -317,7 +317,7 @@ def pixel_coverage(edges, bias, t, i, j, offsets):
     return mask, first, count
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def shading_point(edges, plane, t, i, j, s, mask, count, offsets, positions, mode):
     """Where triangle t's fragment at sample s of pixel (i, j) is shaded: (b0, b1, b2, x, y).
 

@@ -284,7 +284,7 @@ def _save_tile(depth, saved_depth, row_lo, row_hi, col_lo, col_hi):
                 saved_depth[s, row, i] = depth[s, row, i]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
                  depth, vis, touched, saved_depth):
     """One tile of the visibility pass: its triangles, in primitive order (see :func:`raster_tiles`)."""

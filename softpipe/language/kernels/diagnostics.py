@@ -94,7 +94,7 @@ def _numba_type_text(ty) -> str:
     return f"a value of type {ty}"
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, forceinline=True)
 def finite_rgba(color, s, row, i):
     """Are the four components of ``color[s, row, i]`` finite? (Their sum, in float64, is NaN or ±inf
     exactly when one is: one test a sample.) The fast path's shading loop counts the samples it writes
@@ -525,6 +525,13 @@ def check_tuple_arithmetic(kind: str, shader: Callable) -> None:
             "component, write the tuple out: (c[0], c[1], c[2], 1.0))", file=found["file"], line=found["line"])
 
 
+def _global_hint(kind: str) -> str:
+    """The hint for a global of type ``kind`` that compiled code cannot read (a dict, list or set has one of its own)."""
+    if kind in ("dict", "list", "set"):
+        return f"make it a tuple or a numpy array, or give each value a global (or a uniform) of its own; {_GLOBALS_HINT}"
+    return _GLOBALS_HINT
+
+
 def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dict | None, str]:
     """(what is wrong, where, a hint) from numba's message."""
     known = _known_mistake(text, functions)
@@ -555,8 +562,7 @@ def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dic
             # numba says so of a global it has no type for, inlined into the loop
             value = function.__globals__[name]
             return (f"the global {name!r} (a {type(value).__name__}) cannot be used in compiled code", site,
-                    f"make it a tuple or a numpy array, or give each value a global (or a uniform) of its own; "
-                    f"{_GLOBALS_HINT}" if isinstance(value, (dict, list, set)) else _GLOBALS_HINT)
+                    _global_hint(type(value).__name__))
         return (f"name {name!r} is not defined", site,
                 "define it (a plain Python function is compiled with the shader) or import it in the shader's module")
     if "linalg" in text or "scipy" in text:
@@ -568,7 +574,7 @@ def _explain_compile_error(text: str, kernel, functions: list) -> Tuple[str, dic
         name, kind = m.groups()
         return (f"the global {name!r}{f' (a {kind})' if kind else ''} cannot be used in compiled code",
                 _numba_site(text, functions) or _name_site(functions, name, _GLOBAL_OPS),
-                _GLOBALS_HINT)
+                _global_hint(kind or ""))
     m = re.search(r"Can't unify return type from the following types: ([^\n]*)", text)
     if m:
         return (f"its return statements return different types ({_plain_types(m.group(1))})",
