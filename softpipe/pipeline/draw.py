@@ -44,13 +44,14 @@ from softpipe.language.contract import make_uniforms
 from softpipe.pipeline.assembly import Primitives, assemble, check_clip_planes, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.pipeline.merge_state import ALL_SAMPLES, MergeState, Stencil
+from softpipe.pipeline.merge_state import ALL_SAMPLES, MergeState, Stencil, attachment_states
 from softpipe.pipeline.output import (
     MergeResult,
     NonFinite,
     NonFiniteColorWarning,
     OcclusionQuery,
     merge,
+    merge_more,
     non_finite_written,
     record_visible,
 )
@@ -63,6 +64,7 @@ from softpipe.pipeline.visibility import (
     DiscardOnFastPath,
     choose_path,
     early_depth,
+    shade_outputs,
     shade_visible,
     shade_winners,
     shading_may_fail,
@@ -186,6 +188,16 @@ class DrawCall:
         self.kind = primitive_kind(topology, polygon_mode)
         self.point_size, self.line_width = check_size("point_size", point_size), check_size("line_width", line_width)
         self.clip_planes = check_clip_planes(clip_planes)
+        #: the framebuffer's color attachments, ((name, format), …) in location order
+        self.attachments = tuple(framebuffer.attachments.items())
+        if len(self.attachments) > 1 and fragment_shader is None:
+            raise ValueError(f"a framebuffer of {len(self.attachments)} attachments ({', '.join(n for n, _ in self.attachments)}) "
+                             "needs a fragment_shader that returns one value per attachment; with none, a draw "
+                             "writes only the varying 'color'")
+        # blend= and color_mask= may be given per attachment (GL's glBlendFunci, glColorMaski): location 0's
+        # goes to the MergeState, the others' to their AttachmentState
+        blend, color_mask, self.attachment_states = attachment_states(blend, color_mask, blend_equation,
+                                                                      self.attachments)
         self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend,
                                 blend_equation=blend_equation, blend_color=blend_color, color_mask=color_mask,
                                 stencil=stencil, stencil_back=stencil_back, scissor=scissor,
@@ -221,6 +233,17 @@ class DrawCall:
     def choose_path(self, keep_fragments: bool = False) -> Tuple[str, str]:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
         fb = self.framebuffer
+        blocker = next((f"attachment {a.name!r} " + ("is blended" if a.blends else f"has the color mask {a.color_mask}")
+                        + " (the fast path writes whole values, unblended)"
+                        for a in self.attachment_states if a.blends or a.masks_color), None)
+        if blocker is None and len(self.attachments) > 1 and self.state.depth_test == "notequal" \
+                and self.state.depth_write:
+            blocker = ("depth test 'notequal' with depth writes into several attachments (a hidden fragment the "
+                       "shader discarded could change the picture)")
+        if blocker is not None and self.path == "fast":
+            raise ValueError(f"path='fast' is not possible for this draw: {blocker}")
+        if blocker is not None and self.path == "auto":
+            return "reference", blocker
         return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
                            keep_fragments, fb.samples, self.query is not None)
 
@@ -329,6 +352,8 @@ class DrawCall:
         # before every fragment is shaded; with more (millions of fragments), a copy is kept.
         saved = ((fb.samples_color.copy(), fb.samples_depth.copy(), fb.samples_stencil.copy(),
                   None if fb.record is None else fb.record.copy()) if len(batches) > 1 else None)
+        saved_more = ([fb.samples_attachment(n).copy() for n, _ in self.attachments[1:]] if len(batches) > 1
+                      else None)
         passed = 0
         for batch, (first, last) in enumerate(batches):
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
@@ -336,17 +361,22 @@ class DrawCall:
             clock("raster")
             yield Stage("raster", frags, batch)
             try:
-                shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
+                shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading,
+                                            self.attachments)
             except BaseException:
                 if saved is not None:
                     fb.samples_color[...], fb.samples_depth[...], fb.samples_stencil[...] = saved[:3]
                     if saved[3] is not None and fb.record is not None:
                         fb.record[...] = saved[3]
+                for (name, _), before in zip(self.attachments[1:], saved_more or ()):
+                    fb.samples_attachment(name)[...] = before
                 raise
             clock("fragment")
             yield Stage("fragment", shaded, batch)
             merged = merge(frags, shaded, self.state, fb, record=record, front_facing=prims.front_facing,
                            record_ids=self._record_ids)
+            if self.attachment_states:
+                merge_more(frags, shaded, merged.verdict, fb, self.attachment_states, self.state.blend_color)
             if self.query is not None:
                 passed += merged.samples_passed
             self._note_non_finite(non_finite_written(frags, shaded, merged))
@@ -364,10 +394,16 @@ class DrawCall:
         """
         fb = self.framebuffer
         undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
+        if len(self.attachments) > 1 and len(prims):
+            # the proofs that shading cannot fail read a single RGBA's alpha; a shader returning a value per
+            # attachment is not proved, so the depth is kept to put back
+            undo = True
         visibility: Any
         shade: Callable[..., Any]
         if prims.kind == "triangles":
             visibility, shade = visibility_pass(prims, setup, fb, self.state, undo=undo), shade_visible
+            if len(self.attachments) > 1:
+                shade = shade_outputs
         else:
             counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self.rect, setup=setup)
             if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
@@ -379,6 +415,8 @@ class DrawCall:
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
                               rect=self.rect, setup=setup)
             visibility, shade = early_depth(frags, fb, self.state, undo=undo), shade_winners
+            if len(self.attachments) > 1:
+                shade = shade_outputs
         clock("raster")
         yield Stage("visibility", visibility)
         try:
