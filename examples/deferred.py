@@ -17,8 +17,9 @@ later (overdraw). Deferred shading splits the frame in two passes (docs/deferred
 
 The picture equals the forward one within 1/255 at every pixel (tests/test_deferred.py):
 the only difference is that the G-buffer keeps P and N as float32. The sheet shows the
-forward picture, the deferred one, the G-buffer's attachments and the difference ×50;
-:func:`shading_counts` measures how many fragments each way lit.
+forward picture, the deferred one, the G-buffer's attachments and how many fragments forward
+shading lit at each pixel (:func:`overdraw`); :func:`shading_counts` measures how many fragments
+each way lit.
 """
 from collections import namedtuple
 
@@ -167,6 +168,21 @@ def shading_counts(size):
             "deferred lit": int((buffer.attachment("material") >= 0).sum())}
 
 
+def one(varyings, uniforms, frag):
+    return (1.0, 1.0, 1.0, 1.0)
+
+
+def overdraw(size):
+    """How many fragments forward shading lights at each pixel (its depth complexity): every mesh drawn
+    as the forward pass draws it, adding 1 per fragment, with no depth test."""
+    w, h = picture_size(size)
+    fb = sp.Framebuffer(w, h).clear((0.0, 0.0, 0.0, 0.0))
+    cam = camera()
+    for part in scene():
+        draw_mesh(fb, part.mesh, cam, one, model=part.model, blend="additive", depth_test=None)
+    return fb.color[..., 0]
+
+
 def sheet(size=(320, 240)):
     g = gbuffer(size)
     lit, _ = lighting_pass(g)
@@ -176,11 +192,13 @@ def sheet(size=(320, 240)):
     far = depth[g.attachment("material") >= 0].max(initial=1.0)
     ids = g.attachment("material")
     palette = np.array([(0, 0, 0), (200, 200, 200), (220, 60, 40), (40, 90, 220), (90, 200, 40)], np.uint8)
-    diff = np.abs(front.to_uint8(False).astype(int) - lit.to_uint8(False).astype(int))
+    count = overdraw(size)
+    heat = np.clip(count / max(count.max(), 1.0), 0, 1)
     return {"forward (phong)": front.to_uint8(False), "deferred": lit.to_uint8(False),
             "albedo": g.to_uint8(False), "normal": np.rint(normal * 255).astype(np.uint8),
             "eye depth": np.rint(np.repeat((np.clip(depth / far, 0, 1) * 255)[..., None], 3, 2)).astype(np.uint8),
-            "material id": palette[ids + 1], "|difference| x50": np.clip(diff * 50, 0, 255).astype(np.uint8)}
+            "material id": palette[ids + 1],
+            "forward: fragments lit per pixel": np.rint(np.stack([heat, heat ** 2, 0.3 * heat], -1) * 255).astype(np.uint8)}
 
 
 def main(size=(320, 240), out_dir=None):
