@@ -152,14 +152,16 @@ class DrawCall:
                  fragment_shader: Optional[Callable] = None, uniforms: Optional[Mapping[str, Any]] = None, *,
                  attributes: Optional[Mapping[str, Any]] = None, topology: str = "triangles",
                  interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
-                 depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
+                 depth_write: bool = True, blend: Union[None, str, Tuple[str, str], Mapping[str, Any]] = None,
+                 cull: str = "none",
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
                  path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None,
                  polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0,
                  clip_planes=None, depth_clamp: bool = False,
                  stencil: Optional[Stencil] = None, stencil_back: Optional[Stencil] = None,
                  scissor: Optional[Tuple[int, int, int, int]] = None,
-                 color_mask: Tuple[bool, bool, bool, bool] = (True, True, True, True),
+                 color_mask: Union[Tuple[bool, bool, bool, bool], Mapping[str, Tuple[bool, ...]]] = (True, True, True,
+                                                                                                     True),
                  blend_equation: Union[str, Tuple[str, str]] = "add",
                  blend_color: Tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
                  sample_mask: int = ALL_SAMPLES, alpha_to_coverage: bool = False,
@@ -196,10 +198,10 @@ class DrawCall:
                              "writes only the varying 'color'")
         # blend= and color_mask= may be given per attachment (GL's glBlendFunci, glColorMaski): location 0's
         # goes to the MergeState, the others' to their AttachmentState
-        blend, color_mask, self.attachment_states = attachment_states(blend, color_mask, blend_equation,
-                                                                      self.attachments)
-        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend,
-                                blend_equation=blend_equation, blend_color=blend_color, color_mask=color_mask,
+        first_blend, first_mask, self.attachment_states = attachment_states(blend, color_mask, blend_equation,
+                                                                            self.attachments)
+        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=first_blend,
+                                blend_equation=blend_equation, blend_color=blend_color, color_mask=first_mask,
                                 stencil=stencil, stencil_back=stencil_back, scissor=scissor,
                                 sample_mask=sample_mask, alpha_to_coverage=alpha_to_coverage,
                                 depth_clamp=depth_clamp)
@@ -521,7 +523,9 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         Per-vertex values to interpolate (no vertex shader).
     vertex_shader, fragment_shader : functions, optional
         See :mod:`softpipe.language.contract`. Without a fragment shader the color is the
-        interpolated varying ``color``.
+        interpolated varying ``color``. Into a framebuffer of several color attachments
+        (``Framebuffer(attachments=...)``) the fragment shader returns a tuple of one value per
+        attachment, in their order (docs/shaders.md).
     uniforms : dict, optional
         Values every shader invocation sees (:func:`softpipe.language.contract.make_uniforms`).
     trace : bool
@@ -559,13 +563,16 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     depth_write : bool (default True)
     blend : None, "alpha", "premultiplied", "additive", (src_factor, dst_factor) or
         (src_rgb, dst_rgb, src_alpha, dst_alpha) (default None: off); factors are GL's, lower case
-        (:data:`softpipe.pipeline.merge_state.BLEND_FACTORS`)
+        (:data:`softpipe.pipeline.merge_state.BLEND_FACTORS`). Into a framebuffer of several
+        attachments, one state for every float attachment, or a dict of attachment name → state
+        (GL's ``glBlendFunci``; those not named are not blended, nor is an integer attachment)
     blend_equation : "add" | "subtract" | "reverse_subtract" | "min" | "max", or (rgb, alpha)
         (default "add")
     blend_color : (r, g, b, a)
         The ``constant_*`` factors' color (GL's ``glBlendColor``, default (0, 0, 0, 0)).
-    color_mask : 4 bools
-        Which channels are written (GL's ``glColorMask``, default all).
+    color_mask : 4 bools, or a dict of attachment name → 4 bools
+        Which channels are written (GL's ``glColorMask``, default all; per attachment,
+        ``glColorMaski``: those not named are written whole).
     stencil : Stencil, optional
         Turns the stencil test on with this state (:class:`softpipe.Stencil`: func, ref, mask, the ops
         on stencil fail, depth fail and depth pass, write mask); the framebuffer's stencil buffer

@@ -143,8 +143,8 @@ def _shade(shader, frags: Fragments, prims: Primitives, uniforms, attachments=()
     color = np.empty((len(frags), 4), dtype=np.float32)
     kernel = kernels.fragment_kernel(shader, prims.layout, attachments)
     more = _more_outputs(attachments, len(frags))
-    args = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
-            prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+    args: tuple = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
+                   prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
     if attachments:
         args = args + (more,)
     kernels.run_compiled("fragment", shader, kernel, *args,

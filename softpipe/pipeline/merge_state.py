@@ -30,7 +30,7 @@ however much state GL has. docs/06-output.md walks through the chain.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple, Union
+from typing import Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -343,7 +343,7 @@ def _mask(name: Optional[str], value) -> Tuple[bool, bool, bool, bool]:
 
 def _per_attachment(what: str, value, names: Sequence[str], default):
     """``value`` for each attachment: the same for all, or a dict of name → value (the others ``default``)."""
-    if not isinstance(value, dict):
+    if not isinstance(value, Mapping):
         return [value] * len(names)
     for key in value:
         if key not in names:
@@ -368,17 +368,17 @@ def attachment_states(blend, color_mask, blend_equation, attachments: Sequence[T
     more = []
     for k, ((name, fmt), b, m) in enumerate(zip(attachments, blends, masks)):
         if fmt == "r32i" and b is not None:
-            if isinstance(blend, dict):
+            if isinstance(blend, Mapping):
                 raise ValueError(f"blend for attachment {name!r} (r32i): integer attachments are not blended "
                                  "(GL's rule); leave it out of blend= or give it None")
             b = None
         if k == 0:
             continue
         factors = _blend_factors(b)
-        mask = _mask(name if isinstance(color_mask, dict) else None, m)
+        mask = _mask(name if isinstance(color_mask, Mapping) else None, m)
         codes = np.array((int(b is not None),) + factors + eq + mask, np.int64)
         more.append(AttachmentState(name, fmt, b, mask, codes))
     first_mask = masks[0]
-    if isinstance(color_mask, dict):
+    if isinstance(color_mask, Mapping):
         first_mask = _mask(names[0], first_mask)
     return blends[0], first_mask, tuple(more)

@@ -607,4 +607,4 @@ def shade_outputs(prims: Primitives, visibility, fb, fragment_shader: Optional[C
         non_finite = NonFinite(len(bad), int(frags.x[first]), int(frags.y[first]), int(frags.primitive_id[first]))
     for (name, _), values in zip(attachments[1:], shaded.outputs):
         fb.samples_attachment(name)[frags.sample, frags.y, frags.x] = values
-    return ShadedSamples(visibility, shading, non_finite)  # type: ignore[arg-type]  # it reads .vis alone
+    return ShadedSamples(visibility, shading, non_finite)
