@@ -332,3 +332,18 @@ def test_an_rgba8_attachment_becomes_bytes_as_the_color_does():
     fb.clear((0.5, 0.25, 1.5, 1.0), attachments={"albedo": (0.5, 0.25, 1.5, 1.0)})
     assert fb.to_uint8(attachment="albedo").tobytes() == fb.to_uint8().tobytes()
     assert fb.to_uint8(attachment="albedo")[0, 0].tolist() == [188, 137, 255, 255]
+
+
+@pytest.mark.parametrize("topology", ["lines", "points"])
+def test_lines_and_points_write_every_attachment_the_same_on_both_paths(topology):
+    rng = np.random.default_rng(5)
+    pos = np.column_stack([rng.uniform(-1, 1, (60, 2)), rng.uniform(-0.9, 0.9, 60), np.ones(60)])
+    varyings = {"normal": rng.uniform(-1, 1, (60, 3)), "color": rng.uniform(0, 1, (60, 3))}
+    out = []
+    for path in ("reference", "fast"):
+        fb = sp.Framebuffer(32, 24, attachments=GBUFFER).clear(attachments={"id": -1})
+        sp.draw(fb, pos, varyings=varyings, fragment_shader=gbuffer_shader, topology=topology, path=path,
+                point_size=3.0, line_width=2.0)
+        out.append({name: fb.samples_attachment(name).tobytes() for name in GBUFFER})
+        assert (fb.attachment("id") >= 10).sum() > 30
+    assert out[0] == out[1]
