@@ -141,6 +141,12 @@ def _polygon_offset(value) -> Optional[Tuple[float, float]]:
     return factor, units
 
 
+#: ``blend=``: one state (None, a preset, 2 or 4 factors), or a dict of attachment name → state.
+Blend = Union[None, str, Tuple[str, str], Tuple[str, str, str, str], Mapping[str, Any]]
+#: ``color_mask=``: 4 bools, or a dict of attachment name → 4 bools.
+ColorMask = Union[Tuple[bool, bool, bool, bool], Mapping[str, Tuple[bool, ...]]]
+
+
 class DrawCall:
     """One draw: its inputs, checked, and the stages that run it.
 
@@ -152,16 +158,14 @@ class DrawCall:
                  fragment_shader: Optional[Callable] = None, uniforms: Optional[Mapping[str, Any]] = None, *,
                  attributes: Optional[Mapping[str, Any]] = None, topology: str = "triangles",
                  interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
-                 depth_write: bool = True, blend: Union[None, str, Tuple[str, str], Mapping[str, Any]] = None,
-                 cull: str = "none",
+                 depth_write: bool = True, blend: Blend = None, cull: str = "none",
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
                  path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None,
                  polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0,
                  clip_planes=None, depth_clamp: bool = False,
                  stencil: Optional[Stencil] = None, stencil_back: Optional[Stencil] = None,
                  scissor: Optional[Tuple[int, int, int, int]] = None,
-                 color_mask: Union[Tuple[bool, bool, bool, bool], Mapping[str, Tuple[bool, ...]]] = (True, True, True,
-                                                                                                     True),
+                 color_mask: ColorMask = (True, True, True, True),
                  blend_equation: Union[str, Tuple[str, str]] = "add",
                  blend_color: Tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
                  sample_mask: int = ALL_SAMPLES, alpha_to_coverage: bool = False,
@@ -193,9 +197,9 @@ class DrawCall:
         #: the framebuffer's color attachments, ((name, format), …) in location order
         self.attachments = tuple(framebuffer.attachments.items())
         if len(self.attachments) > 1 and fragment_shader is None:
-            raise ValueError(f"a framebuffer of {len(self.attachments)} attachments ({', '.join(n for n, _ in self.attachments)}) "
-                             "needs a fragment_shader that returns one value per attachment; with none, a draw "
-                             "writes only the varying 'color'")
+            names = ", ".join(n for n, _ in self.attachments)
+            raise ValueError(f"a framebuffer of {len(self.attachments)} attachments ({names}) needs a fragment_shader "
+                             "that returns one value per attachment; with none, a draw writes only the varying 'color'")
         # blend= and color_mask= may be given per attachment (GL's glBlendFunci, glColorMaski): location 0's
         # goes to the MergeState, the others' to their AttachmentState
         first_blend, first_mask, self.attachment_states = attachment_states(blend, color_mask, blend_equation,

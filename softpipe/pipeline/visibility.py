@@ -42,7 +42,12 @@ import numpy as np
 from softpipe.core.parallel import in_bands
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
-from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients, run_fragment_stage
+from softpipe.pipeline.fragment import (
+    ShadedFragments,
+    default_fragment_shader,
+    derivative_gradients,
+    run_fragment_stage,
+)
 from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
 from softpipe.pipeline.output import NonFinite, depth_passes
 from softpipe.pipeline.raster import Fragments
@@ -588,7 +593,17 @@ def shade_outputs(prims: Primitives, visibility, fb, fragment_shader: Optional[C
     attachments = tuple(fb.attachments.items())
     try:
         frags = visibility.fragments(prims, fb.pattern, shading)
-        shaded = run_fragment_stage(frags, prims, fragment_shader, uniforms, "sample", attachments)
+        if shading != "sample" and isinstance(visibility, Visibility) and fb.samples > 1:
+            # multisampling: once per pixel and triangle (every sample of it has the same inputs), as the
+            # reference path and visible_loop shade, the values copied to its other samples
+            key = (frags.triangle.astype(np.int64) * fb.height + frags.y) * fb.width + frags.x
+            _, heads, copy = np.unique(key, return_index=True, return_inverse=True)
+            once = run_fragment_stage(frags.take(heads), prims, fragment_shader, uniforms, "sample", attachments)
+            copy = copy.reshape(-1)
+            shaded = ShadedFragments(once.color[copy], once.discarded[copy], len(heads),
+                                     tuple(a[copy] for a in once.outputs))
+        else:
+            shaded = run_fragment_stage(frags, prims, fragment_shader, uniforms, "sample", attachments)
         if shaded.discarded.any():
             raise DiscardOnFastPath("the fragment shader returned DISCARD (a NaN alpha) at a visible sample")
     except BaseException:
