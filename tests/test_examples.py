@@ -30,6 +30,7 @@ SCRIPTS = {   # name: (tiny size, pictures on the sheet)
     "planar_mirror": ((32, 24), 8),
     "transparency": ((32, 24), 7),
     "instancing": ((32, 24), 3),
+    "deferred": ((32, 24), 7),
     "three_ways": (24, 14),
 }
 

@@ -9,6 +9,12 @@ of floats, and its inputs arrive as namedtuples so that they read by name
     def fragment(varyings, uniforms, frag):              # -> (r, g, b, a) or DISCARD
     def fragment(varyings, uniforms, frag, derivatives): # with exact dFdx / dFdy
 
+Into a framebuffer of several color attachments (multiple render targets, GLSL's
+``layout(location = k) out``), a fragment shader returns a tuple of one value per attachment,
+in the attachments' order: 4 numbers for ``rgba8`` and ``rgba32f``, a number for ``r32f``, an
+int for ``r32i``; ``DISCARD`` as the first value discards (the generated loop checks them,
+:func:`softpipe.language.kernels.outputs`). A single-output shader is unchanged.
+
 A vertex shader's ``attributes`` holds, by name, ``position`` (the draw's positions) and
 every array given as ``attributes=``: a float for an [N] array, a tuple of k floats for
 [N, k]. In an instanced draw (``draw(..., instances=N, instance_attributes={...})``) it

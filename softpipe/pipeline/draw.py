@@ -44,13 +44,14 @@ from softpipe.language.contract import make_uniforms
 from softpipe.pipeline.assembly import Primitives, assemble, check_clip_planes, check_size, primitive_kind
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, run_fragment_stage
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.pipeline.merge_state import ALL_SAMPLES, MergeState, Stencil
+from softpipe.pipeline.merge_state import ALL_SAMPLES, MergeState, Stencil, attachment_states
 from softpipe.pipeline.output import (
     MergeResult,
     NonFinite,
     NonFiniteColorWarning,
     OcclusionQuery,
     merge,
+    merge_more,
     non_finite_written,
     record_visible,
 )
@@ -63,6 +64,7 @@ from softpipe.pipeline.visibility import (
     DiscardOnFastPath,
     choose_path,
     early_depth,
+    shade_outputs,
     shade_visible,
     shade_winners,
     shading_may_fail,
@@ -139,6 +141,12 @@ def _polygon_offset(value) -> Optional[Tuple[float, float]]:
     return factor, units
 
 
+#: ``blend=``: one state (None, a preset, 2 or 4 factors), or a dict of attachment name → state.
+Blend = Union[None, str, Tuple[str, str], Tuple[str, str, str, str], Mapping[str, Any]]
+#: ``color_mask=``: 4 bools, or a dict of attachment name → 4 bools.
+ColorMask = Union[Tuple[bool, bool, bool, bool], Mapping[str, Tuple[bool, ...]]]
+
+
 class DrawCall:
     """One draw: its inputs, checked, and the stages that run it.
 
@@ -150,14 +158,14 @@ class DrawCall:
                  fragment_shader: Optional[Callable] = None, uniforms: Optional[Mapping[str, Any]] = None, *,
                  attributes: Optional[Mapping[str, Any]] = None, topology: str = "triangles",
                  interpolation: Optional[Mapping[str, str]] = None, depth_test: Optional[str] = "less",
-                 depth_write: bool = True, blend: Union[None, str, Tuple[str, str]] = None, cull: str = "none",
+                 depth_write: bool = True, blend: Blend = None, cull: str = "none",
                  front_face: str = "ccw", viewport: Optional[Viewport] = None, sample_shading: str = "sample",
                  path: str = "auto", polygon_offset: Optional[Tuple[float, float]] = None,
                  polygon_mode: str = "fill", point_size: float = 1.0, line_width: float = 1.0,
                  clip_planes=None, depth_clamp: bool = False,
                  stencil: Optional[Stencil] = None, stencil_back: Optional[Stencil] = None,
                  scissor: Optional[Tuple[int, int, int, int]] = None,
-                 color_mask: Tuple[bool, bool, bool, bool] = (True, True, True, True),
+                 color_mask: ColorMask = (True, True, True, True),
                  blend_equation: Union[str, Tuple[str, str]] = "add",
                  blend_color: Tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
                  sample_mask: int = ALL_SAMPLES, alpha_to_coverage: bool = False,
@@ -186,8 +194,18 @@ class DrawCall:
         self.kind = primitive_kind(topology, polygon_mode)
         self.point_size, self.line_width = check_size("point_size", point_size), check_size("line_width", line_width)
         self.clip_planes = check_clip_planes(clip_planes)
-        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=blend,
-                                blend_equation=blend_equation, blend_color=blend_color, color_mask=color_mask,
+        #: the framebuffer's color attachments, ((name, format), …) in location order
+        self.attachments = tuple(framebuffer.attachments.items())
+        if len(self.attachments) > 1 and fragment_shader is None:
+            names = ", ".join(n for n, _ in self.attachments)
+            raise ValueError(f"a framebuffer of {len(self.attachments)} attachments ({names}) needs a fragment_shader "
+                             "that returns one value per attachment; with none, a draw writes only the varying 'color'")
+        # blend= and color_mask= may be given per attachment (GL's glBlendFunci, glColorMaski): location 0's
+        # goes to the MergeState, the others' to their AttachmentState
+        first_blend, first_mask, self.attachment_states = attachment_states(blend, color_mask, blend_equation,
+                                                                            self.attachments)
+        self.state = MergeState(depth_test=depth_test, depth_write=depth_write, blend=first_blend,
+                                blend_equation=blend_equation, blend_color=blend_color, color_mask=first_mask,
                                 stencil=stencil, stencil_back=stencil_back, scissor=scissor,
                                 sample_mask=sample_mask, alpha_to_coverage=alpha_to_coverage,
                                 depth_clamp=depth_clamp)
@@ -221,6 +239,17 @@ class DrawCall:
     def choose_path(self, keep_fragments: bool = False) -> Tuple[str, str]:
         """The path this draw takes and why (:func:`softpipe.pipeline.visibility.choose_path`)."""
         fb = self.framebuffer
+        blocker = next((f"attachment {a.name!r} " + ("is blended" if a.blends else f"has the color mask {a.color_mask}")
+                        + " (the fast path writes whole values, unblended)"
+                        for a in self.attachment_states if a.blends or a.masks_color), None)
+        if blocker is None and len(self.attachments) > 1 and self.state.depth_test == "notequal" \
+                and self.state.depth_write:
+            blocker = ("depth test 'notequal' with depth writes into several attachments (a hidden fragment the "
+                       "shader discarded could change the picture)")
+        if blocker is not None and self.path == "fast":
+            raise ValueError(f"path='fast' is not possible for this draw: {blocker}")
+        if blocker is not None and self.path == "auto":
+            return "reference", blocker
         return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
                            keep_fragments, fb.samples, self.query is not None)
 
@@ -329,6 +358,8 @@ class DrawCall:
         # before every fragment is shaded; with more (millions of fragments), a copy is kept.
         saved = ((fb.samples_color.copy(), fb.samples_depth.copy(), fb.samples_stencil.copy(),
                   None if fb.record is None else fb.record.copy()) if len(batches) > 1 else None)
+        saved_more = ([fb.samples_attachment(n).copy() for n, _ in self.attachments[1:]] if len(batches) > 1
+                      else None)
         passed = 0
         for batch, (first, last) in enumerate(batches):
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, first, last, counts, self.sample_shading,
@@ -336,17 +367,22 @@ class DrawCall:
             clock("raster")
             yield Stage("raster", frags, batch)
             try:
-                shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading)
+                shaded = run_fragment_stage(frags, prims, self.fragment_shader, self.uniforms, self.sample_shading,
+                                            self.attachments)
             except BaseException:
                 if saved is not None:
                     fb.samples_color[...], fb.samples_depth[...], fb.samples_stencil[...] = saved[:3]
                     if saved[3] is not None and fb.record is not None:
                         fb.record[...] = saved[3]
+                for (name, _), before in zip(self.attachments[1:], saved_more or ()):
+                    fb.samples_attachment(name)[...] = before
                 raise
             clock("fragment")
             yield Stage("fragment", shaded, batch)
             merged = merge(frags, shaded, self.state, fb, record=record, front_facing=prims.front_facing,
                            record_ids=self._record_ids)
+            if self.attachment_states:
+                merge_more(frags, shaded, merged.verdict, fb, self.attachment_states, self.state.blend_color)
             if self.query is not None:
                 passed += merged.samples_passed
             self._note_non_finite(non_finite_written(frags, shaded, merged))
@@ -364,10 +400,16 @@ class DrawCall:
         """
         fb = self.framebuffer
         undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
+        if len(self.attachments) > 1 and len(prims):
+            # the proofs that shading cannot fail read a single RGBA's alpha; a shader returning a value per
+            # attachment is not proved, so the depth is kept to put back
+            undo = True
         visibility: Any
         shade: Callable[..., Any]
         if prims.kind == "triangles":
             visibility, shade = visibility_pass(prims, setup, fb, self.state, undo=undo), shade_visible
+            if len(self.attachments) > 1:
+                shade = shade_outputs
         else:
             counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self.rect, setup=setup)
             if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
@@ -379,6 +421,8 @@ class DrawCall:
             frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
                               rect=self.rect, setup=setup)
             visibility, shade = early_depth(frags, fb, self.state, undo=undo), shade_winners
+            if len(self.attachments) > 1:
+                shade = shade_outputs
         clock("raster")
         yield Stage("visibility", visibility)
         try:
@@ -483,7 +527,9 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
         Per-vertex values to interpolate (no vertex shader).
     vertex_shader, fragment_shader : functions, optional
         See :mod:`softpipe.language.contract`. Without a fragment shader the color is the
-        interpolated varying ``color``.
+        interpolated varying ``color``. Into a framebuffer of several color attachments
+        (``Framebuffer(attachments=...)``) the fragment shader returns a tuple of one value per
+        attachment, in their order (docs/shaders.md).
     uniforms : dict, optional
         Values every shader invocation sees (:func:`softpipe.language.contract.make_uniforms`).
     trace : bool
@@ -521,13 +567,16 @@ def draw(framebuffer: Framebuffer, positions, indices=None, varyings: Optional[M
     depth_write : bool (default True)
     blend : None, "alpha", "premultiplied", "additive", (src_factor, dst_factor) or
         (src_rgb, dst_rgb, src_alpha, dst_alpha) (default None: off); factors are GL's, lower case
-        (:data:`softpipe.pipeline.merge_state.BLEND_FACTORS`)
+        (:data:`softpipe.pipeline.merge_state.BLEND_FACTORS`). Into a framebuffer of several
+        attachments, one state for every float attachment, or a dict of attachment name → state
+        (GL's ``glBlendFunci``; those not named are not blended, nor is an integer attachment)
     blend_equation : "add" | "subtract" | "reverse_subtract" | "min" | "max", or (rgb, alpha)
         (default "add")
     blend_color : (r, g, b, a)
         The ``constant_*`` factors' color (GL's ``glBlendColor``, default (0, 0, 0, 0)).
-    color_mask : 4 bools
-        Which channels are written (GL's ``glColorMask``, default all).
+    color_mask : 4 bools, or a dict of attachment name → 4 bools
+        Which channels are written (GL's ``glColorMask``, default all; per attachment,
+        ``glColorMaski``: those not named are written whole).
     stencil : Stencil, optional
         Turns the stencil test on with this state (:class:`softpipe.Stencil`: func, ref, mask, the ops
         on stencil fail, depth fail and depth pass, write mask); the framebuffer's stencil buffer

@@ -9,7 +9,8 @@ with their qualifiers (:func:`softpipe.language.kernels.fragment_kernel` writes 
 * ``flat``: the provoking vertex's value (the triangle's last vertex).
 
 then the fragment shader turns them into an RGBA color (or discards the
-fragment). With no fragment shader, the color is the varying ``color`` (RGB,
+fragment); into a framebuffer of several color attachments, into one value per
+attachment (multiple render targets, :attr:`ShadedFragments.outputs`). With no fragment shader, the color is the varying ``color`` (RGB,
 alpha 1, or RGBA). Everything it needs arrives in its input: the
 :class:`~softpipe.pipeline.raster.Fragments` (barycentrics, depth, window position, and
 the triangle setup for derivatives) and the :class:`~softpipe.pipeline.assembly.Primitives`
@@ -18,7 +19,7 @@ the triangle setup for derivatives) and the :class:`~softpipe.pipeline.assembly.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -41,11 +42,16 @@ class ShadedFragments:
         RGBA, linear, unclamped.
     discarded : bool [F]
         True where the shader returned DISCARD.
+    outputs : tuple of arrays
+        Into a framebuffer of several attachments, the values for locations 1, 2, … in order:
+        float32 [F, 4] (``rgba8``, ``rgba32f``), float32 [F] (``r32f``) or int32 [F] (``r32i``)
+        (location 0's is ``color``). Empty for one attachment.
     """
 
     color: np.ndarray
     discarded: np.ndarray
     invocations: int = -1
+    outputs: Tuple[np.ndarray, ...] = ()
 
     def __len__(self) -> int:
         return len(self.color)
@@ -95,24 +101,35 @@ def pixel_runs(frags: Fragments) -> np.ndarray:
 
 
 def run_fragment_stage(frags: Fragments, prims: Primitives, fragment_shader: Optional[Callable], uniforms,
-                       shading: str = "sample") -> ShadedFragments:
+                       shading: str = "sample", attachments: Sequence[Tuple[str, str]] = ()) -> ShadedFragments:
     """Shade the fragments: every one (``shading="sample"``), or once per pixel run (multisampling).
 
     With multisampling the rasterizer has put the shading position's
     barycentrics in every fragment of a run; the first one is shaded and its
-    color goes to all the run's samples.
+    color goes to all the run's samples. ``attachments`` (a framebuffer's (name, format), …):
+    with more than one, the shader returns a value per attachment (:attr:`ShadedFragments.outputs`).
     """
     shader = fragment_shader or default_fragment_shader(prims.layout)
+    attachments = tuple(attachments) if len(attachments) > 1 else ()
     n = len(frags)
     if n == 0:
-        return ShadedFragments(np.empty((0, 4), np.float32), np.zeros(0, dtype=bool), 0)
+        return ShadedFragments(np.empty((0, 4), np.float32), np.zeros(0, dtype=bool), 0, _more_outputs(attachments, 0))
     if shading == "sample":
-        shaded = _shade(shader, frags, prims, uniforms)
-        return ShadedFragments(shaded, np.isnan(shaded[:, 3]), n)
+        shaded, more = _shade(shader, frags, prims, uniforms, attachments)
+        return ShadedFragments(shaded, np.isnan(shaded[:, 3]), n, more)
     heads = pixel_runs(frags)
-    shaded = _shade(shader, frags.take(heads), prims, uniforms)
-    color = np.repeat(shaded, np.diff(np.append(heads, n)), axis=0)
-    return ShadedFragments(color, np.isnan(color[:, 3]), len(heads))
+    shaded, more = _shade(shader, frags.take(heads), prims, uniforms, attachments)
+    repeats = np.diff(np.append(heads, n))
+    color = np.repeat(shaded, repeats, axis=0)
+    more = tuple(np.repeat(a, repeats, axis=0) for a in more)
+    return ShadedFragments(color, np.isnan(color[:, 3]), len(heads), more)
+
+
+def _more_outputs(attachments: Sequence[Tuple[str, str]], n: int) -> Tuple[np.ndarray, ...]:
+    """Arrays for the values of locations 1, 2, … of ``n`` fragments (each attachment's format's type)."""
+    shapes = {"rgba8": ((n, 4), np.float32), "rgba32f": ((n, 4), np.float32), "r32f": ((n,), np.float32),
+              "r32i": ((n,), np.int32)}
+    return tuple(np.empty(*shapes[fmt]) for _, fmt in attachments[1:])
 
 
 def derivative_gradients(shader: Callable, setup) -> np.ndarray:
@@ -122,11 +139,14 @@ def derivative_gradients(shader: Callable, setup) -> np.ndarray:
     return np.zeros((0, 2, 3))
 
 
-def _shade(shader, frags: Fragments, prims: Primitives, uniforms) -> np.ndarray:
+def _shade(shader, frags: Fragments, prims: Primitives, uniforms, attachments=()) -> Tuple[np.ndarray, tuple]:
     color = np.empty((len(frags), 4), dtype=np.float32)
-    kernel = kernels.fragment_kernel(shader, prims.layout)
-    args = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
-            prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+    kernel = kernels.fragment_kernel(shader, prims.layout, attachments)
+    more = _more_outputs(attachments, len(frags))
+    args: tuple = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
+                   prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+    if attachments:
+        args = args + (more,)
     kernels.run_compiled("fragment", shader, kernel, *args,
                          site=kernels.fragment_site(shader, kernel, args, frags.x, frags.y, frags.sample))
-    return color
+    return color, more

@@ -1,10 +1,18 @@
-"""The framebuffer: float RGBA color, float depth and an 8-bit stencil, per sample.
+"""The framebuffer: float RGBA color, float depth and an 8-bit stencil, per sample; more color
+attachments if asked for (multiple render targets, GL's ``layout(location = k) out``).
 
 Row 0 is the top of the image, as pillow and numpy expect; the rasterizer
 flipped y once when it emitted the fragments. Colors are linear floats and
 unclamped until they become 8 bits in :meth:`Framebuffer.to_uint8`, the one
 place that conversion happens: ``round(clamp(c, 0, 1)·255)``, rounding half to
 even, after the sRGB encode (FORMULAS §28) in an sRGB framebuffer (``srgb=True``).
+
+Color attachments (``Framebuffer(w, h, attachments={"color": "rgba8", "normal": "rgba32f",
+"id": "r32i"})``): named, in order (the k-th is location k, the k-th value a fragment
+shader returns), each of a format of :data:`ATTACHMENT_FORMATS`. Location 0 is the
+framebuffer's color (:attr:`Framebuffer.samples_color`, the picture it shows); the
+others are arrays of their own (:meth:`Framebuffer.attachment`). The default is one
+attachment, ``{"color": "rgba8"}``: today's framebuffer, byte for byte. docs/06-output.md.
 """
 from __future__ import annotations
 
@@ -13,7 +21,7 @@ import os
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO, List, Optional, Sequence, Tuple, Union
+from typing import Any, BinaryIO, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numba
 import numpy as np
@@ -23,12 +31,23 @@ from softpipe.core.parallel import in_bands
 from softpipe.core.runtime import check_memory
 from softpipe.pipeline.sampling import CENTER, SamplePattern
 
-__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record"]
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record",
+           "ATTACHMENT_FORMATS", "DEFAULT_ATTACHMENTS"]
 
 #: Largest width or height, in pixels.
 MAX_DIMENSION = 16384
 #: Largest width × height × samples (about 1.3 GB of color and depth).
 MAX_TOTAL_SAMPLES = 1 << 26
+#: A color attachment's formats (GL's internal formats, lower case, without ``GL_``): name →
+#: (channels, numpy dtype of its storage). ``rgba8`` is stored as float32, unclamped, as the
+#: framebuffer's color always was, and becomes bytes where it is read as a picture
+#: (:meth:`Framebuffer.to_uint8`, with the sRGB encode in an sRGB framebuffer); ``rgba32f`` and
+#: ``r32f`` are floats to read as numbers; ``r32i`` a 32-bit signed integer per sample
+#: (not blended, and resolved by taking sample 0, as GL treats integer targets).
+ATTACHMENT_FORMATS = {"rgba8": (4, np.float32), "rgba32f": (4, np.float32), "r32f": (1, np.float32),
+                      "r32i": (1, np.int32)}
+#: The default framebuffer's one attachment.
+DEFAULT_ATTACHMENTS = {"color": "rgba8"}
 
 
 @numba.njit(cache=True, nogil=True)
@@ -143,6 +162,38 @@ def image_format(name: Optional[str], format: Optional[str] = None) -> str:
     return fmt
 
 
+def _check_attachments(attachments) -> Tuple[Tuple[str, str], ...]:
+    """The attachments as ((name, format), ...) in location order, checked (a ValueError or TypeError
+    names the one that is wrong)."""
+    if attachments is None:
+        return tuple(DEFAULT_ATTACHMENTS.items())
+    if not isinstance(attachments, Mapping):
+        raise TypeError(f"Framebuffer attachments must be a dict of name → format, e.g. {{'color': 'rgba8', "
+                        f"'normal': 'rgba32f'}}, got {type(attachments).__name__}")
+    if not attachments:
+        raise ValueError("Framebuffer attachments is empty: give at least one, e.g. {'color': 'rgba8'}")
+    if len(attachments) > MAX_ATTACHMENTS:
+        raise ValueError(f"Framebuffer attachments: {len(attachments)} given, at most MAX_ATTACHMENTS = "
+                         f"{MAX_ATTACHMENTS} (GL's GL_MAX_DRAW_BUFFERS)")
+    out = []
+    for name, fmt in attachments.items():
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ValueError(f"Framebuffer attachment name {name!r} must be a Python identifier, such as 'normal'")
+        if fmt not in ATTACHMENT_FORMATS:
+            raise ValueError(f"Framebuffer attachment {name!r}: format must be one of {tuple(ATTACHMENT_FORMATS)}, "
+                             f"got {fmt!r}")
+        out.append((name, fmt))
+    name, fmt = out[0]
+    if ATTACHMENT_FORMATS[fmt][0] != 4:
+        raise ValueError(f"Framebuffer attachment {name!r} ({fmt}) is location 0, the framebuffer's color (the "
+                         f"picture it shows and saves): it must be 'rgba8' or 'rgba32f'; put a color attachment first")
+    return tuple(out)
+
+
+#: Most color attachments a framebuffer takes (GL guarantees 8 draw buffers).
+MAX_ATTACHMENTS = 8
+
+
 class Framebuffer:
     """Color (RGBA float32), depth (float32) and stencil (uint8) buffers, one value per sample.
 
@@ -166,6 +217,12 @@ class Framebuffer:
         Keep a visibility record (docs/outputs.md): per sample, which draw, instance and
         source primitive last wrote its depth (int64, −1 where none did), with the frame's
         :attr:`recorded_draws`, cleared with the frame. Default False: no record, no cost.
+    attachments : dict name → format, optional
+        The color attachments in location order (multiple render targets), each of a format
+        of :data:`ATTACHMENT_FORMATS`: ``{"color": "rgba8", "normal": "rgba32f", "id":
+        "r32i"}``. Location 0 must be ``rgba8`` or ``rgba32f``: it is :attr:`color`. A
+        fragment shader drawing into a framebuffer of several returns one value per
+        attachment (docs/shaders.md). Default: ``{"color": "rgba8"}``, one attachment.
 
     Attributes
     ----------
@@ -204,7 +261,7 @@ class Framebuffer:
     """
 
     def __init__(self, width: int, height: int, pattern: SamplePattern = CENTER, srgb: bool = False,
-                 record: bool = False):
+                 record: bool = False, attachments: Optional[Mapping[str, str]] = None):
         if not isinstance(pattern, SamplePattern):
             raise TypeError(f"pattern must be a SamplePattern, got {type(pattern).__name__}")
         if not isinstance(srgb, (bool, np.bool_)):
@@ -212,8 +269,10 @@ class Framebuffer:
         if not isinstance(record, (bool, np.bool_)):
             raise TypeError(f"Framebuffer record must be True or False, got {type(record).__name__} {record!r}")
         _check_size(width, height, len(pattern))
+        formats = _check_attachments(attachments)
         s = len(pattern)
         per_sample = 29 if record else 21
+        per_sample += sum(4 * ATTACHMENT_FORMATS[f][0] for _, f in formats[1:])
         check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel ({per_sample} bytes "
                      "a sample)", int(width) * int(height) * s * per_sample)
         object.__setattr__(self, "_width", int(width))
@@ -227,6 +286,11 @@ class Framebuffer:
         object.__setattr__(self, "_record", np.empty((s, self._height, self._width), dtype=np.int64)
                            if record else None)
         object.__setattr__(self, "_recorded_draws", [])
+        object.__setattr__(self, "_formats", formats)
+        object.__setattr__(self, "_extra", {name: np.empty((s, self._height, self._width)
+                                                           + ((4,) if ATTACHMENT_FORMATS[f][0] == 4 else ()),
+                                                           dtype=ATTACHMENT_FORMATS[f][1])
+                                            for name, f in formats[1:]})
         object.__setattr__(self, "_views", {})
         object.__setattr__(self, "_lock", threading.RLock())
         object.__setattr__(self, "_writes", 0)
@@ -243,7 +307,7 @@ class Framebuffer:
     # and the draws can honour it (:meth:`check_drawable`).
 
     _READ_ONLY = ("width", "height", "pattern", "samples", "samples_color", "samples_depth", "samples_stencil",
-                  "lock", "writes", "srgb", "record", "recorded_draws")
+                  "lock", "writes", "srgb", "record", "recorded_draws", "attachments")
     # set once, by __init__ (through object.__setattr__)
     _width: int
     _height: int
@@ -258,6 +322,8 @@ class Framebuffer:
     _lock: threading.RLock
     _writes: int
     _views: dict
+    _formats: Tuple[Tuple[str, str], ...]
+    _extra: Dict[str, np.ndarray]
 
     def __setattr__(self, name, value):
         if name in self._READ_ONLY or name.startswith("_"):
@@ -332,6 +398,47 @@ class Framebuffer:
     def recorded_draws(self) -> List[RecordedDraw]:
         """The draws made into this framebuffer since the last :meth:`clear`, in order (with a record)."""
         return self._recorded_draws
+
+    @property
+    def attachments(self) -> Dict[str, str]:
+        """The color attachments, name → format, in location order (a new dict: read-only)."""
+        return dict(self._formats)
+
+    def _attachment_array(self, name: str) -> np.ndarray:
+        """The storage of attachment ``name`` (all samples), checked as the kernels need it."""
+        if not isinstance(name, str) or name not in dict(self._formats):
+            raise KeyError(f"this framebuffer has no attachment {name!r}; its attachments are "
+                           f"{[n for n, _ in self._formats]}")
+        if name == self._formats[0][0]:
+            return self._view("samples_color")
+        a, fmt = self._extra[name], dict(self._formats)[name]
+        channels, dtype = ATTACHMENT_FORMATS[fmt]
+        shape = (self._count, self._height, self._width) + ((4,) if channels == 4 else ())
+        if not (a.shape == shape and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable):
+            raise RuntimeError(f"Framebuffer attachment {name!r} was changed in place; the kernels cannot draw "
+                               "into it safely")
+        return a
+
+    def samples_attachment(self, name: str) -> np.ndarray:
+        """Every sample of attachment ``name``: [S, H, W, 4] float32 (``rgba8``, ``rgba32f``), [S, H, W]
+        float32 (``r32f``) or int32 (``r32i``); a view, to write into in place. Location 0's is
+        :attr:`samples_color`. A KeyError names the attachments there are."""
+        return self._attachment_array(name)[...]
+
+    def attachment(self, name: str) -> np.ndarray:
+        """Attachment ``name`` resolved to one value per pixel: [H, W, 4] or [H, W].
+
+        With one sample per pixel, the buffer itself (writable in place). With several, GL's
+        multisample resolve per format: a float format (``rgba8``, ``rgba32f``, ``r32f``) is
+        the average of the pixel's samples (as :attr:`color`); an integer one (``r32i``) is
+        not averaged: it takes sample 0 (GL takes a single sample of an integer target).
+        """
+        a = self._attachment_array(name)
+        if self._count == 1:
+            return a[0]
+        if a.dtype.kind == "i":
+            return a[0].copy()
+        return a.mean(axis=0, dtype=np.float64).astype(np.float32)
 
     def add_recorded_draw(self, call: Any, clip: np.ndarray, vertices_per_instance: int, count: int,
                           per_instance: int, kind: str) -> RecordedDraw:
@@ -408,17 +515,25 @@ class Framebuffer:
             object.__setattr__(self, "_samples_stencil", np.zeros(self._samples_depth.shape, np.uint8))
         self.__dict__.setdefault("_srgb", False)       # pickled before framebuffers had srgb
         self.__dict__.setdefault("_record", None)      # pickled before framebuffers kept a record
+        self.__dict__.setdefault("_formats", tuple(DEFAULT_ATTACHMENTS.items()))   # before attachments
+        self.__dict__.setdefault("_extra", {})
         object.__setattr__(self, "_recorded_draws", [])
 
     def clear(self, color: Union[str, Sequence[float]] = (0.0, 0.0, 0.0, 1.0), depth: float = 1.0,
-              stencil: int = 0) -> "Framebuffer":
+              stencil: int = 0, attachments: Optional[Mapping[str, Any]] = None) -> "Framebuffer":
         """Set every sample to ``color``, ``depth`` and ``stencil``; returns the framebuffer.
 
         ``color`` is anything :func:`softpipe.core.colors.parse_color` reads: 3 or 4 numbers
         (RGB or RGBA, linear, unclamped), a CSS name (``"red"``), hex (``"#ff8000"``) or
         ``"rgb(255, 128, 0)"``. Alpha is 1 when not given. A visibility record (``record=True``)
         is set to −1 and its :attr:`recorded_draws` forgotten.
+
+        ``attachments`` (a framebuffer with several, GL's ``glClearBuffer*``): name → clear value
+        of an attachment other than location 0 (whose value is ``color``): a color as ``color``
+        for ``rgba8`` and ``rgba32f``, a finite number for ``r32f``, an int32 for ``r32i``. Those
+        not named are cleared to 0 ((0, 0, 0, 0) for the RGBA formats).
         """
+        extra = self._clear_values(attachments)
         try:
             c = np.asarray(rgba(color), dtype=np.float32)
         except (TypeError, ValueError) as e:
@@ -442,7 +557,46 @@ class Framebuffer:
             if self._record is not None:
                 self._record.fill(-1)
                 self._recorded_draws.clear()
+            for name, value in extra.items():
+                self._attachment_array(name)[...] = value
         return self
+
+    def _clear_values(self, attachments: Optional[Mapping[str, Any]]) -> Dict[str, Any]:
+        """Each attachment but location 0's clear value, checked (a ValueError names the attachment)."""
+        if attachments is not None and not isinstance(attachments, Mapping):
+            raise TypeError(f"clear attachments must be a dict of attachment name → value, got "
+                            f"{type(attachments).__name__}")
+        given = dict(attachments or {})
+        formats = dict(self._formats)
+        for name in given:
+            if name not in formats:
+                raise ValueError(f"clear attachments names {name!r}, but the framebuffer's attachments are "
+                                 f"{list(formats)}")
+            if name == self._formats[0][0]:
+                raise ValueError(f"clear attachments names {name!r}, location 0, whose clear value is color=")
+        out: Dict[str, Any] = {}
+        for name, fmt in self._formats[1:]:
+            value = given.get(name, 0)
+            if fmt == "r32i":
+                if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) \
+                        or not -2**31 <= int(value) < 2**31:
+                    raise ValueError(f"clear value of attachment {name!r} (r32i) must be an int32, got {value!r}")
+                out[name] = np.int32(value)
+            elif fmt == "r32f":
+                if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                        or not np.isfinite(value):
+                    raise ValueError(f"clear value of attachment {name!r} (r32f) must be a finite number, got {value!r}")
+                out[name] = np.float32(value)
+            else:
+                try:
+                    c = np.zeros(4, np.float32) if name not in given else np.asarray(rgba(value), np.float32)
+                except (TypeError, ValueError):
+                    c = np.full(4, np.nan, np.float32)
+                if not np.all(np.isfinite(c)):
+                    raise ValueError(f"clear value of attachment {name!r} ({fmt}) must be 3 or 4 finite numbers or "
+                                     f"a color name, got {value!r}")
+                out[name] = c
+        return out
 
     @property
     def color(self) -> np.ndarray:
@@ -486,7 +640,7 @@ class Framebuffer:
             return self._view("depth")
         return self.samples_depth.min(axis=0)
 
-    def to_uint8(self, alpha: bool = True) -> np.ndarray:
+    def to_uint8(self, alpha: bool = True, attachment: Optional[str] = None) -> np.ndarray:
         """The color as 8-bit [H, W, 4] (or [H, W, 3]): round(clamp(c, 0, 1)·255), half to even.
 
         The one place softpipe turns colors into bytes (``np.asarray(fb)``, :meth:`save`,
@@ -496,8 +650,21 @@ class Framebuffer:
         B are clamped, then encoded (FORMULAS §28: ``srgb_encode``), then rounded the
         same way; alpha is not encoded. Several samples are averaged (:attr:`color`)
         in linear light before the encode.
+
+        ``attachment`` names another ``rgba8`` attachment to turn into bytes the same way
+        (the float and integer formats are numbers, read with :meth:`attachment`).
         """
-        c = np.nan_to_num(self.color[..., : 4 if alpha else 3].astype(np.float64), nan=0.0, posinf=1.0, neginf=0.0)
+        color = self.color
+        if attachment is not None and attachment != self._formats[0][0]:
+            fmt = dict(self._formats).get(attachment)
+            if fmt is None:
+                raise KeyError(f"this framebuffer has no attachment {attachment!r}; its attachments are "
+                               f"{[n for n, _ in self._formats]}")
+            if fmt != "rgba8":
+                raise ValueError(f"attachment {attachment!r} is {fmt}, numbers rather than a picture: read them with "
+                                 f"fb.attachment({attachment!r}); only 'rgba8' attachments become bytes")
+            color = self.attachment(attachment)
+        c = np.nan_to_num(color[..., : 4 if alpha else 3].astype(np.float64), nan=0.0, posinf=1.0, neginf=0.0)
         c = np.clip(c, 0.0, 1.0)
         if self._srgb:
             c[..., :3] = srgb_encode(c[..., :3])
@@ -591,4 +758,7 @@ class Framebuffer:
 
     def __repr__(self) -> str:
         srgb = ", sRGB" if self._srgb else ""
-        return f"Framebuffer({self.width}×{self.height}, {self.samples} sample{'s' if self.samples > 1 else ''}{srgb})"
+        more = ("" if len(self._formats) == 1 else
+                ", attachments " + ", ".join(f"{n}: {f}" for n, f in self._formats))
+        return (f"Framebuffer({self.width}×{self.height}, {self.samples} sample{'s' if self.samples > 1 else ''}"
+                f"{srgb}{more})")

@@ -17,6 +17,11 @@ write masks           ``color_mask``, ``depth_write``,            ``glColorMask`
 ====================  ==========================================  ==========================
 
 (sRGB encoding happens where colors become bytes, :meth:`Framebuffer.to_uint8`.)
+
+A framebuffer of several color attachments takes blending and the color mask per
+attachment, GL's ``glBlendFunci`` / ``glColorMaski``: ``blend`` and ``color_mask`` may be a
+dict of attachment name → state (:func:`attachment_states` splits them; integer
+attachments are never blended). :class:`MergeState` holds location 0's.
 :class:`MergeState` checks every value and names the one that is wrong;
 :meth:`MergeState.codes` packs the state into the small integer array the merger's
 compiled kernel reads (indices ``ST_*``), so the kernel's signature stays one array
@@ -25,7 +30,7 @@ however much state GL has. docs/06-output.md walks through the chain.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple, Union
+from typing import Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -33,7 +38,8 @@ __all__ = ["MergeState", "Stencil", "DEPTH_FUNCS", "COMPARE_FUNCS", "STENCIL_OPS
            "BLEND_EQUATIONS", "BLEND_PRESETS", "ALL_SAMPLES", "STATE_SIZE", "ST_DEPTH_FUNC", "ST_DEPTH_WRITE",
            "ST_DEPTH_CLAMP", "ST_BLEND", "ST_SRC_RGB", "ST_DST_RGB", "ST_SRC_ALPHA", "ST_DST_ALPHA",
            "ST_EQUATION_RGB", "ST_EQUATION_ALPHA", "ST_COLOR_MASK", "ST_STENCIL", "ST_STENCIL_FRONT",
-           "ST_STENCIL_BACK", "STENCIL_FIELDS", "ST_SCISSOR", "ST_SAMPLE_MASK", "ST_ALPHA_TO_COVERAGE"]
+           "ST_STENCIL_BACK", "STENCIL_FIELDS", "ST_SCISSOR", "ST_SAMPLE_MASK", "ST_ALPHA_TO_COVERAGE",
+           "attachment_states", "AttachmentState"]
 
 #: OpenGL's eight compare functions, for the depth and the stencil test: the fragment passes if
 #: ``z_frag OP z_stored`` (depth) or ``(ref & mask) OP (stored & mask)`` (stencil).
@@ -298,3 +304,81 @@ class MergeState:
         st[ST_SAMPLE_MASK] = int(self.sample_mask)
         st[ST_ALPHA_TO_COVERAGE] = int(self.alpha_to_coverage)
         return st
+
+
+# ------------------------------------------------------------------ per attachment (multiple render targets)
+
+@dataclass(frozen=True)
+class AttachmentState:
+    """Blending and the color mask of one color attachment other than location 0 (GL's
+    ``glBlendFunci``, ``glColorMaski``; the blend equation and color are the draw's, shared).
+
+    ``codes`` packs it for the merger's kernel: blending on, the four factors, the two
+    equations, then the four mask entries (one-channel formats read R's alone).
+    """
+
+    name: str
+    format: str
+    blend: BlendSpec
+    color_mask: Tuple[bool, bool, bool, bool]
+    codes: np.ndarray
+
+    @property
+    def blends(self) -> bool:
+        return self.blend is not None
+
+    @property
+    def masks_color(self) -> bool:
+        """Does the mask hold back a channel this attachment has?"""
+        return not all(self.color_mask[:1] if self.format in ("r32f", "r32i") else self.color_mask)
+
+
+def _mask(name: Optional[str], value) -> Tuple[bool, bool, bool, bool]:
+    mask = tuple(value) if isinstance(value, (tuple, list)) else ()
+    if len(mask) != 4 or not all(isinstance(m, (bool, np.bool_)) for m in mask):
+        which = "" if name is None else f" for attachment {name!r}"
+        raise ValueError(f"color_mask{which} must be 4 booleans (r, g, b, a), got {value!r}")
+    return tuple(bool(m) for m in mask)        # type: ignore[return-value]
+
+
+def _per_attachment(what: str, value, names: Sequence[str], default):
+    """``value`` for each attachment: the same for all, or a dict of name → value (the others ``default``)."""
+    if not isinstance(value, Mapping):
+        return [value] * len(names)
+    for key in value:
+        if key not in names:
+            raise ValueError(f"{what} names attachment {key!r}, but the framebuffer's attachments are {list(names)}")
+    return [value.get(n, default) for n in names]
+
+
+def attachment_states(blend, color_mask, blend_equation, attachments: Sequence[Tuple[str, str]]
+                      ) -> Tuple[BlendSpec, Tuple[bool, ...], Tuple[AttachmentState, ...]]:
+    """Split a draw's ``blend`` and ``color_mask`` over a framebuffer's attachments ((name, format), …).
+
+    Either may be one state for every attachment or a dict of attachment name → state (those
+    not named: blending off, every channel written). Integer attachments (``r32i``) are not
+    blended, as GL's are not: one blend state for all leaves them out, and a dict that gives
+    one a blend state is refused. Returns location 0's blend and mask (for
+    :class:`MergeState`) and the other attachments' :class:`AttachmentState`.
+    """
+    names = [n for n, _ in attachments]
+    blends = _per_attachment("blend", blend, names, None)
+    masks = _per_attachment("color_mask", color_mask, names, (True, True, True, True))
+    eq = _equations(blend_equation)
+    more = []
+    for k, ((name, fmt), b, m) in enumerate(zip(attachments, blends, masks)):
+        if fmt == "r32i" and b is not None:
+            if isinstance(blend, Mapping):
+                raise ValueError(f"blend for attachment {name!r} (r32i): integer attachments are not blended "
+                                 "(GL's rule); leave it out of blend= or give it None")
+            b = None
+        if k == 0:
+            continue
+        factors = _blend_factors(b)
+        mask = _mask(name if isinstance(color_mask, Mapping) else None, m)
+        codes = np.array((int(b is not None),) + factors + eq + mask, np.int64)
+        more.append(AttachmentState(name, fmt, b, mask, codes))
+    first_mask = masks[0]
+    if isinstance(color_mask, Mapping):
+        first_mask = _mask(names[0], first_mask)
+    return blends[0], first_mask, tuple(more)

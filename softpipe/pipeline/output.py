@@ -28,11 +28,17 @@ what happened to it, and the samples that passed every test are counted
 (``Framebuffer(..., record=True)``) gets one more store where a fragment writes the depth:
 which draw, instance and source primitive it came from (:func:`record_visible` is the fast
 path's; docs/outputs.md).
+
+A framebuffer of several color attachments (multiple render targets) gets each other
+attachment's value where location 0's was written: through that attachment's own blending
+and color mask (:class:`~softpipe.pipeline.merge_state.AttachmentState`, GL's
+``glBlendFunci`` / ``glColorMaski``), in fragment order (:func:`merge_more`); integer
+attachments are never blended.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Sequence
 
 import numba
 import numpy as np
@@ -57,13 +63,14 @@ from softpipe.pipeline.merge_state import (
     ST_STENCIL,
     ST_STENCIL_BACK,
     ST_STENCIL_FRONT,
+    AttachmentState,
     MergeState,
 )
 from softpipe.pipeline.raster import Fragments
 
 __all__ = ["MergeResult", "merge", "VERDICTS", "depth_passes", "compare", "stencil_op", "blend_factor",
            "blend_channel", "covered_by_alpha", "OcclusionQuery", "NonFiniteColorWarning", "NonFinite",
-           "non_finite_written", "record_visible"]
+           "non_finite_written", "record_visible", "merge_more"]
 
 #: What the merger did with a fragment: its index in this tuple is stored per fragment
 #: (the step of the chain that stopped it, or "written": it passed every test).
@@ -304,6 +311,67 @@ class MergeResult:
     def __repr__(self) -> str:
         counts = np.bincount(self.verdict, minlength=len(VERDICTS)) if len(self.verdict) else [0] * len(VERDICTS)
         return "MergeResult(" + ", ".join(f"{n}: {int(c)}" for n, c in zip(VERDICTS, counts) if c or n in VERDICTS[:3]) + ")"
+
+
+@numba.njit(cache=True)
+def _merge_more_float(x, y, s, verdict, values, target, codes, blend_color):
+    """Another float attachment's values ([F, C], C = 4 or 1) into ``target`` [S, H, W, C] at the samples whose
+    fragment was written, in fragment order, blended and masked by ``codes`` (AttachmentState.codes).
+    A one-channel value blends as (r, 0, 0, 1): source and destination alpha 1 (GL: a format without
+    alpha reads as alpha 1)."""
+    blend, src_rgb, dst_rgb, src_a, dst_a, eq_rgb, eq_a = (codes[0] != 0, codes[1], codes[2], codes[3], codes[4],
+                                                           codes[5], codes[6])
+    channels = values.shape[1]
+    const_a = blend_color[3]
+    for k in range(x.shape[0]):
+        if verdict[k] != WRITTEN:
+            continue
+        i, j, m = x[k], y[k], s[k]
+        sa = np.float64(values[k, 3]) if channels == 4 else 1.0
+        da = np.float64(target[m, j, i, 3]) if channels == 4 else 1.0
+        for c in range(channels):
+            if codes[7 + c] == 0:
+                continue
+            src = np.float64(values[k, c])
+            if blend:
+                dst = np.float64(target[m, j, i, c])
+                if c < 3:
+                    target[m, j, i, c] = blend_channel(eq_rgb, src_rgb, dst_rgb, c, src, dst, sa, da, blend_color[c],
+                                                       const_a)
+                else:
+                    target[m, j, i, c] = blend_channel(eq_a, src_a, dst_a, 3, sa, da, sa, da, const_a, const_a)
+            else:
+                target[m, j, i, c] = values[k, c]
+
+
+@numba.njit(cache=True)
+def _merge_more_int(x, y, s, verdict, values, target, write):
+    """An integer attachment's values ([F]) into ``target`` [S, H, W] where the fragment was written
+    (never blended), in fragment order, if its mask lets R be written."""
+    if not write:
+        return
+    for k in range(x.shape[0]):
+        if verdict[k] == WRITTEN:
+            target[s[k], y[k], x[k]] = values[k]
+
+
+def merge_more(frags: Fragments, shaded: ShadedFragments, verdict: np.ndarray, fb: Framebuffer,
+               states: Sequence[AttachmentState], blend_color: Sequence[float]) -> None:
+    """The other attachments' values (:attr:`ShadedFragments.outputs`, locations 1, 2, …) where the merger
+    wrote location 0's (``verdict`` "written"), each by its own :class:`AttachmentState`.
+
+    Run after :func:`merge` over the same fragments in the same order: each sample then sees
+    the same writes in the same order as if they were made fragment by fragment.
+    """
+    for state, values in zip(states, shaded.outputs):
+        target = fb.samples_attachment(state.name)
+        if state.format == "r32i":
+            _merge_more_int(frags.x, frags.y, frags.sample, verdict, values, target, bool(state.codes[7]))
+            continue
+        if values.ndim == 1:
+            values, target = values[:, None], target[..., None]
+        _merge_more_float(frags.x, frags.y, frags.sample, verdict, values, target, state.codes,
+                          np.asarray(blend_color, np.float64))
 
 
 def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Framebuffer,

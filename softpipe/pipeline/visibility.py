@@ -42,7 +42,12 @@ import numpy as np
 from softpipe.core.parallel import in_bands
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
-from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients, run_fragment_stage
+from softpipe.pipeline.fragment import (
+    ShadedFragments,
+    default_fragment_shader,
+    derivative_gradients,
+    run_fragment_stage,
+)
 from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
 from softpipe.pipeline.output import NonFinite, depth_passes
 from softpipe.pipeline.raster import Fragments
@@ -58,7 +63,7 @@ from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
-           "visible_loop_args", "FragmentVisibility", "early_depth", "shade_winners"]
+           "visible_loop_args", "FragmentVisibility", "early_depth", "shade_winners", "shade_outputs"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -568,3 +573,53 @@ def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragmen
         non_finite = NonFinite(len(bad), int(kept.x[first]), int(kept.y[first]), int(kept.primitive_id[first]))
     return ShadedSamples(visibility, shading, non_finite)  # type: ignore[arg-type]  # it reads .vis alone
 
+
+
+# ------------------------------------------------- several color attachments (multiple render targets)
+
+def shade_outputs(prims: Primitives, visibility, fb, fragment_shader: Optional[Callable], uniforms,
+                  shading: str = "sample") -> ShadedSamples:
+    """The fast path into a framebuffer of several attachments: the shader once per visible sample, its
+    values written into every attachment.
+
+    The visible samples are made into fragments (:meth:`Visibility.fragments`, or the kept ones of a
+    :class:`FragmentVisibility`), with the barycentrics, depth and position the reference path's
+    fragment gives the shader there (at the pixel's shading point with multisampling, so every
+    sample of a pixel gets the value the reference path copies to them), and shaded by the same
+    loop as the reference path's (``fragment_loop_outputs``); nothing is written before every one
+    is shaded. A shader that raises, or returns DISCARD first (:class:`DiscardOnFastPath`), has the
+    depth put back, as :func:`shade_visible`.
+    """
+    attachments = tuple(fb.attachments.items())
+    try:
+        frags = visibility.fragments(prims, fb.pattern, shading)
+        if shading != "sample" and isinstance(visibility, Visibility) and fb.samples > 1:
+            # multisampling: once per pixel and triangle (every sample of it has the same inputs), as the
+            # reference path and visible_loop shade, the values copied to its other samples
+            key = (frags.triangle.astype(np.int64) * fb.height + frags.y) * fb.width + frags.x
+            _, heads, copy = np.unique(key, return_index=True, return_inverse=True)
+            once = run_fragment_stage(frags.take(heads), prims, fragment_shader, uniforms, "sample", attachments)
+            copy = copy.reshape(-1)
+            shaded = ShadedFragments(once.color[copy], once.discarded[copy], len(heads),
+                                     tuple(a[copy] for a in once.outputs))
+        else:
+            shaded = run_fragment_stage(frags, prims, fragment_shader, uniforms, "sample", attachments)
+        if shaded.discarded.any():
+            raise DiscardOnFastPath("the fragment shader returned DISCARD (a NaN alpha) at a visible sample")
+    except BaseException:
+        visibility.restore_depth(fb)
+        if isinstance(visibility, Visibility):       # its saved depth is a scratch buffer to hand back
+            _release(visibility.saved_depth)
+        visibility.saved_depth = None
+        raise
+    if isinstance(visibility, Visibility):
+        _release(visibility.saved_depth)
+    visibility.saved_depth = None
+    non_finite = None
+    if _write_kept(frags.x, frags.y, frags.sample, shaded.color, fb.samples_color):
+        bad = np.flatnonzero(~np.isfinite(shaded.color).all(axis=1))
+        first = int(bad[np.lexsort((frags.x[bad], frags.y[bad]))[0]])
+        non_finite = NonFinite(len(bad), int(frags.x[first]), int(frags.y[first]), int(frags.primitive_id[first]))
+    for (name, _), values in zip(attachments[1:], shaded.outputs):
+        fb.samples_attachment(name)[frags.sample, frags.y, frags.x] = values
+    return ShadedSamples(visibility, shading, non_finite)

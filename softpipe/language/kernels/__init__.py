@@ -19,7 +19,8 @@ bottom to top:
 
 Arrays reach the loops *borrowed* (:mod:`softpipe.core.borrow`). This package
 re-exports the names the pipeline calls, and those the generated modules import
-(``borrowed_tuple``, ``jit_function``, ``rgba``, ``short_repr``). More:
+(``borrowed_tuple``, ``jit_function``, ``rgba``, ``short_repr``, and ``outputs`` for a
+framebuffer of several attachments). More:
 docs/shaders.md (writing shaders), docs/05-fragment.md (a generated loop),
 docs/08-fast-path.md (the fast path's questions and loops).
 """
@@ -28,6 +29,7 @@ from softpipe.language.kernels.analysis import alpha_is_finite, may_discard, may
 from softpipe.language.kernels.diagnostics import (
                                                 finite_rgba,
                                                 fragment_site,
+                                                outputs,
                                                 rgba,
                                                 run_compiled,
                                                 vertex_site,
@@ -47,4 +49,4 @@ from softpipe.language.kernels.generate import (
 __all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
            "kernel_source", "run_compiled", "vertex_site", "fragment_site", "visible_site", "may_discard",
            "may_raise", "alpha_is_finite", "probe_vertex_shader", "borrowed_tuple", "jit_function", "rgba", "finite_rgba",
-           "short_repr"]
+           "short_repr", "outputs"]

@@ -11,7 +11,8 @@
   (:func:`vertex_site`, :func:`fragment_site`, :func:`visible_site` say how).
 - **The color a fragment shader returns** goes through :func:`rgba`, which refuses
   anything but 4 numbers: once, when numba types the loop (its overload), or on
-  every call as plain Python.
+  every call as plain Python. Into a framebuffer of several attachments, its values
+  go through :func:`outputs`, which checks one per attachment against its format.
 
 The places named are found in the shader's and its helpers' bytecode (the
 helpers: those compiled with it, :func:`~.snapshot.helper_kind`). More: docs/shaders.md
@@ -40,6 +41,7 @@ from softpipe.language.kernels.generate import exec_module
 from softpipe.language.kernels.snapshot import helper_kind, nested_codes, reads
 
 __all__ = ["run_compiled", "plain_value", "vertex_site", "fragment_site", "visible_site", "rgba", "finite_rgba", "BadReturn", "return_error",
+           "outputs", "BadOutputs",
            "raised_error", "from_shader", "def_site",
            "shown_file", "check_tuple_arithmetic", "check_parameters", "SHADER_PARAMETERS", "users_traceback",
            "hide_internal_frames"]
@@ -124,6 +126,81 @@ def _rgba_typed(color):
     raise BadReturn(_numba_type_text(color))     # not a NumbaError: numba lets it through as it is
 
 
+class BadOutputs(BadReturn):
+    """A fragment shader's values do not fit the framebuffer's attachments; the message says which
+    attachment and what it takes, as the end of a sentence that starts with the shader's name."""
+
+
+def _value_kind(is_rgba: bool, is_int: bool, is_number: bool) -> str:
+    return "rgba" if is_rgba else "int" if is_int else "float" if is_number else "other"
+
+
+_NEEDS = {"rgba8": "a tuple of 4 numbers (r, g, b, a)", "rgba32f": "a tuple of 4 numbers (r, g, b, a)",
+          "r32f": "one number", "r32i": "an int (int(...) converts: GL does not convert a float written to an "
+                                        "integer target)"}
+
+
+def _outputs_problem(spec: str, count: int | None, items: list, text: str) -> str | None:
+    """What is wrong with a shader's values for the attachments ``spec``, or None.
+
+    ``count`` is how many values the returned tuple holds (None: not a tuple), ``items`` each
+    one's (kind of :func:`_value_kind`, text), ``text`` the whole value in words.
+    """
+    formats = [tuple(part.split(":")) for part in spec.split(",")]
+    one_color = count == 4 and all(kind in ("int", "float") for kind, _ in items)   # (location 0 takes 4 numbers)
+    if count != len(formats) or one_color:
+        listing = ", ".join(f"{n!r}: {f}" for n, f in formats)
+        return (f"draws into a framebuffer of {len(formats)} attachments ({listing}): it must return a tuple of "
+                f"{len(formats)} values, one per attachment in that order (DISCARD as the first discards), got {text}")
+    for k, ((name, fmt), (kind, item_text)) in enumerate(zip(formats, items)):
+        fits = kind == "rgba" if fmt in ("rgba8", "rgba32f") else kind == "int" if fmt == "r32i" else kind in (
+            "int", "float")
+        if not fits:
+            shown = "a float" if kind == "float" else item_text
+            return f"returns for attachment {name!r} (location {k}, {fmt}) {shown}; it takes {_NEEDS[fmt]}"
+    return None
+
+
+def outputs(values: Any, spec: str) -> tuple:
+    """The values a fragment shader returned into a framebuffer of several attachments, checked: a tuple
+    of one per attachment of ``spec`` (:func:`~.generate.outputs_spec`), each fit for its format.
+
+    numba checks them once, when it compiles the loop (the overload below, which reads ``spec``
+    as a literal); as plain Python they are checked on every call.
+    """
+    def kind(v):
+        is_rgba = isinstance(v, tuple) and len(v) == 4 and all(isinstance(c, _NUMBERS) for c in v)
+        is_int = isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+        return _value_kind(is_rgba, is_int, isinstance(v, _NUMBERS) and not isinstance(v, (bool, np.bool_)))
+
+    count = len(values) if isinstance(values, tuple) else None
+    items = [(kind(v), _python_value_text(v)) for v in values] if isinstance(values, tuple) else []
+    problem = _outputs_problem(spec, count, items, _python_value_text(values))
+    if problem:
+        raise BadOutputs(problem)
+    return values
+
+
+@overload(outputs, prefer_literal=True)
+def _outputs_typed(values, spec):
+    nt = numba.core.types
+    if not isinstance(spec, nt.StringLiteral):
+        return None
+
+    def kind(t):
+        is_rgba = isinstance(t, nt.BaseTuple) and len(list(t)) == 4 and all(
+            isinstance(c, (nt.Number, nt.Boolean)) for c in t)
+        return _value_kind(is_rgba, isinstance(t, nt.Integer), isinstance(t, (nt.Integer, nt.Float)))
+
+    parts = list(values) if isinstance(values, nt.BaseTuple) else None
+    items = [(kind(t), _numba_type_text(t)) for t in parts] if parts is not None else []
+    problem = _outputs_problem(spec.literal_value, None if parts is None else len(parts), items,
+                               _numba_type_text(values))
+    if problem:
+        raise BadOutputs(problem)     # not a NumbaError: numba lets it through as it is
+    return lambda values, spec: values
+
+
 def _return_lines(f) -> list:
     """Line numbers of a function's return statements (not of nested functions)."""
     code = getattr(f, "__code__", None)
@@ -138,6 +215,9 @@ def return_error(kind: str, shader: Callable, e: BadReturn) -> ShaderError:
     f = python_function(shader)
     lines = _return_lines(f)
     site = {"file": f.__code__.co_filename, "line": lines[0]} if lines else def_site(shader)
+    if isinstance(e, BadOutputs):
+        message = f"{kind} shader {shader_name(shader)} {e}\n{_frame_text(site['file'], site['line'], f.__name__)}"
+        return ShaderError(message, numba_message=f"outputs(): {e}", **site)
     message = (f"{kind} shader {shader_name(shader)} must return an RGBA tuple of 4 floats (or DISCARD), "
                f"got {e}\n{_frame_text(site['file'], site['line'], f.__name__)}")
     return ShaderError(message, numba_message=f"rgba(): the shader's return type is {e}", **site)
@@ -749,7 +829,10 @@ def fragment_site(shader: Callable, kernel, args: tuple, x, y, sample) -> Callab
     """For :func:`run_compiled`: how to find the fragment a reference ``fragment_loop(*args)`` raised on;
     ``x``, ``y``, ``sample``: the fragments' pixels (image coordinates) and samples."""
     def run(k, lo, hi):
-        k(*(a[lo:hi] for a in args[:5]), *args[5:-1], args[-1][lo:hi])
+        if isinstance(args[-1], tuple):      # fragment_loop_outputs: the color, then the other attachments' arrays
+            k(*(a[lo:hi] for a in args[:5]), *args[5:-2], args[-2][lo:hi], tuple(a[lo:hi] for a in args[-1]))
+        else:
+            k(*(a[lo:hi] for a in args[:5]), *args[5:-1], args[-1][lo:hi])
 
     def describe(i, noted):
         return (f"the fragment at pixel ({int(x[i])}, {int(y[i])}), sample {int(sample[i])}, "

@@ -1,4 +1,4 @@
-"""Template of the fragment loops: the generator (kernels/generate.py) copies these five functions.
+"""Template of the fragment loops: the generator (kernels/generate.py) copies these functions.
 
 - ``interpolate``: the varyings, FragInfo (and derivatives) at barycentrics of a triangle.
 - ``fragment_inputs``: those of fragment i of the reference path's batch.
@@ -7,6 +7,9 @@
 - ``fragment_loop``: the reference path: the shader once per fragment row.
 - ``visible_loop``: the fast path: the shader once per sample the visibility pass kept
   (``visible_loop_at_samples`` is this loop with ``shading`` 0).
+- ``fragment_loop_outputs``: ``fragment_loop`` for a framebuffer of several attachments
+  (multiple render targets), generated only for one: the shader returns one value per
+  attachment. Both paths run it (the fast path on the visible samples' fragments).
 
 How a template becomes code (full-line comments left out, ``if`` on constants
 decided, placeholders in capitals filled): kernels/template.py.
@@ -21,6 +24,9 @@ varying layout (the expressions come from templates/varyings.py):
   (``out_varyings[r, 3] = v[1][0]  # uv.x``; ``v[0]``, the one field ``none``, for a layout without varyings).
 - ``DERIVATIVES_X``, ``DERIVATIVES_Y``: ``dqx = …`` (when ``SMOOTH``) and a line per
   varying, ``dx_color = (…)``; ``DX_VALUES``, ``DY_VALUES``: ``dx_color, dx_uv``.
+- ``OUTPUT_FORMATS``: the attachments as text, ``'color:rgba8,id:r32i'`` (what ``outputs`` checks);
+  ``STORE_OUTPUTS``: a line per component of each value, to its attachment's array
+  (``out_more[1][i] = values[2]  # id``).
 """
 
 
@@ -32,11 +38,11 @@ def JIT(function):
     return function
 
 
-shader = Varyings = FragInfo = Derivatives = borrowed_tuple = rgba = None
+shader = Varyings = FragInfo = Derivatives = borrowed_tuple = rgba = outputs = None
 pixel_coverage = shading_point = sample_depth = finite_rgba = None
 SMOOTH = DERIVATIVES = None
 VARYINGS_AT_BARYCENTRICS = VARYING_VALUES = DERIVATIVES_X = DERIVATIVES_Y = DX_VALUES = DY_VALUES = None
-STORE_VARYINGS = None
+STORE_VARYINGS = OUTPUT_FORMATS = STORE_OUTPUTS = None
 
 
 @JIT
@@ -107,6 +113,22 @@ def fragment_loop(triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, p
         out_color[i, 1] = c[1]
         out_color[i, 2] = c[2]
         out_color[i, 3] = c[3]
+
+
+@JIT
+def fragment_loop_outputs(triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, bary_grad, uniforms,
+                          out_color, out_more):
+    """fragment_loop for a framebuffer of several attachments: the shader's values, one per attachment
+    (checked by ``outputs``), to out_color (location 0) and out_more's arrays (the others, in order)."""
+    uniforms = borrowed_tuple(uniforms)
+    for i in range(triangle.shape[0]):
+        if DERIVATIVES:
+            varyings, frag, derivatives = fragment_inputs(i, triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, bary_grad)
+            values = outputs(shader(varyings, uniforms, frag, derivatives), OUTPUT_FORMATS)
+        else:
+            varyings, frag = fragment_inputs(i, triangle, frag_x, frag_y, depth, bary, inv_w, corner, front, prim_id, bary_grad)
+            values = outputs(shader(varyings, uniforms, frag), OUTPUT_FORMATS)
+        STORE_OUTPUTS(i, values, out_color, out_more)
 
 
 @JIT
