@@ -625,3 +625,20 @@ def test_a_record_changed_after_drawing_is_refused_naming_the_pixel():
     assert str(e.value) == ("derive_outputs: the visibility record at pixel (5, 2) holds [7], which no recorded "
                             "draw of this frame made (its 1 draws took the values 0 to 0); was fb.record changed "
                             "after drawing?")
+
+
+def test_a_zero_normal_gives_nan_as_the_numpy_derivation_did():
+    # the normals interpolate to (0, 0, 0): the numpy derivation divided by the zero length (NaN);
+    # the compiled pass must do the same, not raise ZeroDivisionError
+    fb = Framebuffer(16, 12, record=True)
+
+    def vs(attributes, uniforms):
+        p = attributes.position
+        return (p[0], p[1], p[2], 1.0), Varyings((1.0, 1.0, 1.0))
+
+    sp.draw(fb, np.array([[-1, -1, 0.2], [3, -1, 0.2], [-1, 3, 0.2]]), vertex_shader=vs,
+            attributes={"normal": np.zeros((3, 3))})
+    got, expected = derive_outputs(fb, ("normal", "object_id")), _numpy_derive_outputs(fb, ("normal", "object_id"))
+    for name in ("normal", "object_id"):
+        _assert_same_bits(name, got[name], expected[name])
+    assert (got["object_id"] == 0).all() and np.isnan(got["normal"]).all()

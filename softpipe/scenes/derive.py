@@ -301,7 +301,9 @@ def _interpolated(b0, b1, b2, a, r0, r1, r2, c):
     return ((0.0 + b0 * a[r0, c]) + b1 * a[r1, c]) + b2 * a[r2, c]
 
 
-@numba.njit(cache=True, nogil=True)
+# error_model="numpy": a division by zero gives IEEE's inf or NaN, as the numpy derivation's did (a zero
+# normal's length), not a ZeroDivisionError
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip, positions, normals, uvs,
                  ndc_x, ndc_y, want, out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary, out_uv,
                  out_albedo, texture_uv, texture_draw, present, bad):
@@ -470,7 +472,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 m0 = _matrix_row(floats, k, F_NORMAL_MATRIX, 0, 3, n0, n1, n2, 0.0)
                 m1 = _matrix_row(floats, k, F_NORMAL_MATRIX, 1, 3, n0, n1, n2, 0.0)
                 m2 = _matrix_row(floats, k, F_NORMAL_MATRIX, 2, 3, n0, n1, n2, 0.0)
-                length = np.sqrt((m0 * m0 + m1 * m1) + m2 * m2)        # np.linalg.norm's sum
+                # np.linalg.norm's sum; a float64 scalar so that plain Python (NUMBA_DISABLE_JIT) divides
+                # by a zero length as IEEE does, too
+                length = np.float64(np.sqrt((m0 * m0 + m1 * m1) + m2 * m2))
                 out_normal[p, 0], out_normal[p, 1], out_normal[p, 2] = m0 / length, m1 / length, m2 / length
             if (w_uv or w_texture) and uvs_at >= 0:
                 r0, r1, r2 = uvs_at + v0, uvs_at + v1, uvs_at + v2
