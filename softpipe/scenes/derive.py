@@ -6,11 +6,13 @@ with ``record=True`` and the names of the buffers asked for. Three steps:
 1. **the draws, packed** (:func:`pack_draws`): the frame has few draws (a scene's
    objects; ``field10k``'s one draw of 10,000 instances), each with its own arrays.
    They become a table of numbers per draw (where its record values start, its
-   object id, the offsets of its arrays, its viewport, kd and matrices) and one
-   array each of corner indices, triangle maps, clip corners, positions, normals and
-   uv, the draws' arrays end to end (a frame of one draw uses its arrays as they are).
+   object id, the offsets of its arrays, kd and matrices), the NDC coordinates of the
+   pixel centres per viewport, and one array each of corner indices, triangle maps,
+   clip corners, positions, normals and uv, the draws' arrays end to end (a frame of
+   one draw uses its arrays as they are).
 2. **the pass** (:func:`_derive_rows`): a numba kernel over image rows, run in bands
-   on both cores (:func:`softpipe.core.parallel.in_bands`); each pixel is computed and
+   on both cores (:func:`softpipe.core.parallel.in_bands`, softpipe's one way of using
+   both, rather than numba's ``prange``: that module says why); each pixel is computed and
    written by one iteration, from its own record value alone, so the buffers do not
    depend on the thread count. Per pixel: the sample of least depth (the first of
    equals), the record value taken apart (draw, instance, primitive), the ids, and for
@@ -27,7 +29,10 @@ the same bits: the 3-term sums in order ((0 + t0) + t1) + t2 (``np.einsum``'s), 
 product and its sum as ``np.cross`` and ``sum``, the matrix products as fused
 multiply-adds in the order k = 0…3 from +0 (what OpenBLAS's dgemm does on a machine
 with FMA, where numpy's ``@`` went; :func:`fma` is exact everywhere, so the pass gives
-the same bytes on every machine).
+the same bytes on every machine). Where the numpy derivation's values depended on
+more than the pixel, the pass does not follow it: numpy multiplied a draw's covered
+pixels as one matrix, and a draw covering a single pixel went to BLAS's gemv, which
+sums in another order (a last-bit difference in float64, rarely in the float32 buffers).
 """
 from __future__ import annotations
 
