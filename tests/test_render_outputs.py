@@ -2,16 +2,20 @@
 from __future__ import annotations
 
 from collections import namedtuple
+from typing import Dict, Sequence, Tuple
 
+import numba
 import numpy as np
 import pytest
 from conftest import run_cli
 
 import softpipe as sp
-from softpipe.pipeline.assembly import primitive_indices
-from softpipe.pipeline.framebuffer import split_record
+from softpipe.light.texture import texture_lod
+from softpipe.pipeline.assembly import TRIANGLE_TOPOLOGIES, primitive_indices
+from softpipe.pipeline.framebuffer import Framebuffer, RecordedDraw, split_record
+from softpipe.pipeline.transforms import normal_matrix
 from softpipe.scenes.drawing import draw_mesh
-from softpipe.scenes.outputs import OUTPUTS, check_outputs
+from softpipe.scenes.outputs import OUTPUTS, check_outputs, derive_outputs
 from softpipe.scenes.scene import Scene, SceneObject
 
 W, H = 48, 36
@@ -290,3 +294,351 @@ def test_lines_have_ids_and_depth_but_no_surface():
     np.testing.assert_allclose(out["linear_depth"][line], 2.0, rtol=1e-6)    # 1 in front of the origin
     np.testing.assert_allclose(out["albedo"][line], np.broadcast_to(mesh.material.kd, (line.sum(), 3)))
     assert (out["triangle_id"] == 0).sum() > 100
+
+
+# ------------------------------------------------------------------ the compiled pass against the numpy one
+#
+# The oracle: the numpy derivation the compiled pass replaced (softpipe/scenes/outputs.py at a716091),
+# kept here as it was (only renamed), to check that every buffer keeps its bits. It lives in the tests,
+# not as a reference= mode of the module: the pipeline's reference path teaches the stages, while
+# this one's only job now is to hold the compiled pass to the old values.
+
+def _oracle_pixel_sample(fb: Framebuffer) -> Tuple[np.ndarray, np.ndarray]:
+    """Each pixel's record value and depth, from its sample of least depth (the first of equals)."""
+    depth, record = fb.samples_depth, fb.record
+    assert record is not None                   # render made the framebuffer with record=True
+    if fb.samples == 1:
+        return record[0].copy(), depth[0].copy()
+    pick = np.argmin(depth, axis=0)[None]
+    return (np.take_along_axis(record, pick, axis=0)[0],
+            np.take_along_axis(depth, pick, axis=0)[0].copy())
+
+
+def _oracle_uniform_matrix(call, name: str) -> np.ndarray:
+    value = getattr(call.uniforms, name, None)
+    m = np.eye(4) if value is None else np.asarray(value, np.float64)
+    return m if m.shape == (4, 4) else np.eye(4)
+
+
+def _oracle_albedo_of(call) -> np.ndarray:
+    """The draw's kd: its ``material`` uniform's, else its ``color`` uniform, else white."""
+    material = getattr(call.uniforms, "material", None)
+    kd = getattr(material, "kd", None)
+    if kd is None:
+        kd = getattr(call.uniforms, "color", (1.0, 1.0, 1.0))
+    kd = np.asarray(kd, np.float64).ravel()
+    return kd[:3] if kd.size >= 3 else np.ones(3)
+
+
+@numba.njit
+def _oracle_sample_texture(tex, uv, out):
+    """The texture at each uv, level of detail 0 (what ``texture(uv)`` gives without derivatives)."""
+    for k in range(uv.shape[0]):
+        c = texture_lod(tex, (uv[k, 0], uv[k, 1]), 0.0)
+        out[k, 0], out[k, 1], out[k, 2] = c[0], c[1], c[2]
+
+
+def _oracle_barycentrics(clip: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Perspective-correct barycentrics [n, 3] at NDC points (x, y) of triangles with clip corners [n, 3, 4].
+
+    The point Σ b_i·clip_i lies on the pixel's ray when Σ b_i (x_i − X·w_i) = 0 and
+    Σ b_i (y_i − Y·w_i) = 0: b is the cross product of those two rows, normalized to sum 1
+    (b_i ∝ e_i/w_i). NaN for a triangle seen edge-on.
+    """
+    r1 = clip[:, :, 0] - x[:, None] * clip[:, :, 3]
+    r2 = clip[:, :, 1] - y[:, None] * clip[:, :, 3]
+    b = np.cross(r1, r2)
+    total = b.sum(axis=1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(total != 0, b / np.where(total != 0, total, 1.0), np.nan)
+
+
+def _oracle_triangle_maps(objects: Sequence, draws: Sequence[RecordedDraw]) -> Dict[int, np.ndarray]:
+    """For each recorded draw of triangles, its triangles' indices in its object's whole mesh: a mesh of
+    several materials is drawn once per material (``Mesh.by_material``), each draw numbering its own."""
+    maps: Dict[int, np.ndarray] = {}
+    for k, obj in enumerate(objects):
+        mesh = obj.mesh
+        mine = [i for i, d in enumerate(draws) if d.tag == k and d.kind == "triangles"
+                and d.call.topology in TRIANGLE_TOPOLOGIES]
+        if getattr(mesh, "material_ids", None) is None:
+            continue
+        parts = [np.flatnonzero(mesh.material_ids == m) for m in range(len(mesh.materials))]
+        parts = [p for p in parts if len(p)]
+        for i, part in zip(mine, parts):
+            maps[i] = part
+    return maps
+
+
+def _numpy_derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()) -> Dict[str, np.ndarray]:
+    """The buffers ``names`` (:data:`OUTPUTS`) of a framebuffer drawn with a visibility record.
+
+    Parameters
+    ----------
+    fb : Framebuffer
+        Drawn with ``record=True``; its :attr:`~Framebuffer.recorded_draws` carry the draws'
+        inputs, and their ``tag`` the index of the object each draw belongs to (a draw
+        without one is object k, k its place among the frame's draws).
+    names : sequence of str
+        Checked by :func:`check_outputs`.
+    objects : sequence of SceneObject
+        The scene's drawn objects, in the order of the tags (for a mesh of several
+        materials, the triangle ids count over the whole mesh).
+
+    Returns
+    -------
+    dict name → array, in the order of ``names`` (docs/outputs.md).
+    """
+    names = check_outputs(names)
+    if fb.record is None:
+        raise ValueError("derive_outputs needs a framebuffer drawn with a visibility record: "
+                         "Framebuffer(width, height, record=True)")
+    h, w = fb.height, fb.width
+    value, depth = _oracle_pixel_sample(fb)
+    draws = fb.recorded_draws
+    which, instance, primitive = split_record(value, draws)
+    shown = which >= 0
+    want = set(names)
+    out: Dict[str, np.ndarray] = {}
+    nan3 = np.full((h, w, 3), np.nan, np.float32)
+    object_id = np.full((h, w), -1, np.int32)
+    triangle_id = np.full((h, w), -1, np.int64)
+    bary, position, normal, albedo = nan3.copy(), nan3.copy(), nan3.copy(), nan3.copy()
+    uv = np.full((h, w, 2), np.nan, np.float32)
+    linear = np.full((h, w), np.nan, np.float32)
+    maps = _oracle_triangle_maps(objects, draws) if objects else {}
+    geometric = want & {"barycentrics", "position", "normal", "uv", "albedo", "linear_depth"}
+    # the covered pixels grouped by draw (one sort, not one pass over the image per draw)
+    flat = np.flatnonzero(shown)
+    flat = flat[np.argsort(which.reshape(-1)[flat], kind="stable")]
+    kinds, starts = np.unique(which.reshape(-1)[flat], return_index=True)
+    for k, group in zip(kinds, np.split(flat, starts[1:])):
+        d = draws[int(k)]
+        rows, cols = np.divmod(group, w)
+        # a scene's draws name their object; a draw made by hand is its own object, by its place in the frame
+        tag = int(d.tag) if isinstance(d.tag, (int, np.integer)) else int(k)
+        object_id[rows, cols] = tag
+        triangles = d.kind == "triangles" and d.call.topology in TRIANGLE_TOPOLOGIES
+        prim = primitive[rows, cols]
+        if d.call.topology in TRIANGLE_TOPOLOGIES:       # edges and corners in a polygon mode name their triangle
+            triangle_id[rows, cols] = maps[int(k)][prim] if int(k) in maps else prim
+        if not geometric:
+            continue
+        call = d.call
+        kd = _oracle_albedo_of(call)
+        albedo[rows, cols] = kd
+        model_view = _oracle_uniform_matrix(call, "model_view")
+        corners = primitive_indices(call.topology, call.indices, d.vertices_per_instance)[prim]
+        inst = instance[rows, cols]
+        clip = d.clip[inst[:, None] * d.vertices_per_instance + corners]      # [n, 3, 4]
+        if not triangles:
+            # a line or point has no surface: its eye depth from the clip w of its first corner
+            linear[rows, cols] = clip[:, 0, 3]
+            continue
+        vp = call.viewport
+        x = 2.0 * (cols + 0.5 - vp.x) / vp.width - 1.0
+        y = 2.0 * (h - rows - 0.5 - vp.y) / vp.height - 1.0
+        b = _oracle_barycentrics(clip, x, y)
+        bary[rows, cols] = b
+        p = np.asarray(call.positions, np.float64)
+        p = np.concatenate([p[:, :3], np.ones((len(p), 1))], axis=1) if p.shape[1] >= 3 else \
+            np.concatenate([p, np.zeros((len(p), 3 - p.shape[1])), np.ones((len(p), 1))], axis=1)
+        local = np.einsum("nc,ncj->nj", b, p[corners])                       # object space, w = 1
+        view = _oracle_uniform_matrix(call, "view")
+        model = np.linalg.solve(view, model_view)
+        eye = local @ model_view.T
+        linear[rows, cols] = -eye[:, 2]
+        position[rows, cols] = (local @ model.T)[:, :3]
+        attributes = call.attributes or {}
+        if "normal" in attributes:
+            n = np.einsum("nc,ncj->nj", b, np.asarray(attributes["normal"], np.float64)[corners])
+            n = n @ normal_matrix(model).T
+            length = np.linalg.norm(n, axis=1, keepdims=True)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                normal[rows, cols] = n / length
+        if "uv" in attributes:
+            t = np.einsum("nc,ncj->nj", b, np.asarray(attributes["uv"], np.float64)[corners])
+            uv[rows, cols] = t
+            texture = getattr(call.uniforms, "texture", None)
+            if texture is not None and hasattr(texture, "texels") and "albedo" in want:
+                sampled = np.zeros((len(t), 3))
+                good = np.isfinite(t).all(axis=1)
+                _oracle_sample_texture(texture, np.ascontiguousarray(t[good]), sampled[: int(good.sum())])
+                albedo[rows[good], cols[good]] = kd * sampled[: int(good.sum())]
+    depth = np.where(shown, depth, np.float32(1.0)).astype(np.float32)
+    made = {"color": lambda: fb.color.copy(), "depth": lambda: depth, "linear_depth": lambda: linear,
+            "position": lambda: position, "normal": lambda: normal, "object_id": lambda: object_id,
+            "triangle_id": lambda: triangle_id, "barycentrics": lambda: bary, "uv": lambda: uv,
+            "albedo": lambda: albedo}
+    for n in names:
+        out[n] = made[n]()
+    return out
+
+
+def _assert_same_bits(name: str, got: np.ndarray, expected: np.ndarray) -> None:
+    """The same dtype, shape and bytes: every number's bits, the sign of a zero and a NaN's included."""
+    assert (got.dtype, got.shape) == (expected.dtype, expected.shape), name
+    if got.tobytes() != expected.tobytes():
+        differ = np.argwhere((got != expected) & ~(np.isnan(got) & np.isnan(expected)) if got.dtype.kind == "f"
+                             else got != expected)
+        where = tuple(differ[0]) if len(differ) else "(bits of equal numbers)"
+        raise AssertionError(f"{name}: {len(differ)} values differ from the numpy derivation's, first at {where}")
+
+
+@pytest.fixture
+def derived_twice(monkeypatch):
+    """render(..., outputs=...) with each frame's buffers derived twice, on the same framebuffer and
+    objects: by the compiled pass (what render returns) and by the numpy oracle. Yields the pairs."""
+    import softpipe.scenes.drawing as drawing
+    pairs: list = []
+
+    def both(fb, names, objects=()):
+        got = derive_outputs(fb, names, objects)
+        pairs.append((got, _numpy_derive_outputs(fb, names, objects)))
+        return got
+    monkeypatch.setattr(drawing, "derive_outputs", both)
+    return pairs
+
+
+def _assert_pairs_agree(pairs) -> None:
+    assert pairs
+    for got, expected in pairs:
+        assert list(got) == list(expected)
+        for name in expected:
+            _assert_same_bits(name, got[name], expected[name])
+
+
+def _lines_and_points():
+    camera = sp.Camera(eye=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fovy=40.0)
+    positions = np.array([[-2, -2, 0], [2, -2, 0], [-2, 2, 0], [-1, 0, 1], [1, 0, 1.0], [0.5, 0.5, 1.2]])
+    mesh = sp.Mesh(positions, np.array([[0, 1, 2]]), lines=np.array([[3, 4]]), points=np.array([5]))
+    return _scene(SceneObject("tri", mesh, np.eye(4)), camera=camera)
+
+
+def _clipped():
+    camera = sp.Camera(eye=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), fovy=60.0, near=0.5, far=50.0)
+    mesh = sp.Mesh(np.array([[-6.0, -1.0, 2.0], [6.0, -1.0, 2.0], [0.0, 0.5, -30.0]]), np.array([[0, 1, 2]]))
+    return _scene(SceneObject("tri", mesh, np.eye(4)), camera=camera)
+
+
+def _objects(samples="1"):
+    camera = sp.Camera(eye=(0.0, 0.5, 5.0), target=(0.0, 0.0, 0.0), fovy=45.0)
+    cube = sp.shapes.cube(1.2)
+    two = sp.Mesh(cube.positions, cube.indices, materials=(sp.Material(kd=(0.9, 0.1, 0.1)), sp.Material()),
+                  material_ids=np.arange(len(cube.indices)) % 2)                # a mesh of two materials
+    a = SceneObject("cube", two, sp.translate(-0.5, 0.0, 0.0) @ sp.rotate_y(30.0) @ sp.scale(1.0, 1.5, 0.7))
+    b = SceneObject("ball", sp.shapes.icosphere(0.8, 3), sp.translate(0.6, 0.1, 0.6))
+    c = SceneObject("floor", sp.shapes.plane(6.0), sp.translate(0.0, -0.8, 0.0))
+    return _scene(a, b, c, camera=camera, samples=samples)
+
+
+def _empty():
+    camera = sp.Camera(eye=(0.0, 0.0, 5.0), target=(0.0, 0.0, 10.0), fovy=40.0)     # looking away
+    return _scene(SceneObject("ball", sp.shapes.icosphere(1.0, 2), np.eye(4)), camera=camera)
+
+
+RENDERS = {
+    "bunny": lambda: sp.render("bunny", width=64, height=48, outputs=OUTPUTS),
+    "clipped triangle": lambda: sp.render(_clipped(), outputs=OUTPUTS),
+    "objects, two materials, a scaled model": lambda: sp.render(_objects(), outputs=OUTPUTS),
+    "multisampling": lambda: sp.render(_objects("rgss4"), outputs=OUTPUTS),
+    "teapot, 4 samples": lambda: sp.render("teapot", width=W, height=H, samples="rgss4", outputs=OUTPUTS),
+    "lines and points": lambda: sp.render(_lines_and_points(), outputs=OUTPUTS),
+    "textured": lambda: sp.render("spot", width=W, height=H, outputs=OUTPUTS),
+    "empty frame": lambda: sp.render(_empty(), outputs=OUTPUTS),
+    "some outputs, in another order": lambda: sp.render("suzanne", width=W, height=H,
+                                                        outputs=("normal", "object_id", "depth", "albedo")),
+}
+
+
+@pytest.mark.parametrize("case", list(RENDERS))
+def test_the_compiled_pass_gives_the_numpy_derivations_bits(case, derived_twice):
+    out = RENDERS[case]()
+    _assert_pairs_agree(derived_twice)
+    if case == "empty frame":
+        assert (out["object_id"] == -1).all() and np.isnan(out["normal"]).all()
+    else:
+        assert (out["object_id"] >= 0).sum() > 20
+
+
+def test_instances_and_draws_by_hand_give_the_numpy_derivations_bits():
+    # draws made by hand: one instanced (its instances shifted by an attribute), with normals and
+    # uv; one in a polygon mode of lines (its edges name their triangles); one of points
+    fb = Framebuffer(40, 24, record=True)
+    quad = np.array([[-1, -1, 0.5], [-0.5, -1, 0.1], [-1, 1, 0.2], [-0.5, 1, 0.4]])
+
+    def vs(attributes, uniforms):
+        p = attributes.position
+        w = 1.0 + 0.5 * p[2]
+        return (w * (p[0] + attributes.shift), w * p[1], w * p[2], w), Varyings((1.0, 1.0, 1.0))
+
+    normals = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, 0.6, 0.8], [0.36, 0.48, 0.8]])
+    uvs = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    sp.draw(fb, quad, np.array([[0, 1, 2], [2, 1, 3]]), vertex_shader=vs, instances=3,
+            instance_attributes={"shift": np.array([[0.0], [0.6], [1.2]])},
+            attributes={"normal": normals, "uv": uvs}, uniforms={"color": (0.2, 0.4, 0.6)})
+    tri = np.array([[0.2, -0.9, 0.3, 1.0], [0.9, -0.8, -0.2, 1.0], [0.5, 0.9, 0.0, 1.0]])
+    sp.draw(fb, tri, varyings={"color": np.ones((3, 3))}, polygon_mode="line", depth_test="less")
+    sp.draw(fb, np.array([[0.7, 0.7, -0.5, 1.0], [0.8, 0.2, -0.6, 1.0]]), varyings={"color": np.ones((2, 3))},
+            topology="points", point_size=3.0, depth_test="less")
+    got, expected = derive_outputs(fb, OUTPUTS), _numpy_derive_outputs(fb, OUTPUTS)
+    for name in OUTPUTS:
+        _assert_same_bits(name, got[name], expected[name])
+    _, instance, _ = split_record(fb.record[0], fb.recorded_draws)
+    assert set(np.unique(instance)) >= {0, 1, 2}
+    assert {0, 1, 2} <= set(np.unique(got["object_id"]))
+    assert np.isfinite(got["uv"]).any() and np.isfinite(got["normal"]).any()
+
+
+def test_a_frame_with_no_draws_gives_the_numpy_derivations_bits():
+    fb = Framebuffer(8, 6, record=True)
+    fb.clear()
+    got, expected = derive_outputs(fb, OUTPUTS), _numpy_derive_outputs(fb, OUTPUTS)
+    for name in OUTPUTS:
+        _assert_same_bits(name, got[name], expected[name])
+    assert (got["triangle_id"] == -1).all() and (got["depth"] == 1.0).all()
+
+
+def test_ten_thousand_instances_give_the_numpy_derivations_bits():
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+    from benchmarks.run import render_frame
+    from benchmarks.scenes import build_scene
+    scene = build_scene("field10k", 0.125)
+    fb = Framebuffer(scene.width, scene.height, record=True)
+    render_frame(scene, fb)
+    names = ("depth", "linear_depth", "object_id", "triangle_id", "barycentrics", "position")
+    got, expected = derive_outputs(fb, names), _numpy_derive_outputs(fb, names)
+    for name in names:
+        _assert_same_bits(name, got[name], expected[name])
+    _, instance, _ = split_record(fb.record, fb.recorded_draws)
+    assert len(np.unique(instance)) > 100
+
+
+def test_a_record_changed_after_drawing_is_refused_naming_the_pixel():
+    fb = Framebuffer(8, 6, record=True)
+    sp.draw(fb, np.array([[-1, -1, 0, 1], [3, -1, 0, 1], [-1, 3, 0, 1.0]]), varyings={"color": np.ones((3, 3))})
+    fb.record[0, 2, 5] = 7                       # the draw took the value 0 only
+    with pytest.raises(ValueError) as e:
+        derive_outputs(fb, ("object_id",))
+    assert str(e.value) == ("derive_outputs: the visibility record at pixel (5, 2) holds [7], which no recorded "
+                            "draw of this frame made (its 1 draws took the values 0 to 0); was fb.record changed "
+                            "after drawing?")
+
+
+def test_a_zero_normal_gives_nan_as_the_numpy_derivation_did():
+    # the normals interpolate to (0, 0, 0): the numpy derivation divided by the zero length (NaN);
+    # the compiled pass must do the same, not raise ZeroDivisionError
+    fb = Framebuffer(16, 12, record=True)
+
+    def vs(attributes, uniforms):
+        p = attributes.position
+        return (p[0], p[1], p[2], 1.0), Varyings((1.0, 1.0, 1.0))
+
+    sp.draw(fb, np.array([[-1, -1, 0.2], [3, -1, 0.2], [-1, 3, 0.2]]), vertex_shader=vs,
+            attributes={"normal": np.zeros((3, 3))})
+    got, expected = derive_outputs(fb, ("normal", "object_id")), _numpy_derive_outputs(fb, ("normal", "object_id"))
+    for name in ("normal", "object_id"):
+        _assert_same_bits(name, got[name], expected[name])
+    assert (got["object_id"] == 0).all() and np.isnan(got["normal"]).all()

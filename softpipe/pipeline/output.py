@@ -470,5 +470,15 @@ def record_visible(fb: Framebuffer, vis: np.ndarray, record_ids: np.ndarray, sta
     the depth test on and depth writes on). Nothing without a record."""
     if fb.record is None or state.depth_test is None or not state.depth_write:
         return
-    shown = vis >= 0
-    fb.record[shown] = np.asarray(record_ids, np.int64)[vis[shown]]
+    # one compiled pass over the samples: numpy's masks read and wrote the record several times
+    # (3 ms at 1024², beside a frame of 34; this loop is memory-bound, about 1 ms, on one thread)
+    _store_visible(vis.reshape(-1), np.ascontiguousarray(record_ids, np.int64), fb.record.reshape(-1))
+
+
+@numba.njit(cache=True, nogil=True)
+def _store_visible(vis, ids, record):
+    """record[s] = ids[vis[s]] where vis names a primitive (≥ 0), over flat samples s."""
+    for s in range(vis.shape[0]):
+        v = vis[s]
+        if v >= 0:
+            record[s] = ids[v]

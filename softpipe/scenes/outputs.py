@@ -3,8 +3,8 @@
 Nothing here is shaded. A scene is drawn into a framebuffer that keeps a
 visibility record (``Framebuffer(..., record=True)``, :mod:`softpipe.pipeline.output`):
 per sample, which draw, instance and source primitive last wrote the depth. Every
-buffer is derived from that record afterwards, vectorized over the covered pixels
-(the "visibility buffer" idea):
+buffer is derived from that record afterwards, in one compiled pass over the pixels
+(:mod:`softpipe.scenes.derive`; the "visibility buffer" idea):
 
 - the pixel's sample: the one of least depth (the first of them), so ``depth`` is
   :attr:`Framebuffer.depth`, the nearest sample's;
@@ -25,13 +25,11 @@ import os
 from pathlib import Path
 from typing import Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
-import numba
 import numpy as np
 
-from softpipe.light.texture import texture_lod
-from softpipe.pipeline.assembly import TRIANGLE_TOPOLOGIES, primitive_indices
-from softpipe.pipeline.framebuffer import Framebuffer, RecordedDraw, split_record
-from softpipe.pipeline.transforms import normal_matrix
+from softpipe.pipeline.assembly import TRIANGLE_TOPOLOGIES
+from softpipe.pipeline.framebuffer import Framebuffer, RecordedDraw
+from softpipe.scenes.derive import derive_buffers
 
 __all__ = ["OUTPUTS", "RenderOutputs", "check_outputs", "derive_outputs", "save_outputs", "output_picture",
            "output_files",
@@ -105,56 +103,6 @@ class RenderOutputs(Mapping):
 
 # ------------------------------------------------------------------ from the record to the buffers
 
-def _pixel_sample(fb: Framebuffer) -> Tuple[np.ndarray, np.ndarray]:
-    """Each pixel's record value and depth, from its sample of least depth (the first of equals)."""
-    depth, record = fb.samples_depth, fb.record
-    assert record is not None                   # render made the framebuffer with record=True
-    if fb.samples == 1:
-        return record[0].copy(), depth[0].copy()
-    pick = np.argmin(depth, axis=0)[None]
-    return (np.take_along_axis(record, pick, axis=0)[0],
-            np.take_along_axis(depth, pick, axis=0)[0].copy())
-
-
-def _uniform_matrix(call, name: str) -> np.ndarray:
-    value = getattr(call.uniforms, name, None)
-    m = np.eye(4) if value is None else np.asarray(value, np.float64)
-    return m if m.shape == (4, 4) else np.eye(4)
-
-
-def _albedo_of(call) -> np.ndarray:
-    """The draw's kd: its ``material`` uniform's, else its ``color`` uniform, else white."""
-    material = getattr(call.uniforms, "material", None)
-    kd = getattr(material, "kd", None)
-    if kd is None:
-        kd = getattr(call.uniforms, "color", (1.0, 1.0, 1.0))
-    kd = np.asarray(kd, np.float64).ravel()
-    return kd[:3] if kd.size >= 3 else np.ones(3)
-
-
-@numba.njit(cache=True)
-def _sample_texture(tex, uv, out):
-    """The texture at each uv, level of detail 0 (what ``texture(uv)`` gives without derivatives)."""
-    for k in range(uv.shape[0]):
-        c = texture_lod(tex, (uv[k, 0], uv[k, 1]), 0.0)
-        out[k, 0], out[k, 1], out[k, 2] = c[0], c[1], c[2]
-
-
-def _barycentrics(clip: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Perspective-correct barycentrics [n, 3] at NDC points (x, y) of triangles with clip corners [n, 3, 4].
-
-    The point Σ b_i·clip_i lies on the pixel's ray when Σ b_i (x_i − X·w_i) = 0 and
-    Σ b_i (y_i − Y·w_i) = 0: b is the cross product of those two rows, normalized to sum 1
-    (b_i ∝ e_i/w_i). NaN for a triangle seen edge-on.
-    """
-    r1 = clip[:, :, 0] - x[:, None] * clip[:, :, 3]
-    r2 = clip[:, :, 1] - y[:, None] * clip[:, :, 3]
-    b = np.cross(r1, r2)
-    total = b.sum(axis=1, keepdims=True)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(total != 0, b / np.where(total != 0, total, 1.0), np.nan)
-
-
 def _triangle_maps(objects: Sequence, draws: Sequence[RecordedDraw]) -> Dict[int, np.ndarray]:
     """For each recorded draw of triangles, its triangles' indices in its object's whole mesh: a mesh of
     several materials is drawn once per material (``Mesh.by_material``), each draw numbering its own."""
@@ -195,86 +143,9 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
     if fb.record is None:
         raise ValueError("derive_outputs needs a framebuffer drawn with a visibility record: "
                          "Framebuffer(width, height, record=True)")
-    h, w = fb.height, fb.width
-    value, depth = _pixel_sample(fb)
-    draws = fb.recorded_draws
-    which, instance, primitive = split_record(value, draws)
-    shown = which >= 0
-    want = set(names)
-    out: Dict[str, np.ndarray] = {}
-    nan3 = np.full((h, w, 3), np.nan, np.float32)
-    object_id = np.full((h, w), -1, np.int32)
-    triangle_id = np.full((h, w), -1, np.int64)
-    bary, position, normal, albedo = nan3.copy(), nan3.copy(), nan3.copy(), nan3.copy()
-    uv = np.full((h, w, 2), np.nan, np.float32)
-    linear = np.full((h, w), np.nan, np.float32)
-    maps = _triangle_maps(objects, draws) if objects else {}
-    geometric = want & {"barycentrics", "position", "normal", "uv", "albedo", "linear_depth"}
-    # the covered pixels grouped by draw (one sort, not one pass over the image per draw)
-    flat = np.flatnonzero(shown)
-    flat = flat[np.argsort(which.reshape(-1)[flat], kind="stable")]
-    kinds, starts = np.unique(which.reshape(-1)[flat], return_index=True)
-    for k, group in zip(kinds, np.split(flat, starts[1:])):
-        d = draws[int(k)]
-        rows, cols = np.divmod(group, w)
-        # a scene's draws name their object; a draw made by hand is its own object, by its place in the frame
-        tag = int(d.tag) if isinstance(d.tag, (int, np.integer)) else int(k)
-        object_id[rows, cols] = tag
-        triangles = d.kind == "triangles" and d.call.topology in TRIANGLE_TOPOLOGIES
-        prim = primitive[rows, cols]
-        if d.call.topology in TRIANGLE_TOPOLOGIES:       # edges and corners in a polygon mode name their triangle
-            triangle_id[rows, cols] = maps[int(k)][prim] if int(k) in maps else prim
-        if not geometric:
-            continue
-        call = d.call
-        kd = _albedo_of(call)
-        albedo[rows, cols] = kd
-        model_view = _uniform_matrix(call, "model_view")
-        corners = primitive_indices(call.topology, call.indices, d.vertices_per_instance)[prim]
-        inst = instance[rows, cols]
-        clip = d.clip[inst[:, None] * d.vertices_per_instance + corners]      # [n, 3, 4]
-        if not triangles:
-            # a line or point has no surface: its eye depth from the clip w of its first corner
-            linear[rows, cols] = clip[:, 0, 3]
-            continue
-        vp = call.viewport
-        x = 2.0 * (cols + 0.5 - vp.x) / vp.width - 1.0
-        y = 2.0 * (h - rows - 0.5 - vp.y) / vp.height - 1.0
-        b = _barycentrics(clip, x, y)
-        bary[rows, cols] = b
-        p = np.asarray(call.positions, np.float64)
-        p = np.concatenate([p[:, :3], np.ones((len(p), 1))], axis=1) if p.shape[1] >= 3 else \
-            np.concatenate([p, np.zeros((len(p), 3 - p.shape[1])), np.ones((len(p), 1))], axis=1)
-        local = np.einsum("nc,ncj->nj", b, p[corners])                       # object space, w = 1
-        view = _uniform_matrix(call, "view")
-        model = np.linalg.solve(view, model_view)
-        eye = local @ model_view.T
-        linear[rows, cols] = -eye[:, 2]
-        position[rows, cols] = (local @ model.T)[:, :3]
-        attributes = call.attributes or {}
-        if "normal" in attributes:
-            n = np.einsum("nc,ncj->nj", b, np.asarray(attributes["normal"], np.float64)[corners])
-            n = n @ normal_matrix(model).T
-            length = np.linalg.norm(n, axis=1, keepdims=True)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                normal[rows, cols] = n / length
-        if "uv" in attributes:
-            t = np.einsum("nc,ncj->nj", b, np.asarray(attributes["uv"], np.float64)[corners])
-            uv[rows, cols] = t
-            texture = getattr(call.uniforms, "texture", None)
-            if texture is not None and hasattr(texture, "texels") and "albedo" in want:
-                sampled = np.zeros((len(t), 3))
-                good = np.isfinite(t).all(axis=1)
-                _sample_texture(texture, np.ascontiguousarray(t[good]), sampled[: int(good.sum())])
-                albedo[rows[good], cols[good]] = kd * sampled[: int(good.sum())]
-    depth = np.where(shown, depth, np.float32(1.0)).astype(np.float32)
-    made = {"color": lambda: fb.color.copy(), "depth": lambda: depth, "linear_depth": lambda: linear,
-            "position": lambda: position, "normal": lambda: normal, "object_id": lambda: object_id,
-            "triangle_id": lambda: triangle_id, "barycentrics": lambda: bary, "uv": lambda: uv,
-            "albedo": lambda: albedo}
-    for n in names:
-        out[n] = made[n]()
-    return out
+    maps = _triangle_maps(objects, fb.recorded_draws) if objects else {}
+    buffers = derive_buffers(fb, [n for n in names if n != "color"], maps)
+    return {n: fb.color.copy() if n == "color" else buffers[n] for n in names}
 
 
 # ------------------------------------------------------------------ writing them

@@ -1,0 +1,580 @@
+"""The one compiled pass from a visibility record to the buffers users read (docs/outputs.md).
+
+:func:`softpipe.scenes.outputs.derive_outputs` hands this module a framebuffer drawn
+with ``record=True`` and the names of the buffers asked for. Three steps:
+
+1. **the draws, packed** (:func:`pack_draws`): the frame has few draws (a scene's
+   objects; ``field10k``'s one draw of 10,000 instances), each with its own arrays.
+   They become a table of numbers per draw (where its record values start, its
+   object id, the offsets of its arrays, kd and matrices), the NDC coordinates of the
+   pixel centres per viewport, and one array each of corner indices, triangle maps,
+   clip corners, positions, normals and uv, the draws' arrays end to end (a frame of
+   one draw uses its arrays as they are).
+2. **the pass** (:func:`_derive_rows`): a numba kernel over image rows, run in bands
+   on both cores (:func:`softpipe.core.parallel.in_bands`, softpipe's one way of using
+   both, rather than numba's ``prange``: that module says why); each pixel is computed and
+   written by one iteration, from its own record value alone, so the buffers do not
+   depend on the thread count. Per pixel: the sample of least depth (the first of
+   equals), the record value taken apart (draw, instance, primitive), the ids, and for
+   a triangle the perspective-correct barycentrics at the pixel centre from its source
+   clip corners, then position, eye depth, normal and uv; only the buffers asked for
+   are written.
+3. **the textures** (:func:`_sample_textures`): a textured draw's albedo is kd times
+   :func:`softpipe.light.texture.texture_lod` at the pixel's uv, level 0 — the
+   texture is a different numba type per draw, so the pass leaves the uv of those
+   pixels (float64) and the lookup runs once per textured draw afterwards.
+
+The arithmetic is the numpy derivation's, operation for operation, so the buffers are
+the same bits: the 3-term sums in order ((0 + t0) + t1) + t2 (``np.einsum``'s), the cross
+product and its sum as ``np.cross`` and ``sum``, the matrix products as fused
+multiply-adds in the order k = 0…3 from +0 (what OpenBLAS's dgemm does on a machine
+with FMA, where numpy's ``@`` went; :func:`fma` is exact everywhere, so the pass gives
+the same bytes on every machine). Where the numpy derivation's values depended on
+more than the pixel, the pass does not follow it: numpy multiplied a draw's covered
+pixels as one matrix, and a draw covering a single pixel went to BLAS's gemv, which
+sums in another order (a last-bit difference in float64, rarely in the float32 buffers).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Dict, List, Optional, Sequence
+
+import numba
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic, overload
+
+from softpipe.core.parallel import in_bands
+from softpipe.light.texture import texture_lod
+from softpipe.pipeline.assembly import TRIANGLE_TOPOLOGIES, primitive_indices
+from softpipe.pipeline.framebuffer import Framebuffer, RecordedDraw
+from softpipe.pipeline.transforms import normal_matrix
+
+__all__ = ["DrawTable", "pack_draws", "derive_buffers", "fma", "BUFFER_NAMES"]
+
+#: The buffers the pass writes (``color`` is the framebuffer's own, copied by the caller).
+BUFFER_NAMES = ("depth", "linear_depth", "position", "normal", "object_id", "triangle_id", "barycentrics", "uv",
+                "albedo")
+
+# The columns of the per-draw integer table (one row per recorded draw). Offsets are rows of the joined
+# arrays; −1 where the draw has none.
+I_BASE, I_COUNT, I_PER, I_OBJECT, I_TRIANGLE_TOPOLOGY, I_SURFACE, I_MAP, I_MAP_LENGTH, I_CORNERS, \
+    I_PRIMITIVES, I_VERTICES, I_CLIP, I_POSITIONS, I_NORMALS, I_UVS, I_TEXTURED, I_VIEWPORT, I_COLUMNS = range(18)
+# The columns of the per-draw float table: kd, model_view, model (row-major 4×4 each) and the normal
+# matrix (3×3).
+F_KD, F_MODEL_VIEW, F_MODEL, F_NORMAL_MATRIX, F_COLUMNS = 0, 3, 19, 35, 44
+
+# Which buffers the pass writes: flags, one per entry of BUFFER_NAMES, then the textures' uv.
+W_DEPTH, W_LINEAR, W_POSITION, W_NORMAL, W_OBJECT, W_TRIANGLE, W_BARY, W_UV, W_ALBEDO, W_TEXTURE_UV = range(10)
+
+
+# ------------------------------------------------------------------ a fused multiply-add
+
+def fma(a: float, b: float, c: float) -> float:
+    """a·b + c rounded once (IEEE 754 fusedMultiplyAdd): compiled, LLVM's ``llvm.fma``; in plain Python
+    (``NUMBA_DISABLE_JIT=1``) exactly, through fractions (a non-finite operand gives a·b + c)."""
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
+        return a * b + c
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
+@intrinsic
+def _fma_intrinsic(typingctx, a, b, c):
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        double = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [double], ir.FunctionType(double, [double] * 3))
+        return builder.call(fn, args)
+    return sig, codegen
+
+
+@overload(fma, inline="always")
+def _fma_compiled(a, b, c):
+    return lambda a, b, c: _fma_intrinsic(np.float64(a), np.float64(b), np.float64(c))
+
+
+# ------------------------------------------------------------------ the draws, packed
+
+@dataclass
+class DrawTable:
+    """A frame's recorded draws as the pass reads them (:func:`pack_draws`).
+
+    Attributes
+    ----------
+    ints : int64 [D, I_COLUMNS]
+        Per draw: the first record value, how many it took, primitives per instance, the object id,
+        whether its topology is of triangles (it has triangle ids) and whether its primitives are
+        (it has a surface), then offsets and sizes into the joined arrays below (−1: none).
+    floats : float64 [D, F_COLUMNS]
+        Per draw: kd, model_view, model, normal matrix.
+    ndc_x, ndc_y : float64 [V, W], [V, H]
+        Per viewport of the frame's draws (``ints[:, I_VIEWPORT]``), the NDC x of each column's and the
+        NDC y of each row's pixel centre: computed once here, not per pixel (a division each).
+    corners : int64 [P, 3]
+        Each draw's primitives' vertex indices (:func:`~softpipe.pipeline.assembly.primitive_indices`).
+    maps : int64 [M]
+        Triangle index in the object's whole mesh, per triangle of a draw of one material.
+    clip, positions, normals, uvs : float64 [·, 4], [·, 4], [·, 3], [·, 2]
+        The vertex stage's clip coordinates, the positions as (x, y, z, 1), the normals and uv.
+    failed : list of (Exception or None)
+        Per draw, what computing its matrices raised (raised only if the draw covers a pixel).
+    textures : list
+        Per draw, the texture its albedo is multiplied by, or None.
+    """
+
+    ints: np.ndarray
+    floats: np.ndarray
+    corners: np.ndarray
+    maps: np.ndarray
+    clip: np.ndarray
+    positions: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray
+    ndc_x: np.ndarray
+    ndc_y: np.ndarray
+    failed: List[Optional[Exception]]
+    textures: List[object]
+
+
+def _uniform_matrix(call, name: str) -> np.ndarray:
+    value = getattr(call.uniforms, name, None)
+    m = np.eye(4) if value is None else np.asarray(value, np.float64)
+    return m if m.shape == (4, 4) else np.eye(4)
+
+
+def _albedo_of(call) -> np.ndarray:
+    """The draw's kd: its ``material`` uniform's, else its ``color`` uniform, else white."""
+    material = getattr(call.uniforms, "material", None)
+    kd = getattr(material, "kd", None)
+    if kd is None:
+        kd = getattr(call.uniforms, "color", (1.0, 1.0, 1.0))
+    kd = np.asarray(kd, np.float64).ravel()
+    return kd[:3] if kd.size >= 3 else np.ones(3)
+
+
+def _homogeneous(positions) -> np.ndarray:
+    """Positions [V, c] as (x, y, z, 1) float64 [V, 4] (missing coordinates 0)."""
+    p = np.asarray(positions, np.float64)
+    p = p.reshape(len(p), -1)
+    xyz = p[:, :3] if p.shape[1] >= 3 else np.concatenate([p, np.zeros((len(p), 3 - p.shape[1]))], axis=1)
+    return np.concatenate([xyz, np.ones((len(p), 1))], axis=1)
+
+
+def _attribute(call, name: str, width: int, k: int, needed_rows: int) -> Optional[np.ndarray]:
+    """The draw's vertex attribute ``name`` as float64 [V, width], or None when it has none."""
+    attributes = call.attributes or {}
+    if name not in attributes:
+        return None
+    a = np.asarray(attributes[name], np.float64)
+    if a.ndim != 2 or a.shape[1] != width or len(a) < needed_rows:
+        raise ValueError(f"derive_outputs: recorded draw {k}'s attribute {name!r} has shape {a.shape}; the "
+                         f"outputs read it as [vertices, {width}] with at least {needed_rows} rows")
+    return a
+
+
+class _Joined:
+    """Arrays of one kind, end to end, with each one's first row (a single array is used as it is)."""
+
+    def __init__(self, width: int, dtype):
+        self.parts: List[np.ndarray] = []
+        self.rows = 0
+        self.width, self.dtype = width, dtype
+
+    def add(self, a: Optional[np.ndarray]) -> int:
+        if a is None:
+            return -1
+        self.parts.append(a)
+        self.rows += len(a)
+        return self.rows - len(a)
+
+    def array(self) -> np.ndarray:
+        shape = (0,) if self.width == 0 else (0, self.width)
+        if not self.parts:
+            return np.zeros(shape, self.dtype)
+        if len(self.parts) == 1:
+            return np.ascontiguousarray(self.parts[0], self.dtype)
+        return np.ascontiguousarray(np.concatenate(self.parts), self.dtype)
+
+
+def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geometric: bool,
+               textured: bool, width: int, height: int) -> DrawTable:
+    """The recorded draws of a ``width`` × ``height`` frame as the pass reads them.
+
+    ``maps`` gives, for a draw of one material of a mesh of several, its triangles' indices in
+    the whole mesh. With ``geometric`` (a buffer that needs the surface is asked for) the clip
+    corners, positions, attributes and matrices are packed too; with ``textured`` the draws'
+    textures are noted (albedo asked for).
+    """
+    d_count = len(draws)
+    ints = np.full((d_count, I_COLUMNS), -1, np.int64)
+    floats = np.zeros((d_count, F_COLUMNS), np.float64)
+    corners, mapped = _Joined(3, np.int64), _Joined(0, np.int64)
+    clip, positions, normals, uvs = _Joined(4, np.float64), _Joined(4, np.float64), _Joined(3, np.float64), \
+        _Joined(2, np.float64)
+    failed: List[Optional[Exception]] = [None] * d_count
+    textures: List[object] = [None] * d_count
+    viewports: Dict[tuple, int] = {}
+    ndc_x: List[np.ndarray] = []
+    ndc_y: List[np.ndarray] = []
+    for k, d in enumerate(draws):
+        call = d.call
+        row = ints[k]
+        row[I_BASE], row[I_COUNT], row[I_PER] = d.base, d.count, max(d.per_instance, 1)
+        # a scene's draws name their object; a draw made by hand is its own object, by its place in the frame
+        row[I_OBJECT] = int(d.tag) if isinstance(d.tag, (int, np.integer)) else k
+        row[I_TRIANGLE_TOPOLOGY] = call.topology in TRIANGLE_TOPOLOGIES
+        row[I_SURFACE] = d.kind == "triangles" and call.topology in TRIANGLE_TOPOLOGIES
+        if k in maps:
+            row[I_MAP] = mapped.add(np.asarray(maps[k], np.int64))
+            row[I_MAP_LENGTH] = len(maps[k])
+        if not geometric:
+            continue
+        floats[k, F_KD:F_KD + 3] = _albedo_of(call)
+        vp = call.viewport
+        key = (vp.x, vp.y, vp.width, vp.height)
+        if key not in viewports:
+            # the pixel centres in NDC, as the numpy pass computed them (integers first, then the halves)
+            cols, rows = np.arange(width, dtype=np.int64), np.arange(height, dtype=np.int64)
+            viewports[key] = len(ndc_x)
+            ndc_x.append(2.0 * (cols + 0.5 - vp.x) / vp.width - 1.0)
+            ndc_y.append(2.0 * (height - rows - 0.5 - vp.y) / vp.height - 1.0)
+        row[I_VIEWPORT] = viewports[key]
+        vertices = int(d.vertices_per_instance)
+        corner = np.asarray(primitive_indices(call.topology, call.indices, vertices), np.int64).reshape(-1, 3)
+        instances = d.count // max(d.per_instance, 1)
+        # what the pass indexes must exist: it does not check bounds per pixel
+        if len(corner) < d.per_instance or (len(corner) and (corner.min() < 0 or corner.max() >= vertices)) \
+                or len(d.clip) < vertices * instances:
+            raise ValueError(f"derive_outputs: recorded draw {k} does not match its record: {len(corner)} primitives "
+                             f"of corners in [0, {vertices}) for {d.per_instance} per instance, and {len(d.clip)} "
+                             f"clip rows for {instances} instances of {vertices} vertices")
+        row[I_CORNERS], row[I_PRIMITIVES], row[I_VERTICES] = corners.add(corner), len(corner), vertices
+        row[I_CLIP] = clip.add(np.asarray(d.clip, np.float64))
+        if not row[I_SURFACE]:
+            continue
+        needed = int(corner.max()) + 1 if len(corner) else 0
+        p = _homogeneous(call.positions)
+        if len(p) < needed:
+            raise ValueError(f"derive_outputs: recorded draw {k} has {len(p)} positions; its indices reach {needed - 1}")
+        row[I_POSITIONS] = positions.add(p)
+        normal = _attribute(call, "normal", 3, k, needed)
+        uv = _attribute(call, "uv", 2, k, needed)
+        row[I_NORMALS], row[I_UVS] = normals.add(normal), uvs.add(uv)
+        try:
+            model_view = _uniform_matrix(call, "model_view")
+            model = np.linalg.solve(_uniform_matrix(call, "view"), model_view)
+            floats[k, F_MODEL_VIEW:F_MODEL_VIEW + 16] = model_view.ravel()
+            floats[k, F_MODEL:F_MODEL + 16] = model.ravel()
+            if normal is not None:
+                floats[k, F_NORMAL_MATRIX:F_NORMAL_MATRIX + 9] = normal_matrix(model).ravel()
+        except (np.linalg.LinAlgError, ValueError) as e:     # raised if the draw shows (as the numpy pass did)
+            failed[k] = e
+        texture = getattr(call.uniforms, "texture", None)
+        if textured and uv is not None and texture is not None and hasattr(texture, "texels"):
+            textures[k] = texture
+            row[I_TEXTURED] = 1
+    return DrawTable(ints, floats, corners.array(), mapped.array(), clip.array(), positions.array(),
+                     normals.array(), uvs.array(),
+                     np.array(ndc_x, np.float64).reshape(len(ndc_x), width),
+                     np.array(ndc_y, np.float64).reshape(len(ndc_y), height), failed, textures)
+
+
+# ------------------------------------------------------------------ the pass
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _matrix_row(floats, k, offset, row, columns, a0, a1, a2, a3):
+    """Σ_c a_c·M[row, c] of the row-major matrix M of draw k stored at floats[k, offset:], as fused
+    multiply-adds in the order c = 0, 1, … from +0 (OpenBLAS's dgemm on a machine with FMA, where
+    numpy's ``a @ M.T`` went). (No ``floats[k]`` view: a view per pixel counts references atomically,
+    and two threads counting on one array queue for its cache line.)"""
+    base = offset + row * columns
+    s = fma(a0, floats[k, base], 0.0)
+    s = fma(a1, floats[k, base + 1], s)
+    s = fma(a2, floats[k, base + 2], s)
+    if columns == 4:
+        s = fma(a3, floats[k, base + 3], s)
+    return s
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _interpolated(b0, b1, b2, a, r0, r1, r2, c):
+    """b0·a[r0, c] + b1·a[r1, c] + b2·a[r2, c], summed as ``np.einsum`` sums: ((0 + t0) + t1) + t2."""
+    return ((0.0 + b0 * a[r0, c]) + b1 * a[r1, c]) + b2 * a[r2, c]
+
+
+# error_model="numpy": a division by zero gives IEEE's inf or NaN, as the numpy derivation's did (a zero
+# normal's length), not a ZeroDivisionError
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip, positions, normals, uvs,
+                 ndc_x, ndc_y, want, out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary, out_uv,
+                 out_albedo, texture_uv, texture_draw, present, bad):
+    """Rows lo:hi of the buffers. The pixel arrays are flat (pixel p = row·width + column): record and
+    depth [S, H·W], the buffers [H·W] or [H·W, c]; a buffer not asked for is empty and not written."""
+    samples = record.shape[0]
+    draws = ints.shape[0]
+    nan = np.float32(np.nan)
+    # the flags read once into scalars: a flag in an array would be loaded again after every store to a
+    # buffer (numba cannot tell that the buffers do not overlap it)
+    w_depth, w_linear, w_position, w_normal = want[W_DEPTH], want[W_LINEAR], want[W_POSITION], want[W_NORMAL]
+    w_object, w_triangle, w_bary, w_uv = want[W_OBJECT], want[W_TRIANGLE], want[W_BARY], want[W_UV]
+    w_albedo, w_texture = want[W_ALBEDO], want[W_TEXTURE_UV]
+    geometric = w_linear or w_position or w_normal or w_bary or w_uv or w_albedo
+    # the current draw's numbers, read again only where the draw changes (neighbours mostly share one)
+    current = -1
+    base = count = per = object_id = map_at = map_length = corner_at = primitives = vertices = clip_at = \
+        positions_at = normals_at = uvs_at = np.int64(0)
+    triangle_topology = surface = textured = False
+    viewport = np.int64(0)
+    kd0 = kd1 = kd2 = np.float32(0.0)
+    for j in range(lo, hi):
+        bad[j] = -1
+        for p in range(j * width, (j + 1) * width):
+            # the pixel's sample: the one of least depth, the first of equals (np.argmin: a NaN first)
+            pick, least = 0, depth[0, p]
+            if samples > 1 and not math.isnan(least):
+                for s in range(1, samples):
+                    z = depth[s, p]
+                    if math.isnan(z):
+                        pick = s
+                        break
+                    if z < least:
+                        pick, least = s, z
+            value = record[pick, p]
+            # the record value taken apart: the last draw whose range starts at or below it
+            k = -1
+            if value >= 0 and draws == 1:
+                k = 0
+            elif value >= 0 and draws > 1:
+                a, b = 0, draws
+                while a < b:
+                    mid = (a + b) // 2
+                    if ints[mid, I_BASE] <= value:
+                        a = mid + 1
+                    else:
+                        b = mid
+                k = a - 1
+            if k >= 0 and k != current:
+                current = k
+                base, count, per, object_id = ints[k, I_BASE], ints[k, I_COUNT], ints[k, I_PER], ints[k, I_OBJECT]
+                triangle_topology, surface = ints[k, I_TRIANGLE_TOPOLOGY] > 0, ints[k, I_SURFACE] > 0
+                map_at, map_length, corner_at, primitives = ints[k, I_MAP], ints[k, I_MAP_LENGTH], \
+                    ints[k, I_CORNERS], ints[k, I_PRIMITIVES]
+                vertices, clip_at, positions_at = ints[k, I_VERTICES], ints[k, I_CLIP], ints[k, I_POSITIONS]
+                normals_at, uvs_at, textured = ints[k, I_NORMALS], ints[k, I_UVS], ints[k, I_TEXTURED] > 0
+                viewport = ints[k, I_VIEWPORT]
+                kd0, kd1, kd2 = np.float32(floats[k, F_KD]), np.float32(floats[k, F_KD + 1]), \
+                    np.float32(floats[k, F_KD + 2])
+                if present[k] == 0:              # (a store per pixel would bounce the line between cores)
+                    present[k] = 1               # every writer stores the same 1
+            local = value - base
+            if k >= 0 and local >= count:
+                if bad[j] < 0:
+                    bad[j] = p - j * width       # no draw of this frame made it: the caller raises
+                k = -1
+            if w_texture:
+                texture_draw[p] = -1
+            if k < 0:
+                if w_depth:
+                    out_depth[p] = np.float32(1.0)
+                if w_linear:
+                    out_linear[p] = nan
+                if w_object:
+                    out_object[p] = -1
+                if w_triangle:
+                    out_triangle[p] = -1
+                if w_position:
+                    out_position[p, 0] = out_position[p, 1] = out_position[p, 2] = nan
+                if w_normal:
+                    out_normal[p, 0] = out_normal[p, 1] = out_normal[p, 2] = nan
+                if w_bary:
+                    out_bary[p, 0] = out_bary[p, 1] = out_bary[p, 2] = nan
+                if w_albedo:
+                    out_albedo[p, 0] = out_albedo[p, 1] = out_albedo[p, 2] = nan
+                if w_uv:
+                    out_uv[p, 0] = out_uv[p, 1] = nan
+                continue
+            if local < per:                      # the first instance (every draw without instancing): no division
+                instance, primitive = np.int64(0), local
+            else:
+                instance, primitive = local // per, local % per
+            if w_depth:
+                out_depth[p] = depth[pick, p]
+            if w_object:
+                out_object[p] = np.int32(object_id)
+            if w_triangle:
+                triangle = np.int64(-1)
+                if triangle_topology:            # edges and corners in a polygon mode name their triangle
+                    triangle = primitive
+                    if map_at >= 0:
+                        if primitive < map_length:
+                            triangle = maps[map_at + primitive]
+                        elif bad[j] < 0:
+                            bad[j] = p - j * width
+                out_triangle[p] = triangle
+            if not geometric:
+                continue
+            if w_albedo:
+                out_albedo[p, 0], out_albedo[p, 1], out_albedo[p, 2] = kd0, kd1, kd2
+            if w_linear:
+                out_linear[p] = nan
+            if w_position:
+                out_position[p, 0] = out_position[p, 1] = out_position[p, 2] = nan
+            if w_normal:
+                out_normal[p, 0] = out_normal[p, 1] = out_normal[p, 2] = nan
+            if w_bary:
+                out_bary[p, 0] = out_bary[p, 1] = out_bary[p, 2] = nan
+            if w_uv:
+                out_uv[p, 0] = out_uv[p, 1] = nan
+            if primitive >= primitives:
+                if bad[j] < 0:
+                    bad[j] = p - j * width
+                continue
+            corner = corner_at + primitive
+            v0, v1, v2 = corners[corner, 0], corners[corner, 1], corners[corner, 2]
+            first = clip_at + instance * vertices
+            q0, q1, q2 = first + v0, first + v1, first + v2
+            if not surface:
+                # a line or point has no surface: its eye depth from the clip w of its first corner
+                if w_linear:
+                    out_linear[p] = np.float32(clip[q0, 3])
+                continue
+            x, y = ndc_x[viewport, p - j * width], ndc_y[viewport, j]          # the pixel centre in NDC
+            # the barycentrics: the cross product of the rows x_i − X·w_i and y_i − Y·w_i (in np.cross's
+            # order), normalized to sum 1 (docs/outputs.md)
+            a0, a1, a2 = clip[q0, 0] - x * clip[q0, 3], clip[q1, 0] - x * clip[q1, 3], clip[q2, 0] - x * clip[q2, 3]
+            c0, c1, c2 = clip[q0, 1] - y * clip[q0, 3], clip[q1, 1] - y * clip[q1, 3], clip[q2, 1] - y * clip[q2, 3]
+            e0 = a1 * c2 - a2 * c1
+            e1 = a2 * c0 - a0 * c2
+            e2 = a0 * c1 - a1 * c0
+            total = (e0 + e1) + e2
+            if total != 0:
+                b0, b1, b2 = e0 / total, e1 / total, e2 / total
+            else:
+                b0 = b1 = b2 = np.nan             # a triangle seen edge-on
+            if w_bary:
+                out_bary[p, 0], out_bary[p, 1], out_bary[p, 2] = b0, b1, b2
+            if w_linear or w_position:
+                r0, r1, r2 = positions_at + v0, positions_at + v1, positions_at + v2
+                l0 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 0)
+                l1 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 1)
+                l2 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 2)
+                l3 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 3)
+                if w_linear:
+                    out_linear[p] = np.float32(-_matrix_row(floats, k, F_MODEL_VIEW, 2, 4, l0, l1, l2, l3))
+                if w_position:
+                    out_position[p, 0] = _matrix_row(floats, k, F_MODEL, 0, 4, l0, l1, l2, l3)
+                    out_position[p, 1] = _matrix_row(floats, k, F_MODEL, 1, 4, l0, l1, l2, l3)
+                    out_position[p, 2] = _matrix_row(floats, k, F_MODEL, 2, 4, l0, l1, l2, l3)
+            if w_normal and normals_at >= 0:
+                r0, r1, r2 = normals_at + v0, normals_at + v1, normals_at + v2
+                n0 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 0)
+                n1 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 1)
+                n2 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 2)
+                m0 = _matrix_row(floats, k, F_NORMAL_MATRIX, 0, 3, n0, n1, n2, 0.0)
+                m1 = _matrix_row(floats, k, F_NORMAL_MATRIX, 1, 3, n0, n1, n2, 0.0)
+                m2 = _matrix_row(floats, k, F_NORMAL_MATRIX, 2, 3, n0, n1, n2, 0.0)
+                # np.linalg.norm's sum; a float64 scalar so that plain Python (NUMBA_DISABLE_JIT) divides
+                # by a zero length as IEEE does, too
+                length = np.float64(np.sqrt((m0 * m0 + m1 * m1) + m2 * m2))
+                out_normal[p, 0], out_normal[p, 1], out_normal[p, 2] = m0 / length, m1 / length, m2 / length
+            if (w_uv or w_texture) and uvs_at >= 0:
+                r0, r1, r2 = uvs_at + v0, uvs_at + v1, uvs_at + v2
+                t0 = _interpolated(b0, b1, b2, uvs, r0, r1, r2, 0)
+                t1 = _interpolated(b0, b1, b2, uvs, r0, r1, r2, 1)
+                if w_uv:
+                    out_uv[p, 0], out_uv[p, 1] = t0, t1
+                if w_texture and textured:
+                    texture_uv[p, 0], texture_uv[p, 1] = t0, t1
+                    texture_draw[p] = k
+
+
+@numba.njit(cache=True)
+def _sample_texture(tex, uv, out):
+    """The texture at each uv, level of detail 0 (what ``texture(uv)`` gives without derivatives)."""
+    for k in range(uv.shape[0]):
+        c = texture_lod(tex, (uv[k, 0], uv[k, 1]), 0.0)
+        out[k, 0], out[k, 1], out[k, 2] = c[0], c[1], c[2]
+
+
+def _sample_textures(table: DrawTable, texture_uv: np.ndarray, texture_draw: np.ndarray,
+                     albedo: np.ndarray) -> None:
+    """A textured draw's albedo: kd × its texture at the pixel's uv (level 0), where the uv is finite."""
+    for k, texture in enumerate(table.textures):
+        if texture is None:
+            continue
+        rows, cols = np.nonzero(texture_draw == k)
+        if not len(rows):
+            continue
+        t = texture_uv[rows, cols]
+        good = np.isfinite(t).all(axis=1)
+        sampled = np.zeros((int(good.sum()), 3))
+        _sample_texture(texture, np.ascontiguousarray(t[good]), sampled)
+        albedo[rows[good], cols[good]] = table.floats[k, F_KD:F_KD + 3] * sampled
+
+
+_NONE1, _NONE2, _NONE3 = np.zeros(0, np.float32), np.zeros((0, 0), np.float32), np.zeros((0, 0, 0), np.float32)
+
+
+def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.ndarray]) -> Dict[str, np.ndarray]:
+    """The buffers ``names`` (of :data:`BUFFER_NAMES`) of a framebuffer drawn with a visibility record,
+    in one compiled pass over its pixels (module docstring); ``maps`` as :func:`pack_draws` takes it.
+
+    Raises
+    ------
+    ValueError
+        The record holds a value no recorded draw made (it was changed after drawing), or a draw's
+        inputs do not match its record (an attribute of the wrong shape).
+    """
+    want_names = set(names)
+    h, w = fb.height, fb.width
+    want = np.array([n in want_names for n in BUFFER_NAMES] + [False], np.bool_)
+    geometric = bool(want_names & {"linear_depth", "position", "normal", "barycentrics", "uv", "albedo"})
+    draws = fb.recorded_draws
+    table = pack_draws(draws, maps, geometric, "albedo" in want_names, w, h)
+    textured = any(t is not None for t in table.textures)
+    want[W_TEXTURE_UV] = textured
+
+    def buffer(name, shape, dtype):
+        return np.empty(shape, dtype) if name in want_names else np.zeros((0,) * len(shape), dtype)
+
+    out = {"depth": buffer("depth", (h, w), np.float32), "linear_depth": buffer("linear_depth", (h, w), np.float32),
+           "position": buffer("position", (h, w, 3), np.float32), "normal": buffer("normal", (h, w, 3), np.float32),
+           "object_id": buffer("object_id", (h, w), np.int32), "triangle_id": buffer("triangle_id", (h, w), np.int64),
+           "barycentrics": buffer("barycentrics", (h, w, 3), np.float32), "uv": buffer("uv", (h, w, 2), np.float32),
+           "albedo": buffer("albedo", (h, w, 3), np.float32)}
+    texture_uv = np.empty((h, w, 2)) if textured else np.zeros((0, 0, 2))
+    texture_draw = np.empty((h, w), np.int64) if textured else np.zeros((0, 0), np.int64)
+    present = np.zeros(len(draws), np.int8)
+    bad = np.empty(h, np.int64)
+    record = fb.record
+    assert record is not None                    # the caller checked
+
+    def flat(a: np.ndarray) -> np.ndarray:
+        """A buffer with its pixels in one axis (a view: the buffers are made C-contiguous above)."""
+        return a.reshape((a.shape[0] * a.shape[1],) + a.shape[2:])
+
+    samples = record.shape[0]
+    in_bands(_derive_rows, h, w, record.reshape(samples, h * w), fb.samples_depth.reshape(samples, h * w),
+             table.ints, table.floats, table.corners, table.maps, table.clip, table.positions, table.normals,
+             table.uvs, table.ndc_x, table.ndc_y, want, flat(out["depth"]), flat(out["linear_depth"]), flat(out["position"]),
+             flat(out["normal"]), flat(out["object_id"]), flat(out["triangle_id"]), flat(out["barycentrics"]),
+             flat(out["uv"]), flat(out["albedo"]), flat(texture_uv), flat(texture_draw), present, bad,
+             grain=max(1, 16384 // w))
+    broken = np.flatnonzero(bad >= 0)
+    if len(broken):
+        j = int(broken[0])
+        i = int(bad[j])
+        end = int(table.ints[-1, I_BASE] + table.ints[-1, I_COUNT]) if len(draws) else 0
+        raise ValueError(f"derive_outputs: the visibility record at pixel ({i}, {j}) holds "
+                         f"{record[:, j, i].tolist()}, which no recorded draw of this frame made (its "
+                         f"{len(draws)} draws took the values 0 to {end - 1}); was fb.record changed after drawing?")
+    for k, e in enumerate(table.failed):
+        if e is not None and present[k]:
+            raise e
+    if textured:
+        _sample_textures(table, texture_uv, texture_draw, out["albedo"])
+    return {n: out[n] for n in names}
