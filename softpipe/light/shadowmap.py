@@ -201,9 +201,10 @@ def cube_face(shadows, first, P):
 
 
 # map_coordinates, shadow_compare and shadow_map_visibility run per light at every lit sample:
-# they are inlined into the shader (inline="always"). Called as functions, each call passed the
+# LLVM inlines them into the shader (forceinline). Called as functions, each call passed the
 # ShadowUniform's six arrays on by value, which made bunny-shadows' lighting about three times as
-# slow (benchmarks/README.md, "The figures behind the pipeline's comments").
+# slow (benchmarks/README.md, "The figures behind the pipeline's comments"). Compiled once on their
+# own (not numba's inline="always", which typed them again inside every shader that calls them).
 @njit(cache=True, forceinline=True)
 def map_coordinates(shadows, k, P):
     """(x, y, ref, inside): P in map k's window space — texels, y up — and its depth ref.

@@ -51,7 +51,7 @@ SHADE_SAMPLE, SHADE_CENTER, SHADE_CENTROID = 0, 1, 2
 # each is not compiled and optimized once on its own and again in its caller, which made the
 # first (cold-cache) compile of triangle setup markedly slower (benchmarks/README.md).
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def snap(v):
     """Window coordinate → fixed point, 1/256 pixel, round half to even; centre of pixel i ↦ 256·i.
 
@@ -61,13 +61,13 @@ def snap(v):
     return np.int64(np.rint(v * SUBPIXEL)) - SUBPIXEL // 2
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def edge_function(xa, ya, xb, yb, px, py):
     """Twice the signed area of (a, b, p): positive when p is left of a→b (y up)."""
     return (xb - xa) * (py - ya) - (yb - ya) * (px - xa)
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def owns_samples_on_edge(dx, dy):
     """The fill rule for a counter-clockwise triangle's edge with direction (dx, dy), y up.
 
@@ -77,7 +77,7 @@ def owns_samples_on_edge(dx, dy):
     return dy < 0 or (dy == 0 and dx > 0)
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def _pixel_range(lo, hi, first_pixel, last_pixel):
     """Pixels i with lo ≤ 256·i ≤ hi, clamped to [first_pixel, last_pixel]: (first, last)."""
     first = -((-lo) // SUBPIXEL)            # ceil(lo / 256)
@@ -85,7 +85,7 @@ def _pixel_range(lo, hi, first_pixel, last_pixel):
     return max(first, first_pixel), min(last, last_pixel)
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def offset_bounds(offsets):
     """(x_lo, x_hi, y_lo, y_hi): the extent of the sample offsets [S, 2], in fixed point.
 
@@ -233,9 +233,11 @@ def _polygon_offset_kernel(lo, hi, window, edges, area, plane, factor, units):
 # --------------------------------------------------- per sample, per pixel
 #
 # These run once per sample inside the hot loops (the rasterizer's, the visibility
-# pass's, the generated shading loops'), so numba inlines them into their callers
-# (inline="always"): a call per sample costs as much as the work inside it (the `fill`
-# benchmark's figure is in benchmarks/README.md).
+# pass's, the generated shading loops'), so LLVM inlines them into their callers
+# (forceinline): a call per sample costs as much as the work inside it (the `fill`
+# benchmark's figure is in benchmarks/README.md). They are compiled once, on their own, and
+# kept in numba's cache; numba's own inlining (inline="always") typed them again inside every
+# generated shading loop, which lengthened each loop's first compile.
 
 @numba.njit(cache=True, forceinline=True)
 def edge_values(edges, t, px, py):
