@@ -55,6 +55,7 @@ from typing import List, Optional
 import numpy as np
 from numba import njit
 
+from softpipe.core.borrow import borrowed, borrowed_tuple
 from softpipe.core.parallel import in_bands
 from softpipe.language.glsl import reflect
 from softpipe.light.lighting import fresnel_directions
@@ -154,7 +155,7 @@ def _glossy(lobe, N, V, L, m):
     return fs, fs, fs, pdf
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True, inline="always")
 def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth,
               rr_depth, seed, pixel, sample, strategy, record):
     """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc.
@@ -403,7 +404,7 @@ def _unproject(M, x, y, z):
             (M[2, 0] * x + M[2, 1] * y + M[2, 2] * z + M[2, 3]) / w)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _sample(i, j, s, width, height, unproject, scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf,
             background, max_depth, rr_depth, seed, strategy, record):
     """Sample s of pixel (i, image row j): its ray through a jittered point of the pixel, and the radiance it brings."""
@@ -425,6 +426,13 @@ def _render_rows(lo, hi, width, height, unproject, scene, mats, textures, light_
                  background, max_depth, rr_depth, seed, first, count, total, squares, strategy):
     """Samples first … first + count − 1 of every pixel of image rows lo:hi, added to the float64 sums in order."""
     no_record = np.zeros((0, STORY_COLUMNS))
+    # borrowed (softpipe.core.borrow): the sample's calls then count no references to these ~25 arrays; counted,
+    # the atomic adds cost more than a camera ray, and the two threads fought over the same counters
+    unproject, scene, mats, textures = borrowed(unproject), borrowed_tuple(scene), borrowed(mats), \
+        borrowed_tuple(textures)
+    light_tris, light_corners, light_cdf, light_pdf = borrowed(light_tris), borrowed(light_corners), \
+        borrowed(light_cdf), borrowed(light_pdf)
+    background = borrowed(background)
     for j in range(lo, hi):
         for i in range(width):
             for s in range(first, first + count):
