@@ -62,7 +62,7 @@ from softpipe.light.lighting import fresnel_directions
 from softpipe.light.texture import TextureUniform, texture
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.rays.bvh import any_hit, closest_hit
+from softpipe.rays.bvh import hit_inline
 from softpipe.rays.queries import RayScene, hit_normal
 from softpipe.tracers.lobes import (
     COOK_TORRANCE_LOBE,
@@ -178,7 +178,7 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
     depth = 0
     while True:
         row = depth if depth < record.shape[0] else -1
-        tri, t, b1, b2 = closest_hit(bvh, o, d, t_min, t_max)
+        tri, t, b1, b2 = hit_inline(bvh, o, d, t_min, t_max, False)
         if tri < 0:
             w = 1.0
             if not prev_delta and p_bg > 0.0:     # a direction the background's light sample could have drawn too
@@ -249,7 +249,7 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
         p_d = w_d / total
         p_s = w_s / total
         if (w_d > 0.0 or w_s > 0.0) and have_lights and strategy != 1:    # next-event estimation
-            lit = False
+            shadow, shadow_far = False, 0.0           # whether a shadow ray is to be traced, and how far
             wi, cos_s, pdf_l, le = (0.0, 0.0, 0.0), 0.0, 1.0, (0.0, 0.0, 0.0)
             u_l = uniform_of(key, base + 1)
             if u_l < p_bg:                        # toward the background: a direction drawn ∝ cos θ about N
@@ -257,9 +257,8 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
                                               uniform_of(key, base + 3))
                 if row >= 0:
                     record[row, 30:32] = (-2.0, 1.0)            # 1: in shadow or below, until found lit
-                if cos_s > 0.0 and ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] > 0.0 and \
-                        not any_hit(bvh, P, wi, eps, np.inf):
-                    lit = True
+                if cos_s > 0.0 and ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] > 0.0:
+                    shadow, shadow_far = True, np.inf
                     pdf_l = p_bg * cos_s * _INV_PI
                     le = (background[0], background[1], background[2])
             else:                                 # toward an emissive triangle, picked ∝ area × mean ke
@@ -280,12 +279,13 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
                         ln[0] * ln[0] + ln[1] * ln[1] + ln[2] * ln[2])
                     cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
                     cos_g = ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2]
-                    if cos_l > 0.0 and cos_s > 0.0 and cos_g > 0.0 and \
-                            not any_hit(bvh, P, wi, eps, dist * (1.0 - 1e-7) - eps):
-                        lit = True
+                    if cos_l > 0.0 and cos_s > 0.0 and cos_g > 0.0:
+                        shadow, shadow_far = True, dist * (1.0 - 1e-7) - eps
                         pdf_l = light_pdf[k] * dist2 / cos_l
                         e = mats[scene.triangle_object[k]]
                         le = (e[0], e[1], e[2])
+            # the shadow ray (§21), any hit: one call site for both kinds of light, as each is a copy of the walk
+            lit = shadow and hit_inline(bvh, P, wi, eps, shadow_far, True)[0] < 0
             if lit:
                 pdf_b = p_d * cos_s * _INV_PI
                 w_l = _power_heuristic(pdf_l, pdf_b) if strategy == 0 else 1.0
