@@ -32,9 +32,9 @@ import numpy as np
 from softpipe.core.borrow import borrowed
 from softpipe.core.parallel import in_bands
 from softpipe.rays.build import binary_tree, fill_blocks, gather_corners, pack_boxes, refit_boxes, wide_tree
-from softpipe.rays.traverse import node_stack, query, start_row, step, store, t_stack
+from softpipe.rays.traverse import node_stack, query, query_inline, start_row, step, store, t_stack
 
-__all__ = ["BVH", "BVHUniform", "closest_hit", "any_hit", "scene_bvh"]
+__all__ = ["BVH", "BVHUniform", "closest_hit", "any_hit", "hit_inline", "scene_bvh"]
 
 BVHUniform = namedtuple("BVHUniform", ["lo", "hi", "first", "count", "order", "v0", "v1", "v2",
                                        "boxes", "links", "tris", "tri_ids"])
@@ -73,6 +73,21 @@ def any_hit(bvh, origin, direction, t_min: float, t_max: float) -> bool:
                  float(origin[0]), float(origin[1]), float(origin[2]),
                  float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max),
                  True)[0] >= 0
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def hit_inline(bvh, origin, direction, t_min: float, t_max: float, any_: bool) -> tuple:
+    """:func:`closest_hit` (``any_`` False) or the any-hit walk of :func:`any_hit` (``any_`` True: id ≥ 0 for a
+    hit), compiled into the caller: (id, t, b1, b2), the same bits.
+
+    For a kernel that traces many rays per item (the path tracer): no call per ray. Each call site is a
+    copy of the walk, so a kernel should have one per kind of ray.
+    """
+    return query_inline(borrowed(bvh.boxes), borrowed(bvh.links), borrowed(bvh.lo), borrowed(bvh.hi),
+                        borrowed(bvh.first), borrowed(bvh.count), borrowed(bvh.tris), borrowed(bvh.tri_ids),
+                        float(origin[0]), float(origin[1]), float(origin[2]),
+                        float(direction[0]), float(direction[1]), float(direction[2]), float(t_min), float(t_max),
+                        any_)
 
 
 # Why two rays at a time. A ray's traversal is one long chain of dependent steps (a node's

@@ -39,7 +39,7 @@ from numba.extending import intrinsic, overload
 from softpipe.rays.layout import BLOCK, COUNT_MASK, MAX_DEPTH, REF_SHIFT, WIDTH
 from softpipe.rays.triangle import hit_sheared, ray_space
 
-__all__ = ["query", "start_row", "step", "store", "node_stack", "t_stack", "STACK_SIZE", "SLAB_PAD", "REACH_PAD"]
+__all__ = ["query", "query_inline", "start_row", "step", "store", "node_stack", "t_stack", "STACK_SIZE", "SLAB_PAD", "REACH_PAD"]
 
 #: The traversal's stack. Why it can never overflow, for any ray :func:`_start` lets in:
 #:
@@ -483,6 +483,19 @@ def query(boxes, links, lo, hi, first, count, tris, tri_ids, ox: float, oy: floa
     -------
     tuple
         (id, t, b1, b2): id −1 for a miss (then t = t_max, b1 = b2 = 0).
+    """
+    return _traverse(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max,
+                     any_, node_stack(), t_stack())
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def query_inline(boxes, links, lo, hi, first, count, tris, tri_ids, ox: float, oy: float, oz: float,
+                 dx: float, dy: float, dz: float, t_min: float, t_max: float, any_: bool) -> tuple:
+    """:func:`query` compiled into the caller (``inline="always"``), its stacks in the caller's frame.
+
+    The same walk and the same answer, bit for bit; for a kernel whose hot loop is its rays (the path
+    tracer), where a call per ray, handing on eight arrays, cost about as much as the walk through a small
+    scene. Each call site is a copy of the walk: a kernel should have few.
     """
     return _traverse(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max,
                      any_, node_stack(), t_stack())

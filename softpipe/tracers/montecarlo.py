@@ -9,7 +9,8 @@ the image is a function of the seed alone (docs/pathtracing.md, "Random numbers"
 
 The hash is splitmix64's finalizer (Steele, Lea and Flood 2014), a bijection of
 64-bit words that mixes every input bit into every output bit, applied once per key
-word. The warps turn uniform numbers in [0, 1) into the distributions the tracer
+word; a sample hashes its first three words once (:func:`sample_key`) and each of its
+numbers adds the last (:func:`uniform_of`), the same bits as :func:`uniform`. The warps turn uniform numbers in [0, 1) into the distributions the tracer
 draws from: a cosine-weighted direction about a normal (pdf cos θ/π), a uniform
 point on a triangle (pdf 1/area), and an orthonormal basis around a normal.
 """
@@ -20,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["uniform", "cosine_hemisphere", "triangle_point", "basis"]
+__all__ = ["uniform", "sample_key", "uniform_of", "cosine_hemisphere", "triangle_point", "basis"]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)       # 2⁶⁴/φ: keeps a zero key word from mapping to zero
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -43,11 +44,27 @@ def uniform(seed, pixel, sample, dimension):
 
     Each argument is a whole number ≥ 0 (seed below 2⁶⁴); the 53 high bits of the
     hash become the float's mantissa, so the value is a multiple of 2⁻⁵³.
+    ``uniform_of(sample_key(seed, pixel, sample), dimension)`` is the same number.
+    """
+    return uniform_of(sample_key(seed, pixel, sample), dimension)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def sample_key(seed, pixel, sample):
+    """The hash of (seed, pixel, sample): the first three of :func:`uniform`'s four key words, mixed.
+
+    A sample draws all its numbers from one key (:func:`uniform_of`), so the three
+    mixes it shares are done once per sample instead of once per number.
     """
     h = _mix(np.uint64(seed) + _GOLDEN)
     h = _mix(h ^ (np.uint64(pixel) + _GOLDEN))
-    h = _mix(h ^ (np.uint64(sample) + _GOLDEN))
-    h = _mix(h ^ (np.uint64(dimension) + _GOLDEN))
+    return _mix(h ^ (np.uint64(sample) + _GOLDEN))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def uniform_of(key, dimension):
+    """:func:`uniform` of the sample whose :func:`sample_key` is ``key``, at ``dimension``: the same bits."""
+    h = _mix(key ^ (np.uint64(dimension) + _GOLDEN))
     return float(h >> _S11) * _TO_UNIT
 
 

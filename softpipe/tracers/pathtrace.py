@@ -55,13 +55,14 @@ from typing import List, Optional
 import numpy as np
 from numba import njit
 
+from softpipe.core.borrow import borrowed, borrowed_tuple
 from softpipe.core.parallel import in_bands
 from softpipe.language.glsl import reflect
 from softpipe.light.lighting import fresnel_directions
 from softpipe.light.texture import TextureUniform, texture
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.framebuffer import Framebuffer
-from softpipe.rays.bvh import any_hit, closest_hit
+from softpipe.rays.bvh import hit_inline
 from softpipe.rays.queries import RayScene, hit_normal
 from softpipe.tracers.lobes import (
     COOK_TORRANCE_LOBE,
@@ -73,7 +74,7 @@ from softpipe.tracers.lobes import (
     lobe_eval,
     lobe_sample,
 )
-from softpipe.tracers.montecarlo import cosine_hemisphere, triangle_point, uniform
+from softpipe.tracers.montecarlo import cosine_hemisphere, sample_key, triangle_point, uniform_of
 
 __all__ = ["pathtrace", "PathTrace", "PathStory", "PathSample", "Bounce", "MAX_STORY_BOUNCES", "BACKGROUND_LIGHT", "STORY_COLUMNS", "MAX_SPP", "PASS_SPP", "DIMENSIONS_PER_BOUNCE", "STRATEGIES"]
 
@@ -154,14 +155,15 @@ def _glossy(lobe, N, V, L, m):
     return fs, fs, fs, pdf
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True, inline="always")
 def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth,
-              rr_depth, seed, pixel, sample, strategy, record):
+              rr_depth, key, strategy, record):
     """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc.
 
     ``record`` [rows, STORY_COLUMNS] (rows 0 when rendering) gets one row per bounce, row k for the k-th
     ray of the path, as :meth:`PathTrace.path_story` reads it; recording changes no arithmetic.
     ``textures`` is (texels, tex_info, uv_corners): :func:`_setup`'s textures, see :func:`_diffuse`.
+    ``key`` is the sample's :func:`~softpipe.tracers.montecarlo.sample_key`: its number k is ``uniform_of(key, k)``.
     """
     bvh = scene.bvh
     eps = scene.epsilon
@@ -176,7 +178,7 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
     depth = 0
     while True:
         row = depth if depth < record.shape[0] else -1
-        tri, t, b1, b2 = closest_hit(bvh, o, d, t_min, t_max)
+        tri, t, b1, b2 = hit_inline(bvh, o, d, t_min, t_max, False)
         if tri < 0:
             w = 1.0
             if not prev_delta and p_bg > 0.0:     # a direction the background's light sample could have drawn too
@@ -247,17 +249,16 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
         p_d = w_d / total
         p_s = w_s / total
         if (w_d > 0.0 or w_s > 0.0) and have_lights and strategy != 1:    # next-event estimation
-            lit = False
+            shadow, shadow_far = False, 0.0           # whether a shadow ray is to be traced, and how far
             wi, cos_s, pdf_l, le = (0.0, 0.0, 0.0), 0.0, 1.0, (0.0, 0.0, 0.0)
-            u_l = uniform(seed, pixel, sample, base + 1)
+            u_l = uniform_of(key, base + 1)
             if u_l < p_bg:                        # toward the background: a direction drawn ∝ cos θ about N
-                wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 2),
-                                              uniform(seed, pixel, sample, base + 3))
+                wi, cos_s = cosine_hemisphere(N, uniform_of(key, base + 2),
+                                              uniform_of(key, base + 3))
                 if row >= 0:
                     record[row, 30:32] = (-2.0, 1.0)            # 1: in shadow or below, until found lit
-                if cos_s > 0.0 and ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] > 0.0 and \
-                        not any_hit(bvh, P, wi, eps, np.inf):
-                    lit = True
+                if cos_s > 0.0 and ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2] > 0.0:
+                    shadow, shadow_far = True, np.inf
                     pdf_l = p_bg * cos_s * _INV_PI
                     le = (background[0], background[1], background[2])
             else:                                 # toward an emissive triangle, picked ∝ area × mean ke
@@ -265,7 +266,7 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
                 k = light_tris[li]
                 c = light_corners[li]
                 Q = triangle_point((c[0], c[1], c[2]), (c[3], c[4], c[5]), (c[6], c[7], c[8]),
-                                   uniform(seed, pixel, sample, base + 2), uniform(seed, pixel, sample, base + 3))
+                                   uniform_of(key, base + 2), uniform_of(key, base + 3))
                 if row >= 0:
                     record[row, 30:32] = (float(k), 1.0)        # 1: in shadow or facing away, until found lit
                 lx, ly, lz = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
@@ -278,12 +279,13 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
                         ln[0] * ln[0] + ln[1] * ln[1] + ln[2] * ln[2])
                     cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
                     cos_g = ng[0] * wi[0] + ng[1] * wi[1] + ng[2] * wi[2]
-                    if cos_l > 0.0 and cos_s > 0.0 and cos_g > 0.0 and \
-                            not any_hit(bvh, P, wi, eps, dist * (1.0 - 1e-7) - eps):
-                        lit = True
+                    if cos_l > 0.0 and cos_s > 0.0 and cos_g > 0.0:
+                        shadow, shadow_far = True, dist * (1.0 - 1e-7) - eps
                         pdf_l = light_pdf[k] * dist2 / cos_l
                         e = mats[scene.triangle_object[k]]
                         le = (e[0], e[1], e[2])
+            # the shadow ray (§21), any hit: one call site for both kinds of light, as each is a copy of the walk
+            lit = shadow and hit_inline(bvh, P, wi, eps, shadow_far, True)[0] < 0
             if lit:
                 pdf_b = p_d * cos_s * _INV_PI
                 w_l = _power_heuristic(pdf_l, pdf_b) if strategy == 0 else 1.0
@@ -309,10 +311,10 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
                         red += tr * m[13] * le[0] * gr
                         green += tg * m[14] * le[1] * gg
                         blue += tb * m[15] * le[2] * gb
-        u = uniform(seed, pixel, sample, base) * total
+        u = uniform_of(key, base) * total
         if u < w_d:                               # Lambert: f·cos/pdf = (kd/π)·cos / (p_d·cos/π) = kd/p_d
-            wi, cos_s = cosine_hemisphere(N, uniform(seed, pixel, sample, base + 4),
-                                          uniform(seed, pixel, sample, base + 5))
+            wi, cos_s = cosine_hemisphere(N, uniform_of(key, base + 4),
+                                          uniform_of(key, base + 5))
             if row >= 0:
                 record[row, 7:13] = (0.0, kd[0] * _INV_PI, kd[1] * _INV_PI, kd[2] * _INV_PI, cos_s, p_d * cos_s * _INV_PI)
                 record[row, 35:38] = wi
@@ -323,8 +325,8 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
             tr, tg, tb = tr * kd[0] / p_d, tg * kd[1] / p_d, tb * kd[2] / p_d
             prev_pdf, prev_cos, prev_delta = p_d * cos_s * _INV_PI, cos_s, False
         elif u < w_d + w_s:                       # the glossy lobe: f·cos/(p_s·pdf), ks times the lobe's weight
-            wi = lobe_sample(lobe, N, V, m[16], m[17], uniform(seed, pixel, sample, base + 4),
-                             uniform(seed, pixel, sample, base + 5))
+            wi = lobe_sample(lobe, N, V, m[16], m[17], uniform_of(key, base + 4),
+                             uniform_of(key, base + 5))
             cos_s = N[0] * wi[0] + N[1] * wi[1] + N[2] * wi[2]
             fsr, fsg, fsb, pdf_s = _glossy(lobe, N, V, wi, m)
             if row >= 0:
@@ -356,7 +358,7 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
                 p = w_g / total
                 n1, n2 = (1.0, m[12]) if front else (m[12], 1.0)
                 R, T, F = fresnel_directions(N, V, n1, n2)
-                if uniform(seed, pixel, sample, base + 6) < F:
+                if uniform_of(key, base + 6) < F:
                     wi = R                        # F·1 / F: the reflected share, white
                     tr, tg, tb = tr / p, tg / p, tb / p
                     if row >= 0:
@@ -382,7 +384,7 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
             q = min(0.95, max(tr, tg, tb))
             if row >= 0:
                 record[row, 16] = q
-            if uniform(seed, pixel, sample, base + 7) >= q:
+            if uniform_of(key, base + 7) >= q:
                 if row >= 0:
                     record[row, 38] = _END_ROULETTE
                 break
@@ -403,21 +405,22 @@ def _unproject(M, x, y, z):
             (M[2, 0] * x + M[2, 1] * y + M[2, 2] * z + M[2, 3]) / w)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _sample(i, j, s, width, height, unproject, scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf,
             background, max_depth, rr_depth, seed, strategy, record):
     """Sample s of pixel (i, image row j): its ray through a jittered point of the pixel, and the radiance it brings."""
     pixel = j * width + i
     # the box filter: a uniform point of the pixel (image row j counts down from the top)
-    x = 2.0 * (i + uniform(seed, pixel, s, 0)) / width - 1.0
-    y = 1.0 - 2.0 * (j + uniform(seed, pixel, s, 1)) / height
+    key = sample_key(seed, pixel, s)           # the sample's numbers: uniform(seed, pixel, s, k) = uniform_of(key, k)
+    x = 2.0 * (i + uniform_of(key, 0)) / width - 1.0
+    y = 1.0 - 2.0 * (j + uniform_of(key, 1)) / height
     near = _unproject(unproject, x, y, -1.0)
     far = _unproject(unproject, x, y, 1.0)
     dx, dy, dz = far[0] - near[0], far[1] - near[1], far[2] - near[2]
     length = math.sqrt(dx * dx + dy * dy + dz * dz)
     d = (dx / length, dy / length, dz / length)
     return _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf, background, near, d,
-                     length, max_depth, rr_depth, seed, pixel, s, strategy, record)
+                     length, max_depth, rr_depth, key, strategy, record)
 
 
 @njit(cache=True, nogil=True)
@@ -425,6 +428,13 @@ def _render_rows(lo, hi, width, height, unproject, scene, mats, textures, light_
                  background, max_depth, rr_depth, seed, first, count, total, squares, strategy):
     """Samples first … first + count − 1 of every pixel of image rows lo:hi, added to the float64 sums in order."""
     no_record = np.zeros((0, STORY_COLUMNS))
+    # borrowed (softpipe.core.borrow): the sample's calls then count no references to these ~25 arrays; counted,
+    # the atomic adds cost more than a camera ray, and the two threads fought over the same counters
+    unproject, scene, mats, textures = borrowed(unproject), borrowed_tuple(scene), borrowed(mats), \
+        borrowed_tuple(textures)
+    light_tris, light_corners, light_cdf, light_pdf = borrowed(light_tris), borrowed(light_corners), \
+        borrowed(light_cdf), borrowed(light_pdf)
+    background = borrowed(background)
     for j in range(lo, hi):
         for i in range(width):
             for s in range(first, first + count):
