@@ -75,7 +75,7 @@ def any_hit(bvh, origin, direction, t_min: float, t_max: float) -> bool:
                  True)[0] >= 0
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def hit_inline(bvh, origin, direction, t_min: float, t_max: float, any_: bool) -> tuple:
     """:func:`closest_hit` (``any_`` False) or the any-hit walk of :func:`any_hit` (``any_`` True: id ≥ 0 for a
     hit), compiled into the caller: (id, t, b1, b2), the same bits.

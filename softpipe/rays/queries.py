@@ -162,7 +162,7 @@ class RayScene:
 
 # ------------------------------------------------------------------ in shaders
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def point_to_world(M, p):
     """The 3-D point M·(p, 1) for a 4×4 (or 3×4) matrix M: a point carried by an affine map."""
     return (M[0, 0] * p[0] + M[0, 1] * p[1] + M[0, 2] * p[2] + M[0, 3],
@@ -170,7 +170,7 @@ def point_to_world(M, p):
             M[2, 0] * p[0] + M[2, 1] * p[1] + M[2, 2] * p[2] + M[2, 3])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def direction_to_world(M, d):
     """The 3-D direction M·(d, 0): a direction carried by an affine map (no translation, not renormalized)."""
     return (M[0, 0] * d[0] + M[0, 1] * d[1] + M[0, 2] * d[2],

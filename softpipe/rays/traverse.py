@@ -122,7 +122,7 @@ def _t_stack_compiled():
 
 # ------------------------------------------------------------------ a node's boxes
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def _inverse(d):
     """1/d, with ±inf for ±0 (the sign of the zero kept)."""
     if d == 0.0:
@@ -158,7 +158,7 @@ def _box_entry(lo, hi, node, ox, oy, oz, ix, iy, iz, t0, t1):
     return t0 if t0 <= t1 else math.inf
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def _lane_entry(boxes, i, lane, nx, ny, nz, ox, oy, oz, ix, iy, iz, t0, t1):
     """The robust slab test of child ``lane`` of wide node ``i``: its entry t, or +inf for a miss.
 
@@ -344,7 +344,7 @@ def _block_candidates_compiled(tris, b, kx, ky, kz, okx, oky, okz, sx, sy, sz, t
 
 # ------------------------------------------------------------------ one ray
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def _order2(ta, ca, tb, cb):
     """(ta, ca), (tb, cb) with the smaller t first: a compare-exchange of the sorting network, written
     as min, max and selects so that it compiles without a branch (the order of a ray's children is
@@ -353,7 +353,7 @@ def _order2(ta, ca, tb, cb):
     return min(ta, tb), cb if swap else ca, max(ta, tb), ca if swap else cb
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
     """A ray's constants and the traversal's first state: (ray, state); see :func:`step`.
 
@@ -388,7 +388,7 @@ def _start(lo, hi, first, count, ox, oy, oz, dx, dy, dz, t_min, t_max):
     return ray, (live, ref, n, 0, reach, -1, t_max, 0.0, 0.0)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t):
     """One step of the stack traversal: a wide node or a leaf visited, then the next one chosen.
 
@@ -452,7 +452,7 @@ def step(boxes, links, tris, tri_ids, ray, state, any_, stack_node, stack_t):
     return False, ref, n, top, reach, best_id, best_t, best_b1, best_b2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def _traverse(boxes, links, lo, hi, first, count, tris, tri_ids, ox, oy, oz, dx, dy, dz, t_min, t_max, any_,
               stack_node, stack_t):
     """One ray's query, (id, t, b1, b2), compiled into each caller (``inline="always"``) on borrowed
@@ -488,7 +488,7 @@ def query(boxes, links, lo, hi, first, count, tris, tri_ids, ox: float, oy: floa
                      any_, node_stack(), t_stack())
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def query_inline(boxes, links, lo, hi, first, count, tris, tri_ids, ox: float, oy: float, oz: float,
                  dx: float, dy: float, dz: float, t_min: float, t_max: float, any_: bool) -> tuple:
     """:func:`query` compiled into the caller (``inline="always"``), its stacks in the caller's frame.
@@ -504,14 +504,14 @@ def query_inline(boxes, links, lo, hi, first, count, tris, tri_ids, ox: float, o
 # ------------------------------------------------------------------ batches of rays
 # (the loop over a band is softpipe.rays.bvh._batch_kernel: it borrows the arrays in its own body)
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def start_row(lo, hi, first, count, origins, directions, t_min, t_max, r):
     """:func:`_start` for ray r of a batch: (ray, state), the arguments of :func:`step`."""
     return _start(lo, hi, first, count, origins[r, 0], origins[r, 1], origins[r, 2],
                   directions[r, 0], directions[r, 1], directions[r, 2], t_min[r], t_max[r])
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def store(r, state, any_, ids, ts, bs, occluded):
     """Ray r's answer from its final state (see :func:`step`)."""
     i = state[5]

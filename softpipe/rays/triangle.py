@@ -78,7 +78,7 @@ def _exact_cross(a, b, c, d):
     return s
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy", forceinline=True)
 def ray_space(dx: float, dy: float, dz: float) -> tuple:
     """The shear of Woop et al. for direction (dx, dy, dz): (kx, ky, kz, Sx, Sy, Sz).
 

@@ -56,12 +56,12 @@ def lobe_code(program: str) -> int:
     return LOBE_CODES.get(program, BLINN_PHONG_LOBE)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _about(axis, cos_t, phi):
     """The unit direction at angle acos(cos_t) from the unit ``axis``, turned by phi about it."""
     sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
@@ -71,7 +71,7 @@ def _about(axis, cos_t, phi):
             x * t[2] + y * b[2] + cos_t * axis[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _mirror(V, A):
     """V mirrored about the unit A: 2(V·A)A − V."""
     c = 2.0 * _dot(V, A)

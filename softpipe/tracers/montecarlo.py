@@ -30,7 +30,7 @@ _S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(
 _TO_UNIT = 2.0 ** -53
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _mix(x):
     """splitmix64's finalizer: a bijection of uint64 with full avalanche."""
     x = (x ^ (x >> _S30)) * _M1
@@ -49,7 +49,7 @@ def uniform(seed, pixel, sample, dimension):
     return uniform_of(sample_key(seed, pixel, sample), dimension)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def sample_key(seed, pixel, sample):
     """The hash of (seed, pixel, sample): the first three of :func:`uniform`'s four key words, mixed.
 
@@ -61,14 +61,14 @@ def sample_key(seed, pixel, sample):
     return _mix(h ^ (np.uint64(sample) + _GOLDEN))
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def uniform_of(key, dimension):
     """:func:`uniform` of the sample whose :func:`sample_key` is ``key``, at ``dimension``: the same bits."""
     h = _mix(key ^ (np.uint64(dimension) + _GOLDEN))
     return float(h >> _S11) * _TO_UNIT
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def basis(n):
     """Two unit vectors (t, b) with (t, b, n) a right-handed orthonormal basis; n unit.
 
@@ -82,7 +82,7 @@ def basis(n):
     return t, bt
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def cosine_hemisphere(n, u1, u2):
     """A unit direction about the unit normal n with pdf cos θ / π (Malley's method): (direction, cos θ).
 
@@ -96,7 +96,7 @@ def cosine_hemisphere(n, u1, u2):
     return (x * t[0] + y * b[0] + z * n[0], x * t[1] + y * b[1] + z * n[1], x * t[2] + y * b[2] + z * n[2]), z
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def triangle_point(v0, v1, v2, u1, u2):
     """A uniform point on the triangle (v0, v1, v2): pdf 1/area over its surface.
 

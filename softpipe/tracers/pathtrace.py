@@ -102,7 +102,7 @@ _END_MORE, _END_DEPTH, _END_BLACK, _END_BELOW, _END_ROULETTE, _END_MISS, _END_DE
 
 # ------------------------------------------------------------------ the kernel
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _power_heuristic(a, b):
     """Veach's power heuristic (β = 2): the weight a²/(a² + b²) of the strategy whose pdf is a."""
     a2 = a * a
@@ -123,7 +123,7 @@ def _pick_light(cdf, u):
     return lo
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _diffuse(textures, obj, tri, b1, b2, m):
     """kd at the hit: the material's, times the object's texture at the hit's uv where it has one.
 
@@ -145,7 +145,7 @@ def _diffuse(textures, obj, tri, b1, b2, m):
     return m[3] * t[0], m[4] * t[1], m[5] * t[2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _glossy(lobe, N, V, L, m):
     """The glossy lobe's (f/ks per channel, p) toward L: :func:`lobe_eval`'s f in every channel, or for a
     conductor's Cook-Torrance (k ≠ 0) its F per channel (§30, :func:`cook_torrance_conductor`)."""
@@ -155,7 +155,7 @@ def _glossy(lobe, N, V, L, m):
     return fs, fs, fs, pdf
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf, background, o, d, t_far, max_depth,
               rr_depth, key, strategy, record):
     """The radiance one path from ``o`` along the unit ``d`` brings back (RGB): the estimator of the module doc.
@@ -397,7 +397,7 @@ def _radiance(scene, mats, textures, light_tris, light_corners, light_cdf, light
     return red, green, blue
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _unproject(M, x, y, z):
     w = M[3, 0] * x + M[3, 1] * y + M[3, 2] * z + M[3, 3]
     return ((M[0, 0] * x + M[0, 1] * y + M[0, 2] * z + M[0, 3]) / w,
@@ -405,7 +405,7 @@ def _unproject(M, x, y, z):
             (M[2, 0] * x + M[2, 1] * y + M[2, 2] * z + M[2, 3]) / w)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, forceinline=True)
 def _sample(i, j, s, width, height, unproject, scene, mats, textures, light_tris, light_corners, light_cdf, light_pdf,
             background, max_depth, rr_depth, seed, strategy, record):
     """Sample s of pixel (i, image row j): its ray through a jittered point of the pixel, and the radiance it brings."""

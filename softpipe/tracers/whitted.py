@@ -86,14 +86,14 @@ def _pack_material(m) -> np.ndarray:
                      m.falloff_a, float(max(m.k) > 0.0), *m.conductor_eta, *m.k], np.float64)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _falloff(rows, k, d):
     """The falloff over distance d inside object k's material (§15): T^d, or Glassner's 1/(1 + a·d)."""
     r = rows[k]
     return medium_falloff((r[23], r[24], r[25]), r[26] != 0.0, r[27], d)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, forceinline=True)
 def _material(rows, k):
     r = rows[k]
     return MaterialUniform((r[0], r[1], r[2]), (r[3], r[4], r[5]), (r[6], r[7], r[8]), (r[9], r[10], r[11]), r[12],
