@@ -8,75 +8,21 @@ ending pytest: one process runs every such case of this file (the ``crash_cases`
 from __future__ import annotations
 
 import math
-import os
 import subprocess
-import sys
-import textwrap
 
 import numpy as np
 import pytest
+from case_process import Cases
 
 from softpipe.light.material import Material
 from softpipe.rays.build import binary_tree, wide_tree
 from softpipe.rays.layout import MAX_DEPTH, WIDTH
 from softpipe.rays.traverse import STACK_SIZE
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
 
 def ok(done: subprocess.CompletedProcess) -> str:
     assert done.returncode == 0, f"return code {done.returncode}\n{done.stderr[-3000:]}"
     return done.stdout
-
-
-#: The child of :func:`run_cases`: each case named on its command line run as ``python -c SOURCE ARGS...``
-#: would run it (in ``__main__``, its argv), between markers on both streams; a case's exit status
-#: (SystemExit, or 1 for an exception, whose traceback it prints) follows its end marker.
-_CASES_CHILD = """
-import __main__, json, sys, traceback
-cases = json.loads(sys.stdin.read())
-for name in sys.argv[1:]:
-    source, args = cases[name]
-    for stream in (sys.stdout, sys.stderr):
-        print("\\x1ecase " + name, file=stream, flush=True)
-    sys.argv = ["-c", *args]
-    try:
-        exec(compile(source, "<string>", "exec"), __main__.__dict__)
-        code = 0
-    except SystemExit as stop:
-        code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
-    except BaseException:
-        traceback.print_exc()
-        code = 1
-    sys.stderr.flush()
-    print("\\x1fend " + str(code), flush=True)
-"""
-
-
-def run_cases(cases: dict, timeout: float = 600) -> dict:
-    """``{name: (code, args)}`` run in fresh Pythons, one process for all of them while none crashes:
-    ``{name: CompletedProcess}``, each with the case's own exit status and output. A case that ends its
-    process (a signal, os._exit) gets the process's return code and what it printed; the cases after it
-    run in the next process. One process instead of one a case: each costs an interpreter, numba and
-    softpipe imported, and softpipe's kernels loaded from the caches again."""
-    import json
-    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    payload = json.dumps({name: [textwrap.dedent(code), list(args)] for name, (code, args) in cases.items()})
-    results, left = {}, list(cases)
-    while left:
-        done = subprocess.run([sys.executable, "-c", _CASES_CHILD, *left], input=payload, env=env, cwd=ROOT,
-                              capture_output=True, text=True, timeout=timeout)
-        outs, errs = done.stdout.split("\x1ecase "), done.stderr.split("\x1ecase ")
-        assert len(outs) > 1, f"the cases' process ended before its first case ({done.returncode}):\n{done.stderr}"
-        for out, err in zip(outs[1:], errs[1:]):
-            name, out = out.split("\n", 1)
-            err = err.split("\n", 1)[1] if "\n" in err else ""
-            out, end, code = out.rpartition("\x1fend ")
-            if not end:                                  # the process ended inside this case
-                out, code = code, str(done.returncode)
-            results[name] = subprocess.CompletedProcess([name], int(code.strip()), out, err)
-            left.remove(name)
-    return results
 
 
 # ------------------------------------------------------------------ 1. non-finite rays
@@ -295,7 +241,7 @@ def _case_of(item):
 @pytest.fixture(scope="module")
 def crash_cases(request, tmp_path_factory):
     """``crash_cases(name)``: the CompletedProcess of case ``name``, run (on first use) in one process with
-    the cases of every test of this file that this session runs (:func:`run_cases`)."""
+    the cases of every test of this file that this session runs (case_process.py)."""
     folder = tmp_path_factory.mktemp("crash-cases")
     cases = {"one ray": (_ONE_RAY, ()), "forced ior": (_FORCED_IOR, ())}
     cases.update({shader: (_SHADER_RAY, (shader,)) for shader in ("nan_uniform", "inf_times_zero", "nan_literal")})
@@ -304,19 +250,9 @@ def crash_cases(request, tmp_path_factory):
         scene = folder / how / "glass.toml"
         scene.write_text(_IOR_SCENE.format(program=program))
         cases[f"render {how}"] = (_CLI, ("render", str(scene), how, "-o", str(folder / how / "out.png")))
-    here = request.module.__file__
-    wanted = [c for c in dict.fromkeys(_case_of(item) for item in request.session.items
-                                       if str(item.fspath) == here) if c in cases]
-    results: dict = {}
-
-    class Cases:
-        def __call__(self, name):
-            if not results:
-                results.update(run_cases({c: cases[c] for c in wanted}))
-            assert name in results, f"case {name!r} was not run: {wanted}"
-            return results[name]
-    Cases.folder = folder
-    return Cases()
+    crash_cases = Cases(request, cases, _case_of)
+    crash_cases.folder = folder
+    return crash_cases
 
 
 # ------------------------------------------------------------------ 2. memory asked for before it is taken
