@@ -4,13 +4,12 @@ from __future__ import annotations
 import errno
 import io
 import os
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+from case_process import Cases
 from conftest import run_cli
 from PIL import Image
 
@@ -86,15 +85,35 @@ else:
 """
 
 
-@pytest.mark.parametrize("path", ["fast", "reference"])
-@pytest.mark.parametrize("change", ["base.shape = (1, 40, 8, 4)", "base.dtype = np.float64",
-                                    "base.shape = (2, 4, 40, 4)",
-                                    "fb.pattern.offsets = np.zeros((16, 2), np.int64)"])
-def test_a_changed_buffer_is_refused_before_any_kernel_runs(change, path):
+_CHANGES = ["base.shape = (1, 40, 8, 4)", "base.dtype = np.float64", "base.shape = (2, 4, 40, 4)",
+            "fb.pattern.offsets = np.zeros((16, 2), np.int64)"]
+_PATHS = ["fast", "reference"]
+
+
+def _case_of(item):
+    """The case of ``corrupt_cases`` a collected test of this file reads, or None."""
+    if item.originalname == "test_a_changed_buffer_is_refused_before_any_kernel_runs":
+        return f"{item.callspec.params['change']} ({item.callspec.params['path']})"
+    return None
+
+
+@pytest.fixture(scope="module")
+def corrupt_cases(request):
+    """Each change on each path, in a fresh Python (a crash must fail the case, not end pytest): one process
+    for them all while none crashes (case_process.py)."""
+    cases = {f"{change} ({path})": (CORRUPT.format(change=change, path=path), ())
+             for change in _CHANGES for path in _PATHS}
+    # a changed pattern is the default one, which every later framebuffer of the process would share: such a
+    # case ends its process
+    return Cases(request, cases, _case_of, last=[name for name in cases if name.startswith("fb.pattern")])
+
+
+@pytest.mark.parametrize("path", _PATHS)
+@pytest.mark.parametrize("change", _CHANGES)
+def test_a_changed_buffer_is_refused_before_any_kernel_runs(corrupt_cases, change, path):
     """Even the framebuffer's own array (reached through .base) or its pattern changed in place: an error,
     never a crash or a write out of bounds."""
-    done = subprocess.run([sys.executable, "-c", CORRUPT.format(change=change, path=path)], capture_output=True,
-                          text=True, timeout=300)
+    done = corrupt_cases(f"{change} ({path})")
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.startswith("refused: ") and " changed " in done.stdout, done.stdout
 

@@ -41,11 +41,20 @@ def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
     threads_before = numba.get_num_threads()
     heads = [_git_head()]  # HEAD before and after the run: someone may commit meanwhile
-    code = bench.main(["--scale", str(SCALE), "--frames", "1", "--threads", "1", "--budget", "0",
-                       "--json", str(out / "bench.json"), "--save-images", str(out / "images")])
+    built = {}             # each scene's size and clear color as the run built it (not built again to check them)
+
+    def build_scene(name, scale):
+        scene = original(name, scale)
+        built[name, scale] = (scene.width, scene.height, tuple(scene.clear_color))
+        return scene
+    original = bench.build_scene
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(bench, "build_scene", build_scene)
+        code = bench.main(["--scale", str(SCALE), "--frames", "1", "--threads", "1", "--budget", "0",
+                           "--json", str(out / "bench.json"), "--save-images", str(out / "images")])
     heads.append(_git_head())
     data = json.loads((out / "bench.json").read_text())
-    data["_heads"] = heads
+    data["_heads"], data["_built"] = heads, built
     assert not data["failed"], "\n\n".join(f["traceback"] for f in data["failed"])
     assert code == 0
     assert numba.get_num_threads() == threads_before, "the harness must restore numba's thread count"
@@ -90,10 +99,10 @@ def test_the_source_is_the_checked_out_commit(report):
 def test_every_image_shows_something(report):
     data, images = report
     for row in data["scenes"]:
-        scene = scenes.build_scene(row["scene"], SCALE)
+        width, height, clear_color = data["_built"][row["scene"], SCALE]     # as scenes.build_scene made it
         pixels = np.asarray(Image.open(images / f"{row['scene']}.png"))
-        assert pixels.shape == (scene.height, scene.width, 3)
-        clear = np.rint(np.asarray(scene.clear_color[:3]) * 255).astype(np.uint8)
+        assert pixels.shape == (height, width, 3)
+        clear = np.rint(np.asarray(clear_color[:3]) * 255).astype(np.uint8)
         drawn = np.any(pixels != clear, axis=-1)
         assert drawn.mean() > 0.05, f"{row['scene']}: only {drawn.sum()} pixels differ from the clear color"
 

@@ -669,9 +669,26 @@ sys.stdout.write(np.concatenate([ids, t, b.ravel(), occ, bvh.lo.ravel(), bvh.ord
 
 
 def test_plain_python_gives_the_same_bits():
-    """NUMBA_DISABLE_JIT=1 (every kernel plain Python, for stepping through in a debugger) gives the same bytes."""
+    """NUMBA_DISABLE_JIT=1 (every kernel plain Python, for stepping through in a debugger) gives the same bytes.
+
+    The plain run needs a process of its own (numba reads the flag at import); the compiled run is this
+    process's, where numba compiles (else, the suite run under NUMBA_DISABLE_JIT, a process as well): what
+    it writes and the warnings it gives (all of them shown, as in a fresh process) are taken here."""
+    import contextlib
+    import io
+    import warnings
     runs = {}
     for flag in ("0", "1"):
+        if flag == "0" and not numba.config.DISABLE_JIT:
+            out, err = io.StringIO(), io.StringIO()
+            with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(out), \
+                    contextlib.redirect_stderr(err):
+                warnings.simplefilter("always")
+                exec(compile(_PLAIN_PYTHON_RUN, "<string>", "exec"), {"__name__": "__main__"})
+            shown = err.getvalue() + "".join(f"{w.category.__name__}: {w.message}\n" for w in caught)
+            assert "Warning" not in shown, shown[-2000:]
+            runs[flag] = out.getvalue()
+            continue
         env = dict(os.environ, NUMBA_DISABLE_JIT=flag)
         out = subprocess.run([sys.executable, "-c", _PLAIN_PYTHON_RUN], env=env, capture_output=True, text=True,
                              timeout=300)

@@ -2,8 +2,10 @@
 
 Each run is a fresh Python process (``sys.executable``), because numba reads
 NUMBA_NUM_THREADS and NUMBA_DISABLE_JIT when it is first imported. The child
-renders a scene and writes the raw bytes of the color and depth buffers to a
-file; the test compares the files byte for byte.
+renders scenes and writes the raw bytes of each one's color and depth buffers to
+a file; the test compares the files byte for byte. One child renders every scene
+this file's tests ask of its environment (each child costs an interpreter, numba
+and softpipe, and the kernels loaded again).
 """
 import hashlib
 import os
@@ -63,9 +65,10 @@ def small(blend=None):
 
 
 if __name__ == "__main__":
-    fb = {"busy": busy, "small": small, "small_blend": lambda: small("alpha")}[sys.argv[1]]()
-    with open(sys.argv[2], "wb") as f:
-        f.write(fb.color.tobytes() + fb.depth.tobytes())
+    for scene, out in zip(sys.argv[1::2], sys.argv[2::2]):          # scene, file, scene, file, ...
+        fb = {"busy": busy, "small": small, "small_blend": lambda: small("alpha")}[scene]()
+        with open(out, "wb") as f:
+            f.write(fb.color.tobytes() + fb.depth.tobytes())
 '''
 
 
@@ -76,16 +79,38 @@ def scenes(tmp_path_factory):
     return path
 
 
-def render(scenes, scene, out, **env):
-    e = dict(os.environ)
-    e.pop("NUMBA_DISABLE_JIT", None)
-    e.pop("NUMBA_NUM_THREADS", None)
-    e.update(env)
-    e["PYTHONPATH"] = str(ROOT) + os.pathsep + e.get("PYTHONPATH", "")
-    r = subprocess.run([sys.executable, str(scenes), scene, str(out)], env=e, capture_output=True, text=True,
-                       timeout=300)
-    assert r.returncode == 0, f"child failed ({env}):\n{r.stdout}\n{r.stderr}"
-    return out.read_bytes()
+#: The scenes one child renders in each environment the tests ask for (by the environment's settings).
+SCENES_OF = {(): ("small", "small_blend"), (("NUMBA_DISABLE_JIT", "1"),): ("small", "small_blend"),
+             (("NUMBA_NUM_THREADS", "1"),): ("busy",), (("NUMBA_NUM_THREADS", "2"),): ("busy",)}
+
+
+@pytest.fixture(scope="module")
+def rendered(scenes):
+    """The bytes of ``scene`` rendered in a child with ``env``, as ``rendered[scene, (("NAME", "value"),)]``:
+    the first ask of an environment renders all its scenes in SCENES_OF in one child."""
+    class Rendered(dict):
+        def __missing__(self, key):
+            scene, env = key
+            names = SCENES_OF[env] if scene in SCENES_OF.get(env, ()) else (scene,)
+            outs = [scenes.parent / ("_".join([name, *(f"{k}{v}" for k, v in env)]) + ".bin") for name in names]
+            e = dict(os.environ)
+            e.pop("NUMBA_DISABLE_JIT", None)
+            e.pop("NUMBA_NUM_THREADS", None)
+            e.update(env)
+            e["PYTHONPATH"] = str(ROOT) + os.pathsep + e.get("PYTHONPATH", "")
+            args = [str(a) for pair in zip(names, outs) for a in pair]
+            r = subprocess.run([sys.executable, str(scenes), *args], env=e, capture_output=True, text=True,
+                               timeout=300)
+            assert r.returncode == 0, f"child failed ({dict(env)}):\n{r.stdout}\n{r.stderr}"
+            for name, out in zip(names, outs):
+                self[name, env] = out.read_bytes()
+            return self[key]
+    return Rendered()
+
+
+def render(rendered, scene, **env):
+    """The bytes of ``scene`` rendered in a fresh process with the environment variables ``env``."""
+    return rendered[scene, tuple(sorted(env.items()))]
 
 
 def describe(data, size):
@@ -93,9 +118,9 @@ def describe(data, size):
     return hashlib.sha256(data).hexdigest()[:16], color
 
 
-def test_busy_scene_is_byte_identical_on_one_and_two_threads(scenes, tmp_path):
-    one = render(scenes, "busy", tmp_path / "t1.bin", NUMBA_NUM_THREADS="1")
-    two = render(scenes, "busy", tmp_path / "t2.bin", NUMBA_NUM_THREADS="2")
+def test_busy_scene_is_byte_identical_on_one_and_two_threads(rendered):
+    one = render(rendered, "busy", NUMBA_NUM_THREADS="1")
+    two = render(rendered, "busy", NUMBA_NUM_THREADS="2")
     assert len(one) == 48 * 48 * (16 + 4)
     _, color = describe(one, 48)
     # the scene is busy: most pixels drawn, many different colors
@@ -104,9 +129,9 @@ def test_busy_scene_is_byte_identical_on_one_and_two_threads(scenes, tmp_path):
     assert one == two, f"1 thread: {describe(one, 48)[0]}, 2 threads: {describe(two, 48)[0]}"
 
 
-def compare_jit_and_python(scenes, tmp_path, scene):
-    jit = render(scenes, scene, tmp_path / "jit.bin")
-    py = render(scenes, scene, tmp_path / "py.bin", NUMBA_DISABLE_JIT="1")
+def compare_jit_and_python(rendered, scene):
+    jit = render(rendered, scene)
+    py = render(rendered, scene, NUMBA_DISABLE_JIT="1")
     _, color = describe(jit, 16)
     assert len(np.unique(color.reshape(-1, 4), axis=0)) > 30
     assert (color == (0.125, 0.25, 0.5, 1.0)).all(axis=2).sum() > 0       # some background is left
@@ -116,9 +141,9 @@ def compare_jit_and_python(scenes, tmp_path, scene):
         pytest.fail(f"{len(diff)} pixels differ, e.g. {diff[:5].tolist()}")
 
 
-def test_pure_python_path_gives_the_same_pixels(scenes, tmp_path):
-    compare_jit_and_python(scenes, tmp_path, "small")
+def test_pure_python_path_gives_the_same_pixels(rendered):
+    compare_jit_and_python(rendered, "small")
 
 
-def test_pure_python_path_gives_the_same_pixels_with_blending(scenes, tmp_path):
-    compare_jit_and_python(scenes, tmp_path, "small_blend")
+def test_pure_python_path_gives_the_same_pixels_with_blending(rendered):
+    compare_jit_and_python(rendered, "small_blend")

@@ -135,10 +135,16 @@ def test_every_stage_page_starts_with_the_scene_the_pictures_show():
             f"{page.name}: its first python block differs from the scene in scripts/make_docs_pictures.py")
 
 
-def test_the_picture_script_writes_every_picture(tmp_path):
+def test_the_picture_script_writes_every_picture(tmp_path, monkeypatch, capsys):
+    # the script as `python scripts/make_docs_pictures.py OUT` runs it, here in this process (runpy, as
+    # __main__, its argv and a working folder of its own): nothing in it needs a process
+    import runpy
     out = tmp_path / "pictures"
-    run = subprocess.run([sys.executable, str(SCRIPT), str(out)], capture_output=True, text=True, timeout=300,
-                         cwd=tmp_path)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", [str(SCRIPT), str(out)])
+    with pytest.raises(SystemExit) as end:
+        runpy.run_path(str(SCRIPT), run_name="__main__")
+    run = subprocess.CompletedProcess(sys.argv, end.value.code, *capsys.readouterr())
     assert run.returncode == 0, run.stderr
     from PIL import Image
     written = sorted(p.name for p in out.iterdir())

@@ -1,33 +1,23 @@
 """Hardening of rays and lights (issue #28, round 3): inputs that crashed the process, asked for
 gigabytes, or answered with a misleading message.
 
-The crashes are tested in a subprocess each, so that a segmentation fault fails the test
-instead of ending pytest.
+The crashes are tested in a subprocess, so that a segmentation fault fails the test instead of
+ending pytest: one process runs every such case of this file (the ``crash_cases`` fixture), each as
+``python -c`` would, and a crash in one case fails that case and the next process runs the rest.
 """
 from __future__ import annotations
 
 import math
-import os
 import subprocess
-import sys
-import textwrap
 
 import numpy as np
 import pytest
+from case_process import Cases
 
 from softpipe.light.material import Material
 from softpipe.rays.build import binary_tree, wide_tree
 from softpipe.rays.layout import MAX_DEPTH, WIDTH
 from softpipe.rays.traverse import STACK_SIZE
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def run_python(code: str, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
-    """``code`` in a fresh Python with this softpipe; a crash is a return code, not pytest's end."""
-    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code), *args], env=env, cwd=ROOT,
-                          capture_output=True, text=True, timeout=timeout)
 
 
 def ok(done: subprocess.CompletedProcess) -> str:
@@ -76,10 +66,10 @@ print("deep", along[0] >= 0, across[0] == 900 and across[1] == 1.0, sep=";")
 """
 
 
-def test_a_non_finite_ray_misses_instead_of_crashing_closest_hit_and_any_hit():
+def test_a_non_finite_ray_misses_instead_of_crashing_closest_hit_and_any_hit(crash_cases):
     """A NaN ray entered every box (NaN compares false: no constraint), the empty lanes too, whose link is
     the root: the traversal looped until its fixed stack overflowed (SIGSEGV). Now it misses."""
-    lines = ok(run_python(_ONE_RAY)).splitlines()
+    lines = ok(crash_cases("one ray")).splitlines()
     answers = {name: (hit, any_) for name, hit, any_ in (line.split(";") for line in lines)}
     misses = ["nan origin", "nan direction", "one nan", "inf direction", "inf times zero", "inf origin",
               "zero direction", "nan t range", "nan t_max"]
@@ -131,10 +121,10 @@ print(int((fb.color[..., 0] == 1.0).sum()), int((fb.color[..., 0] == 0.0).sum())
 
 
 @pytest.mark.parametrize("shader", ["nan_uniform", "inf_times_zero", "nan_literal"])
-def test_a_non_finite_ray_from_a_fragment_shader_misses(shader):
+def test_a_non_finite_ray_from_a_fragment_shader_misses(crash_cases, shader):
     """trace_any / trace_closest from a fragment shader with a NaN uniform, inf·0 or a NaN literal: every
     fragment's ray misses (the floor drawn white), where the process used to die."""
-    white, black = map(int, ok(run_python(_SHADER_RAY, shader)).split())
+    white, black = map(int, ok(crash_cases(shader)).split())
     assert white > 100 and black == 0
 
 
@@ -198,15 +188,16 @@ material = {{ kd = 0.2, kt = 0.8, ior = 1e200 }}
 """
 
 
-@pytest.mark.parametrize("how, program", [("--raytrace", ""), ("--rays", 'program = "hall"')])
-def test_a_scene_file_with_ior_1e200_is_refused_by_name(tmp_path, how, program):
+_CLI = "import sys\nfrom softpipe.tools.cli import main\nsys.exit(main(sys.argv[1:]))"   # `softpipe ARGS`
+_IOR_PROGRAMS = {"--raytrace": "", "--rays": 'program = "hall"'}     # the scene file's [render] line, by option
+
+
+@pytest.mark.parametrize("how, program", list(_IOR_PROGRAMS.items()))
+def test_a_scene_file_with_ior_1e200_is_refused_by_name(crash_cases, how, program):
     """The scene file of the issue: `softpipe render --raytrace` (and the hall program with --rays) died
     with SIGSEGV; now the file's material is refused, naming the file, the bound and the value."""
-    scene = tmp_path / "glass.toml"
-    scene.write_text(_IOR_SCENE.format(program=program))
-    out = tmp_path / "out.png"
-    done = run_python("import sys\nfrom softpipe.tools.cli import main\nsys.exit(main(sys.argv[1:]))",
-                      "render", str(scene), how, "-o", str(out))
+    done = crash_cases(f"render {how}")
+    out = crash_cases.folder / how / "out.png"          # the scene file glass.toml beside it
     assert done.returncode == 2, done.stderr[-3000:]
     assert "glass.toml: [[meshes]] #1" in done.stderr or "glass.toml:" in done.stderr
     assert ("Material.ior must be between 0.001 and 1000 (real media are about 1 to 4; outside this range "
@@ -231,9 +222,37 @@ print(bool(np.isfinite(fb.color).all()))
 """
 
 
-def test_the_ray_tracer_survives_an_ior_that_makes_nan_rays():
+def test_the_ray_tracer_survives_an_ior_that_makes_nan_rays(crash_cases):
     """Should an ior of 1e200 reach the tracer anyway (here past the check), its NaN refracted rays miss."""
-    assert ok(run_python(_FORCED_IOR)).split()[-1] in ("True", "False")
+    assert ok(crash_cases("forced ior")).split()[-1] in ("True", "False")
+
+
+# ------------------------------------------------------------------ the process of the cases above
+
+def _case_of(item):
+    """The case of :func:`crash_cases` a collected test of this file reads, or None."""
+    params = item.callspec.params if hasattr(item, "callspec") else {}
+    return {"test_a_non_finite_ray_misses_instead_of_crashing_closest_hit_and_any_hit": "one ray",
+            "test_a_non_finite_ray_from_a_fragment_shader_misses": params.get("shader"),
+            "test_a_scene_file_with_ior_1e200_is_refused_by_name": f"render {params.get('how')}",
+            "test_the_ray_tracer_survives_an_ior_that_makes_nan_rays": "forced ior"}.get(item.originalname)
+
+
+@pytest.fixture(scope="module")
+def crash_cases(request, tmp_path_factory):
+    """``crash_cases(name)``: the CompletedProcess of case ``name``, run (on first use) in one process with
+    the cases of every test of this file that this session runs (case_process.py)."""
+    folder = tmp_path_factory.mktemp("crash-cases")
+    cases = {"one ray": (_ONE_RAY, ()), "forced ior": (_FORCED_IOR, ())}
+    cases.update({shader: (_SHADER_RAY, (shader,)) for shader in ("nan_uniform", "inf_times_zero", "nan_literal")})
+    for how, program in _IOR_PROGRAMS.items():
+        (folder / how).mkdir()
+        scene = folder / how / "glass.toml"
+        scene.write_text(_IOR_SCENE.format(program=program))
+        cases[f"render {how}"] = (_CLI, ("render", str(scene), how, "-o", str(folder / how / "out.png")))
+    crash_cases = Cases(request, cases, _case_of)
+    crash_cases.folder = folder
+    return crash_cases
 
 
 # ------------------------------------------------------------------ 2. memory asked for before it is taken

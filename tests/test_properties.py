@@ -602,10 +602,21 @@ DETERMINISM_SEEDS = list(range(20)) if LONG else [0, 1, 2]
 
 
 def run_scenes(tmp_path, w, h, most, seeds, **env):
-    """Render the seeds' scenes (both paths, 1 and 4 samples) in a fresh process with ``env``; the bytes."""
+    """Render the seeds' scenes (both paths, 1 and 4 samples) in a fresh process with ``env``; the bytes.
+
+    Without ``env`` (numba compiling, its threads as they are) the scenes are rendered in this process,
+    as the script's ``__main__`` would: a process of its own would change nothing but the cost."""
     script = tmp_path / "scenes.py"
     script.write_text(DETERMINISM_SCRIPT)
     out = tmp_path / ("out_" + "_".join(f"{k}{v}" for k, v in env.items()) + ".bin")
+    if not env and not os.environ.get("NUMBA_DISABLE_JIT") and not os.environ.get("NUMBA_NUM_THREADS"):
+        argv = sys.argv
+        sys.argv = [str(script), str(out), str(w), str(h), ",".join(map(str, seeds)), str(most)]
+        try:
+            exec(compile(DETERMINISM_SCRIPT, str(script), "exec"), {"__name__": "__main__"})
+        finally:
+            sys.argv = argv
+        return out.read_bytes()
     e = {k: v for k, v in os.environ.items() if k not in ("NUMBA_NUM_THREADS", "NUMBA_DISABLE_JIT")}
     e.update(env)
     e["PYTHONPATH"] = str(ROOT) + os.pathsep + e.get("PYTHONPATH", "")
