@@ -64,8 +64,8 @@ def jit_function(fn: Callable) -> Callable:
     (``forceinline``: the loops run as if it were written in them). numba's own
     inlining (``inline="always"``) would type the shader, and everything it calls,
     again inside every loop: a lit program's loops took several times as long to
-    compile (docs/08-fast-path.md). softpipe's own shaders are also kept in numba's
-    on-disk cache, so a second process loads them.
+    compile (docs/08-fast-path.md). softpipe's own shaders are one dispatcher each per
+    process, shared by every module that runs them.
     """
     if not callable(fn):
         raise TypeError(f"a shader must be a function, got {type(fn).__name__}")
@@ -76,7 +76,9 @@ def jit_function(fn: Callable) -> Callable:
     if importable_shader(fn) is None:
         return numba.njit(fn, forceinline=True)
     if fn not in _OWN_SHADERS:
-        _OWN_SHADERS[fn] = numba.njit(fn, forceinline=True, cache=True)
+        # not numba's on-disk cache: the shader's signature names the generated module's Varyings
+        # class, which another process cannot unpickle; the loops that inline it are cached instead
+        _OWN_SHADERS[fn] = numba.njit(fn, forceinline=True)
     return _OWN_SHADERS[fn]
 
 
