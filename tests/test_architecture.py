@@ -18,6 +18,7 @@ from __future__ import annotations
 import ast
 import importlib
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -185,10 +186,16 @@ def test_generated_modules_import_only_the_contract_their_generator_and_the_setu
         return (varyings.c, 0.0, 0.0, 1.0)
 
     source = kernels.fragment_module(shader, VaryingLayout.from_sizes([("c", 1)])).__softpipe_source__
-    imports = {m for line in source.splitlines() if line.startswith(("import ", "from "))
-               for m in [line.split()[1]]}
-    assert imports == {"numba", "collections", "softpipe.language.contract", "softpipe.language.kernels",
-                       "softpipe.pipeline.setup"}, imports
+    def imports_of(source):
+        return {m for line in source.splitlines() if line.startswith(("import ", "from ")) for m in [line.split()[1]]}
+
+    imports = imports_of(source)
+    varyings = {m for m in imports if m.startswith("softpipe_varyings_")}     # its layout's varyings module
+    assert len(varyings) == 1 and imports - varyings == {
+        "numba", "collections", "softpipe.language.contract", "softpipe.language.kernels",
+        "softpipe.pipeline.setup"}, imports
+    assert imports_of(sys.modules[varyings.pop()].__softpipe_source__) == {
+        "numba", "collections", "softpipe.language.contract", "softpipe.language.kernels"}
     from softpipe.pipeline import raster, setup
     names = {n.strip() for line in source.splitlines() if line.startswith("from softpipe.pipeline.setup import")
              for n in line.split("import", 1)[1].split(",")}

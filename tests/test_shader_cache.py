@@ -257,3 +257,39 @@ def test_a_shader_no_key_can_name_is_compiled_per_process_not_cached():
     assert shader_source_key(_exec_shader(listed, "scene.py")) is None               # a list global
     # exec'd in a namespace that is no module: numba's cache could not load it by its module's name
     assert shader_source_key(_exec_shader(SHADER.format(mark=1.0, tint=0.5), "page.md", "__page__")) is None
+
+
+def test_the_shaders_of_one_varying_layout_share_one_compiled_interpolation():
+    """The varyings module is generated once per layout: two shaders' loops import the same ``interpolate``,
+    which both draws use at one signature; another layout has its own."""
+    import numpy as np
+
+    import softpipe as sp
+    from softpipe.language import kernels
+    from softpipe.language.contract import VaryingLayout
+
+    def plain(varyings, uniforms, frag):
+        c = varyings.shared_layout_color
+        return (c[0], c[1], c[2], 1.0)
+
+    def inverted(varyings, uniforms, frag):
+        c = varyings.shared_layout_color
+        return (1.0 - c[0], 1.0 - c[1], 1.0 - c[2], 1.0)
+
+    layout = VaryingLayout.from_sizes([("shared_layout_color", 3)])
+    a, b = kernels.fragment_module(plain, layout), kernels.fragment_module(inverted, layout)
+    assert a is not b and a.interpolate is b.interpolate and a.Varyings is b.Varyings
+    assert a.fragment_loop is not b.fragment_loop
+    assert "def interpolate" not in a.__softpipe_source__ and a.interpolate.__module__.startswith("softpipe_varyings_")
+    other = kernels.fragment_module(plain, VaryingLayout.from_sizes([("shared_layout_color", 4)]))
+    assert other.interpolate is not a.interpolate
+
+    positions = np.array([[-1.0, -1.0, 0.0, 1.0], [3.0, -1.0, 0.0, 1.0], [-1.0, 3.0, 0.0, 1.0]])
+    color = np.full((3, 3), 0.25)
+    pictures = []
+    for shader in (plain, inverted):
+        fb = sp.Framebuffer(4, 3)
+        sp.draw(fb, positions, varyings={"shared_layout_color": color}, fragment_shader=shader, path="reference")
+        pictures.append(fb.color[..., :3])
+    assert np.all(pictures[0] == np.float32(0.25)) and np.all(pictures[1] == np.float32(0.75))
+    assert len(a.interpolate.signatures) == 1

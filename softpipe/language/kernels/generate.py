@@ -12,11 +12,14 @@ and ``templates/fragment.py``, and the interpolation of one varying component
 line per varying, the attributes' unpacking) into them (:mod:`.template` says how).
 
 - **Vertex loop** (:func:`vertex_kernel`): attributes in, clip position and varyings out.
-- **Fragment loops** (:func:`fragment_module`): ``interpolate`` (the varyings at
-  barycentrics, with their qualifiers), ``fragment_loop`` (the reference path: one
-  row per fragment) and ``visible_loop`` (the fast path: the samples the
+- **Varyings** (:func:`varyings_module`): one module per varying layout, shared by
+  every shader of that layout: the ``Varyings`` namedtuple, ``interpolate`` (the
+  varyings at barycentrics, with their qualifiers) and ``fragment_inputs``;
+  compiled once, however many shaders run on it.
+- **Fragment loops** (:func:`fragment_module`): ``fragment_loop`` (the reference
+  path: one row per fragment) and ``visible_loop`` (the fast path: the samples the
   visibility pass kept, with barycentrics, depth and position from the same
-  triangle setup functions the rasterizer uses). The color a fragment shader
+  triangle setup functions the rasterizer uses), importing their layout's varyings. The color a fragment shader
   returns goes through :func:`~.diagnostics.rgba`, which refuses (when numba types
   it) anything but 4 numbers. For a framebuffer of several attachments the module
   has ``fragment_loop_outputs`` too (its values through :func:`~.diagnostics.outputs`);
@@ -26,28 +29,35 @@ A generated module imports only :mod:`softpipe.language.contract` (the contract)
 kernels package (``borrowed_tuple``, ``jit_function``, ``rgba``, ``short_repr``) and,
 for the fragment loops, the triangle setup's per-sample functions
 (:mod:`softpipe.pipeline.setup`: ``pixel_coverage``, ``shading_point``,
-``sample_depth``, the ones the rasterizer calls): ``_HEADER`` and
-``_FRAGMENT_IMPORTS`` below are every import it has. Where it is kept:
+``sample_depth``, the ones the rasterizer calls) and its layout's varyings module:
+``_HEADER``, ``_FRAGMENT_IMPORTS`` and ``_fragment_preamble`` below are every import it has. Where it is kept:
 :mod:`.cache`. More: docs/05-fragment.md (a generated loop), docs/08-fast-path.md.
 """
 from __future__ import annotations
 
 import hashlib
 import re
+import sys
 import types
 from typing import Callable, Dict, NamedTuple, Optional, Sequence, Tuple
 
 import numba
 
 from softpipe.language.contract import VaryingLayout, python_function, shader_name, wants_derivatives
-from softpipe.language.kernels.cache import cached_file_name, cached_module, importable_shader, load_cached
+from softpipe.language.kernels.cache import (
+    COMPILE_LOCK,
+    cached_file_name,
+    cached_module,
+    importable_shader,
+    load_cached,
+)
 from softpipe.language.kernels.snapshot import shader_snapshot, shader_source_key
 from softpipe.language.kernels.template import template_expression, template_function
 
 #: A framebuffer's color attachments, ((name, format), ...) in location order.
 Attachments = Tuple[Tuple[str, str], ...]
 
-__all__ = ["outputs_spec", "vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
+__all__ = ["outputs_spec", "vertex_kernel", "varyings_module", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
            "kernel_source", "exec_module", "jit_function", "short_repr"]
 
 
@@ -174,9 +184,12 @@ def exec_module(source: str, shader: Callable, kind: str, python: bool = False,
 
 
 def kernel_source(kind: str, shader: Callable, layout: VaryingLayout) -> str:
-    """The generated Python source of a fragment (``kind="fragment"``) loop, to read it."""
+    """The generated Python source, to read it: ``kind="fragment"``, the shader's loops; ``"varyings"``,
+    its layout's varyings module (``interpolate``, ``fragment_inputs``), which the loops import."""
+    if kind == "varyings":
+        return varyings_module(layout, wants_derivatives(shader)).__softpipe_source__
     if kind != "fragment":
-        raise ValueError("kernel_source: only kind='fragment' is supported")
+        raise ValueError(f"kernel_source: kind must be 'fragment' or 'varyings', got {kind!r}")
     return fragment_module(shader, layout).__softpipe_source__
 
 
@@ -298,9 +311,9 @@ def _output_lines(attachments: Attachments) -> list:
     return lines
 
 
-def _fragment_body(layout: VaryingLayout, derivatives: bool = False, attachments: Attachments = ()) -> str:
-    """Source of ``interpolate``, ``fragment_inputs``, ``inputs_loop``, ``fragment_loop`` and the two visible
-    loops (templates/fragment.py) for a varying layout, for a shader that takes ``derivatives`` or not."""
+def _varyings_body(layout: VaryingLayout, derivatives: bool) -> str:
+    """Source of ``interpolate``, ``fragment_inputs`` and ``inputs_loop`` (templates/fragment.py) for a
+    varying layout, for shaders that take ``derivatives`` or not: the varyings module's functions."""
     smooth = any(q == "smooth" for *_, q in layout.fields)
     varyings, values = _varying_lines(layout)
     fill = {"VARYINGS_AT_BARYCENTRICS": varyings, "VARYING_VALUES": values}
@@ -308,10 +321,18 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False, attachments
         (dx, dx_values), (dy, dy_values) = _derivative_lines(layout, 0), _derivative_lines(layout, 1)
         fill.update(DERIVATIVES_X=dx, DX_VALUES=dx_values, DERIVATIVES_Y=dy, DY_VALUES=dy_values)
     flags = {"DERIVATIVES": derivatives}
-    functions = [
+    return "\n\n".join([
         template_function("fragment", "interpolate", dict(flags, SMOOTH=smooth), fill),
         template_function("fragment", "fragment_inputs"),
         template_function("fragment", "inputs_loop", flags, {"STORE_VARYINGS": _store_lines(layout)}),
+    ])
+
+
+def _fragment_body(derivatives: bool = False, attachments: Attachments = ()) -> str:
+    """Source of ``fragment_loop`` and the two visible loops (templates/fragment.py), for a shader that takes
+    ``derivatives`` or not; and of ``fragment_loop_outputs`` for ``attachments`` of more than one."""
+    flags = {"DERIVATIVES": derivatives}
+    functions = [
         template_function("fragment", "fragment_loop", flags),
         template_function("fragment", "visible_loop", flags),
         # shading 0 (at the samples) alone: the multisampling branches left out
@@ -323,9 +344,72 @@ def _fragment_body(layout: VaryingLayout, derivatives: bool = False, attachments
     return "\n\n".join(functions)
 
 
-def _fragment_preamble(layout: VaryingLayout, attachments: Attachments = ()) -> str:
+#: What a varyings module imports: numba, the contract's FragInfo and Derivatives, and the repr of its Varyings.
+_VARYINGS_HEADER = ("# Generated by softpipe.language.kernels.generate: the varyings of one layout at a fragment.\n"
+                    "import numba\n"
+                    "from collections import namedtuple\n"
+                    "from softpipe.language.contract import Derivatives, FragInfo\n"
+                    "from softpipe.language.kernels import short_repr\n")
+#: The names a shader's module imports from its layout's varyings module.
+_VARYINGS_NAMES = "Varyings, interpolate, fragment_inputs, inputs_loop"
+#: The varyings modules of this process, by (layout fields, derivatives, plain Python).
+_VARYINGS_MODULES: Dict[tuple, types.ModuleType] = {}
+
+
+def _varyings_source(layout: VaryingLayout, derivatives: bool, cached: bool) -> str:
+    body = _varyings_body(layout, derivatives)
+    tag = hashlib.sha256(body.encode()).hexdigest()[:12]
+    return (_VARYINGS_HEADER + f"JIT = numba.njit(cache={bool(cached)}, nogil=True)\n"
+            + _namedtuple_line("Varyings", "Varyings", list(layout.names) or ["none"]).replace("@TAG@", tag)
+            + "\n\n" + body)
+
+
+def varyings_module(layout: VaryingLayout, derivatives: bool, python: bool = False) -> types.ModuleType:
+    """The module of one varying layout's ``Varyings``, ``interpolate``, ``fragment_inputs`` and ``inputs_loop``.
+
+    Every shader of a layout runs on the same varyings: its module imports them from
+    here, so they are compiled once for all of them (per process, and kept in numba's
+    on-disk cache) and every shader of the layout is typed with one ``Varyings`` class.
+    The module is named for its source (``softpipe_varyings_…``) and is in
+    ``sys.modules``, where the shader modules' imports and numba's cache find it. With
+    ``python``, the same source as plain Python (``softpipe_varyings_…_python``), for
+    :func:`python_fragment_module`.
+    """
+    key = (layout.fields, bool(derivatives), bool(python))
+    module = _VARYINGS_MODULES.get(key)
+    if module is not None:
+        return module
+    with COMPILE_LOCK:
+        module = _VARYINGS_MODULES.get(key)
+        if module is not None:
+            return module
+        source = _varyings_source(layout, derivatives, cached=True)
+        name = cached_file_name(source, "varyings", ())
+        module = None
+        if not python and not numba.config.DISABLE_JIT:
+            try:
+                module = load_cached(source, name)
+            except OSError:
+                pass  # an unwritable cache directory: compile in memory instead
+        if module is None:
+            if python:
+                name += "_python"
+            source = _varyings_source(layout, derivatives, cached=False)
+            module = types.ModuleType(name)
+            if python:
+                source = re.sub(r"JIT = numba\.njit\([^)]*\)", "JIT = lambda f: f", source)
+            exec(compile(source, f"<softpipe varyings {name}>", "exec"), module.__dict__)
+            module.__softpipe_source__ = source  # type: ignore[attr-defined]  # as load_cached's
+            sys.modules[name] = module     # where the shader modules' imports find it
+        _VARYINGS_MODULES[key] = module
+    return module
+
+
+def _fragment_preamble(layout: VaryingLayout, derivatives: bool, attachments: Attachments = (),
+                       python: bool = False) -> str:
+    varyings = varyings_module(layout, derivatives, python).__name__
     return (_FRAGMENT_IMPORTS + (_OUTPUTS_IMPORT if len(attachments) > 1 else "")
-            + _namedtuple_line("Varyings", "Varyings", list(layout.names) or ["none"]))
+            + f"from {varyings} import {_VARYINGS_NAMES}\n")
 
 
 def fragment_module(shader: Callable, layout: VaryingLayout, attachments: Attachments = ()) -> types.ModuleType:
@@ -347,9 +431,9 @@ def _fragment_module(shader: Callable, layout: VaryingLayout, derivatives: bool,
     """
     key = ("fragment", python_function(shader), layout.fields, derivatives) + ((attachments,) if attachments else ())
     return cached_module(key, shader,
-                         lambda globals_key: _compile_module(_fragment_body(layout, derivatives, attachments), shader,
-                                                             _fragment_preamble(layout, attachments), "fragment",
-                                                             globals_key))
+                         lambda globals_key: _compile_module(_fragment_body(derivatives, attachments), shader,
+                                                             _fragment_preamble(layout, derivatives, attachments),
+                                                             "fragment", globals_key))
 
 
 def fragment_kernel(shader: Callable, layout: VaryingLayout, attachments: Attachments = ()) -> Callable:
@@ -372,6 +456,7 @@ def visible_kernel(shader: Callable, layout: VaryingLayout, shading: str = "samp
 
 def python_fragment_module(shader: Callable, layout: VaryingLayout) -> types.ModuleType:
     """The same generated module as plain Python (no numba), for stepping through one fragment."""
-    source = _module_source(_fragment_body(layout, wants_derivatives(shader)), shader, _fragment_preamble(layout),
+    derivatives = wants_derivatives(shader)
+    source = _module_source(_fragment_body(derivatives), shader, _fragment_preamble(layout, derivatives, python=True),
                             cached=False)
     return exec_module(source, shader, "fragment", python=True)
