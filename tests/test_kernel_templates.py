@@ -122,7 +122,8 @@ SMOOTH_FLAT_NOPERSPECTIVE = VaryingLayout((("n", 0, 3, "smooth"), ("id", 3, 1, "
 @pytest.mark.parametrize("layout", [VaryingLayout(), SMOOTH_FLAT_NOPERSPECTIVE])
 @pytest.mark.parametrize("derivatives", [False, True])
 def test_the_generated_loops_have_no_placeholder_left(layout, derivatives):
-    body = generate._fragment_body(layout, derivatives)
+    # the layout's varyings module, then a shader's loops
+    body = generate._varyings_body(layout, derivatives) + "\n\n" + generate._fragment_body(derivatives)
     tree = ast.parse(body)
     assert [f.name for f in tree.body] == ["interpolate", "fragment_inputs", "inputs_loop", "fragment_loop",
                                            "visible_loop", "visible_loop_at_samples"]
