@@ -13,12 +13,15 @@ with ``record=True`` and the names of the buffers asked for. Three steps:
 2. **the pass** (:func:`_derive_rows`): a numba kernel over image rows, run in bands
    on both cores (:func:`softpipe.core.parallel.in_bands`, softpipe's one way of using
    both, rather than numba's ``prange``: that module says why); each pixel is computed and
-   written by one iteration, from its own record value alone, so the buffers do not
-   depend on the thread count. Per pixel: the sample of least depth (the first of
-   equals), the record value taken apart (draw, instance, primitive), the ids, and for
-   a triangle the perspective-correct barycentrics at the pixel centre from its source
-   clip corners, then position, eye depth, normal and uv; only the buffers asked for
-   are written.
+   written by the band of its row, from its own record value alone, so the buffers do not
+   depend on the thread count. Per row: the background's values written over the whole
+   row (:func:`_fill_background`, one short loop per buffer, into memory the row then
+   finds in cache), then the row's covered pixels listed (record value ≥ 0), and only
+   those computed: the sample of least depth (the first of equals), the record value
+   taken apart (draw, instance, primitive), the ids, and for a triangle the
+   perspective-correct barycentrics at the pixel centre from its source clip corners,
+   then position, eye depth, normal and uv; only the buffers asked for are written. (A
+   frame is mostly background: the bunny at 1024² covers 22 % of its pixels.)
 3. **the textures** (:func:`_sample_textures`): a textured draw's albedo is kd times
    :func:`softpipe.light.texture.texture_lod` at the pixel's uv, level 0 — the
    texture is a different numba type per draw, so the pass leaves the uv of those
@@ -309,7 +312,7 @@ def _interpolated(b0, b1, b2, a, r0, r1, r2, c):
     return ((0.0 + b0 * a[r0, c]) + b1 * a[r1, c]) + b2 * a[r2, c]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _fill_background(a, b, w_depth, w_linear, w_position, w_normal, w_object, w_triangle, w_bary, w_uv, w_albedo,
                      w_texture, out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary,
                      out_uv, out_albedo, texture_draw):
@@ -359,9 +362,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
     """Rows lo:hi of the buffers. The pixel arrays are flat (pixel p = row·width + column): record and
     depth [S, H·W], the buffers [H·W] or [H·W, c]; a buffer not asked for is empty and not written.
 
-    Each row is first written as background (:func:`_fill_background`); then only its covered pixels
-    (a record value ≥ 0) are computed and overwrite it, with the values a pixel of no surface keeps
-    (a line's NaN normal, …) left as the fill wrote them."""
+    Each row is first written as background (:func:`_fill_background`); then its covered pixels (a
+    record value ≥ 0) are listed in a loop of nothing else, and only they are computed, overwriting
+    the fill where they have a value (a line's normal stays the fill's NaN)."""
     samples = record.shape[0]
     draws = ints.shape[0]
     # the flags read once into scalars: a flag in an array would be loaded again after every store to a
@@ -377,16 +380,26 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
     triangle_topology = surface = textured = False
     viewport = np.int64(0)
     kd0 = kd1 = kd2 = np.float32(0.0)
+    covered, picks = np.empty(width, np.int64), np.empty(width, np.int64)    # a row's covered pixels, samples
     for j in range(lo, hi):
         bad[j] = -1
         _fill_background(j * width, (j + 1) * width, w_depth, w_linear, w_position, w_normal, w_object, w_triangle,
                          w_bary, w_uv, w_albedo, w_texture, out_depth, out_linear, out_position, out_normal,
                          out_object, out_triangle, out_bary, out_uv, out_albedo, texture_draw)
-        for p in range(j * width, (j + 1) * width):
-            # the pixel's sample: the one of least depth, the first of equals (np.argmin: a NaN first)
-            pick = 0
-            if samples > 1:
-                least = depth[0, p]
+        if draws == 0:                           # no surface (a frame of no draws has none): the fill's values
+            continue
+        # the row's covered pixels first, in a loop of nothing else (a record value < 0: no surface, the
+        # fill's values), with each one's sample: the one of least depth, the first of equals (np.argmin:
+        # a NaN first)
+        m = 0
+        if samples == 1:
+            for p in range(j * width, (j + 1) * width):
+                if record[0, p] >= 0:
+                    covered[m] = p
+                    m += 1
+        else:
+            for p in range(j * width, (j + 1) * width):
+                pick, least = 0, depth[0, p]
                 if not math.isnan(least):
                     for s in range(1, samples):
                         z = depth[s, p]
@@ -395,9 +408,13 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                             break
                         if z < least:
                             pick, least = s, z
+                if record[pick, p] >= 0:
+                    covered[m], picks[m] = p, pick
+                    m += 1
+        for c in range(m):
+            p = covered[c]
+            pick = picks[c] if samples > 1 else 0
             value = record[pick, p]
-            if value < 0 or draws == 0:          # no surface (a frame of no draws has none): the fill's values
-                continue
             # the record value taken apart: the last draw whose range starts at or below it
             k = 0
             if draws > 1:
