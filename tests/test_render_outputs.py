@@ -492,8 +492,8 @@ def derived_twice(monkeypatch):
     import softpipe.scenes.drawing as drawing
     pairs: list = []
 
-    def both(fb, names, objects=()):
-        got = derive_outputs(fb, names, objects)
+    def both(fb, names, objects=(), **options):
+        got = derive_outputs(fb, names, objects, **options)
         pairs.append((got, _numpy_derive_outputs(fb, names, objects)))
         return got
     monkeypatch.setattr(drawing, "derive_outputs", both)
@@ -614,6 +614,76 @@ def test_ten_thousand_instances_give_the_numpy_derivations_bits():
         _assert_same_bits(name, got[name], expected[name])
     _, instance, _ = split_record(fb.record, fb.recorded_draws)
     assert len(np.unique(instance)) > 100
+
+
+def _banded_frame() -> Framebuffer:
+    """A 512×96 frame, three bands of rows for the pass (grain 32 rows at this width): rows 40–59 hold a
+    quad of normals and uv (draw 0); the other rows hold no geometry but pixel (300, 80), the one
+    centre inside a triangle smaller than a pixel (draw 1)."""
+    w, h = 512, 96
+    fb = Framebuffer(w, h, record=True)
+
+    def vs(attributes, uniforms):
+        p = attributes.position
+        return (p[0], p[1], p[2], 1.0), Varyings((1.0, 1.0, 1.0))
+
+    top, bottom = 1 - 2 * 40.0 / h, 1 - 2 * 60.0 / h        # the edges of rows 40 and 59
+    quad = np.array([[-0.9, bottom, 0.5], [0.8, bottom, 0.1], [-0.7, top, 0.2], [0.9, top, 0.4]])
+    normals = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, 0.6, 0.8], [0.36, 0.48, 0.8]])
+    sp.draw(fb, quad, np.array([[0, 1, 2], [2, 1, 3]]), vertex_shader=vs,
+            attributes={"normal": normals, "uv": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])})
+    x, y = 2 * 300.5 / w - 1, 1 - 2 * 80.5 / h                # pixel (300, 80)'s centre, and 0.3–0.4 pixel round it
+    tiny = np.array([[x - 0.6 / w, y - 0.6 / h, 0.0], [x + 0.8 / w, y - 0.6 / h, 0.0], [x - 0.6 / w, y + 0.8 / h, 0.0]])
+    sp.draw(fb, tiny, np.array([[0, 1, 2]]), vertex_shader=vs, attributes={"normal": np.tile([0.0, 0.0, 1.0], (3, 1))})
+    return fb
+
+
+def test_empty_bands_and_a_single_covered_pixel_give_the_numpy_derivations_bits():
+    # the pass writes each row as background first and then only its covered pixels: rows of no
+    # geometry, a row of one covered pixel and rows of a surface all as the numpy derivation
+    fb = _banded_frame()
+    got, expected = derive_outputs(fb, OUTPUTS), _numpy_derive_outputs(fb, OUTPUTS)
+    for name in OUTPUTS:
+        _assert_same_bits(name, got[name], expected[name])
+    rows, cols = np.nonzero(got["object_id"] >= 0)
+    assert set(rows[got["object_id"][rows, cols] == 0]) == set(range(40, 60))
+    assert list(zip(rows[got["object_id"][rows, cols] == 1], cols[got["object_id"][rows, cols] == 1])) == [(80, 300)]
+    assert np.isfinite(got["normal"][80, 300]).all() and np.isnan(got["normal"][81]).all()
+    assert (got["depth"][:40] == 1.0).all() and (got["triangle_id"][60:80] == -1).all()
+
+
+def test_the_buffers_do_not_depend_on_the_thread_count():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread here")
+    fb = _banded_frame()
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = derive_outputs(fb, OUTPUTS)
+        numba.set_num_threads(2)
+        two = derive_outputs(fb, OUTPUTS)
+    finally:
+        numba.set_num_threads(before)
+    for name in OUTPUTS:
+        assert one[name].tobytes() == two[name].tobytes(), name
+
+
+def test_render_hands_out_its_framebuffers_color_and_derive_outputs_copies_it():
+    out = sp.render("suzanne", width=W, height=H, outputs=("color", "depth"))
+    fb = out.framebuffer
+    # render's framebuffer is made for the call and drawn into no more: its color is handed out, not copied
+    assert np.shares_memory(out["color"], fb.color)
+    np.testing.assert_array_equal(out["color"], fb.color)
+    # derive_outputs on a framebuffer that may be drawn into again copies it (unless told not to)
+    kept = derive_outputs(fb, ("color",))["color"]
+    before = kept.copy()
+    fb.clear("red")
+    np.testing.assert_array_equal(kept, before)
+    assert np.shares_memory(derive_outputs(fb, ("color",), copy_color=False)["color"], fb.color)
+    # with several samples, color is the resolve: a new array, copied or not
+    msaa = sp.render("suzanne", width=W, height=H, samples="rgss4", outputs=("color",))
+    assert not np.shares_memory(msaa["color"], msaa.framebuffer.samples_color)
+    np.testing.assert_array_equal(msaa["color"], msaa.framebuffer.color)
 
 
 def test_a_record_changed_after_drawing_is_refused_naming_the_pixel():

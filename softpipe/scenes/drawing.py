@@ -800,7 +800,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
     if results is not None:
         results.extend(drawn)
     if names is not None:
-        return RenderOutputs(fb, derive_outputs(fb, names, scene.drawn_objects(camera)))
+        # fb is this call's own and drawn into no more: its color is handed out, not copied
+        return RenderOutputs(fb, derive_outputs(fb, names, scene.drawn_objects(camera), copy_color=False))
     return fb
 
 

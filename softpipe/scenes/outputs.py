@@ -120,7 +120,8 @@ def _triangle_maps(objects: Sequence, draws: Sequence[RecordedDraw]) -> Dict[int
     return maps
 
 
-def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()) -> Dict[str, np.ndarray]:
+def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = (),
+                   copy_color: bool = True) -> Dict[str, np.ndarray]:
     """The buffers ``names`` (:data:`OUTPUTS`) of a framebuffer drawn with a visibility record.
 
     Parameters
@@ -134,6 +135,12 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
     objects : sequence of SceneObject
         The scene's drawn objects, in the order of the tags (for a mesh of several
         materials, the triangle ids count over the whole mesh).
+    copy_color : bool
+        Whether ``color`` is a copy of the framebuffer's color (the default: a framebuffer
+        cleared and drawn into again must not change the buffers already returned). False
+        hands out :attr:`Framebuffer.color` itself, for a caller that draws into ``fb`` no
+        more (``render`` makes a new framebuffer per call). With several samples per pixel
+        ``color`` is the resolve, a new array either way.
 
     Returns
     -------
@@ -145,7 +152,10 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
                          "Framebuffer(width, height, record=True)")
     maps = _triangle_maps(objects, fb.recorded_draws) if objects else {}
     buffers = derive_buffers(fb, [n for n in names if n != "color"], maps)
-    return {n: fb.color.copy() if n == "color" else buffers[n] for n in names}
+    if "color" in names:
+        # one sample: fb.color is the framebuffer's own buffer; several: a new resolved array, not copied again
+        buffers["color"] = fb.color.copy() if copy_color and fb.samples == 1 else fb.color
+    return {n: buffers[n] for n in names}
 
 
 # ------------------------------------------------------------------ writing them
