@@ -22,7 +22,7 @@ from softpipe.pipeline.assembly import Primitives, assemble
 from softpipe.pipeline.camera import Camera
 from softpipe.pipeline.draw import DrawCall, Stage, draw
 from softpipe.pipeline.fragment import ShadedFragments
-from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.framebuffer import ATTACHMENT_FORMATS, Framebuffer
 from softpipe.pipeline.merge_state import MergeState, Stencil
 from softpipe.pipeline.output import MergeResult, NonFiniteColorWarning, OcclusionQuery
 from softpipe.pipeline.raster import Fragments, rasterize
@@ -64,7 +64,7 @@ __all__ = [
     "shading", "parse_color", "keep_freed_memory", "glsl", "DISCARD", "FragInfo", "ShaderError", "NonFiniteColorWarning",
     "make_uniforms", "lighting", "Light", "Lighting", "LightingUniform", "Material", "MaterialUniform",
     "pack_lights", "ShadowSettings", "ShadowUniform", "Texture2D", "TextureUniform", "Primitives", "assemble",
-    "Camera", "DrawCall", "Stage", "draw", "ShadedFragments", "Framebuffer", "MergeResult", "MergeState",
+    "Camera", "DrawCall", "Stage", "draw", "ShadedFragments", "Framebuffer", "ATTACHMENT_FORMATS", "MergeResult", "MergeState",
     "Stencil", "OcclusionQuery",
     "render_shadow_volumes", "render_planar_mirror", "depth_peel", "weighted_oit",
     "Fragments", "rasterize", "CENTER", "SamplePattern", "grid", "jittered", "random_pattern",

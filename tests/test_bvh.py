@@ -36,6 +36,7 @@ from types import SimpleNamespace
 import numba
 import numpy as np
 import pytest
+from patience import PATIENCE
 
 from softpipe.core.parallel import in_bands
 from softpipe.pipeline import transforms
@@ -691,7 +692,7 @@ def test_plain_python_gives_the_same_bits():
             continue
         env = dict(os.environ, NUMBA_DISABLE_JIT=flag)
         out = subprocess.run([sys.executable, "-c", _PLAIN_PYTHON_RUN], env=env, capture_output=True, text=True,
-                             timeout=300)
+                             timeout=PATIENCE)
         assert out.returncode == 0, out.stderr[-2000:]
         assert "Warning" not in out.stderr, out.stderr[-2000:]
         runs[flag] = out.stdout

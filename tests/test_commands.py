@@ -10,6 +10,7 @@ import shlex
 from pathlib import Path
 
 import pytest
+from patience import PATIENCE
 
 from softpipe.tools.cli import main
 
@@ -49,7 +50,7 @@ def _view_once(monkeypatch):
 
         def fetch():
             for path in ("/", "/api/frame"):
-                with urllib.request.urlopen(server.url.rstrip("/") + path, timeout=120) as reply:
+                with urllib.request.urlopen(server.url.rstrip("/") + path, timeout=PATIENCE) as reply:
                     answered[path] = (reply.status, reply.headers.get_content_type())
         client = threading.Thread(target=fetch)
         client.start()

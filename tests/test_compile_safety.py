@@ -16,6 +16,7 @@ import textwrap
 import threading
 
 import pytest
+from patience import PATIENCE
 
 from softpipe.language.kernels import cache
 
@@ -105,5 +106,5 @@ def test_fork_while_another_thread_compiles_does_not_deadlock_the_child(tmp_path
     script = tmp_path / "fork_during_compile.py"
     script.write_text(FORK_SCRIPT)
     result = subprocess.run([sys.executable, "-W", "ignore", str(script)], env=env, capture_output=True,
-                            text=True, timeout=120)
+                            text=True, timeout=PATIENCE)
     assert result.returncode == 0, result.stdout + result.stderr

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from patience import PATIENCE
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -100,7 +101,7 @@ def rendered(scenes):
             e["PYTHONPATH"] = str(ROOT) + os.pathsep + e.get("PYTHONPATH", "")
             args = [str(a) for pair in zip(names, outs) for a in pair]
             r = subprocess.run([sys.executable, str(scenes), *args], env=e, capture_output=True, text=True,
-                               timeout=300)
+                               timeout=PATIENCE)
             assert r.returncode == 0, f"child failed ({dict(env)}):\n{r.stdout}\n{r.stderr}"
             for name, out in zip(names, outs):
                 self[name, env] = out.read_bytes()

@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from patience import PATIENCE
+
 import softpipe as sp
 from softpipe.views.explorer import explorer_data
 
@@ -26,7 +28,7 @@ def test_a_closed_pipe_ends_the_command_quietly():
                             stderr=subprocess.PIPE, cwd=ROOT)
     proc.stdout.close()                     # the reader is gone before the command writes
     err = proc.stderr.read().decode()
-    assert proc.wait(timeout=300) == 141
+    assert proc.wait(timeout=PATIENCE) == 141
     assert err == ""
 
 

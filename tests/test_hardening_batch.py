@@ -16,6 +16,7 @@ import threading
 from pathlib import Path
 
 import pytest
+from patience import PATIENCE
 
 import softpipe.tools.batch.job as job_module
 from softpipe.core.files import PathPolicyError
@@ -198,7 +199,7 @@ def test_a_manifest_linked_to_dev_zero_is_refused_at_once(tmp_path):
     code = ("import resource, sys\nresource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))\n"
             "from softpipe.tools import cli\nsys.exit(cli.main(sys.argv[1:]))\n")
     done = subprocess.run([sys.executable, "-c", code, "batch", str(_ball_job(tmp_path)), "-o", str(out),
-                           "--scheduler", "serial"], capture_output=True, text=True, timeout=300,
+                           "--scheduler", "serial"], capture_output=True, text=True, timeout=PATIENCE,
                           env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert done.stderr == (f"softpipe batch: error: {out / MANIFEST} is a symbolic link; softpipe batch reads and "
@@ -336,7 +337,7 @@ def test_ctrl_c_while_the_cluster_starts_is_one_line_and_130(tmp_path):
             "async def interrupted(self):\n    os.kill(os.getpid(), signal.SIGINT)\n    return await start(self)\n"
             "Nanny.start_unsafe = interrupted\nfrom softpipe.tools import cli\nsys.exit(cli.main(sys.argv[1:]))\n")
     done = subprocess.run([sys.executable, "-c", code, "batch", str(_ball_job(tmp_path)), "-o", str(tmp_path / "out"),
-                           "--workers", "1", "-q"], capture_output=True, text=True, timeout=300,
+                           "--workers", "1", "-q"], capture_output=True, text=True, timeout=PATIENCE,
                           env={**os.environ, "PYTHONPATH": str(ROOT)},
                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert (done.returncode, done.stderr) == (130, "softpipe batch: interrupted\n")

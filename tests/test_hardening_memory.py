@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import run_cli
+from patience import PATIENCE, read_line
 
 import softpipe as sp
 from softpipe.core.files import excerpt_path
@@ -278,22 +279,24 @@ def write(f):
     f.write(b"x" * 100_000)
     f.flush()
     print("writing", flush=True)
-    time.sleep(60)
+    time.sleep(3600)        # the write never ends on its own: only the signal ends it
 atomic_write(sys.argv[1], write)
 """
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_during_a_write_leaves_no_temporary_file(tmp_path, sig):
+    """Nothing is timed: the test waits for "writing" and for the exit after the signal, each within
+    :data:`patience.PATIENCE` (the child imports softpipe, slow on a loaded machine)."""
     target = tmp_path / "picture.png"
     target.write_bytes(b"the previous picture")
     proc = subprocess.Popen([sys.executable, "-c", SLOW_WRITE, str(target)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env={**os.environ, "PYTHONPATH": str(ROOT)})
     try:
-        assert proc.stdout.readline() == b"writing\n"
+        assert read_line(proc, "'writing'") == b"writing\n"
         assert len(list(tmp_path.glob(".picture.png.*.tmp"))) == 1
         proc.send_signal(sig)
-        proc.wait(timeout=60)
+        proc.wait(timeout=PATIENCE)
     finally:
         proc.kill()
         proc.wait()

@@ -1,8 +1,13 @@
 """Ctrl-C stops a long draw, and a draw whose shader never ends, within a second or two (issue #13).
 
 Each case runs in a subprocess that compiles its shader on a tiny draw first,
-says "ready", and then starts the long draw; the test sends SIGINT a moment
-later and measures how long the process takes to stop with a KeyboardInterrupt.
+says "ready", then "drawing" and starts the long draw; the test sends SIGINT a moment
+after "drawing" and measures how long the draw takes to stop: from the signal (the
+parent's ``time.monotonic()`` just before it sends it) to the KeyboardInterrupt reaching
+the script's ``except`` around the draw (the child's ``time.monotonic()``, the same
+system-wide clock). What is timed is the draw stopping, not the interpreter starting
+or compiling before it, nor its exit after it: those only have to happen, within
+:data:`patience.PATIENCE` (a cold compile on a loaded machine takes minutes).
 The tests run alone (the other workers wait), so the shaders' compiling is done
 before, beside the other tests: one process runs the script up to "ready" for
 both shaders, and the tests' processes load them from the kernel caches.
@@ -17,12 +22,13 @@ import textwrap
 import time
 
 import pytest
+from patience import PATIENCE, read_line
 
 pytestmark = [pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals"),
               pytest.mark.alone]        # the limits are seconds on the wall clock: no other test beside
 
 SCRIPT = textwrap.dedent('''
-    import sys, numpy as np, softpipe as sp
+    import sys, time, numpy as np, softpipe as sp
 
     def heavy(varyings, uniforms, frag):
         acc = 0.0
@@ -45,7 +51,13 @@ SCRIPT = textwrap.dedent('''
     print("ready", flush=True)
     if sys.argv[2:] == ["--compile-only"]:
         sys.exit(0)
-    sp.draw(sp.Framebuffer(1024, 1024), quad, idx, varyings=color, fragment_shader=shader)
+    fb = sp.Framebuffer(1024, 1024)
+    print("drawing", flush=True)
+    try:
+        sp.draw(fb, quad, idx, varyings=color, fragment_shader=shader)
+    except KeyboardInterrupt:
+        print(f"stopped at {time.monotonic()!r}", flush=True)      # the same clock as the parent's
+        raise
     print("finished", flush=True)
 ''')
 
@@ -57,7 +69,7 @@ def compiled(tmp_path_factory):
     script = tmp_path_factory.mktemp("interrupt") / "long_draw.py"
     script.write_text(SCRIPT)
     done = subprocess.run([sys.executable, str(script), "heavy,endless", "--compile-only"], capture_output=True,
-                          text=True, timeout=600)
+                          text=True, timeout=PATIENCE)
     assert done.returncode == 0 and done.stdout == "ready\n", done.stderr[-3000:]
 
 
@@ -67,14 +79,17 @@ def _interrupt(tmp_path, case: str) -> tuple:
     proc = subprocess.Popen([sys.executable, str(script), case], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     try:
-        line = proc.stdout.readline()
-        assert line.strip() == "ready", (line, proc.stderr.read() if proc.poll() is not None else "")
+        for expected in ("ready", "drawing"):
+            line = read_line(proc, f"{expected!r}")
+            assert line.strip() == expected, (line, proc.stderr.read() if proc.poll() is not None else "")
         time.sleep(1.0)                         # the long draw is under way
         assert proc.poll() is None, "the draw ended before it could be interrupted"
         sent = time.monotonic()
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=30)
-        return time.monotonic() - sent, proc.returncode, out, err
+        out, err = proc.communicate(timeout=PATIENCE)   # exiting only has to happen; the stop is timed below
+        stopped = [line for line in out.splitlines() if line.startswith("stopped at ")]
+        seconds = float(stopped[0].split()[-1]) - sent if stopped else float("inf")
+        return seconds, proc.returncode, out, err
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -85,6 +100,8 @@ def test_ctrl_c_stops_a_draw_promptly(compiled, tmp_path, case, limit):
     seconds, code, out, err = _interrupt(tmp_path, case)
     assert "KeyboardInterrupt" in err, err[-2000:]
     assert "finished" not in out
+    assert "stopped at " in out, f"the KeyboardInterrupt did not come out of sp.draw: {out!r} {err[-2000:]}"
     assert code != 0
-    # heavy: no band starts after the signal; endless: the grace period (1 s), then the thread is left behind
-    assert seconds < limit, f"the process took {seconds:.1f} s to stop after SIGINT"
+    # heavy: no band starts after the signal; endless: the grace period (1 s), then the thread is left behind.
+    # Timed from the signal to the KeyboardInterrupt out of sp.draw (module docstring), not to the exit.
+    assert seconds < limit, f"the draw took {seconds:.1f} s to stop after SIGINT"

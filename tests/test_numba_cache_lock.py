@@ -8,6 +8,7 @@ import threading
 import time
 
 import pytest
+from patience import PATIENCE
 
 numba_cache_lock = pytest.importorskip("numba_cache_lock")
 caching = pytest.importorskip("numba.core.caching")
@@ -92,7 +93,7 @@ def _compiles_of_two_processes_at_once(folder, locked: bool) -> int:
     code = COMPILER.format(tests=os.path.dirname(__file__), folder=str(folder), locked=locked)
     runs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, text=True)
             for _ in range(2)]
-    outs = [r.communicate(timeout=300)[0] for r in runs]
+    outs = [r.communicate(timeout=PATIENCE)[0] for r in runs]
     assert all(r.returncode == 0 for r in runs), outs
     return sum(int(o.split()[-1]) for o in outs)
 

@@ -223,8 +223,26 @@ def test_cli_pathtrace_writes_the_same_picture_as_python(box, capsys, tmp_path):
     assert np.array_equal(np.asarray(Image.open(out)), expected)
 
 
+def test_cli_background_light_writes_the_same_picture_as_python(capsys, tmp_path):
+    """``--background-light`` is ``pathtrace(..., background_light=True)``: the same bytes. The box is opened to a
+    grey sky (Mitsuba's has none, and with no sky the light sample never goes there), so the flag changes them."""
+    scene = tmp_path / "sky_box.toml"
+    scene.write_text(CORNELL.read_text().replace("background = [0.0, 0.0, 0.0]", "background = [0.6, 0.7, 0.8]"))
+    out = tmp_path / "box.png"
+    code, stdout, err = run_cli(capsys, "render", scene, "--pathtrace", "--background-light", "--spp", "2", "--seed",
+                                "4", "--size", "16x16", "-o", out)
+    assert code == 0, err
+    assert "path traced, 2 samples per pixel, seed 4, the background sampled as a light, " in stdout
+    sky_box = load_scene(scene).replace(width=16, height=16)
+    expected = sp.pathtrace(sky_box, spp=2, seed=4, background_light=True).framebuffer().to_uint8(alpha=False)
+    assert np.array_equal(np.asarray(Image.open(out)), expected)
+    without = sp.pathtrace(sky_box, spp=2, seed=4).framebuffer().to_uint8(alpha=False)
+    assert not np.array_equal(expected, without)
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--spp", "4"], "--spp applies only with --pathtrace"),
+    (["--background-light"], "--background-light applies only with --pathtrace"),
     (["--pathtrace", "--raytrace"], "--pathtrace renders by paths; it does not apply with --raytrace"),
     (["--pathtrace", "--spp", "0"], "expected a positive number of samples per pixel, got 0"),
     (["--pathtrace", "--seed", "-3"], "expected a whole number from 0 to 2**64 - 1, got -3"),

@@ -124,6 +124,10 @@ SWEEP = '[models]\nball = { shape = "uv_sphere", segments = 12, rings = 6 }\n[sw
      "pt.toml: key 'samples' in [sweep] picks the rasterizer's sample pattern; it does not apply with pathtrace = "
      "true, whose samples are jittered over each pixel (a box filter): use spp = N"),
     ("pathtrace = 1\n", "pt.toml: key 'pathtrace' in [sweep] must be"),
+    ("background_light = true\n", "pt.toml: key 'background_light' in [sweep] applies only with pathtrace = true "
+                                  "(the path tracer's light sample toward the background)"),
+    ("pathtrace = true\nbackground_light = \"yes\"\n",
+     "pt.toml: key 'background_light' in [sweep] must be true or false, got string 'yes'"),
     ("pathtrace = true\nsizes = [\"2000x2000\"]\nspp = 1000\n",
      "pt.toml: key 'sizes' in [sweep] 2000×2000 pixels × 1000 samples exceeds the limit MAX_TOTAL_SAMPLES"),
 ])
@@ -139,4 +143,40 @@ def test_a_frame_table_takes_the_same_keys():
     (frame,) = parse_job(text, "f.toml").frames
     assert (frame.pathtrace, frame.spp, frame.seed, frame.name) == (True, 2, 9, "ball-az030-8x8-pt2-seed9")
     with pytest.raises(JobError, match=r"^f\.toml: key 'spp' in \[\[frames\]\] #1 applies only with pathtrace"):
+        parse_job(text.replace("pathtrace = true\n", ""), "f.toml")
+
+
+def test_background_light_is_the_python_calls_bytes_and_names_the_frame():
+    """``background_light = true`` is ``pathtrace(..., background_light=True)``: the same bytes (and not those
+    without it, under the job's grey sky); the name ends in ``-bglight`` and ``params`` say so, while a frame
+    without it keeps the name, parameters and digest it had before the key existed."""
+    text = JOB.replace("{seed}", "2")
+    j = parse_job(text.replace("seed = 2\n", "seed = 2\nbackground_light = true\n"), "pt.toml")
+    (frame,) = j.frames
+    assert frame.background_light and frame.name == "ball-az030-12x10-pt3-seed2-bglight"
+    assert frame.params()["background_light"] is True
+    mesh = j.load_models()["ball"]
+    scene = prepare_scene(mesh, width=12, height=10, background=j.background, azimuth=frame.azimuth,
+                          elevation=frame.elevation, fovy=j.fovy)
+    png = render_frame(frame, mesh, j)
+    assert np.array_equal(png_pixels(png), np.asarray(Image.open(_saved(pathtrace(scene, 3, 2,
+                                                                                   background_light=True)))))
+    assert not np.array_equal(png_pixels(png), np.asarray(Image.open(_saved(pathtrace(scene, 3, 2)))))
+    (plain,) = parse_job(text, "pt.toml").frames
+    assert not plain.background_light and "background_light" not in plain.params()
+    assert plain.name == "ball-az030-12x10-pt3-seed2"
+    with_false = parse_job(text.replace("seed = 2\n", "seed = 2\nbackground_light = false\n"), "pt.toml").frames[0]
+    assert with_false.digest() == plain.digest()
+
+
+def test_a_frame_table_takes_background_light():
+    text = ('[models]\nball = { shape = "uv_sphere", segments = 12, rings = 6 }\n'
+            '[[frames]]\nmodel = "ball"\nsize = "8x8"\npathtrace = true\nbackground_light = true\n')
+    (frame,) = parse_job(text, "f.toml").frames
+    assert (frame.background_light, frame.name) == (True, "ball-az030-8x8-pt64-bglight")
+    with pytest.raises(JobError, match=r"^f\.toml: key 'background_light' in \[\[frames\]\] #1 must be true or false, "
+                                       r"got integer 1"):
+        parse_job(text.replace("background_light = true", "background_light = 1"), "f.toml")
+    with pytest.raises(JobError, match=r"^f\.toml: key 'background_light' in \[\[frames\]\] #1 applies only with "
+                                       r"pathtrace = true"):
         parse_job(text.replace("pathtrace = true\n", ""), "f.toml")

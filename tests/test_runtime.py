@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pytest
+from patience import PATIENCE
 
 import softpipe as sp
 from softpipe.core import runtime
@@ -41,7 +42,7 @@ def probe(*argv, **env):
     full = {k: v for k, v in os.environ.items() if k != "SOFTPIPE_SYSTEM_MALLOC"}
     full.update(env)
     out = subprocess.run([sys.executable, "-c", PROBE, *argv], env=full, capture_output=True, text=True,
-                         timeout=300)
+                         timeout=PATIENCE)
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout)
 
@@ -92,7 +93,7 @@ def render(_):
 if __name__ == "__main__":
     parent = render(0)
     with mp.get_context("fork").Pool(2) as pool:
-        print(json.dumps([parent] + pool.map_async(render, range(2)).get(timeout=60)))
+        print(json.dumps([parent] + pool.map_async(render, range(2)).get(timeout=PATIENCE)))
 '''
 
 
@@ -101,8 +102,8 @@ def test_a_forked_child_draws_with_threads_of_its_own(tmp_path):
     # The parent's thread pools are copied into a forked child without their threads;
     # softpipe.core.parallel starts new ones there instead of waiting forever.
     script = tmp_path / "fork.py"
-    script.write_text(FORK_SCRIPT)
-    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    script.write_text(FORK_SCRIPT.replace("PATIENCE", repr(PATIENCE)))
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=PATIENCE)
     assert out.returncode == 0, out.stderr
     parent, *children = json.loads(out.stdout)
     assert parent > 0 and children == [parent, parent]      # the children drew, and drew the same

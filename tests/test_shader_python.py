@@ -19,6 +19,7 @@ import textwrap
 import numpy as np
 import pytest
 import shader_python_helpers as other_module
+from patience import PATIENCE
 
 import softpipe as sp
 from softpipe import ShaderError
@@ -192,7 +193,7 @@ def test_the_users_own_function_runs_under_disable_jit():
             print(str(e).splitlines()[0])
     """)
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=PATIENCE)
     assert out.returncode == 0, out.stderr
     assert out.stdout.splitlines() == [
         "0.5 1.0",

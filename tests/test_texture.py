@@ -16,6 +16,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 import pytest
+from patience import PATIENCE
 from PIL import Image
 
 from softpipe.light.texture import (
@@ -398,7 +399,7 @@ def test_same_results_with_numba_disabled():
     )
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
     run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                         timeout=120)
+                         timeout=PATIENCE)
     assert run.returncode == 0, run.stderr
     plain = json.loads(run.stdout)
     jitted = json.loads(json.dumps(_reference_samples()))

@@ -38,14 +38,15 @@ __all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", 
 MAX_DIMENSION = 16384
 #: Largest width × height × samples (about 1.3 GB of color and depth).
 MAX_TOTAL_SAMPLES = 1 << 26
-#: A color attachment's formats (GL's internal formats, lower case, without ``GL_``): name →
-#: (channels, numpy dtype of its storage). ``rgba8`` is stored as float32, unclamped, as the
-#: framebuffer's color always was, and becomes bytes where it is read as a picture
+#: A color attachment's formats (GL's internal formats, lower case, without ``GL_``), the names
+#: ``attachments=`` takes (``sp.ATTACHMENT_FORMATS``). ``rgba8`` is stored as float32, unclamped, as
+#: the framebuffer's color always was, and becomes bytes where it is read as a picture
 #: (:meth:`Framebuffer.to_uint8`, with the sRGB encode in an sRGB framebuffer); ``rgba32f`` and
 #: ``r32f`` are floats to read as numbers; ``r32i`` a 32-bit signed integer per sample
 #: (not blended, and resolved by taking sample 0, as GL treats integer targets).
-ATTACHMENT_FORMATS = {"rgba8": (4, np.float32), "rgba32f": (4, np.float32), "r32f": (1, np.float32),
-                      "r32i": (1, np.int32)}
+ATTACHMENT_FORMATS: Tuple[str, ...] = ("rgba8", "rgba32f", "r32f", "r32i")
+# each format's storage: (channels, numpy dtype), in the order of ATTACHMENT_FORMATS
+_STORAGE = dict(zip(ATTACHMENT_FORMATS, ((4, np.float32), (4, np.float32), (1, np.float32), (1, np.int32))))
 #: The default framebuffer's one attachment.
 DEFAULT_ATTACHMENTS = {"color": "rgba8"}
 
@@ -179,12 +180,12 @@ def _check_attachments(attachments) -> Tuple[Tuple[str, str], ...]:
     for name, fmt in attachments.items():
         if not isinstance(name, str) or not name.isidentifier():
             raise ValueError(f"Framebuffer attachment name {name!r} must be a Python identifier, such as 'normal'")
-        if fmt not in ATTACHMENT_FORMATS:
-            raise ValueError(f"Framebuffer attachment {name!r}: format must be one of {tuple(ATTACHMENT_FORMATS)}, "
+        if not isinstance(fmt, str) or fmt not in ATTACHMENT_FORMATS:
+            raise ValueError(f"Framebuffer attachment {name!r}: format must be one of {ATTACHMENT_FORMATS}, "
                              f"got {fmt!r}")
         out.append((name, fmt))
     name, fmt = out[0]
-    if ATTACHMENT_FORMATS[fmt][0] != 4:
+    if _STORAGE[fmt][0] != 4:
         raise ValueError(f"Framebuffer attachment {name!r} ({fmt}) is location 0, the framebuffer's color (the "
                          f"picture it shows and saves): it must be 'rgba8' or 'rgba32f'; put a color attachment first")
     return tuple(out)
@@ -272,7 +273,7 @@ class Framebuffer:
         formats = _check_attachments(attachments)
         s = len(pattern)
         per_sample = 29 if record else 21
-        per_sample += sum(4 * ATTACHMENT_FORMATS[f][0] for _, f in formats[1:])
+        per_sample += sum(4 * _STORAGE[f][0] for _, f in formats[1:])
         check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel ({per_sample} bytes "
                      "a sample)", int(width) * int(height) * s * per_sample)
         object.__setattr__(self, "_width", int(width))
@@ -288,8 +289,8 @@ class Framebuffer:
         object.__setattr__(self, "_recorded_draws", [])
         object.__setattr__(self, "_formats", formats)
         object.__setattr__(self, "_extra", {name: np.empty((s, self._height, self._width)
-                                                           + ((4,) if ATTACHMENT_FORMATS[f][0] == 4 else ()),
-                                                           dtype=ATTACHMENT_FORMATS[f][1])
+                                                           + ((4,) if _STORAGE[f][0] == 4 else ()),
+                                                           dtype=_STORAGE[f][1])
                                             for name, f in formats[1:]})
         object.__setattr__(self, "_views", {})
         object.__setattr__(self, "_lock", threading.RLock())
@@ -412,7 +413,7 @@ class Framebuffer:
         if name == self._formats[0][0]:
             return self._view("samples_color")
         a, fmt = self._extra[name], dict(self._formats)[name]
-        channels, dtype = ATTACHMENT_FORMATS[fmt]
+        channels, dtype = _STORAGE[fmt]
         shape = (self._count, self._height, self._width) + ((4,) if channels == 4 else ())
         if not (a.shape == shape and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable):
             raise RuntimeError(f"Framebuffer attachment {name!r} was changed in place; the kernels cannot draw "

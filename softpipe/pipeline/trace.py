@@ -37,8 +37,8 @@ from __future__ import annotations
 
 import math
 import types
-from dataclasses import dataclass
-from typing import Any, Callable, List, Optional, Tuple
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -47,7 +47,8 @@ from softpipe.language import kernels
 from softpipe.language.contract import python_function
 from softpipe.language.kernels.diagnostics import plain_value
 from softpipe.pipeline.fragment import ShadedFragments, default_fragment_shader, derivative_gradients
-from softpipe.pipeline.output import VERDICTS, MergeResult
+from softpipe.pipeline.framebuffer import Framebuffer
+from softpipe.pipeline.output import VERDICTS, MergeResult, merge_more
 from softpipe.pipeline.raster import Fragments
 
 __all__ = ["Trace", "PixelEvent", "PixelHistory", "BeforeDraw", "as_compiled_math", "COMPILED_MATH"]
@@ -65,7 +66,8 @@ class BeforeDraw:
     float32 [S, P, 4], ``depth`` float32 [S, P] and ``stencil`` uint8 [S, P]: every sample of
     those pixels before the draw; ``writes``: the framebuffer's :attr:`~softpipe.pipeline.framebuffer.Framebuffer.writes`
     right after the draw (while it is unchanged the pixels not kept still hold what they
-    held before the draw).
+    held before the draw). ``attachments``: in a framebuffer of several color attachments, the
+    others' samples there (name → [S, P, 4] or [S, P]), from which a pixel's history replays them.
     """
 
     pixels: np.ndarray
@@ -73,6 +75,7 @@ class BeforeDraw:
     depth: np.ndarray
     stencil: np.ndarray
     writes: int
+    attachments: Dict[str, np.ndarray] = field(default_factory=dict)
 
     @classmethod
     def take(cls, fb, primitives) -> "_Snapshot":
@@ -91,11 +94,14 @@ class BeforeDraw:
             x0, x1 = int(max(np.floor(xs.min()) - 1 - r, 0)), int(min(np.ceil(xs.max()) + 2 + r, w))
             y0, y1 = int(max(np.floor(h - ys.max()) - 1 - r, 0)), int(min(np.ceil(h - ys.min()) + 2 + r, h))
             x1, y1 = max(x1, x0), max(y1, y0)
-        need = fb.samples * (y1 - y0) * (x1 - x0) * 21
-        check_memory(f"tracing a draw over {x1 - x0}×{y1 - y0} pixels ({fb.samples} sample(s), 21 bytes each: "
-                     "the framebuffer under it, kept to show each pixel's color before the draw)", need)
+        others = list(fb.attachments)[1:]
+        per_sample = 21 + sum(fb.samples_attachment(n)[:1, :1, :1].nbytes for n in others)
+        need = fb.samples * (y1 - y0) * (x1 - x0) * per_sample
+        check_memory(f"tracing a draw over {x1 - x0}×{y1 - y0} pixels ({fb.samples} sample(s), {per_sample} bytes "
+                     "each: the framebuffer under it, kept to show each pixel's color before the draw)", need)
         return _Snapshot((y0, y1, x0, x1), fb.samples_color[:, y0:y1, x0:x1].copy(),
-                         fb.samples_depth[:, y0:y1, x0:x1].copy(), fb.samples_stencil[:, y0:y1, x0:x1].copy())
+                         fb.samples_depth[:, y0:y1, x0:x1].copy(), fb.samples_stencil[:, y0:y1, x0:x1].copy(),
+                         {n: fb.samples_attachment(n)[:, y0:y1, x0:x1].copy() for n in others})
 
     def find(self, x: int, y: int, width: int) -> int:
         """The column of pixel (x, y) in :attr:`pixels`, or -1 when it was not kept."""
@@ -112,6 +118,7 @@ class _Snapshot:
     color: np.ndarray
     depth: np.ndarray
     stencil: np.ndarray
+    attachments: Dict[str, np.ndarray] = field(default_factory=dict)
 
     def keep(self, fb, fragments) -> BeforeDraw:
         """After the draw: keep the pixels its fragments reached or whose samples it changed."""
@@ -129,7 +136,8 @@ class _Snapshot:
         pixels = (rows + y0).astype(np.int64) * w + (cols + x0)
         return BeforeDraw(pixels, np.ascontiguousarray(self.color[:, rows, cols]),
                           np.ascontiguousarray(self.depth[:, rows, cols]),
-                          np.ascontiguousarray(self.stencil[:, rows, cols]), fb.writes)
+                          np.ascontiguousarray(self.stencil[:, rows, cols]), fb.writes,
+                          {n: np.ascontiguousarray(a[:, rows, cols]) for n, a in self.attachments.items()})
 
 
 @dataclass
@@ -149,6 +157,10 @@ class PixelEvent:
     point_coord: tuple = ()     # of a line's or a point's fragment: frag.point_coord ((t, 0) on a line)
     stencil: tuple = ()         # (before, after) the sample's stencil value, when the draw's stencil test is on
     instance: int = 0           # the instance its primitive belongs to (gl_InstanceID; 0 without instancing)
+    # into several color attachments: ``color`` and ``color_after`` are location 0's; these are the others',
+    # attachment name → the shader's value for it, and the sample's value after this fragment
+    outputs: Dict[str, Any] = field(default_factory=dict)
+    outputs_after: Dict[str, Any] = field(default_factory=dict)
 
 
 class PixelHistory(list):
@@ -161,6 +173,9 @@ class PixelHistory(list):
     with ``polygon_mode`` (a triangle's edges or corners) the "triangle" column names the triangle.
     ``instances`` is the draw's (1 without instancing); with more than one, an "instance" column
     names each fragment's instance beside its primitive (whose id counts within the instance).
+    Into a framebuffer of several color attachments, "shader output" and "color after" are
+    location 0's, and each other attachment NAME has its columns "NAME output" (the shader's
+    value for it) and "NAME after" (the sample's value after the fragment).
     """
 
     def __init__(self, x: int, y: int, events: List[PixelEvent], before: Optional[tuple], kind: str = "triangles",
@@ -193,15 +208,18 @@ class PixelHistory(list):
         where = {"lines": ["t"], "points": ["point coord"]}.get(self.kind, [])
         label = "prim" if not where else ("triangle" if self.polygon_mode else self.kind[:-1])
         instance = ["instance"] if self.instances > 1 else []
+        more = list(self[0].outputs)        # the other color attachments, in location order
         cols = (["#"] + instance + [label, "sample", "depth"] + where + names + shadow
-                + ["shader output", "merger"] + stencil + ["color after"])
+                + ["shader output"] + [f"{a} output" for a in more] + ["merger"] + stencil + ["color after"]
+                + [f"{a} after" for a in more])
         rows = [[str(e.index)] + ([str(e.instance)] if instance else [])
                 + [str(e.primitive_id), str(e.sample), f"{e.depth:.6f}"]
                 + ([fmt(e.point_coord[0]) if self.kind == "lines" else fmt(e.point_coord)] if where else [])
                 + [fmt(getattr(e.varyings, n)) for n in names]
                 + ([self._fmt_shadow(e.shadow)] if shadow else [])
-                + [fmt(e.color), str(e.verdict)] + ([f"{e.stencil[0]} → {e.stencil[1]}"] if stencil else [])
-                + [fmt(e.color_after)] for e in self]
+                + [fmt(e.color)] + [fmt(e.outputs[a]) for a in more] + [str(e.verdict)]
+                + ([f"{e.stencil[0]} → {e.stencil[1]}"] if stencil else [])
+                + [fmt(e.color_after)] + [fmt(e.outputs_after[a]) for a in more] for e in self]
         return cols, rows
 
     @classmethod
@@ -237,7 +255,7 @@ class PixelHistory(list):
         cols, rows = self.table()
         out = ['<div class="softpipe-pixel-history">', f"<p>{escape(self._heading())}</p>"]
         if rows:
-            colored = {cols.index("shader output"): "color", len(cols) - 1: "color_after"}
+            colored = {cols.index("shader output"): "color", cols.index("color after"): "color_after"}
             out.append('<table><thead><tr>' + "".join(f"<th>{escape(c)}</th>" for c in cols) + "</tr></thead><tbody>")
             for event, row in zip(self, rows):
                 cells = []
@@ -302,6 +320,8 @@ class Trace:
             fragments.setup = out["raster"][0].setup
             shaded = _concat(out["fragment"], ShadedFragments, ("color", "discarded"))
             shaded.invocations = sum(p.invocations for p in out["fragment"])
+            # into several attachments: the other locations' values, every batch's joined
+            shaded.outputs = tuple(np.concatenate(parts) for parts in zip(*(p.outputs for p in out["fragment"])))
             merged = _concat(out["output"], MergeResult, ("verdict", "color_after", "stencil_after"))
         else:
             empty = np.zeros(0)
@@ -318,7 +338,10 @@ class Trace:
         fb = call.framebuffer
         fragments = visibility.fragments(primitives, fb.pattern, call.sample_shading)
         color = fb.samples_color[fragments.sample, fragments.y, fragments.x]
-        shaded = ShadedFragments(color, np.zeros(len(fragments), bool), shaded_samples.invocations)
+        # the other attachments hold the winners' values as they are (the fast path neither blends nor masks them)
+        outputs = tuple(fb.samples_attachment(n)[fragments.sample, fragments.y, fragments.x]
+                        for n in list(fb.attachments)[1:])
+        shaded = ShadedFragments(color, np.zeros(len(fragments), bool), shaded_samples.invocations, outputs)
         merged = MergeResult(np.zeros(len(fragments), np.int8), color.copy(),
                              fb.samples_stencil[fragments.sample, fragments.y, fragments.x])
         trace = cls(call, vertex, primitives, fragments, shaded, merged)
@@ -506,6 +529,7 @@ class Trace:
         instance_of = self.primitives.instance
         stencil_on = self.call.state.stencil is not None and m.stencil_after is not None
         stencil_now = self.stencil_before_at(x, y).astype(int) if stencil_on and len(idx) else None
+        more = _Replay(self, x, y) if len(s.outputs) and len(idx) else None
         for k in idx:
             inputs = self._inputs(module, int(k))
             varyings = inputs[0]
@@ -522,6 +546,8 @@ class Trace:
                 stencil_now[sample] = int(m.stencil_after[k])
             if kind != "triangles":         # what the shader saw: the very frag it was given
                 events[-1].point_coord = tuple(float(c) for c in inputs[2].point_coord)
+            if more is not None:
+                events[-1].outputs, events[-1].outputs_after = more.fragment(int(k))
         if self.before.find(x, y, self.width) < 0 and self.call.framebuffer.writes != self.before.writes:
             before = None       # not touched, and the framebuffer has changed since: not kept (module docstring)
         else:
@@ -592,6 +618,51 @@ class Trace:
         """Write every stage's picture and a labelled contact sheet as PNGs; returns name → path."""
         from softpipe.views.pictures import save_stage_pictures
         return save_stage_pictures(self, directory)
+
+
+class _Replay:
+    """The other color attachments of one pixel, fragment by fragment: each fragment's values and the sample's
+    values after it, for :meth:`Trace.pixel_history`.
+
+    The merger keeps no per-fragment record of locations 1, 2, … (only of location 0's color), so they are
+    replayed here: from the pixel's samples before the draw, the merger's own :func:`merge_more` writes each
+    fragment in turn into a one-pixel framebuffer of the same attachments and samples (the same blending,
+    masks and order, so the same bits). On the fast path every fragment is a winner, written as it is: its
+    value is the sample's.
+    """
+
+    def __init__(self, trace: "Trace", x: int, y: int):
+        self.trace = trace
+        self.names = [n for n, _ in trace.call.attachments[1:]]
+        self.fast = trace.visibility is not None
+        self.pixel = Framebuffer(1, 1, trace.pattern, attachments=dict(trace.call.attachments))
+        if not self.fast:
+            # a pixel a fragment reached is always kept (BeforeDraw: the pixels the fragments reached)
+            j = trace.before.find(x, y, trace.width)
+            for n in self.names:
+                self.pixel.samples_attachment(n)[:, 0, 0] = trace.before.attachments[n][:, j]
+
+    def fragment(self, k: int) -> Tuple[Dict[str, Any], Dict[str, Any]]:
+        """(name → fragment ``k``'s value, name → its sample's value after it)."""
+        t = self.trace
+        f, s, m = t.fragments, t.shaded, t.merged
+        values = {n: _plain(o[k]) for n, o in zip(self.names, s.outputs)}
+        if self.fast:
+            return values, dict(values)
+        one = Fragments(np.zeros(1, f.x.dtype), np.zeros(1, f.y.dtype), f.sample[k:k + 1], f.depth[k:k + 1],
+                        f.bary[k:k + 1], f.triangle[k:k + 1], f.primitive_id[k:k + 1])
+        shaded = ShadedFragments(s.color[k:k + 1], s.discarded[k:k + 1], 1, tuple(o[k:k + 1] for o in s.outputs))
+        merge_more(one, shaded, m.verdict[k:k + 1], self.pixel, t.call.attachment_states, t.call.state.blend_color)
+        sample = int(f.sample[k])
+        return values, {n: _plain(self.pixel.samples_attachment(n)[sample, 0, 0]) for n in self.names}
+
+
+def _plain(value) -> Any:
+    """An attachment's value as the history shows it: a tuple of 4 floats, a float (r32f) or an int (r32i)."""
+    a = np.asarray(value)
+    if a.ndim:
+        return tuple(float(c) for c in a)
+    return int(a) if np.issubdtype(a.dtype, np.integer) else float(a)
 
 
 class _CompiledMath:

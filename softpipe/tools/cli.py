@@ -314,6 +314,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --pathtrace: samples per pixel (default 64)")
     render.add_argument("--seed", type=_seed, metavar="S", default=None,
                         help="with --pathtrace: the random seed (default 0); the same seed gives the same image")
+    render.add_argument("--background-light", action="store_true",
+                        help="with --pathtrace: the uniform background is a light the light sample can go to, "
+                             "beside the emissive surfaces (the same image in expectation; less noisy where what "
+                             "hides the sky is much darker than it; docs/pathtracing.md)")
     render.add_argument("--rays", action="store_true",
                         help="rasterize, and let the objects drawn with mirror, glass or hall trace their reflected "
                              "and refracted rays from the fragment shader (ray queries) instead of reading an "
@@ -699,8 +703,9 @@ def _render(args) -> int:
             _progress(args, f"draw {k + 1}/{total}: {obj.name} ({obj.mesh.triangle_count} triangles)")
 
     results: list = []
-    if (args.spp is not None or args.seed is not None) and not args.pathtrace:
-        raise CLIError(f"{'--spp' if args.spp is not None else '--seed'} applies only with --pathtrace")
+    if (args.spp is not None or args.seed is not None or args.background_light) and not args.pathtrace:
+        given = "--spp" if args.spp is not None else "--seed" if args.seed is not None else "--background-light"
+        raise CLIError(f"{given} applies only with --pathtrace")
     if args.outputs and (args.pathtrace or args.rays or args.raytrace):
         other = "--pathtrace" if args.pathtrace else "--rays" if args.rays else "--raytrace"
         raise CLIError(f"--outputs reads the rasterizer's visibility record; it does not apply with {other}")
@@ -717,12 +722,14 @@ def _render(args) -> int:
                            "for the path tracer's samples per pixel)")
         from softpipe.tracers.pathtrace import pathtrace
         spp = 64 if args.spp is None else args.spp
-        traced = pathtrace(scene, spp=spp, seed=0 if args.seed is None else args.seed)
+        traced = pathtrace(scene, spp=spp, seed=0 if args.seed is None else args.seed,
+                           background_light=args.background_light)
         for note in traced.notes:
             _note(args, note)
         where = _save_image(traced.framebuffer(srgb=scene.srgb), output)
         _wrote(args, output, f"wrote {where} ({scene.width}×{scene.height}, {scene.triangle_count} triangles, "
                              f"path traced, {spp} samples per pixel, seed {traced.seed}, "
+                             f"{'the background sampled as a light, ' if args.background_light else ''}"
                              f"{time.perf_counter() - start:.2f} s)")
         return 0
     if args.rays:

@@ -82,11 +82,11 @@ DEFAULT_BACKGROUND = (0.08, 0.09, 0.12, 1.0)
 TOP_KEYS = ("job", "models", "materials", "lights", "sweep", "frames")
 JOB_KEYS = ("background", "fovy", "elevation", "outputs")
 SWEEP_KEYS = ("models", "cameras", "orbit", "programs", "materials", "lights", "sizes", "samples", "pathtrace", "spp",
-              "seed")
+              "seed", "background_light")
 ORBIT_KEYS = ("frames", "elevation", "start")
 CAMERA_KEYS = ("azimuth", "elevation")
 FRAME_KEYS = ("model", "view", "azimuth", "elevation", "orbit", "program", "material", "lights", "size",
-              "width", "height", "samples", "pathtrace", "spp", "seed")
+              "width", "height", "samples", "pathtrace", "spp", "seed", "background_light")
 #: Samples per pixel of a path-traced frame when the job does not say (``spp``).
 DEFAULT_SPP = 64
 LIGHTSET_KEYS = ("light", "shadows", "ambient")
@@ -142,6 +142,9 @@ class Frame:
         of the rasterizer: ``spp`` samples per pixel, random numbers from ``seed``.
     spp, seed : int
         The path tracer's samples per pixel and seed (used only with ``pathtrace``).
+    background_light : bool
+        With ``pathtrace``: the background is also a light the light sample goes to
+        (``pathtrace(..., background_light=True)``, docs/pathtracing.md).
     """
 
     model: str
@@ -158,14 +161,18 @@ class Frame:
     pathtrace: bool = False
     spp: int = DEFAULT_SPP
     seed: int = 0
+    background_light: bool = False
 
     def params(self) -> Dict[str, Any]:
         """The parameters as JSON values (the manifest's ``params``); a rasterized frame's leave out the
-        path tracer's (so its digest, name and manifest line are what they were before it had them)."""
+        path tracer's, and a path-traced frame's ``background_light`` when it is off (so their digests, names
+        and manifest lines are what they were before they had them)."""
         params = dataclasses.asdict(self)
         if not self.pathtrace:
             for key in ("pathtrace", "spp", "seed"):
                 del params[key]
+        if not self.background_light:
+            del params["background_light"]
         return params
 
     def digest(self) -> str:
@@ -209,7 +216,8 @@ class Frame:
         if self.samples != "1":
             parts.append(word(self.samples))
         if self.pathtrace:
-            parts.append(f"pt{self.spp}" + (f"-seed{self.seed}" if self.seed else ""))
+            parts.append(f"pt{self.spp}" + (f"-seed{self.seed}" if self.seed else "")
+                         + ("-bglight" if self.background_light else ""))
         name = "-".join(parts)
         if lossless and len(name) <= MAX_NAME_LENGTH:
             return name
@@ -558,18 +566,23 @@ class _JobReader(SceneReader):
         return value
 
     def path_tracing(self, t: Table, samples_key: str) -> Dict[str, Any]:
-        """A sweep's or frame's ``pathtrace`` and ``seed`` (``{}`` for a rasterized frame); ``spp`` and
-        ``seed`` without ``pathtrace = true``, or ``samples`` with it, are refused rather than ignored."""
+        """A sweep's or frame's ``pathtrace``, ``seed`` and ``background_light`` (``{}`` for a rasterized
+        frame); ``spp``, ``seed`` or ``background_light`` without ``pathtrace = true``, or ``samples`` with it,
+        are refused rather than ignored."""
         if not t.get("pathtrace", boolean, False):
             for key in ("spp", "seed"):
                 if key in t:
                     raise t.error("applies only with pathtrace = true (the path tracer's samples per pixel "
                                   "and seed)", key)
+            if "background_light" in t:
+                raise t.error("applies only with pathtrace = true (the path tracer's light sample toward the "
+                              "background)", "background_light")
             return {}
         if samples_key in t:
             raise t.error("picks the rasterizer's sample pattern; it does not apply with pathtrace = true, whose "
                           "samples are jittered over each pixel (a box filter): use spp = N", samples_key)
-        return {"pathtrace": True, "seed": t.get("seed", _seed, 0)}
+        return {"pathtrace": True, "seed": t.get("seed", _seed, 0),
+                "background_light": t.get("background_light", boolean, False)}
 
     def check_samples(self, t: Table, key: str, w: int, h: int, samples: str, spp: int = 0) -> None:
         count = spp or len(pattern_named(samples))

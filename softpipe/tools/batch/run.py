@@ -83,7 +83,7 @@ def render_frame(frame: Frame, mesh: Mesh, job: Job) -> bytes:
     camera with :meth:`~softpipe.scenes.scene.Scene.view_camera`'s turntable fit), drawn with
     :func:`softpipe.scenes.drawing.render`: the same pixels as ``softpipe render`` with the same options;
     a frame with ``pathtrace`` by :func:`softpipe.tracers.pathtrace.pathtrace` (``spp`` samples per pixel,
-    ``seed``): the same bytes for the same seed on any worker and thread count.
+    ``seed``, ``background_light``): the same bytes for the same seed on any worker and thread count.
     """
     return _render_png(frame, mesh, _frame_material(job, frame), job.lights[frame.lights], job.background,
                        job.fovy)[0]
@@ -113,7 +113,8 @@ def _render_png(frame: Frame, mesh: Mesh, material: Optional[Dict[str, Any]], li
     buffer = io.BytesIO()
     if frame.pathtrace:         # the job's background is the sky that lights it: the light sets have no area
         from softpipe.tracers.pathtrace import pathtrace
-        pathtrace(scene, frame.spp, frame.seed, camera=camera).save(buffer, format="png")
+        pathtrace(scene, frame.spp, frame.seed, camera=camera,
+                  background_light=frame.background_light).save(buffer, format="png")
     elif outputs:
         from softpipe.scenes.outputs import output_files
         made = render(scene, camera=camera, outputs=outputs)
