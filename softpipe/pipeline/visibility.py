@@ -23,10 +23,13 @@ Here:
    triangle there). Output: :class:`ShadedSamples`. A shader that raises, or returns
    a NaN alpha (:class:`DiscardOnFastPath`: the draw is then done on the reference
    path), has the draw undone.
-4. **Points and lines** (:func:`early_depth`, :func:`shade_winners`): their fragments
-   are few (a line makes one per pixel it crosses), so the rasterizer makes them all,
-   as on the reference path; the depth test runs over them in order first, and only
-   the last one written at each sample is shaded (:class:`FragmentVisibility`).
+4. **Points and lines** (:func:`primitive_visibility_pass`, :func:`shade_primitives`): the
+   same design on the same tiles. Each is binned to the tiles its box touches; each tile
+   walks its points or lines in order by the reference rasterizer's rules
+   (:mod:`~softpipe.pipeline.tiles`), depth-testing every fragment's samples as the merger
+   would and keeping no fragment, only the last primitive written at each sample
+   (:class:`PrimitiveVisibility`); then the visible samples are made into fragments and
+   shaded, in bands on the helper threads.
 
 The bytes are the reference's (tests/test_fast_path.py, test_fast_path_sound.py,
 test_properties.py hold them so); docs/08-fast-path.md walks through it and says why.
@@ -34,7 +37,7 @@ test_properties.py hold them so); docs/08-fast-path.md walks through it and says
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Optional, Tuple
+from typing import Callable, Optional, Tuple, Union
 
 import numba
 import numpy as np
@@ -48,8 +51,10 @@ from softpipe.pipeline.fragment import (
     derivative_gradients,
     run_fragment_stage,
 )
+from softpipe.pipeline.lines import LineSetup, line_sample_depth, line_shading_point, sample_means
 from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
-from softpipe.pipeline.output import NonFinite, depth_passes
+from softpipe.pipeline.output import NonFinite
+from softpipe.pipeline.points import PointSetup, point_shading_point
 from softpipe.pipeline.raster import Fragments
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
@@ -59,11 +64,20 @@ from softpipe.pipeline.setup import (
     sample_depth,
     shading_point,
 )
-from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
+from softpipe.pipeline.tiles import (
+    TILE_H,
+    TILE_W,
+    bin_triangles,
+    primitive_boxes,
+    raster_line_tiles,
+    raster_point_tiles,
+    raster_tiles,
+)
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
-           "visible_loop_args", "FragmentVisibility", "early_depth", "shade_winners", "shade_outputs"]
+           "visible_loop_args", "PrimitiveVisibility", "primitive_visibility_pass", "shade_primitives",
+           "shade_outputs"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -117,7 +131,7 @@ def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable
     width × height × samples per pixel, ``keep_fragments`` whether the caller
     needs every fragment (a trace with ``path="auto"``); ``samples_per_pixel`` and
     ``counts_samples`` as :func:`fast_path_blocker` takes them. The same for every kind of
-    primitive (points and lines have a visibility pass of their own, :func:`early_depth`).
+    primitive (points and lines have a visibility pass of their own, :func:`primitive_visibility_pass`).
     """
     if path not in PATHS:
         raise ValueError(f"path must be one of {PATHS}, got {path!r}")
@@ -435,107 +449,172 @@ def _invocations(vis: np.ndarray, shading: str) -> int:
     return int(seen.sum())
 
 
-# ------------------------------------------------- points and lines: early depth over their fragments
+# ------------------------------------------------- points and lines: their own walk over the same tiles
 
 @dataclass
-class FragmentVisibility:
-    """The fast path's visibility pass for points and lines: which of the rasterizer's fragments was
-    written last at each sample.
+class PrimitiveVisibility(Visibility):
+    """The visibility pass of points or lines (:func:`primitive_visibility_pass`): which one to shade at
+    each sample, as :class:`Visibility` for triangles.
 
     Attributes
     ----------
-    winner : int32 [S, H, W]
-        The row in ``candidates`` of the fragment written last at each sample, or −1.
-    kept : int64 [K]
-        Those rows, each once, in primitive order (the fragments to shade).
-    candidates : Fragments
-        Every fragment of the draw, from the rasterizer.
-    saved_depth : float32 [S, H, W] or None
-        The framebuffer's depth before the pass, while shading may still undo the draw.
+    vis, touched, saved_depth
+        As :class:`Visibility`'s (``vis``: the line or point, a row of the Primitives, written
+        last at each sample, or −1).
+    setup : LineSetup or PointSetup
+        The setup the pass used.
+    run : uint8 [S, H, W]
+        For wide lines, the place in its run (0 … w − 1) of the fragment written at each
+        sample, from which its attributes (the run's first fragment's) are found; empty [0, 0, 0]
+        otherwise.
     """
 
-    winner: np.ndarray
-    kept: np.ndarray
-    candidates: Fragments
-    saved_depth: Optional[np.ndarray] = field(default=None, repr=False)
-
-    @property
-    def vis(self) -> np.ndarray:
-        """int32 [S, H, W]: the primitive (row of the Primitives) written last at each sample, or −1, as
-        :attr:`Visibility.vis` (made when asked for)."""
-        shown = self.winner >= 0
-        vis = np.full(self.winner.shape, -1, np.int32)
-        vis[shown] = self.candidates.triangle[self.winner[shown]]
-        return vis
-
-    def restore_depth(self, fb) -> None:
-        """Put back the depth the pass replaced."""
-        if self.saved_depth is not None:
-            fb.samples_depth[...] = self.saved_depth
+    run: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0), np.uint8), repr=False)
 
     def __repr__(self) -> str:
-        return (f"FragmentVisibility({len(self.kept)} visible samples of {self.winner.size}, "
-                f"from {len(self.candidates)} fragments)")
+        kind = "lines" if isinstance(self.setup, LineSetup) else "points"
+        return (f"PrimitiveVisibility({int((self.vis >= 0).sum())} visible samples of {self.vis.size}, "
+                f"{len(self.setup)} {kind}, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
 
-    def visible_triangles(self) -> np.ndarray:
-        """The rows of the Primitives that are visible at some sample, sorted."""
-        return np.unique(self.candidates.triangle[self.kept])
-
-    def fragments(self, prims: Optional[Primitives] = None, pattern=None, shading: str = "sample") -> Fragments:
-        """The fragments the fast path shaded: one per visible sample, in primitive order."""
-        return self.candidates.take(self.kept)
-
-
-@numba.njit(cache=True)
-def _early_depth(x, y, s, depth, func, depth_write, fb_depth, winner):
-    """The depth test of the output merger (:func:`~softpipe.pipeline.output.depth_passes`, on the depth as
-    float32) over the fragments in order, keeping the last written at each sample."""
-    for k in range(x.shape[0]):
-        i, j, m = x[k], y[k], s[k]
-        if func >= 0:
-            z = np.float32(depth[k])
-            if not depth_passes(func, z, fb_depth[m, j, i]):
-                continue
-            if depth_write:
-                fb_depth[m, j, i] = z
-        winner[m, j, i] = k
+    def fragments(self, prims: Primitives, pattern, shading: str = "sample") -> Fragments:
+        """The fragments the fast path shades: one per visible sample, in (image row, tile, sample,
+        column) order, with the inputs the reference path's fragment there gives the shader
+        (with multisampling at the centre or centroid, every sample of a pixel gets its run's
+        first fragment's: the depth of its sample 0, where the reference path shades it)."""
+        return _visible_primitive_fragments(self, prims, pattern, SHADING_POSITIONS.index(shading))
 
 
-@numba.njit(cache=True)
-def _kept_rows(winner, n):
-    """The fragments some sample kept, each once, in increasing order (so that reading them is in order)."""
-    keep = np.zeros(n, np.bool_)
-    flat = winner.reshape(-1)
-    count = 0
-    for k in range(flat.shape[0]):
-        w = flat[k]
-        if w >= 0 and not keep[w]:
-            keep[w] = True
-            count += 1
-    rows = np.empty(count, np.int64)
-    r = 0
-    for k in range(n):
-        if keep[k]:
-            rows[r] = k
-            r += 1
-    return rows
-
-
-def early_depth(frags: Fragments, fb, state: MergeState, undo: bool = True) -> FragmentVisibility:
-    """The visibility pass of points and lines: the depth test over their fragments, in primitive order;
-    the framebuffer's depth is updated. ``undo`` keeps the depth it replaces."""
+def primitive_visibility_pass(prims: Primitives, setup: Union[LineSetup, PointSetup], fb, state: MergeState,
+                              rect: np.ndarray, undo: bool = True) -> PrimitiveVisibility:
+    """The fast path's visibility pass of points or lines: binned to the triangles' tiles
+    (:func:`~softpipe.pipeline.tiles.primitive_boxes`, :func:`~softpipe.pipeline.tiles.bin_triangles`),
+    each tile walking its primitives in order with the early depth test (no fragment is kept);
+    the framebuffer's depth is updated. ``rect`` is the scissor (:func:`~softpipe.pipeline.setup.pixel_rect`);
+    ``undo`` keeps the depth it replaces, as :func:`visibility_pass`."""
+    w, h, offsets = fb.width, fb.height, fb.pattern.offsets
     func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
     depth_write = bool(state.depth_write) and func >= 0
-    winner = np.full(fb.samples_depth.shape, -1, np.int32)
-    saved = fb.samples_depth.copy() if undo and depth_write else None
-    if len(frags):
-        _early_depth(frags.x, frags.y, frags.sample, frags.depth, func, depth_write, fb.samples_depth, winner)
-    return FragmentVisibility(winner, _kept_rows(winner, len(frags)), frags, saved)
+    vis = np.empty((len(offsets), h, w), np.int32)      # every tile is set to −1 first
+    tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
+    touched = np.zeros((tiles_y, tiles_x), np.bool_)
+    lines = isinstance(setup, LineSetup)
+    wide = lines and len(prims) > 0 and int(setup.width.max()) > 1
+    run = np.empty(vis.shape if wide else (0, 0, 0), np.uint8)
+    starts, items = bin_triangles(primitive_boxes(setup, rect), tiles_x, tiles_y)
+    undo = undo and depth_write and len(prims) > 0
+    saved = _scratch(fb.samples_depth) if undo else np.empty((0, 0, 0), np.float32)
+    if lines:
+        assert isinstance(setup, LineSetup)
+        in_bands(raster_line_tiles, tiles_x * tiles_y, setup.ends, setup.width, setup.depth, starts, items, tiles_x,
+                 rect, w, h, offsets, func, depth_write, fb.samples_depth, vis, run, touched.reshape(-1), saved)
+    else:
+        assert isinstance(setup, PointSetup)
+        in_bands(raster_point_tiles, tiles_x * tiles_y, setup.centre, setup.size, setup.depth, starts, items,
+                 tiles_x, rect, w, h, offsets, func, depth_write, fb.samples_depth, vis, touched.reshape(-1), saved)
+    return PrimitiveVisibility(vis, setup, touched, saved if undo else None, run)  # type: ignore[arg-type]  # a line's or point's setup
+
+
+@numba.njit(cache=True, nogil=True)
+def _count_visible(row_lo, row_hi, vis, touched, tile_w, tile_h, counts):
+    """The visible samples of image rows row_lo:row_hi (in the touched tiles), per row."""
+    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+    for row in range(row_lo, row_hi):
+        j = height - 1 - row
+        n = 0
+        for tile_x in range(touched.shape[1]):
+            if touched[j // tile_h, tile_x]:
+                for s in range(samples):
+                    for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
+                        if vis[s, row, i] >= 0:
+                            n += 1
+        counts[row] = n
+
+
+@numba.njit(cache=True, nogil=True)
+def _line_fragments(row_lo, row_hi, vis, run, touched, tile_w, tile_h, starts, ends, zends, prim_id, offsets,
+                    positions, mode, x, y, sample, depth, bary, tri, pid, fx, fy):
+    """The visible samples of lines in image rows row_lo:row_hi as fragments, each row's from starts[row]."""
+    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+    means = sample_means(offsets, positions)
+    for row in range(row_lo, row_hi):
+        j = height - 1 - row
+        k = starts[row]
+        for tile_x in range(touched.shape[1]):
+            if not touched[j // tile_h, tile_x]:
+                continue
+            for s in range(samples):
+                for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
+                    t = vis[s, row, i]
+                    if t < 0:
+                        continue
+                    r = np.int64(run[s, row, i]) if run.shape[0] > 0 else np.int64(0)
+                    x_major = abs(ends[t, 2] - ends[t, 0]) >= abs(ends[t, 3] - ends[t, 1])
+                    i0, j0 = (i, j - r) if x_major else (i - r, j)          # the run's first fragment
+                    tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
+                    # the reference path shades a multisampled pixel's run once, at its first sample
+                    depth[k] = line_sample_depth(ends, zends, t, i0, j0, s if mode == SHADE_SAMPLE else 0, offsets)
+                    x[k], y[k], sample[k], tri[k], pid[k] = i, row, s, t, prim_id[t]
+                    bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - tb, tb, 0.0
+                    fx[k], fy[k] = px, py
+                    k += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _point_fragments(row_lo, row_hi, vis, touched, tile_w, tile_h, starts, centre, size, zpoint, prim_id, offsets,
+                     positions, mode, x, y, sample, depth, bary, tri, pid, fx, fy):
+    """The visible samples of points in image rows row_lo:row_hi as fragments, each row's from starts[row]."""
+    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+    _, _, mx, my = sample_means(offsets, positions)
+    means = (mx, my)
+    for row in range(row_lo, row_hi):
+        j = height - 1 - row
+        k = starts[row]
+        for tile_x in range(touched.shape[1]):
+            if not touched[j // tile_h, tile_x]:
+                continue
+            for s in range(samples):
+                for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
+                    t = vis[s, row, i]
+                    if t < 0:
+                        continue
+                    ps, pt, px, py = point_shading_point(centre, size, t, i, j, s, positions, mode, means)
+                    x[k], y[k], sample[k], tri[k], pid[k] = i, row, s, t, prim_id[t]
+                    depth[k] = zpoint[t]
+                    bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - ps - pt, ps, pt
+                    fx[k], fy[k] = px, py
+                    k += 1
+
+
+def _visible_primitive_fragments(visibility: PrimitiveVisibility, prims: Primitives, pattern, mode: int) -> Fragments:
+    """:meth:`PrimitiveVisibility.fragments`: counted per image row, then made in bands of rows."""
+    vis, setup = visibility.vis, visibility.setup
+    height = vis.shape[1]
+    counts = np.zeros(height, np.int64)
+    if visibility.touched.any():
+        in_bands(_count_visible, height, vis, visibility.touched, TILE_W, TILE_H, counts, grain=16)
+    starts = np.zeros(height + 1, np.int64)
+    np.cumsum(counts, out=starts[1:])
+    n = int(starts[-1])
+    out = Fragments(np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n),
+                    np.empty((n, 3)), np.empty(n, np.int32), np.empty(n, np.int64), np.empty(n), np.empty(n), setup)
+    if n:
+        fields = (out.x, out.y, out.sample, out.depth, out.bary, out.triangle, out.primitive_id, out.frag_x,
+                  out.frag_y)
+        if isinstance(setup, LineSetup):
+            in_bands(_line_fragments, height, vis, visibility.run, visibility.touched, TILE_W, TILE_H, starts,
+                     setup.ends, setup.depth, prims.primitive_id, pattern.offsets, pattern.positions, mode, *fields,
+                     grain=16)
+        else:
+            assert isinstance(setup, PointSetup)
+            in_bands(_point_fragments, height, vis, visibility.touched, TILE_W, TILE_H, starts, setup.centre,
+                     setup.size, setup.depth, prims.primitive_id, pattern.offsets, pattern.positions, mode, *fields,
+                     grain=16)
+    return out
 
 
 @numba.njit(cache=True)
 def _write_kept(x, y, s, color, fb_color):
-    """Write the kept fragments' colors at their samples; returns how many are not finite."""
+    """Write the fragments' colors at their samples; returns how many are not finite."""
     bad = 0
     for k in range(x.shape[0]):
         total = 0.0
@@ -547,31 +626,76 @@ def _write_kept(x, y, s, color, fb_color):
     return bad
 
 
-def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragment_shader: Optional[Callable],
-                  uniforms, shading: str = "sample") -> ShadedSamples:
-    """Run the shader on the fragments a :class:`FragmentVisibility` kept and write their color into ``fb``.
+@numba.njit(cache=True, nogil=True)
+def _write_fragments(lo, hi, x, y, s, color, fb_color, bad):
+    """Write fragments lo:hi's colors at their samples; bad[lo] counts those not finite."""
+    n = 0
+    for k in range(lo, hi):
+        total = 0.0
+        for c in range(4):
+            fb_color[s[k], y[k], x[k], c] = color[k, c]
+            total += np.float64(color[k, c])
+        if not (total - total == 0.0):
+            n += 1
+    bad[lo] = n
 
-    As :func:`shade_visible`: a shader that raises has the depth put back and nothing written;
-    a NaN alpha (DISCARD) at a kept fragment raises :class:`DiscardOnFastPath` with the depth put back.
-    With multisampling at the centre or centroid, every sample of a pixel's fragment has the same
-    barycentrics, so shading each kept sample gives the color the reference path copies to them.
+
+#: Fragments a band of the points' and lines' shading holds at least (a band costs a call of the
+#: compiled loop from Python, some microseconds).
+SHADE_GRAIN = 8192
+
+
+def _shade_band(lo, hi, kernel, args) -> None:
+    """The fragment loop over fragments lo:hi (a band of :func:`shade_primitives`, on a helper thread: the
+    loop is compiled with nogil)."""
+    kernel(*(a[lo:hi] for a in args[:5]), *args[5:-1], args[-1][lo:hi])
+
+
+def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fragment_shader: Optional[Callable],
+                     uniforms, shading: str = "sample") -> ShadedSamples:
+    """Run the shader on the samples a :class:`PrimitiveVisibility` kept and write their color into ``fb``.
+
+    The visible samples are made into fragments (:meth:`PrimitiveVisibility.fragments`, in
+    bands of rows) and shaded by the reference path's loop (``fragment_loop``) in bands of
+    fragments on the helper threads; nothing is written before every one is shaded. As
+    :func:`shade_visible`: a shader that raises has the depth put back and nothing written; a
+    NaN alpha (DISCARD) at a visible sample raises :class:`DiscardOnFastPath` with the depth put
+    back. With multisampling at the centre or centroid each visible sample is shaded with its
+    pixel's inputs, so it gets the color the reference path copies to it.
     """
     try:
-        kept = visibility.fragments()
-        shaded = run_fragment_stage(kept, prims, fragment_shader, uniforms, "sample")
-        if shaded.discarded.any():
+        frags = visibility.fragments(prims, fb.pattern, shading)
+        shader = fragment_shader or default_fragment_shader(prims.layout)
+        color = np.empty((len(frags), 4), np.float32)
+        if len(frags):
+            kernel = kernels.fragment_kernel(shader, prims.layout)
+            args = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
+                    prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+            # compile (or load) once, in this thread, where errors are reported clearly
+            kernels.run_compiled("fragment", shader, kernel, *(a[:0] for a in args[:5]), *args[5:-1], color[:0])
+            kernels.run_compiled("fragment", shader, lambda *a: in_bands(_shade_band, len(frags), kernel, a,
+                                                                         grain=SHADE_GRAIN),
+                                 *args, site=kernels.fragment_site(shader, kernel, args, frags.x, frags.y,
+                                                                   frags.sample))
+        if np.isnan(color[:, 3]).any():
             raise DiscardOnFastPath("the fragment shader returned a NaN alpha (DISCARD) at a visible sample")
     except BaseException:
         visibility.restore_depth(fb)
+        _release(visibility.saved_depth)
         visibility.saved_depth = None
         raise
-    visibility.saved_depth = None
+    _release(visibility.saved_depth)
+    visibility.saved_depth = None              # the draw stands: nothing to undo
     non_finite = None
-    if _write_kept(kept.x, kept.y, kept.sample, shaded.color, fb.samples_color):
-        bad = np.flatnonzero(~np.isfinite(shaded.color).all(axis=1))
-        first = int(bad[np.lexsort((kept.x[bad], kept.y[bad]))[0]])       # the lowest image row, then column
-        non_finite = NonFinite(len(bad), int(kept.x[first]), int(kept.y[first]), int(kept.primitive_id[first]))
-    return ShadedSamples(visibility, shading, non_finite)  # type: ignore[arg-type]  # it reads .vis alone
+    bad = np.zeros(len(frags) + 1, np.int64)
+    if len(frags):
+        in_bands(_write_fragments, len(frags), frags.x, frags.y, frags.sample, color, fb.samples_color, bad,
+                 grain=65536)
+    if bad.any():
+        wrong = np.flatnonzero(~np.isfinite(color).all(axis=1))
+        first = int(wrong[np.lexsort((frags.x[wrong], frags.y[wrong]))[0]])       # the lowest image row, then column
+        non_finite = NonFinite(len(wrong), int(frags.x[first]), int(frags.y[first]), int(frags.primitive_id[first]))
+    return ShadedSamples(visibility, shading, non_finite)
 
 
 
@@ -582,8 +706,8 @@ def shade_outputs(prims: Primitives, visibility, fb, fragment_shader: Optional[C
     """The fast path into a framebuffer of several attachments: the shader once per visible sample, its
     values written into every attachment.
 
-    The visible samples are made into fragments (:meth:`Visibility.fragments`, or the kept ones of a
-    :class:`FragmentVisibility`), with the barycentrics, depth and position the reference path's
+    The visible samples are made into fragments (:meth:`Visibility.fragments`, or
+    :meth:`PrimitiveVisibility.fragments` for points and lines), with the barycentrics, depth and position the reference path's
     fragment gives the shader there (at the pixel's shading point with multisampling, so every
     sample of a pixel gets the value the reference path copies to them), and shaded by the same
     loop as the reference path's (``fragment_loop_outputs``); nothing is written before every one
