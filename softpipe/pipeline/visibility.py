@@ -498,7 +498,7 @@ def primitive_visibility_pass(prims: Primitives, setup: Union[LineSetup, PointSe
     tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
     touched = np.zeros((tiles_y, tiles_x), np.bool_)
     lines = isinstance(setup, LineSetup)
-    wide = lines and len(prims) > 0 and int(setup.width.max()) > 1
+    wide = isinstance(setup, LineSetup) and len(prims) > 0 and int(setup.width.max()) > 1
     run = np.empty(vis.shape if wide else (0, 0, 0), np.uint8)
     starts, items = bin_triangles(primitive_boxes(setup, rect), tiles_x, tiles_y)
     undo = undo and depth_write and len(prims) > 0
@@ -668,6 +668,7 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
         shader = fragment_shader or default_fragment_shader(prims.layout)
         color = np.empty((len(frags), 4), np.float32)
         if len(frags):
+            assert frags.frag_x is not None and frags.frag_y is not None      # (made above)
             kernel = kernels.fragment_kernel(shader, prims.layout)
             args = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
                     prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
