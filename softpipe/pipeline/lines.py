@@ -45,7 +45,8 @@ from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import SHADE_CENTER, SHADE_SAMPLE, snap
 
 __all__ = ["LineSetup", "setup_lines", "crosses_diamond", "holds_end", "produces", "cover_line", "run_width",
-           "line_walk", "column_candidates", "sample_means", "line_sample_depth", "line_shading_point"]
+           "line_walk", "column_candidates", "sample_means", "line_parameter", "depth_along", "line_sample_depth",
+           "line_shading_point"]
 
 #: The diamond's half-diagonal, ½ pixel, in fixed point.
 RADIUS = SUBPIXEL // 2
@@ -269,15 +270,24 @@ def sample_means(offsets, positions):
 
 
 @numba.njit(cache=True, forceinline=True)
-def line_sample_depth(ends, depth, t, i, j, s, offsets):
-    """The window depth of line t's fragment of run start (i, j) at sample s: (1 − t)·z_a + t·z_b, t at
-    the sample, clamped to [0, 1]."""
+def line_parameter(ends, t, px, py):
+    """t = ((p − a)·(b − a)) / |b − a|² along line t at the fixed-point position (px, py), clamped to [0, 1]."""
     xa, ya = ends[t, 0], ends[t, 1]
     dx, dy = ends[t, 2] - xa, ends[t, 3] - ya
-    ts = _parameter(xa, ya, dx, dy, float(dx * dx + dy * dy), i * SUBPIXEL + offsets[s, 0],
-                    j * SUBPIXEL + offsets[s, 1])
+    return _parameter(xa, ya, dx, dy, float(dx * dx + dy * dy), px, py)
+
+
+@numba.njit(cache=True, forceinline=True)
+def depth_along(depth, t, ts):
+    """The window depth (1 − t)·z_a + t·z_b of line t at ``ts``, clamped to [0, 1]."""
     z_a, z_b = depth[t, 0], depth[t, 1]
     return min(max(z_a + ts * (z_b - z_a), 0.0), 1.0)
+
+
+@numba.njit(cache=True, forceinline=True)
+def line_sample_depth(ends, depth, t, i, j, s, offsets):
+    """The window depth of line t's fragment of run start (i, j) at sample s: t taken at the sample."""
+    return depth_along(depth, t, line_parameter(ends, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]))
 
 
 @numba.njit(cache=True, forceinline=True)
@@ -290,8 +300,8 @@ def line_shading_point(ends, t, i, j, pi, pj, s, offsets, positions, mode, means
     xa, ya = ends[t, 0], ends[t, 1]
     dx, dy = ends[t, 2] - xa, ends[t, 3] - ya
     length2 = float(dx * dx + dy * dy)
-    if mode == SHADE_SAMPLE:
-        tb = _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
+    if mode == SHADE_SAMPLE:         # (the t of the sample's depth, line_sample_depth's)
+        tb = line_parameter(ends, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
         return tb, pi + positions[s, 0], pj + positions[s, 1]
     if mode == SHADE_CENTER:
         return _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL, j * SUBPIXEL), pi + 0.5, pj + 0.5

@@ -382,9 +382,12 @@ def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles
 @numba.njit(cache=True, nogil=True)
 def _line_boxes(lo, hi, ends, width, rect, box):
     """The pixels each of lines lo:hi may produce, within ``rect``: a box around its candidate diamonds
-    (:func:`~softpipe.pipeline.lines.column_candidates` looks at most 3 pixels beyond the ends' minor
-    coordinates: a pixel and a half along the line past an end, and a pixel either side)
-    and its runs; empty for a line of length 0."""
+    and its runs; empty for a line of length 0.
+
+    The walk's columns reach 1½ pixels (383/256) past an end, where the line's minor coordinate
+    is at most that far beyond the ends' (|slope| ≤ 1); a candidate's centre is within ½ pixel
+    (and :data:`~softpipe.pipeline.lines.CANDIDATE_MARGIN`) of it
+    (:func:`~softpipe.pipeline.lines.column_candidates`): 2 pixels in all, either way."""
     for t in range(lo, hi):
         x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, t)
         if step == 0:
@@ -392,8 +395,8 @@ def _line_boxes(lo, hi, ends, width, rect, box):
             continue
         m0, m1 = min(first, last), max(first, last)
         nb = na + nd
-        n0 = min(na, nb) // SUBPIXEL - 4
-        n1 = max(na, nb) // SUBPIXEL + 4 + width[t] - 1          # a run goes up (right) from its fragment
+        n0 = min(na, nb) // SUBPIXEL - 2
+        n1 = max(na, nb) // SUBPIXEL + 3 + width[t] - 1          # a run goes up (right) from its fragment
         i0, i1, j0, j1 = (m0, m1, n0, n1) if x_major else (n0, n1, m0, m1)
         box[t, 0], box[t, 1] = max(i0, rect[0]), min(i1, rect[1])
         box[t, 2], box[t, 3] = max(j0, rect[2]), min(j1, rect[3])

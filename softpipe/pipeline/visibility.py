@@ -51,11 +51,19 @@ from softpipe.pipeline.fragment import (
     derivative_gradients,
     run_fragment_stage,
 )
-from softpipe.pipeline.lines import LineSetup, line_sample_depth, line_shading_point, sample_means
+from softpipe.pipeline.lines import (
+    LineSetup,
+    depth_along,
+    line_parameter,
+    line_sample_depth,
+    line_shading_point,
+    sample_means,
+)
 from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
 from softpipe.pipeline.output import NonFinite
 from softpipe.pipeline.points import PointSetup, point_shading_point
 from softpipe.pipeline.raster import Fragments
+from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
     SHADING_POSITIONS,
@@ -550,9 +558,14 @@ def _line_fragments(row_lo, row_hi, vis, run, touched, tile_w, tile_h, starts, e
                     r = np.int64(run[s, row, i]) if run.shape[0] > 0 else np.int64(0)
                     x_major = abs(ends[t, 2] - ends[t, 0]) >= abs(ends[t, 3] - ends[t, 1])
                     i0, j0 = (i, j - r) if x_major else (i - r, j)          # the run's first fragment
-                    tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
-                    # the reference path shades a multisampled pixel's run once, at its first sample
-                    depth[k] = line_sample_depth(ends, zends, t, i0, j0, s if mode == SHADE_SAMPLE else 0, offsets)
+                    if mode == SHADE_SAMPLE:     # t at the sample, for the depth and the attributes alike
+                        tb = line_parameter(ends, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
+                        px, py = i + positions[s, 0], j + positions[s, 1]
+                        depth[k] = depth_along(zends, t, tb)
+                    else:
+                        tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
+                        # the reference path shades a multisampled pixel's run once, at its first sample
+                        depth[k] = line_sample_depth(ends, zends, t, i0, j0, 0, offsets)
                     x[k], y[k], sample[k], tri[k], pid[k] = i, row, s, t, prim_id[t]
                     bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - tb, tb, 0.0
                     fx[k], fy[k] = px, py
