@@ -42,7 +42,7 @@ from typing import Callable, Optional, Tuple, Union
 import numba
 import numpy as np
 
-from softpipe.core.parallel import in_bands
+from softpipe.core.parallel import in_bands, threads
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import (
@@ -485,8 +485,7 @@ class PrimitiveVisibility(Visibility):
                 f"{len(self.setup)} {kind}, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
 
     def fragments(self, prims: Primitives, pattern, shading: str = "sample") -> Fragments:
-        """The fragments the fast path shades: one per visible sample, in (image row, tile, sample,
-        column) order, with the inputs the reference path's fragment there gives the shader
+        """The fragments the fast path shades: one per visible sample, in primitive order, with the inputs the reference path's fragment there gives the shader
         (with multisampling at the centre or centroid, every sample of a pixel gets its run's
         first fragment's: the depth of its sample 0, where the reference path shades it)."""
         return _visible_primitive_fragments(self, prims, pattern, SHADING_POSITIONS.index(shading))
@@ -523,106 +522,157 @@ def primitive_visibility_pass(prims: Primitives, setup: Union[LineSetup, PointSe
 
 
 @numba.njit(cache=True, nogil=True)
-def _count_visible(row_lo, row_hi, vis, touched, tile_w, tile_h, counts):
-    """The visible samples of image rows row_lo:row_hi (in the touched tiles), per row."""
+def _visible_by_primitive(band_lo, band_hi, bounds, vis, touched, tile_w, tile_h, places, keys, tri, fill):
+    """Bands band_lo:band_hi of image rows (``bounds``): count the visible samples of each primitive
+    (``fill`` False, into ``places[band]``), or put each at its primitive's next place (``fill``: its
+    (row, sample, column) into ``keys`` as (row·S + sample)·W + column, its primitive into ``tri``)."""
     samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
-    for row in range(row_lo, row_hi):
-        j = height - 1 - row
-        n = 0
-        for tile_x in range(touched.shape[1]):
-            if touched[j // tile_h, tile_x]:
+    for band in range(band_lo, band_hi):
+        at = places[band]
+        for row in range(bounds[band], bounds[band + 1]):
+            j = height - 1 - row
+            for tile_x in range(touched.shape[1]):
+                if not touched[j // tile_h, tile_x]:
+                    continue
                 for s in range(samples):
                     for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
-                        if vis[s, row, i] >= 0:
-                            n += 1
-        counts[row] = n
+                        t = vis[s, row, i]
+                        if t < 0:
+                            continue
+                        if fill:
+                            k = at[t]
+                            keys[k] = (row * samples + s) * width + i
+                            tri[k] = t
+                        at[t] += 1
 
 
 @numba.njit(cache=True, nogil=True)
-def _line_fragments(row_lo, row_hi, vis, run, touched, tile_w, tile_h, starts, ends, zends, prim_id, offsets,
-                    positions, mode, x, y, sample, depth, bary, tri, pid, fx, fy):
-    """The visible samples of lines in image rows row_lo:row_hi as fragments, each row's from starts[row]."""
-    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+def _line_inputs(lo, hi, keys, tri, run, samples, width, height, ends, zends, offsets, positions, mode, depth, bary,
+                 fx, fy):
+    """The shader's inputs at the visible samples lo:hi (``keys``, ``tri``: :func:`_visible_by_primitive`) of
+    lines: depth, barycentrics and window position, as the reference path's fragments have them."""
     means = sample_means(offsets, positions)
-    for row in range(row_lo, row_hi):
+    keep_run = run.shape[0] > 0
+    for k in range(lo, hi):
+        key, t = keys[k], tri[k]
+        i = key % width
+        s = (key // width) % samples
+        row = key // (width * samples)
         j = height - 1 - row
-        k = starts[row]
-        for tile_x in range(touched.shape[1]):
-            if not touched[j // tile_h, tile_x]:
-                continue
-            for s in range(samples):
-                for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
-                    t = vis[s, row, i]
-                    if t < 0:
-                        continue
-                    r = np.int64(run[s, row, i]) if run.shape[0] > 0 else np.int64(0)
-                    x_major = abs(ends[t, 2] - ends[t, 0]) >= abs(ends[t, 3] - ends[t, 1])
-                    i0, j0 = (i, j - r) if x_major else (i - r, j)          # the run's first fragment
-                    if mode == SHADE_SAMPLE:     # t at the sample, for the depth and the attributes alike
-                        tb = line_parameter(ends, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
-                        px, py = i + positions[s, 0], j + positions[s, 1]
-                        depth[k] = depth_along(zends, t, tb)
-                    else:
-                        tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
-                        # the reference path shades a multisampled pixel's run once, at its first sample
-                        depth[k] = line_sample_depth(ends, zends, t, i0, j0, 0, offsets)
-                    x[k], y[k], sample[k], tri[k], pid[k] = i, row, s, t, prim_id[t]
-                    bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - tb, tb, 0.0
-                    fx[k], fy[k] = px, py
-                    k += 1
+        r = np.int64(run[s, row, i]) if keep_run else np.int64(0)
+        x_major = abs(ends[t, 2] - ends[t, 0]) >= abs(ends[t, 3] - ends[t, 1])
+        i0, j0 = (i, j - r) if x_major else (i - r, j)          # the run's first fragment
+        if mode == SHADE_SAMPLE:     # t at the sample, for the depth and the attributes alike
+            tb = line_parameter(ends, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
+            px, py = i + positions[s, 0], j + positions[s, 1]
+            depth[k] = depth_along(zends, t, tb)
+        else:
+            tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
+            # the reference path shades a multisampled pixel's run once, at its first sample
+            depth[k] = line_sample_depth(ends, zends, t, i0, j0, 0, offsets)
+        bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - tb, tb, 0.0
+        fx[k], fy[k] = px, py
 
 
 @numba.njit(cache=True, nogil=True)
-def _point_fragments(row_lo, row_hi, vis, touched, tile_w, tile_h, starts, centre, size, zpoint, prim_id, offsets,
-                     positions, mode, x, y, sample, depth, bary, tri, pid, fx, fy):
-    """The visible samples of points in image rows row_lo:row_hi as fragments, each row's from starts[row]."""
-    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+def _point_inputs(lo, hi, keys, tri, samples, width, height, centre, size, zpoint, offsets, positions, mode, depth,
+                  bary, fx, fy):
+    """The shader's inputs at the visible samples lo:hi (``keys``, ``tri``: :func:`_visible_by_primitive`) of
+    points."""
     _, _, mx, my = sample_means(offsets, positions)
     means = (mx, my)
-    for row in range(row_lo, row_hi):
-        j = height - 1 - row
-        k = starts[row]
-        for tile_x in range(touched.shape[1]):
-            if not touched[j // tile_h, tile_x]:
-                continue
-            for s in range(samples):
-                for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
-                    t = vis[s, row, i]
-                    if t < 0:
-                        continue
-                    ps, pt, px, py = point_shading_point(centre, size, t, i, j, s, positions, mode, means)
-                    x[k], y[k], sample[k], tri[k], pid[k] = i, row, s, t, prim_id[t]
-                    depth[k] = zpoint[t]
-                    bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - ps - pt, ps, pt
-                    fx[k], fy[k] = px, py
-                    k += 1
+    for k in range(lo, hi):
+        key, t = keys[k], tri[k]
+        i = key % width
+        s = (key // width) % samples
+        row = key // (width * samples)
+        ps, pt, px, py = point_shading_point(centre, size, t, i, height - 1 - row, s, positions, mode, means)
+        depth[k] = zpoint[t]
+        bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - ps - pt, ps, pt
+        fx[k], fy[k] = px, py
+
+
+#: Buffers of the points' and lines' shading (its sorted samples and the shader's inputs and colors), kept
+#: between draws as the depth saved for an undo is (:func:`_scratch`): a cloud's 400,000 visible samples take
+#: 30 MB, whose first touch (a page fault a page) cost more than making them.
+_POOL: dict = {}
+
+
+def _pooled(name: str, n: int, dtype, *shape) -> np.ndarray:
+    """An array [n, *shape] of ``dtype`` from the pool (taken: a draw at the same time gets its own)."""
+    buffer = _POOL.pop(name, None)           # atomic under the GIL
+    if buffer is None or len(buffer) < n or buffer.dtype != dtype or buffer.shape[1:] != shape:
+        buffer = np.empty((max(n, 1024),) + shape, dtype)
+    return buffer
+
+
+def _return_pooled(**buffers) -> None:
+    """Hand buffers back to the pool (the larger of two of a name kept)."""
+    for name, buffer in buffers.items():
+        kept = _POOL.get(name)
+        if kept is None or len(kept) <= len(buffer):
+            _POOL[name] = buffer
+
+
+def _sorted_samples(visibility: PrimitiveVisibility, n_prims: int, pooled: bool) -> Tuple[np.ndarray, np.ndarray]:
+    """The visible samples sorted by primitive: (keys, tri), each sample's (row·S + sample)·W + column and
+    its primitive.
+
+    In primitive order, because shading reads each primitive's varyings: in the order of the
+    screen a cloud's points come in no order at all, and every fragment's varyings were a
+    cache miss (shading took 10 times longer). A counting sort in bands of image rows (as
+    :func:`~softpipe.pipeline.tiles.bin_triangles`: each band counts per primitive, a prefix sum
+    over (primitive, band) gives each band its places), so a primitive's samples are in
+    (image row, tile, sample, column) order on any thread count.
+    """
+    vis, touched = visibility.vis, visibility.touched
+    height = vis.shape[1]
+    bands = max(1, min(threads(), height // 16))
+    bounds = np.linspace(0, height, bands + 1).astype(np.int64)
+    places = np.zeros((bands, n_prims), np.int64)
+    keys, tri = np.empty(0, np.int64), np.empty(0, np.int32)
+    if touched.any() and n_prims:
+        in_bands(_visible_by_primitive, bands, bounds, vis, touched, TILE_W, TILE_H, places, keys, tri, False)
+    running = np.zeros(places.size + 1, np.int64)
+    np.cumsum(places.T.ravel(), out=running[1:])
+    n = int(running[-1])
+    if not n:
+        return keys, tri
+    places = running[:-1].reshape(n_prims, bands).T.copy()
+    keys = _pooled("keys", n, np.int64)[:n] if pooled else np.empty(n, np.int64)
+    tri = _pooled("tri", n, np.int32)[:n] if pooled else np.empty(n, np.int32)
+    in_bands(_visible_by_primitive, bands, bounds, vis, touched, TILE_W, TILE_H, places, keys, tri, True)
+    return keys, tri
+
+
+def _shader_inputs(visibility: PrimitiveVisibility, keys, tri, pattern, mode: int, depth, bary, fx, fy) -> None:
+    """The shader's inputs at the sorted samples (:func:`_sorted_samples`), in bands."""
+    setup, (samples, height, width) = visibility.setup, visibility.vis.shape
+    if isinstance(setup, LineSetup):
+        in_bands(_line_inputs, len(keys), keys, tri, visibility.run, samples, width, height, setup.ends, setup.depth,
+                 pattern.offsets, pattern.positions, mode, depth, bary, fx, fy, grain=16384)
+    else:
+        assert isinstance(setup, PointSetup)
+        in_bands(_point_inputs, len(keys), keys, tri, samples, width, height, setup.centre, setup.size, setup.depth,
+                 pattern.offsets, pattern.positions, mode, depth, bary, fx, fy, grain=16384)
+
+
+def _decode(keys: np.ndarray, shape) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(column, image row, sample) of sorted samples' keys, int32 each."""
+    samples, _, width = shape
+    return ((keys % width).astype(np.int32), (keys // (width * samples)).astype(np.int32),
+            ((keys // width) % samples).astype(np.int32))
 
 
 def _visible_primitive_fragments(visibility: PrimitiveVisibility, prims: Primitives, pattern, mode: int) -> Fragments:
-    """:meth:`PrimitiveVisibility.fragments`: counted per image row, then made in bands of rows."""
-    vis, setup = visibility.vis, visibility.setup
-    height = vis.shape[1]
-    counts = np.zeros(height, np.int64)
-    if visibility.touched.any():
-        in_bands(_count_visible, height, vis, visibility.touched, TILE_W, TILE_H, counts, grain=16)
-    starts = np.zeros(height + 1, np.int64)
-    np.cumsum(counts, out=starts[1:])
-    n = int(starts[-1])
-    out = Fragments(np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n),
-                    np.empty((n, 3)), np.empty(n, np.int32), np.empty(n, np.int64), np.empty(n), np.empty(n), setup)
+    """:meth:`PrimitiveVisibility.fragments`: the visible samples sorted by primitive, made into fragments."""
+    keys, tri = _sorted_samples(visibility, len(prims), pooled=False)
+    n = len(keys)
+    depth, bary, fx, fy = np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n)
     if n:
-        fields = (out.x, out.y, out.sample, out.depth, out.bary, out.triangle, out.primitive_id, out.frag_x,
-                  out.frag_y)
-        if isinstance(setup, LineSetup):
-            in_bands(_line_fragments, height, vis, visibility.run, visibility.touched, TILE_W, TILE_H, starts,
-                     setup.ends, setup.depth, prims.primitive_id, pattern.offsets, pattern.positions, mode, *fields,
-                     grain=16)
-        else:
-            assert isinstance(setup, PointSetup)
-            in_bands(_point_fragments, height, vis, visibility.touched, TILE_W, TILE_H, starts, setup.centre,
-                     setup.size, setup.depth, prims.primitive_id, pattern.offsets, pattern.positions, mode, *fields,
-                     grain=16)
-    return out
+        _shader_inputs(visibility, keys, tri, pattern, mode, depth, bary, fx, fy)
+    x, y, sample = _decode(keys, visibility.vis.shape)
+    return Fragments(x, y, sample, depth, bary, tri, prims.primitive_id[tri], fx, fy, visibility.setup)
 
 
 @numba.njit(cache=True)
@@ -640,13 +690,15 @@ def _write_kept(x, y, s, color, fb_color):
 
 
 @numba.njit(cache=True, nogil=True)
-def _write_fragments(lo, hi, x, y, s, color, fb_color, bad):
-    """Write fragments lo:hi's colors at their samples; bad[lo] counts those not finite."""
+def _write_by_keys(lo, hi, keys, color, samples, height, width, fb_color, bad):
+    """Write the colors of sorted samples lo:hi (:func:`_sorted_samples`); bad[lo] counts those not finite."""
     n = 0
     for k in range(lo, hi):
+        key = keys[k]
+        i, s, row = key % width, (key // width) % samples, key // (width * samples)
         total = 0.0
         for c in range(4):
-            fb_color[s[k], y[k], x[k], c] = color[k, c]
+            fb_color[s, row, i, c] = color[k, c]
             total += np.float64(color[k, c])
         if not (total - total == 0.0):
             n += 1
@@ -655,7 +707,7 @@ def _write_fragments(lo, hi, x, y, s, color, fb_color, bad):
 
 #: Fragments a band of the points' and lines' shading holds at least (a band costs a call of the
 #: compiled loop from Python, some microseconds).
-SHADE_GRAIN = 8192
+SHADE_GRAIN = 65536
 
 
 def _shade_band(lo, hi, kernel, args) -> None:
@@ -668,49 +720,62 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
                      uniforms, shading: str = "sample") -> ShadedSamples:
     """Run the shader on the samples a :class:`PrimitiveVisibility` kept and write their color into ``fb``.
 
-    The visible samples are made into fragments (:meth:`PrimitiveVisibility.fragments`, in
-    bands of rows) and shaded by the reference path's loop (``fragment_loop``) in bands of
-    fragments on the helper threads; nothing is written before every one is shaded. As
-    :func:`shade_visible`: a shader that raises has the depth put back and nothing written; a
-    NaN alpha (DISCARD) at a visible sample raises :class:`DiscardOnFastPath` with the depth put
-    back. With multisampling at the centre or centroid each visible sample is shaded with its
-    pixel's inputs, so it gets the color the reference path copies to it.
+    The visible samples, sorted by primitive (:func:`_sorted_samples`), get the inputs the
+    reference path's fragments there give the shader (the same as
+    :meth:`PrimitiveVisibility.fragments`) and are shaded by the reference path's loop
+    (``fragment_loop``) in bands on the helper threads; nothing is written before every one is
+    shaded. As :func:`shade_visible`: a shader that raises has the depth put back and nothing
+    written; a NaN alpha (DISCARD) at a visible sample raises :class:`DiscardOnFastPath` with the
+    depth put back. With multisampling at the centre or centroid each visible sample is shaded
+    with its pixel's inputs, so it gets the color the reference path copies to it.
     """
+    shape = visibility.vis.shape
+    buffers: dict = {}
     try:
-        frags = visibility.fragments(prims, fb.pattern, shading)
         shader = fragment_shader or default_fragment_shader(prims.layout)
-        color = np.empty((len(frags), 4), np.float32)
-        if len(frags):
-            assert frags.frag_x is not None and frags.frag_y is not None      # (made above)
+        keys, tri = _sorted_samples(visibility, len(prims), pooled=True)
+        n = len(keys)
+        if n:
+            buffers = dict(keys=keys.base, tri=tri.base, depth=_pooled("depth", n, np.float64),
+                           bary=_pooled("bary", n, np.float64, 3), fx=_pooled("fx", n, np.float64),
+                           fy=_pooled("fy", n, np.float64), color=_pooled("color", n, np.float32, 4))
+        color = buffers["color"][:n] if n else np.empty((0, 4), np.float32)
+        if n:
+            depth, bary, fx, fy = (buffers[k][:n] for k in ("depth", "bary", "fx", "fy"))
+            _shader_inputs(visibility, keys, tri, fb.pattern, SHADING_POSITIONS.index(shading), depth, bary, fx, fy)
             kernel = kernels.fragment_kernel(shader, prims.layout)
-            args = (frags.triangle, frags.frag_x, frags.frag_y, frags.depth, frags.bary, prims.inv_w, prims.varyings,
-                    prims.front_facing, prims.primitive_id, derivative_gradients(shader, frags.setup), uniforms, color)
+            args = (tri, fx, fy, depth, bary, prims.inv_w, prims.varyings, prims.front_facing, prims.primitive_id,
+                    derivative_gradients(shader, visibility.setup), uniforms, color)
             # compile (or load) once, in this thread, where errors are reported clearly
             kernels.run_compiled("fragment", shader, kernel, *(a[:0] for a in args[:5]), *args[5:-1], color[:0])
-            kernels.run_compiled("fragment", shader, lambda *a: in_bands(_shade_band, len(frags), kernel, a,
-                                                                         grain=SHADE_GRAIN),
-                                 *args, site=kernels.fragment_site(shader, kernel, args, frags.x, frags.y,
-                                                                   frags.sample))
+
+            def site():        # which fragment raised: the shading again, on copies, one by one
+                return kernels.fragment_site(shader, kernel, args[:-1] + (color.copy(),), *_decode(keys, shape))()
+
+            kernels.run_compiled("fragment", shader, lambda *a: in_bands(_shade_band, n, kernel, a,
+                                                                         grain=SHADE_GRAIN), *args, site=site)
         if np.isnan(color[:, 3]).any():
             raise DiscardOnFastPath("the fragment shader returned a NaN alpha (DISCARD) at a visible sample")
+        bad = np.zeros(n + 1, np.int64)
+        non_finite = None
+        if n:
+            in_bands(_write_by_keys, n, keys, color, *shape, fb.samples_color, bad, grain=65536)
+        if bad.any():
+            wrong = np.flatnonzero(~np.isfinite(color).all(axis=1))
+            x, y, _ = _decode(keys[wrong], shape)
+            first = int(np.lexsort((x, y))[0])          # the lowest image row, then column
+            non_finite = NonFinite(len(wrong), int(x[first]), int(y[first]),
+                                   int(prims.primitive_id[tri[wrong[first]]]))
     except BaseException:
         visibility.restore_depth(fb)
         _release(visibility.saved_depth)
         visibility.saved_depth = None
         raise
+    finally:
+        _return_pooled(**buffers)
     _release(visibility.saved_depth)
     visibility.saved_depth = None              # the draw stands: nothing to undo
-    non_finite = None
-    bad = np.zeros(len(frags) + 1, np.int64)
-    if len(frags):
-        in_bands(_write_fragments, len(frags), frags.x, frags.y, frags.sample, color, fb.samples_color, bad,
-                 grain=65536)
-    if bad.any():
-        wrong = np.flatnonzero(~np.isfinite(color).all(axis=1))
-        first = int(wrong[np.lexsort((frags.x[wrong], frags.y[wrong]))[0]])       # the lowest image row, then column
-        non_finite = NonFinite(len(wrong), int(frags.x[first]), int(frags.y[first]), int(frags.primitive_id[first]))
     return ShadedSamples(visibility, shading, non_finite)
-
 
 
 # ------------------------------------------------- several color attachments (multiple render targets)
