@@ -35,7 +35,7 @@ from softpipe.pipeline.points import in_square, point_box
 from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import covers, depth_at, edge_values, inside, inside_edge, offset_bounds, plane_depth
 
-__all__ = ["TILE_W", "TILE_H", "NARROW", "bin_triangles", "raster_tiles", "primitive_boxes",
+__all__ = ["TILE_W", "TILE_H", "NARROW", "bin_triangles", "raster_tiles", "primitive_boxes", "bin_primitives",
            "raster_line_tiles", "raster_point_tiles"]
 
 #: Tiles are wide and short: rows inside a tile are long enough for the compiler's
@@ -119,6 +119,43 @@ def _bin_fill(band_lo, band_hi, bounds, box, tiles_x, fill, items):
                 for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
                     tile = ty * tiles_x + tx
                     items[fill[band, tile]] = t
+                    fill[band, tile] += 1
+
+
+def bin_primitives(box: np.ndarray, tiles_x: int, tiles_y: int, setup: tuple) -> tuple:
+    """:func:`bin_triangles` for points and lines, their setup copied in the bins' order as they are
+    binned: (starts, items, rows), ``rows[m][k]`` being ``setup[m][items[k]]``.
+
+    The primitives are read in order and each tile's rows written one after the other, so a
+    tile's walk reads its primitives' setup in one sweep (reading a point cloud's through
+    ``items`` was a cache miss a point).
+    """
+    n_tiles = tiles_x * tiles_y
+    bands = max(1, min(2 * threads(), box.shape[0] // BIN_BAND_MIN))
+    bounds = np.linspace(0, box.shape[0], bands + 1).astype(np.int64)
+    counts = np.zeros((bands, n_tiles), np.int64)
+    in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
+    starts, fill = _bin_places(counts)
+    items = np.empty(starts[-1], np.int32)
+    rows = tuple(np.empty((len(items),) + a.shape[1:], a.dtype) for a in setup)
+    in_bands(_bin_fill_rows, bands, bounds, box, tiles_x, fill, items, *setup, *rows)
+    return starts, items, rows
+
+
+@numba.njit(cache=True, nogil=True)
+def _bin_fill_rows(band_lo, band_hi, bounds, box, tiles_x, fill, items, a, b, c, a_out, b_out, c_out):
+    for band in range(band_lo, band_hi):
+        for t in range(bounds[band], bounds[band + 1]):
+            if box[t, 0] > box[t, 1] or box[t, 2] > box[t, 3]:
+                continue
+            for ty in range(box[t, 2] // TILE_H, box[t, 3] // TILE_H + 1):
+                for tx in range(box[t, 0] // TILE_W, box[t, 1] // TILE_W + 1):
+                    tile = ty * tiles_x + tx
+                    k = fill[band, tile]
+                    items[k] = t
+                    a_out[k] = a[t]
+                    b_out[k] = b[t]
+                    c_out[k] = c[t]
                     fill[band, tile] += 1
 
 
@@ -436,13 +473,14 @@ def _test_sample(s, row, i, z, t, func, write, depth, vis):
 
 
 @numba.njit(cache=True)
-def _draw_line(ends, width, zends, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis, run):
-    """Depth-test line t's fragments in pixels [x_lo, x_hi] × [y_lo, y_hi]: the reference rasterizer's
-    walk (:func:`~softpipe.pipeline.lines.cover_line`, in its order) over the columns (rows) of the
-    tile alone, each fragment's samples at their depth; ``run`` (unless empty) gets the place in
-    its run of each sample written, from which shading finds the run's first fragment."""
-    xa, ya, xb, yb = ends[t, 0], ends[t, 1], ends[t, 2], ends[t, 3]
-    x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, t)
+def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis, run):
+    """Depth-test the fragments of line t (its setup at row k of ``ends``, ``width``, ``zends``) in pixels
+    [x_lo, x_hi] × [y_lo, y_hi]: the reference rasterizer's walk
+    (:func:`~softpipe.pipeline.lines.cover_line`, in its order) over the columns (rows) of the tile
+    alone, each fragment's samples at their depth; ``run`` (unless empty) gets the place in its
+    run of each sample written, from which shading finds the run's first fragment."""
+    xa, ya, xb, yb = ends[k, 0], ends[k, 1], ends[k, 2], ends[k, 3]
+    x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, k)
     if step == 0:
         return
     m_lo, m_hi = (x_lo, x_hi) if x_major else (y_lo, y_hi)          # the tile along the major axis
@@ -451,7 +489,7 @@ def _draw_line(ends, width, zends, t, x_lo, x_hi, y_lo, y_hi, height, offsets, f
         first, last = max(first, m_lo), min(last, m_hi)
     else:
         first, last = min(first, m_hi), max(last, m_lo)
-    w = width[t]
+    w = width[k]
     keep_run = run.shape[0] > 0
     for major in range(first, last + step, step):
         lo, hi, sure = column_candidates(major, ma, mb, na, nd, md)
@@ -466,19 +504,19 @@ def _draw_line(ends, width, zends, t, x_lo, x_hi, y_lo, y_hi, height, offsets, f
                 pi, pj = (i, j + r) if x_major else (i + r, j)
                 row = height - 1 - pj
                 for s in range(offsets.shape[0]):
-                    z = np.float32(line_sample_depth(ends, zends, t, i, j, s, offsets))
+                    z = np.float32(line_sample_depth(ends, zends, k, i, j, s, offsets))
                     if _test_sample(s, row, pi, z, t, func, write, depth, vis) and keep_run:
                         run[s, row, pi] = r
 
 
 @numba.njit(cache=True)
-def _draw_point(centre, size, zpoint, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis):
-    """Depth-test point t's fragments in pixels [x_lo, x_hi] × [y_lo, y_hi] (GL's square,
-    :func:`~softpipe.pipeline.points.in_square`)."""
-    cx, cy = centre[t, 0], centre[t, 1]
-    half = size[t] * (SUBPIXEL // 2)
-    i0, i1, j0, j1 = point_box(centre, size, t, x_lo, x_hi, y_lo, y_hi)
-    z = np.float32(zpoint[t])
+def _draw_point(centre, size, zpoint, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis):
+    """Depth-test the fragments of point t (its setup at row k of ``centre``, ``size``, ``zpoint``) in
+    pixels [x_lo, x_hi] × [y_lo, y_hi] (GL's square, :func:`~softpipe.pipeline.points.in_square`)."""
+    cx, cy = centre[k, 0], centre[k, 1]
+    half = size[k] * (SUBPIXEL // 2)
+    i0, i1, j0, j1 = point_box(centre, size, k, x_lo, x_hi, y_lo, y_hi)
+    z = np.float32(zpoint[k])
     for j in range(j0, j1 + 1):
         if not in_square(j * SUBPIXEL - cy, half):
             continue
@@ -519,8 +557,10 @@ def raster_line_tiles(tile_lo, tile_hi, ends, width, zends, starts, items, tiles
     reference's order on any thread count, with the early depth test of each fragment's samples;
     ``vis`` gets the last line written at each sample (−1: none), ``touched`` the tiles holding
     some line, whose depth is first copied to ``saved_depth`` (unless it is empty). ``ends``,
-    ``width``, ``zends``: the :class:`~softpipe.pipeline.lines.LineSetup`'s; ``rect`` the scissor
-    (window pixels (i_0, i_1, j_0, j_1)); ``run`` as :func:`_draw_line`'s.
+    ``width``, ``zends``: the :class:`~softpipe.pipeline.lines.LineSetup`'s rows taken in the bins'
+    order (row k is line ``items[k]``'s: each tile reads its lines' setup in one sweep, where
+    reading them through ``items`` was a cache miss a line); ``rect`` the scissor (window pixels
+    (i_0, i_1, j_0, j_1)); ``run`` as :func:`_draw_line`'s.
     """
     for tile in range(tile_lo, tile_hi):
         x_lo, x_hi, y_lo, y_hi = _begin_tile(tile, starts, tiles_x, rect, fb_width, height, offsets.shape[0],
@@ -528,7 +568,7 @@ def raster_line_tiles(tile_lo, tile_hi, ends, width, zends, starts, items, tiles
         if x_lo > x_hi or y_lo > y_hi:
             continue
         for k in range(starts[tile], starts[tile + 1]):
-            _draw_line(ends, width, zends, items[k], x_lo, x_hi, y_lo, y_hi, height, offsets, func, depth_write,
+            _draw_line(ends, width, zends, k, items[k], x_lo, x_hi, y_lo, y_hi, height, offsets, func, depth_write,
                        depth, vis, run)
 
 
@@ -536,12 +576,12 @@ def raster_line_tiles(tile_lo, tile_hi, ends, width, zends, starts, items, tiles
 def raster_point_tiles(tile_lo, tile_hi, centre, size, zpoint, starts, items, tiles_x, rect, fb_width, height,
                        offsets, func, depth_write, depth, vis, touched, saved_depth):
     """The visibility pass of points over tiles [tile_lo, tile_hi): :func:`raster_line_tiles` for a
-    :class:`~softpipe.pipeline.points.PointSetup`'s (centre, size, depth)."""
+    :class:`~softpipe.pipeline.points.PointSetup`'s (centre, size, depth), in the bins' order."""
     for tile in range(tile_lo, tile_hi):
         x_lo, x_hi, y_lo, y_hi = _begin_tile(tile, starts, tiles_x, rect, fb_width, height, offsets.shape[0],
                                              depth, vis, touched, saved_depth)
         if x_lo > x_hi or y_lo > y_hi:
             continue
         for k in range(starts[tile], starts[tile + 1]):
-            _draw_point(centre, size, zpoint, items[k], x_lo, x_hi, y_lo, y_hi, height, offsets, func, depth_write,
-                        depth, vis)
+            _draw_point(centre, size, zpoint, k, items[k], x_lo, x_hi, y_lo, y_hi, height, offsets, func,
+                        depth_write, depth, vis)

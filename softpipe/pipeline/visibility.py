@@ -75,6 +75,7 @@ from softpipe.pipeline.setup import (
 from softpipe.pipeline.tiles import (
     TILE_H,
     TILE_W,
+    bin_primitives,
     bin_triangles,
     primitive_boxes,
     raster_line_tiles,
@@ -494,7 +495,7 @@ class PrimitiveVisibility(Visibility):
 def primitive_visibility_pass(prims: Primitives, setup: Union[LineSetup, PointSetup], fb, state: MergeState,
                               rect: np.ndarray, undo: bool = True) -> PrimitiveVisibility:
     """The fast path's visibility pass of points or lines: binned to the triangles' tiles
-    (:func:`~softpipe.pipeline.tiles.primitive_boxes`, :func:`~softpipe.pipeline.tiles.bin_triangles`),
+    (:func:`~softpipe.pipeline.tiles.primitive_boxes`, :func:`~softpipe.pipeline.tiles.bin_primitives`),
     each tile walking its primitives in order with the early depth test (no fragment is kept);
     the framebuffer's depth is updated. ``rect`` is the scissor (:func:`~softpipe.pipeline.setup.pixel_rect`);
     ``undo`` keeps the depth it replaces, as :func:`visibility_pass`."""
@@ -507,17 +508,19 @@ def primitive_visibility_pass(prims: Primitives, setup: Union[LineSetup, PointSe
     lines = isinstance(setup, LineSetup)
     wide = isinstance(setup, LineSetup) and len(prims) > 0 and int(setup.width.max()) > 1
     run = np.empty(vis.shape if wide else (0, 0, 0), np.uint8)
-    starts, items = bin_triangles(primitive_boxes(setup, rect), tiles_x, tiles_y)
+    box = primitive_boxes(setup, rect)
     undo = undo and depth_write and len(prims) > 0
     saved = _scratch(fb.samples_depth) if undo else np.empty((0, 0, 0), np.float32)
     if lines:
         assert isinstance(setup, LineSetup)
-        in_bands(raster_line_tiles, tiles_x * tiles_y, setup.ends, setup.width, setup.depth, starts, items, tiles_x,
-                 rect, w, h, offsets, func, depth_write, fb.samples_depth, vis, run, touched.reshape(-1), saved)
+        starts, items, rows = bin_primitives(box, tiles_x, tiles_y, (setup.ends, setup.width, setup.depth))
+        in_bands(raster_line_tiles, tiles_x * tiles_y, *rows, starts, items, tiles_x, rect, w, h, offsets, func,
+                 depth_write, fb.samples_depth, vis, run, touched.reshape(-1), saved)
     else:
         assert isinstance(setup, PointSetup)
-        in_bands(raster_point_tiles, tiles_x * tiles_y, setup.centre, setup.size, setup.depth, starts, items,
-                 tiles_x, rect, w, h, offsets, func, depth_write, fb.samples_depth, vis, touched.reshape(-1), saved)
+        starts, items, rows = bin_primitives(box, tiles_x, tiles_y, (setup.centre, setup.size, setup.depth))
+        in_bands(raster_point_tiles, tiles_x * tiles_y, *rows, starts, items, tiles_x, rect, w, h, offsets, func,
+                 depth_write, fb.samples_depth, vis, touched.reshape(-1), saved)
     return PrimitiveVisibility(vis, setup, touched, saved if undo else None, run)  # type: ignore[arg-type]  # a line's or point's setup
 
 
