@@ -137,9 +137,11 @@ def bin_primitives(box: np.ndarray, tiles_x: int, tiles_y: int, setup: tuple) ->
     in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
     starts, fill = _bin_places(counts)
     items = np.empty(starts[-1], np.int32)
-    rows = tuple(np.empty((len(items),) + a.shape[1:], a.dtype) for a in setup)
-    in_bands(_bin_fill_rows, bands, bounds, box, tiles_x, fill, items, *setup, *rows)
-    return starts, items, rows
+    # every array as rows of columns (a view), so that one compiled loop copies them all
+    columns = tuple(a.reshape(len(a), int(np.prod(a.shape[1:]))) for a in setup)
+    rows = tuple(np.empty((len(items), a.shape[1]), a.dtype) for a in columns)
+    in_bands(_bin_fill_rows, bands, bounds, box, tiles_x, fill, items, *columns, *rows)
+    return starts, items, tuple(r.reshape((len(items),) + a.shape[1:]) for r, a in zip(rows, setup))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -153,9 +155,12 @@ def _bin_fill_rows(band_lo, band_hi, bounds, box, tiles_x, fill, items, a, b, c,
                     tile = ty * tiles_x + tx
                     k = fill[band, tile]
                     items[k] = t
-                    a_out[k] = a[t]
-                    b_out[k] = b[t]
-                    c_out[k] = c[t]
+                    for m in range(a.shape[1]):
+                        a_out[k, m] = a[t, m]
+                    for m in range(b.shape[1]):
+                        b_out[k, m] = b[t, m]
+                    for m in range(c.shape[1]):
+                        c_out[k, m] = c[t, m]
                     fill[band, tile] += 1
 
 
