@@ -486,9 +486,10 @@ class PrimitiveVisibility(Visibility):
                 f"{len(self.setup)} {kind}, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
 
     def fragments(self, prims: Primitives, pattern, shading: str = "sample") -> Fragments:
-        """The fragments the fast path shades: one per visible sample, in primitive order, with the inputs the reference path's fragment there gives the shader
-        (with multisampling at the centre or centroid, every sample of a pixel gets its run's
-        first fragment's: the depth of its sample 0, where the reference path shades it)."""
+        """The fragments the fast path shades: one per visible sample, in primitive order, with the
+        inputs the reference path's fragment there gives the shader (with multisampling at the
+        centre or centroid, every sample of a pixel gets its run's first fragment's: the depth of
+        its sample 0, where the reference path shades it)."""
         return _visible_primitive_fragments(self, prims, pattern, SHADING_POSITIONS.index(shading))
 
 
