@@ -161,3 +161,27 @@ def test_points_and_lines_take_their_tile_walk_and_make_no_fragment_list(monkeyp
     assert shown.sum() == (fb.samples_color[..., 3] == 1.0).sum() > 30
     kind = "points" if topology == "points" else "lines"
     assert f" {kind}, " in repr(visibility)
+
+
+def gives_up_right_of(v, u, frag):
+    if frag.x > u.cut:
+        raise ValueError("the shader gave up")
+    return (v.color[0], v.color[1], v.color[2], 1.0)
+
+
+@pytest.mark.parametrize("topology", ["lines", "points"])
+def test_a_shader_that_raises_on_the_fast_path_names_the_fragment_and_leaves_the_framebuffer_as_it_was(topology):
+    rng = np.random.default_rng(5)
+    pos = clip(rng.uniform(0, [W, H], (40, 2)), rng.uniform(-1, 1, 40))
+    errors, framebuffers = {}, {}
+    for path in ("reference", "fast"):
+        fb = framebuffers[path] = sp.Framebuffer(W, H)
+        fb.clear((0.1, 0.2, 0.3, 1.0))
+        before = (fb.samples_color.tobytes(), fb.samples_depth.tobytes())
+        with pytest.raises(sp.ShaderError) as e:
+            sp.draw(fb, pos, varyings={"color": rng.uniform(0, 1, (40, 3))}, fragment_shader=gives_up_right_of,
+                    uniforms={"cut": 150.0}, topology=topology, point_size=3.0, path=path)
+        errors[path] = str(e.value)
+        assert (fb.samples_color.tobytes(), fb.samples_depth.tobytes()) == before, path
+    for text in errors.values():
+        assert "the shader gave up" in text and "the fragment at pixel (" in text, text
