@@ -63,10 +63,10 @@ from softpipe.pipeline.visibility import (
     PATHS,
     DiscardOnFastPath,
     choose_path,
-    early_depth,
+    primitive_visibility_pass,
     shade_outputs,
+    shade_primitives,
     shade_visible,
-    shade_winners,
     shading_may_fail,
     visibility_pass,
 )
@@ -395,8 +395,8 @@ class DrawCall:
         """Early depth: the visibility pass, then the shader on the visible samples only.
 
         Triangles: the tiled visibility pass (:func:`~softpipe.pipeline.visibility.visibility_pass`).
-        Points and lines: their fragments, made as on the reference path, then the depth test over
-        them (:func:`~softpipe.pipeline.visibility.early_depth`).
+        Points and lines: their own walk over the same tiles
+        (:func:`~softpipe.pipeline.visibility.primitive_visibility_pass`); no fragment list is made.
         """
         fb = self.framebuffer
         undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
@@ -411,16 +411,8 @@ class DrawCall:
             if len(self.attachments) > 1:
                 shade = shade_outputs
         else:
-            counts = count_fragments(prims, fb.width, fb.height, fb.pattern, rect=self.rect, setup=setup)
-            if int(counts.sum()) > MAX_FRAGMENTS_PER_BATCH:
-                self.path_taken = "reference"
-                self.path_reason = (f"more than MAX_FRAGMENTS_PER_BATCH = {MAX_FRAGMENTS_PER_BATCH:,} fragments "
-                                    f"of {prims.kind}, which the reference path draws in batches")
-                yield from self._reference_stages(prims, setup, clock, record=False)
-                return
-            frags = rasterize(prims, fb.width, fb.height, fb.pattern, 0, len(prims), counts, self.sample_shading,
-                              rect=self.rect, setup=setup)
-            visibility, shade = early_depth(frags, fb, self.state, undo=undo), shade_winners
+            visibility = primitive_visibility_pass(prims, setup, fb, self.state, self.rect, undo=undo)
+            shade = shade_primitives
             if len(self.attachments) > 1:
                 shade = shade_outputs
         clock("raster")

@@ -44,10 +44,16 @@ from softpipe.core.parallel import in_bands
 from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import SHADE_CENTER, SHADE_SAMPLE, snap
 
-__all__ = ["LineSetup", "setup_lines", "crosses_diamond", "holds_end", "produces", "cover_line", "run_width"]
+__all__ = ["LineSetup", "setup_lines", "crosses_diamond", "holds_end", "produces", "cover_line", "run_width",
+           "line_walk", "column_candidates", "sample_means", "line_parameter", "depth_along", "line_sample_depth",
+           "line_shading_point"]
 
 #: The diamond's half-diagonal, ½ pixel, in fixed point.
 RADIUS = SUBPIXEL // 2
+#: How near (in fixed-point units, 1/256 pixel) a line's minor coordinate computed in floating point
+#: may come to ½ pixel from a row's centre before that row is asked the exact rule: far above the
+#: float error of :func:`column_candidates`'s ``minor_at`` (below 1e-6 on any framebuffer).
+CANDIDATE_MARGIN = 0.01
 
 
 @dataclass
@@ -197,51 +203,135 @@ def _parameter(xa, ya, dx, dy, length2, px, py):
     return min(max(t, 0.0), 1.0)
 
 
-@numba.njit(cache=True)
-def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, out_x, out_y, out_s, out_depth,
-               out_bary, out_pos, start, emit):
-    """Visit every fragment of line t (every sample of each produced pixel); write them from ``start`` if
-    ``emit``. Returns the count.
+@numba.njit(cache=True, forceinline=True)
+def line_walk(ends, t):
+    """What walking line t needs: (x_major, ma, mb, na, nd, md, step, first, last), or step 0 for a line of
+    length 0 (no fragment).
 
-    Along the major axis from a's end to b's, the candidate diamonds of each column (row,
-    for a y-major line) are the ones within a pixel of the line there; :func:`produces`
-    decides. Each produced fragment is a run of ``width`` pixels across the minor axis
-    (within ``rect``, the scissor), and every sample of a pixel is covered.
+    (ma, mb) are the ends' major coordinates, na the first end's minor one, (nd, md) the
+    minor and major extents; the walk goes from column (row, for a y-major line) ``first``
+    to ``last`` by ``step`` (±1), the columns whose diamonds the segment's major extent meets.
     """
     xa, ya, xb, yb = ends[t, 0], ends[t, 1], ends[t, 2], ends[t, 3]
     dx, dy = xb - xa, yb - ya
-    if dx == 0 and dy == 0:
-        return 0
-    length2 = float(dx * dx + dy * dy)
     x_major = abs(dx) >= abs(dy)
     # (major, minor) coordinates: x and y for an x-major line, y and x for a y-major one
     ma, mb, na, nd, md = (xa, xb, ya, dy, dx) if x_major else (ya, yb, xa, dx, dy)
+    if dx == 0 and dy == 0:
+        return x_major, ma, mb, na, nd, md, 0, 0, -1
     step = 1 if mb >= ma else -1
     first = (ma - RADIUS) // SUBPIXEL if step > 0 else -((-(ma + RADIUS)) // SUBPIXEL)
     last = -((-(mb + RADIUS)) // SUBPIXEL) if step > 0 else (mb - RADIUS) // SUBPIXEL
-    z_a, z_b = depth[t, 0], depth[t, 1]
+    return x_major, ma, mb, na, nd, md, step, first, last
+
+
+@numba.njit(cache=True, forceinline=True)
+def column_candidates(major, ma, mb, na, nd, md):
+    """The candidate diamonds of column (row) ``major`` of a line: (lo, hi, sure), minor indices lo..hi.
+
+    An x-major line (|slope| ≤ 1) meets a diamond of this column only if it passes within ½
+    pixel of its centre here: along the line the minor coordinate moves no faster than the
+    major one, and the diamond's |u| + |v| < ½ then bounds |v| at u = 0. So the candidates
+    are the row ``guess`` nearest the line, and a neighbour only where the line passes
+    within ½ of it too — at a tie, or within a margin far above the float error of
+    ``minor_at`` (a neighbour nearer than ½ + :data:`CANDIDATE_MARGIN`); :func:`produces` decides.
+
+    A column whose whole slab (centre ± ½) lies strictly inside the segment's major extent,
+    where the line passes strictly within ½ of ``guess`` by that margin, is ``sure``: the
+    segment crosses that diamond (through its centre's column) and no other in the column,
+    the end is not in it (it is beyond the slab), and no tie needs the perturbation. So the
+    rule's answer is known without the exact tests.
+    """
+    minor_at = na + (major * SUBPIXEL - ma) * nd / md        # the line's minor coordinate here
+    guess = np.int64(np.floor(minor_at / SUBPIXEL + 0.5))
+    off = minor_at - guess * SUBPIXEL                        # in [−½, ½] pixel, up to the float error
     lo_major, hi_major = min(ma, mb), max(ma, mb)
+    sure = (major * SUBPIXEL - RADIUS > lo_major and major * SUBPIXEL + RADIUS < hi_major
+            and abs(off) < RADIUS - CANDIDATE_MARGIN)
+    if sure:
+        return guess, guess, True
+    lo = guess - 1 if off <= CANDIDATE_MARGIN - RADIUS else guess       # the row below is within ½ (or nearly)
+    hi = guess + 1 if off >= RADIUS - CANDIDATE_MARGIN else guess       # the row above
+    return lo, hi, False
+
+
+@numba.njit(cache=True, forceinline=True)
+def sample_means(offsets, positions):
+    """The centroid of all the samples (a line's or point's fragment covers every one): their mean
+    fixed-point offset and mean position, (mx, my, px, py)."""
     samples = offsets.shape[0]
-    # the centroid of all the samples (every one is covered): their mean offset and position, once
     mx, my, px, py = 0.0, 0.0, 0.0, 0.0
     for m in range(samples):
         mx += offsets[m, 0]
         my += offsets[m, 1]
         px += positions[m, 0]
         py += positions[m, 1]
+    return mx / samples, my / samples, px / samples, py / samples
+
+
+@numba.njit(cache=True, forceinline=True)
+def line_parameter(ends, t, px, py):
+    """t = ((p − a)·(b − a)) / |b − a|² along line t at the fixed-point position (px, py), clamped to [0, 1]."""
+    xa, ya = ends[t, 0], ends[t, 1]
+    dx, dy = ends[t, 2] - xa, ends[t, 3] - ya
+    return _parameter(xa, ya, dx, dy, float(dx * dx + dy * dy), px, py)
+
+
+@numba.njit(cache=True, forceinline=True)
+def depth_along(depth, t, ts):
+    """The window depth (1 − t)·z_a + t·z_b of line t at ``ts``, clamped to [0, 1]."""
+    z_a, z_b = depth[t, 0], depth[t, 1]
+    return min(max(z_a + ts * (z_b - z_a), 0.0), 1.0)
+
+
+@numba.njit(cache=True, forceinline=True)
+def line_sample_depth(ends, depth, t, i, j, s, offsets):
+    """The window depth of line t's fragment of run start (i, j) at sample s: t taken at the sample."""
+    return depth_along(depth, t, line_parameter(ends, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]))
+
+
+@numba.njit(cache=True, forceinline=True)
+def line_shading_point(ends, t, i, j, pi, pj, s, offsets, positions, mode, means):
+    """Where line t's fragment at pixel (pi, pj), of the run starting at (i, j), is shaded: (t_b, fx, fy),
+    the parameter along the segment and the window position (``means``: :func:`sample_means`).
+
+    The run's attributes are its first fragment's: t at (i, j), not (pi, pj).
+    """
+    xa, ya = ends[t, 0], ends[t, 1]
+    dx, dy = ends[t, 2] - xa, ends[t, 3] - ya
+    length2 = float(dx * dx + dy * dy)
+    if mode == SHADE_SAMPLE:         # (the t of the sample's depth, line_sample_depth's)
+        tb = line_parameter(ends, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
+        return tb, pi + positions[s, 0], pj + positions[s, 1]
+    if mode == SHADE_CENTER:
+        return _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL, j * SUBPIXEL), pi + 0.5, pj + 0.5
+    # the centroid of the covered samples: all of them
+    mx, my, px, py = means
+    return _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL + mx, j * SUBPIXEL + my), pi + px, pj + py
+
+
+@numba.njit(cache=True)
+def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, out_x, out_y, out_s, out_depth,
+               out_bary, out_pos, start, emit):
+    """Visit every fragment of line t (every sample of each produced pixel); write them from ``start`` if
+    ``emit``. Returns the count.
+
+    Along the major axis from a's end to b's (:func:`line_walk`), the candidate diamonds of
+    each column (row, for a y-major line) are the ones within a pixel of the line there
+    (:func:`column_candidates`); :func:`produces` decides. Each produced fragment is a run of
+    ``width`` pixels across the minor axis (within ``rect``, the scissor), and every sample of
+    a pixel is covered.
+    """
+    xa, ya, xb, yb = ends[t, 0], ends[t, 1], ends[t, 2], ends[t, 3]
+    x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, t)
+    if step == 0:
+        return 0
+    samples = offsets.shape[0]
+    means = sample_means(offsets, positions)
     n = 0
     for major in range(first, last + step, step):
-        minor_at = na + (major * SUBPIXEL - ma) * nd / md        # the line's minor coordinate here
-        guess = np.int64(np.floor(minor_at / SUBPIXEL + 0.5))
-        # A column whose whole slab (centre ± ½) lies strictly inside the segment's major extent, where
-        # the line passes strictly within ½ of the row centre `guess` (a margin far above the float
-        # error of minor_at): the segment crosses that diamond (through its centre's column) and no
-        # other in the column (an x-major line meets a diamond only within ½ of its centre there),
-        # the end is not in it (it is beyond the slab), and no tie needs the perturbation. So the
-        # rule's answer is known without the exact tests; elsewhere they decide.
-        sure = (major * SUBPIXEL - RADIUS > lo_major and major * SUBPIXEL + RADIUS < hi_major
-                and abs(minor_at - guess * SUBPIXEL) < RADIUS - 0.001)
-        for minor in range(guess if sure else guess - 1, guess + 1 if sure else guess + 2):
+        lo, hi, sure = column_candidates(major, ma, mb, na, nd, md)
+        for minor in range(lo, hi + 1):
             i, j = (major, minor) if x_major else (minor, major)
             if not sure and not produces(xa, ya, xb, yb, i, j):
                 continue
@@ -254,21 +344,11 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
                     continue
                 for s in range(samples):
                     k = start + n
-                    # the run's attributes are its first fragment's: t at (i, j), not (pi, pj)
-                    ts = _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL + offsets[s, 0],
-                                    j * SUBPIXEL + offsets[s, 1])
-                    if mode == SHADE_SAMPLE:
-                        tb, fx, fy = ts, pi + positions[s, 0], pj + positions[s, 1]
-                    elif mode == SHADE_CENTER:
-                        tb, fx, fy = _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL, j * SUBPIXEL), pi + 0.5, pj + 0.5
-                    else:                # the centroid of the covered samples: all of them
-                        tb = _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL + mx / samples,
-                                        j * SUBPIXEL + my / samples)
-                        fx, fy = pi + px / samples, pj + py / samples
+                    tb, fx, fy = line_shading_point(ends, t, i, j, pi, pj, s, offsets, positions, mode, means)
                     out_x[k] = pi
                     out_y[k] = height - 1 - pj     # the y flip: window row → image row
                     out_s[k] = s
-                    out_depth[k] = min(max(z_a + ts * (z_b - z_a), 0.0), 1.0)
+                    out_depth[k] = line_sample_depth(ends, depth, t, i, j, s, offsets)
                     out_bary[k, 0] = 1.0 - tb
                     out_bary[k, 1] = tb
                     out_bary[k, 2] = 0.0

@@ -28,7 +28,7 @@ from softpipe.core.parallel import in_bands
 from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import SHADE_CENTER, SHADE_SAMPLE, snap
 
-__all__ = ["PointSetup", "setup_points", "in_square", "cover_point"]
+__all__ = ["PointSetup", "setup_points", "in_square", "cover_point", "point_box", "point_shading_point"]
 
 
 @dataclass
@@ -92,24 +92,49 @@ def in_square(c, half):
     return -half <= c < half
 
 
+@numba.njit(cache=True, forceinline=True)
+def point_box(centre, size, t, x_lo, x_hi, y_lo, y_hi):
+    """The pixels (i0, i1, j0, j1) around point t whose centres may lie in its square, within
+    [x_lo, x_hi] × [y_lo, y_hi] (window rows, y up); :func:`in_square` decides each."""
+    cx, cy = centre[t, 0], centre[t, 1]
+    half = size[t] * (SUBPIXEL // 2)
+    i0 = max(np.int64(np.floor((cx - half) / SUBPIXEL)) - 1, x_lo)
+    i1 = min(np.int64(np.floor((cx + half) / SUBPIXEL)) + 1, x_hi)
+    j0 = max(np.int64(np.floor((cy - half) / SUBPIXEL)) - 1, y_lo)
+    j1 = min(np.int64(np.floor((cy + half) / SUBPIXEL)) + 1, y_hi)
+    return i0, i1, j0, j1
+
+
+@numba.njit(cache=True, forceinline=True)
+def point_shading_point(centre, size, t, i, j, s, positions, mode, means):
+    """Where point t's fragment at pixel (i, j) is shaded: (s_p, t_p, fx, fy), its gl_PointCoord and the
+    window position (``means``: the samples' mean position, (px, py), all of them being covered)."""
+    # the point's position in window coordinates (pixel centres at +½)
+    x, y = centre[t, 0] / SUBPIXEL + 0.5, centre[t, 1] / SUBPIXEL + 0.5
+    if mode == SHADE_SAMPLE:
+        fx, fy = i + positions[s, 0], j + positions[s, 1]
+    elif mode == SHADE_CENTER:
+        fx, fy = i + 0.5, j + 0.5
+    else:                    # the centroid of the covered samples: all of them
+        fx, fy = i + means[0], j + means[1]
+    side = size[t]
+    return 0.5 + (fx - x) / side, 0.5 - (fy - y) / side, fx, fy
+
+
 @numba.njit(cache=True)
 def cover_point(centre, size, depth, t, rect, height, offsets, positions, mode, out_x, out_y, out_s, out_depth,
                 out_bary, out_pos, start, emit):
     """Visit every fragment of point t (every sample of each pixel in its square, within ``rect``);
     write them from ``start`` if ``emit``. Returns the count."""
-    cx, cy, side = centre[t, 0], centre[t, 1], size[t]
-    half = side * (SUBPIXEL // 2)
-    i0 = max(np.int64(np.floor((cx - half) / SUBPIXEL)) - 1, rect[0])
-    i1 = min(np.int64(np.floor((cx + half) / SUBPIXEL)) + 1, rect[1])
-    j0 = max(np.int64(np.floor((cy - half) / SUBPIXEL)) - 1, rect[2])
-    j1 = min(np.int64(np.floor((cy + half) / SUBPIXEL)) + 1, rect[3])
-    # the point's position in window coordinates (pixel centres at +½), for gl_PointCoord
-    x, y = cx / SUBPIXEL + 0.5, cy / SUBPIXEL + 0.5
+    cx, cy = centre[t, 0], centre[t, 1]
+    half = size[t] * (SUBPIXEL // 2)
+    i0, i1, j0, j1 = point_box(centre, size, t, rect[0], rect[1], rect[2], rect[3])
     samples = offsets.shape[0]
     px, py = 0.0, 0.0                    # the centroid of all the samples (every one is covered), once
     for m in range(samples):
         px += positions[m, 0]
         py += positions[m, 1]
+    means = (px / samples, py / samples)
     n = 0
     for j in range(j0, j1 + 1):
         if not in_square(j * SUBPIXEL - cy, half):
@@ -122,14 +147,7 @@ def cover_point(centre, size, depth, t, rect, height, offsets, positions, mode, 
                 continue
             for s in range(samples):
                 k = start + n
-                if mode == SHADE_SAMPLE:
-                    fx, fy = i + positions[s, 0], j + positions[s, 1]
-                elif mode == SHADE_CENTER:
-                    fx, fy = i + 0.5, j + 0.5
-                else:                    # the centroid of the covered samples: all of them
-                    fx, fy = i + px / samples, j + py / samples
-                ps = 0.5 + (fx - x) / side
-                pt = 0.5 - (fy - y) / side
+                ps, pt, fx, fy = point_shading_point(centre, size, t, i, j, s, positions, mode, means)
                 out_x[k] = i
                 out_y[k] = height - 1 - j     # the y flip: window row → image row
                 out_s[k] = s

@@ -23,10 +23,13 @@ Here:
    triangle there). Output: :class:`ShadedSamples`. A shader that raises, or returns
    a NaN alpha (:class:`DiscardOnFastPath`: the draw is then done on the reference
    path), has the draw undone.
-4. **Points and lines** (:func:`early_depth`, :func:`shade_winners`): their fragments
-   are few (a line makes one per pixel it crosses), so the rasterizer makes them all,
-   as on the reference path; the depth test runs over them in order first, and only
-   the last one written at each sample is shaded (:class:`FragmentVisibility`).
+4. **Points and lines** (:func:`primitive_visibility_pass`, :func:`shade_primitives`): the
+   same design on the same tiles. Each is binned to the tiles its box touches; each tile
+   walks its points or lines in order by the reference rasterizer's rules
+   (:mod:`~softpipe.pipeline.tiles`), depth-testing every fragment's samples as the merger
+   would and keeping no fragment, only the last primitive written at each sample
+   (:class:`PrimitiveVisibility`); then the visible samples are made into fragments and
+   shaded, in bands on the helper threads.
 
 The bytes are the reference's (tests/test_fast_path.py, test_fast_path_sound.py,
 test_properties.py hold them so); docs/08-fast-path.md walks through it and says why.
@@ -34,12 +37,12 @@ test_properties.py hold them so); docs/08-fast-path.md walks through it and says
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Optional, Tuple
+from typing import Callable, Optional, Tuple, Union
 
 import numba
 import numpy as np
 
-from softpipe.core.parallel import in_bands
+from softpipe.core.parallel import in_bands, threads
 from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import (
@@ -48,9 +51,19 @@ from softpipe.pipeline.fragment import (
     derivative_gradients,
     run_fragment_stage,
 )
+from softpipe.pipeline.lines import (
+    LineSetup,
+    depth_along,
+    line_parameter,
+    line_sample_depth,
+    line_shading_point,
+    sample_means,
+)
 from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
-from softpipe.pipeline.output import NonFinite, depth_passes
+from softpipe.pipeline.output import NonFinite
+from softpipe.pipeline.points import PointSetup, point_shading_point
 from softpipe.pipeline.raster import Fragments
+from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
     SHADING_POSITIONS,
@@ -59,11 +72,21 @@ from softpipe.pipeline.setup import (
     sample_depth,
     shading_point,
 )
-from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
+from softpipe.pipeline.tiles import (
+    TILE_H,
+    TILE_W,
+    bin_primitives,
+    bin_triangles,
+    primitive_boxes,
+    raster_line_tiles,
+    raster_point_tiles,
+    raster_tiles,
+)
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
-           "visible_loop_args", "FragmentVisibility", "early_depth", "shade_winners", "shade_outputs"]
+           "visible_loop_args", "PrimitiveVisibility", "primitive_visibility_pass", "shade_primitives",
+           "shade_outputs"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -117,7 +140,7 @@ def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable
     width × height × samples per pixel, ``keep_fragments`` whether the caller
     needs every fragment (a trace with ``path="auto"``); ``samples_per_pixel`` and
     ``counts_samples`` as :func:`fast_path_blocker` takes them. The same for every kind of
-    primitive (points and lines have a visibility pass of their own, :func:`early_depth`).
+    primitive (points and lines have a visibility pass of their own, :func:`primitive_visibility_pass`).
     """
     if path not in PATHS:
         raise ValueError(f"path must be one of {PATHS}, got {path!r}")
@@ -435,107 +458,232 @@ def _invocations(vis: np.ndarray, shading: str) -> int:
     return int(seen.sum())
 
 
-# ------------------------------------------------- points and lines: early depth over their fragments
+# ------------------------------------------------- points and lines: their own walk over the same tiles
 
 @dataclass
-class FragmentVisibility:
-    """The fast path's visibility pass for points and lines: which of the rasterizer's fragments was
-    written last at each sample.
+class PrimitiveVisibility(Visibility):
+    """The visibility pass of points or lines (:func:`primitive_visibility_pass`): which one to shade at
+    each sample, as :class:`Visibility` for triangles.
 
     Attributes
     ----------
-    winner : int32 [S, H, W]
-        The row in ``candidates`` of the fragment written last at each sample, or −1.
-    kept : int64 [K]
-        Those rows, each once, in primitive order (the fragments to shade).
-    candidates : Fragments
-        Every fragment of the draw, from the rasterizer.
-    saved_depth : float32 [S, H, W] or None
-        The framebuffer's depth before the pass, while shading may still undo the draw.
+    vis, touched, saved_depth
+        As :class:`Visibility`'s (``vis``: the line or point, a row of the Primitives, written
+        last at each sample, or −1).
+    setup : LineSetup or PointSetup
+        The setup the pass used.
+    run : uint8 [S, H, W]
+        For wide lines, the place in its run (0 … w − 1) of the fragment written at each
+        sample, from which its attributes (the run's first fragment's) are found; empty [0, 0, 0]
+        otherwise.
     """
 
-    winner: np.ndarray
-    kept: np.ndarray
-    candidates: Fragments
-    saved_depth: Optional[np.ndarray] = field(default=None, repr=False)
-
-    @property
-    def vis(self) -> np.ndarray:
-        """int32 [S, H, W]: the primitive (row of the Primitives) written last at each sample, or −1, as
-        :attr:`Visibility.vis` (made when asked for)."""
-        shown = self.winner >= 0
-        vis = np.full(self.winner.shape, -1, np.int32)
-        vis[shown] = self.candidates.triangle[self.winner[shown]]
-        return vis
-
-    def restore_depth(self, fb) -> None:
-        """Put back the depth the pass replaced."""
-        if self.saved_depth is not None:
-            fb.samples_depth[...] = self.saved_depth
+    run: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0), np.uint8), repr=False)
 
     def __repr__(self) -> str:
-        return (f"FragmentVisibility({len(self.kept)} visible samples of {self.winner.size}, "
-                f"from {len(self.candidates)} fragments)")
+        kind = "lines" if isinstance(self.setup, LineSetup) else "points"
+        return (f"PrimitiveVisibility({int((self.vis >= 0).sum())} visible samples of {self.vis.size}, "
+                f"{len(self.setup)} {kind}, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
 
-    def visible_triangles(self) -> np.ndarray:
-        """The rows of the Primitives that are visible at some sample, sorted."""
-        return np.unique(self.candidates.triangle[self.kept])
-
-    def fragments(self, prims: Optional[Primitives] = None, pattern=None, shading: str = "sample") -> Fragments:
-        """The fragments the fast path shaded: one per visible sample, in primitive order."""
-        return self.candidates.take(self.kept)
-
-
-@numba.njit(cache=True)
-def _early_depth(x, y, s, depth, func, depth_write, fb_depth, winner):
-    """The depth test of the output merger (:func:`~softpipe.pipeline.output.depth_passes`, on the depth as
-    float32) over the fragments in order, keeping the last written at each sample."""
-    for k in range(x.shape[0]):
-        i, j, m = x[k], y[k], s[k]
-        if func >= 0:
-            z = np.float32(depth[k])
-            if not depth_passes(func, z, fb_depth[m, j, i]):
-                continue
-            if depth_write:
-                fb_depth[m, j, i] = z
-        winner[m, j, i] = k
+    def fragments(self, prims: Primitives, pattern, shading: str = "sample") -> Fragments:
+        """The fragments the fast path shades: one per visible sample, in primitive order, with the
+        inputs the reference path's fragment there gives the shader (with multisampling at the
+        centre or centroid, every sample of a pixel gets its run's first fragment's: the depth of
+        its sample 0, where the reference path shades it)."""
+        return _visible_primitive_fragments(self, prims, pattern, SHADING_POSITIONS.index(shading))
 
 
-@numba.njit(cache=True)
-def _kept_rows(winner, n):
-    """The fragments some sample kept, each once, in increasing order (so that reading them is in order)."""
-    keep = np.zeros(n, np.bool_)
-    flat = winner.reshape(-1)
-    count = 0
-    for k in range(flat.shape[0]):
-        w = flat[k]
-        if w >= 0 and not keep[w]:
-            keep[w] = True
-            count += 1
-    rows = np.empty(count, np.int64)
-    r = 0
-    for k in range(n):
-        if keep[k]:
-            rows[r] = k
-            r += 1
-    return rows
-
-
-def early_depth(frags: Fragments, fb, state: MergeState, undo: bool = True) -> FragmentVisibility:
-    """The visibility pass of points and lines: the depth test over their fragments, in primitive order;
-    the framebuffer's depth is updated. ``undo`` keeps the depth it replaces."""
+def primitive_visibility_pass(prims: Primitives, setup: Union[LineSetup, PointSetup], fb, state: MergeState,
+                              rect: np.ndarray, undo: bool = True) -> PrimitiveVisibility:
+    """The fast path's visibility pass of points or lines: binned to the triangles' tiles
+    (:func:`~softpipe.pipeline.tiles.primitive_boxes`, :func:`~softpipe.pipeline.tiles.bin_primitives`),
+    each tile walking its primitives in order with the early depth test (no fragment is kept);
+    the framebuffer's depth is updated. ``rect`` is the scissor (:func:`~softpipe.pipeline.setup.pixel_rect`);
+    ``undo`` keeps the depth it replaces, as :func:`visibility_pass`."""
+    w, h, offsets = fb.width, fb.height, fb.pattern.offsets
     func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
     depth_write = bool(state.depth_write) and func >= 0
-    winner = np.full(fb.samples_depth.shape, -1, np.int32)
-    saved = fb.samples_depth.copy() if undo and depth_write else None
-    if len(frags):
-        _early_depth(frags.x, frags.y, frags.sample, frags.depth, func, depth_write, fb.samples_depth, winner)
-    return FragmentVisibility(winner, _kept_rows(winner, len(frags)), frags, saved)
+    vis = np.empty((len(offsets), h, w), np.int32)      # every tile is set to −1 first
+    tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
+    touched = np.zeros((tiles_y, tiles_x), np.bool_)
+    lines = isinstance(setup, LineSetup)
+    wide = isinstance(setup, LineSetup) and len(prims) > 0 and int(setup.width.max()) > 1
+    run = np.empty(vis.shape if wide else (0, 0, 0), np.uint8)
+    box = primitive_boxes(setup, rect)
+    undo = undo and depth_write and len(prims) > 0
+    saved = _scratch(fb.samples_depth) if undo else np.empty((0, 0, 0), np.float32)
+    if lines:
+        assert isinstance(setup, LineSetup)
+        starts, items, rows = bin_primitives(box, tiles_x, tiles_y, (setup.ends, setup.width, setup.depth))
+        in_bands(raster_line_tiles, tiles_x * tiles_y, *rows, starts, items, tiles_x, rect, w, h, offsets, func,
+                 depth_write, fb.samples_depth, vis, run, touched.reshape(-1), saved)
+    else:
+        assert isinstance(setup, PointSetup)
+        starts, items, rows = bin_primitives(box, tiles_x, tiles_y, (setup.centre, setup.size, setup.depth))
+        in_bands(raster_point_tiles, tiles_x * tiles_y, *rows, starts, items, tiles_x, rect, w, h, offsets, func,
+                 depth_write, fb.samples_depth, vis, touched.reshape(-1), saved)
+    return PrimitiveVisibility(vis, setup, touched, saved if undo else None, run)  # type: ignore[arg-type]  # a line's or point's setup
+
+
+@numba.njit(cache=True, nogil=True)
+def _visible_by_primitive(band_lo, band_hi, bounds, vis, touched, tile_w, tile_h, places, keys, tri, fill):
+    """Bands band_lo:band_hi of image rows (``bounds``): count the visible samples of each primitive
+    (``fill`` False, into ``places[band]``), or put each at its primitive's next place (``fill``: its
+    (row, sample, column) into ``keys`` as (row·S + sample)·W + column, its primitive into ``tri``)."""
+    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+    for band in range(band_lo, band_hi):
+        at = places[band]
+        for row in range(bounds[band], bounds[band + 1]):
+            j = height - 1 - row
+            for tile_x in range(touched.shape[1]):
+                if not touched[j // tile_h, tile_x]:
+                    continue
+                for s in range(samples):
+                    for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
+                        t = vis[s, row, i]
+                        if t < 0:
+                            continue
+                        if fill:
+                            k = at[t]
+                            keys[k] = (row * samples + s) * width + i
+                            tri[k] = t
+                        at[t] += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _line_inputs(lo, hi, keys, tri, run, samples, width, height, ends, zends, offsets, positions, mode, depth, bary,
+                 fx, fy):
+    """The shader's inputs at the visible samples lo:hi (``keys``, ``tri``: :func:`_visible_by_primitive`) of
+    lines: depth, barycentrics and window position, as the reference path's fragments have them."""
+    means = sample_means(offsets, positions)
+    keep_run = run.shape[0] > 0
+    for k in range(lo, hi):
+        key, t = keys[k], tri[k]
+        i = key % width
+        s = (key // width) % samples
+        row = key // (width * samples)
+        j = height - 1 - row
+        r = np.int64(run[s, row, i]) if keep_run else np.int64(0)
+        x_major = abs(ends[t, 2] - ends[t, 0]) >= abs(ends[t, 3] - ends[t, 1])
+        i0, j0 = (i, j - r) if x_major else (i - r, j)          # the run's first fragment
+        if mode == SHADE_SAMPLE:     # t at the sample, for the depth and the attributes alike
+            tb = line_parameter(ends, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
+            px, py = i + positions[s, 0], j + positions[s, 1]
+            depth[k] = depth_along(zends, t, tb)
+        else:
+            tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
+            # the reference path shades a multisampled pixel's run once, at its first sample
+            depth[k] = line_sample_depth(ends, zends, t, i0, j0, 0, offsets)
+        bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - tb, tb, 0.0
+        fx[k], fy[k] = px, py
+
+
+@numba.njit(cache=True, nogil=True)
+def _point_inputs(lo, hi, keys, tri, samples, width, height, centre, size, zpoint, offsets, positions, mode, depth,
+                  bary, fx, fy):
+    """The shader's inputs at the visible samples lo:hi (``keys``, ``tri``: :func:`_visible_by_primitive`) of
+    points."""
+    _, _, mx, my = sample_means(offsets, positions)
+    means = (mx, my)
+    for k in range(lo, hi):
+        key, t = keys[k], tri[k]
+        i = key % width
+        s = (key // width) % samples
+        row = key // (width * samples)
+        ps, pt, px, py = point_shading_point(centre, size, t, i, height - 1 - row, s, positions, mode, means)
+        depth[k] = zpoint[t]
+        bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - ps - pt, ps, pt
+        fx[k], fy[k] = px, py
+
+
+#: Buffers of the points' and lines' shading (its sorted samples and the shader's inputs and colors), kept
+#: between draws as the depth saved for an undo is (:func:`_scratch`): a cloud's 400,000 visible samples take
+#: 30 MB, whose first touch (a page fault a page) cost more than making them.
+_POOL: dict = {}
+
+
+def _pooled(name: str, n: int, dtype, *shape) -> np.ndarray:
+    """An array [n, *shape] of ``dtype`` from the pool (taken: a draw at the same time gets its own)."""
+    buffer = _POOL.pop(name, None)           # atomic under the GIL
+    if buffer is None or len(buffer) < n or buffer.dtype != dtype or buffer.shape[1:] != shape:
+        buffer = np.empty((max(n, 1024),) + shape, dtype)
+    return buffer
+
+
+def _return_pooled(**buffers) -> None:
+    """Hand buffers back to the pool (the larger of two of a name kept)."""
+    for name, buffer in buffers.items():
+        kept = _POOL.get(name)
+        if kept is None or len(kept) <= len(buffer):
+            _POOL[name] = buffer
+
+
+def _sorted_samples(visibility: PrimitiveVisibility, n_prims: int, pooled: bool) -> Tuple[np.ndarray, np.ndarray]:
+    """The visible samples sorted by primitive: (keys, tri), each sample's (row·S + sample)·W + column and
+    its primitive.
+
+    In primitive order, because shading reads each primitive's varyings: in the order of the
+    screen a cloud's points come in no order at all, and every fragment's varyings were a
+    cache miss (shading took 10 times longer). A counting sort in bands of image rows (as
+    :func:`~softpipe.pipeline.tiles.bin_triangles`: each band counts per primitive, a prefix sum
+    over (primitive, band) gives each band its places), so a primitive's samples are in
+    (image row, tile, sample, column) order on any thread count.
+    """
+    vis, touched = visibility.vis, visibility.touched
+    height = vis.shape[1]
+    bands = max(1, min(threads(), height // 16))
+    bounds = np.linspace(0, height, bands + 1).astype(np.int64)
+    # 32-bit places where every sample's fits (a smaller table, more of it in the cache: the sort 25 % faster)
+    places_type = np.int32 if vis.size < 2**31 else np.int64
+    places = np.zeros((bands, n_prims), places_type)
+    keys, tri = np.empty(0, np.int64), np.empty(0, np.int32)
+    if touched.any() and n_prims:
+        in_bands(_visible_by_primitive, bands, bounds, vis, touched, TILE_W, TILE_H, places, keys, tri, False)
+    running = np.zeros(places.size + 1, np.int64)
+    np.cumsum(places.T.ravel(), out=running[1:])
+    n = int(running[-1])
+    if not n:
+        return keys, tri
+    places = running[:-1].reshape(n_prims, bands).T.astype(places_type)
+    keys = _pooled("keys", n, np.int64)[:n] if pooled else np.empty(n, np.int64)
+    tri = _pooled("tri", n, np.int32)[:n] if pooled else np.empty(n, np.int32)
+    in_bands(_visible_by_primitive, bands, bounds, vis, touched, TILE_W, TILE_H, places, keys, tri, True)
+    return keys, tri
+
+
+def _shader_inputs(visibility: PrimitiveVisibility, keys, tri, pattern, mode: int, depth, bary, fx, fy) -> None:
+    """The shader's inputs at the sorted samples (:func:`_sorted_samples`), in bands."""
+    setup, (samples, height, width) = visibility.setup, visibility.vis.shape
+    if isinstance(setup, LineSetup):
+        in_bands(_line_inputs, len(keys), keys, tri, visibility.run, samples, width, height, setup.ends, setup.depth,
+                 pattern.offsets, pattern.positions, mode, depth, bary, fx, fy, grain=16384)
+    else:
+        assert isinstance(setup, PointSetup)
+        in_bands(_point_inputs, len(keys), keys, tri, samples, width, height, setup.centre, setup.size, setup.depth,
+                 pattern.offsets, pattern.positions, mode, depth, bary, fx, fy, grain=16384)
+
+
+def _decode(keys: np.ndarray, shape) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(column, image row, sample) of sorted samples' keys, int32 each."""
+    samples, _, width = shape
+    return ((keys % width).astype(np.int32), (keys // (width * samples)).astype(np.int32),
+            ((keys // width) % samples).astype(np.int32))
+
+
+def _visible_primitive_fragments(visibility: PrimitiveVisibility, prims: Primitives, pattern, mode: int) -> Fragments:
+    """:meth:`PrimitiveVisibility.fragments`: the visible samples sorted by primitive, made into fragments."""
+    keys, tri = _sorted_samples(visibility, len(prims), pooled=False)
+    n = len(keys)
+    depth, bary, fx, fy = np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n)
+    if n:
+        _shader_inputs(visibility, keys, tri, pattern, mode, depth, bary, fx, fy)
+    x, y, sample = _decode(keys, visibility.vis.shape)
+    return Fragments(x, y, sample, depth, bary, tri, prims.primitive_id[tri], fx, fy, visibility.setup)
 
 
 @numba.njit(cache=True)
 def _write_kept(x, y, s, color, fb_color):
-    """Write the kept fragments' colors at their samples; returns how many are not finite."""
+    """Write the fragments' colors at their samples; returns how many are not finite."""
     bad = 0
     for k in range(x.shape[0]):
         total = 0.0
@@ -547,32 +695,93 @@ def _write_kept(x, y, s, color, fb_color):
     return bad
 
 
-def shade_winners(prims: Primitives, visibility: FragmentVisibility, fb, fragment_shader: Optional[Callable],
-                  uniforms, shading: str = "sample") -> ShadedSamples:
-    """Run the shader on the fragments a :class:`FragmentVisibility` kept and write their color into ``fb``.
+@numba.njit(cache=True, nogil=True)
+def _write_by_keys(lo, hi, keys, color, samples, height, width, fb_color, bad):
+    """Write the colors of sorted samples lo:hi (:func:`_sorted_samples`); bad[lo] counts those not finite."""
+    n = 0
+    for k in range(lo, hi):
+        key = keys[k]
+        i, s, row = key % width, (key // width) % samples, key // (width * samples)
+        total = 0.0
+        for c in range(4):
+            fb_color[s, row, i, c] = color[k, c]
+            total += np.float64(color[k, c])
+        if not (total - total == 0.0):
+            n += 1
+    bad[lo] = n
 
-    As :func:`shade_visible`: a shader that raises has the depth put back and nothing written;
-    a NaN alpha (DISCARD) at a kept fragment raises :class:`DiscardOnFastPath` with the depth put back.
-    With multisampling at the centre or centroid, every sample of a pixel's fragment has the same
-    barycentrics, so shading each kept sample gives the color the reference path copies to them.
+
+#: Fragments a band of the points' and lines' shading holds at least (a band costs a call of the
+#: compiled loop from Python, some microseconds).
+SHADE_GRAIN = 65536
+
+
+def _shade_band(lo, hi, kernel, args) -> None:
+    """The fragment loop over fragments lo:hi (a band of :func:`shade_primitives`, on a helper thread: the
+    loop is compiled with nogil)."""
+    kernel(*(a[lo:hi] for a in args[:5]), *args[5:-1], args[-1][lo:hi])
+
+
+def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fragment_shader: Optional[Callable],
+                     uniforms, shading: str = "sample") -> ShadedSamples:
+    """Run the shader on the samples a :class:`PrimitiveVisibility` kept and write their color into ``fb``.
+
+    The visible samples, sorted by primitive (:func:`_sorted_samples`), get the inputs the
+    reference path's fragments there give the shader (the same as
+    :meth:`PrimitiveVisibility.fragments`) and are shaded by the reference path's loop
+    (``fragment_loop``) in bands on the helper threads; nothing is written before every one is
+    shaded. As :func:`shade_visible`: a shader that raises has the depth put back and nothing
+    written; a NaN alpha (DISCARD) at a visible sample raises :class:`DiscardOnFastPath` with the
+    depth put back. With multisampling at the centre or centroid each visible sample is shaded
+    with its pixel's inputs, so it gets the color the reference path copies to it.
     """
+    shape = visibility.vis.shape
+    buffers: dict = {}
     try:
-        kept = visibility.fragments()
-        shaded = run_fragment_stage(kept, prims, fragment_shader, uniforms, "sample")
-        if shaded.discarded.any():
+        shader = fragment_shader or default_fragment_shader(prims.layout)
+        keys, tri = _sorted_samples(visibility, len(prims), pooled=True)
+        n = len(keys)
+        if n:
+            buffers = dict(keys=keys.base, tri=tri.base, depth=_pooled("depth", n, np.float64),
+                           bary=_pooled("bary", n, np.float64, 3), fx=_pooled("fx", n, np.float64),
+                           fy=_pooled("fy", n, np.float64), color=_pooled("color", n, np.float32, 4))
+        color = buffers["color"][:n] if n else np.empty((0, 4), np.float32)
+        if n:
+            depth, bary, fx, fy = (buffers[k][:n] for k in ("depth", "bary", "fx", "fy"))
+            _shader_inputs(visibility, keys, tri, fb.pattern, SHADING_POSITIONS.index(shading), depth, bary, fx, fy)
+            kernel = kernels.fragment_kernel(shader, prims.layout)
+            args = (tri, fx, fy, depth, bary, prims.inv_w, prims.varyings, prims.front_facing, prims.primitive_id,
+                    derivative_gradients(shader, visibility.setup), uniforms, color)
+            # compile (or load) once, in this thread, where errors are reported clearly
+            kernels.run_compiled("fragment", shader, kernel, *(a[:0] for a in args[:5]), *args[5:-1], color[:0])
+
+            def site():        # which fragment raised: the shading again, on copies, one by one
+                return kernels.fragment_site(shader, kernel, args[:-1] + (color.copy(),), *_decode(keys, shape))()
+
+            kernels.run_compiled("fragment", shader, lambda *a: in_bands(_shade_band, n, kernel, a,
+                                                                         grain=SHADE_GRAIN), *args, site=site)
+        if np.isnan(color[:, 3]).any():
             raise DiscardOnFastPath("the fragment shader returned a NaN alpha (DISCARD) at a visible sample")
+        bad = np.zeros(n + 1, np.int64)
+        non_finite = None
+        if n:
+            in_bands(_write_by_keys, n, keys, color, *shape, fb.samples_color, bad, grain=65536)
+        if bad.any():
+            wrong = np.flatnonzero(~np.isfinite(color).all(axis=1))
+            x, y, _ = _decode(keys[wrong], shape)
+            first = int(np.lexsort((x, y))[0])          # the lowest image row, then column
+            non_finite = NonFinite(len(wrong), int(x[first]), int(y[first]),
+                                   int(prims.primitive_id[tri[wrong[first]]]))
     except BaseException:
         visibility.restore_depth(fb)
+        _release(visibility.saved_depth)
         visibility.saved_depth = None
         raise
-    visibility.saved_depth = None
-    non_finite = None
-    if _write_kept(kept.x, kept.y, kept.sample, shaded.color, fb.samples_color):
-        bad = np.flatnonzero(~np.isfinite(shaded.color).all(axis=1))
-        first = int(bad[np.lexsort((kept.x[bad], kept.y[bad]))[0]])       # the lowest image row, then column
-        non_finite = NonFinite(len(bad), int(kept.x[first]), int(kept.y[first]), int(kept.primitive_id[first]))
-    return ShadedSamples(visibility, shading, non_finite)  # type: ignore[arg-type]  # it reads .vis alone
-
+    finally:
+        _return_pooled(**buffers)
+    _release(visibility.saved_depth)
+    visibility.saved_depth = None              # the draw stands: nothing to undo
+    return ShadedSamples(visibility, shading, non_finite)
 
 
 # ------------------------------------------------- several color attachments (multiple render targets)
@@ -582,8 +791,8 @@ def shade_outputs(prims: Primitives, visibility, fb, fragment_shader: Optional[C
     """The fast path into a framebuffer of several attachments: the shader once per visible sample, its
     values written into every attachment.
 
-    The visible samples are made into fragments (:meth:`Visibility.fragments`, or the kept ones of a
-    :class:`FragmentVisibility`), with the barycentrics, depth and position the reference path's
+    The visible samples are made into fragments (:meth:`Visibility.fragments`, or
+    :meth:`PrimitiveVisibility.fragments` for points and lines), with the barycentrics, depth and position the reference path's
     fragment gives the shader there (at the pixel's shading point with multisampling, so every
     sample of a pixel gets the value the reference path copies to them), and shaded by the same
     loop as the reference path's (``fragment_loop_outputs``); nothing is written before every one

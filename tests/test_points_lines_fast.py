@@ -1,0 +1,187 @@
+"""The fast path of points and lines (issues 29 and 35): their own walk over the triangles' tiles.
+
+On the fast path a draw of points or lines makes no list of fragments: each tile of the
+framebuffer walks the points or lines binned to it, in order, with the early depth test,
+keeping only the last one written at each sample (``PrimitiveVisibility``); the visible
+samples are then shaded. Every test here holds it to the reference path's bytes (color and
+depth) — which tests/test_lines_points_exact.py holds to the rational reference — on
+random clouds and line sets full of overlaps and depth ties, on 1 and 2 threads.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+import softpipe as sp
+from softpipe.pipeline.sampling import pattern_named
+from softpipe.pipeline.visibility import PrimitiveVisibility
+
+# several tiles (128 × 32 pixels) each way, the last ones cut short
+W, H = 300, 100
+
+
+def clip(points, z):
+    """Window positions (x, y) and depths z in [-1, 1] → clip coordinates (w = 1) for a W × H viewport."""
+    p = np.asarray(points, dtype=np.float64)
+    return np.column_stack([2 * p[:, 0] / W - 1, 2 * p[:, 1] / H - 1, z, np.ones(len(p))])
+
+
+def shows_inputs(varyings, uniforms, frag):
+    """A color made of what the shader is given: a varying, gl_PointCoord (a line's t) and the depth."""
+    return (varyings.color[0], frag.point_coord[0], frag.point_coord[1] + frag.z, 1.0)
+
+
+def _draws(rng, n):
+    """A random set of draws of lines, strips and points, crossing tiles and each other, at few depths
+    (so that many fragments tie), with the state that decides the winners varied."""
+    draws = []
+    for k in range(n):
+        topology = ["lines", "line_strip", "line_loop", "points"][k % 4]
+        count = 2 * int(rng.integers(1, 30))
+        # short segments and long ones (across several tiles), in and out of the framebuffer
+        spread = rng.choice([3.0, 40.0, 400.0])
+        centre = rng.uniform(0, [W, H])
+        pos = centre + rng.normal(0, spread, (count, 2))
+        pos = np.round(pos * 4) / 4 if k % 3 == 0 else pos        # on quarter pixels: centres, edges, ties
+        z = rng.choice([-0.5, 0.0, 0.5], count) if k % 2 else rng.uniform(-1.2, 1.2, count)
+        state = dict(depth_test=str(rng.choice(["less", "lequal", "equal", "greater", "always", "gequal"])),
+                     depth_write=bool(rng.random() < 0.8))
+        if rng.random() < 0.15:
+            state["depth_test"] = None
+        if topology == "points":
+            state["point_size"] = float(rng.choice([0.75, 1.0, 2.0, 3.5, 7.0]))
+        else:
+            state["line_width"] = float(rng.choice([1.0, 1.0, 2.0, 3.0]))
+        if rng.random() < 0.2:
+            x, y = (int(v) for v in rng.integers(0, [W - 60, H - 30]))
+            state["scissor"] = (x, y, int(rng.integers(10, 200)), int(rng.integers(5, 80)))
+        draws.append((clip(pos, z), topology, {"color": rng.uniform(0, 1, (count, 3))}, state))
+    return draws
+
+
+def _render(draws, path, pattern="center", shading="sample", threads=None):
+    before = numba.get_num_threads()
+    fb = sp.Framebuffer(W, H, pattern=pattern_named(pattern))
+    fb.clear((0.1, 0.2, 0.3, 1.0))
+    taken = []
+    try:
+        if threads is not None:
+            numba.set_num_threads(threads)
+        for pos, topology, varyings, state in draws:
+            call = sp.DrawCall(fb, pos, None, varyings, None, shows_inputs, None, topology=topology, path=path,
+                               sample_shading=shading, **state)
+            call.run()
+            taken.append(call.path_taken)
+    finally:
+        numba.set_num_threads(before)
+    return fb, taken
+
+
+def _two_threads():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread here (NUMBA_NUM_THREADS=1)")
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_points_and_lines_with_depth_ties_give_the_reference_bytes_on_one_and_two_threads(seed):
+    _two_threads()
+    draws = _draws(np.random.default_rng(seed), 24)
+    reference, _ = _render(draws, "reference")
+    for threads in (1, 2):
+        fast, taken = _render(draws, "fast", threads=threads)
+        assert taken == ["fast"] * len(draws)
+        assert fast.samples_color.tobytes() == reference.samples_color.tobytes(), threads
+        assert fast.samples_depth.tobytes() == reference.samples_depth.tobytes(), threads
+
+
+@pytest.mark.parametrize("shading", ["sample", "center", "centroid"])
+def test_multisampled_points_and_lines_give_the_reference_bytes_on_one_and_two_threads(shading):
+    """With 4 samples a pixel, shaded per sample or once per pixel: the shader reads the depth, which the
+    reference path gives a pixel's run at its first sample."""
+    _two_threads()
+    draws = _draws(np.random.default_rng(11), 16)
+    reference, _ = _render(draws, "reference", "rgss4", shading)
+    for threads in (1, 2):
+        fast, taken = _render(draws, "fast", "rgss4", shading, threads=threads)
+        assert taken == ["fast"] * len(draws)
+        assert fast.samples_color.tobytes() == reference.samples_color.tobytes(), threads
+        assert fast.samples_depth.tobytes() == reference.samples_depth.tobytes(), threads
+
+
+def test_a_multisampled_line_shaded_at_the_pixel_centre_sees_the_depth_of_its_first_sample():
+    """A sloped line at 4 samples a pixel, shaded once per pixel: the reference path shades a pixel's run
+    at its first sample, depth included, and copies the color to the others; the fast path now does too
+    (it shaded every sample at its own depth)."""
+    fb = {}
+    for path in ("reference", "fast"):
+        fb[path] = sp.Framebuffer(32, 8, pattern=pattern_named("rgss4"))
+        sp.draw(fb[path], np.array([[-0.9, -0.5, -0.9, 1.0], [0.9, 0.4, 0.8, 1.0]]), topology="lines",
+                varyings={"color": np.ones((2, 3))}, fragment_shader=shows_inputs, path=path,
+                sample_shading="center")
+    written = fb["reference"].samples_color[..., 3] == 1
+    assert written.sum() > 4 * 20
+    # every sample of a pixel has its pixel's color
+    assert (fb["reference"].samples_color == fb["reference"].samples_color[:1]).all()
+    assert fb["fast"].samples_color.tobytes() == fb["reference"].samples_color.tobytes()
+
+
+def test_a_line_across_every_tile_and_a_scissor_give_the_reference_bytes():
+    draws = [(clip([(-20.5, -7.25), (W + 13.0, H + 9.5), (W + 3.0, -4.0), (-8.0, H - 2.0)], [0.3, -0.2, 0.1, 0.9]),
+              "lines", {"color": np.eye(4)[:, :3]}, dict(line_width=3.0, scissor=(40, 10, 200, 70)))]
+    reference, _ = _render(draws, "reference")
+    fast, taken = _render(draws, "fast")
+    assert taken == ["fast"]
+    assert (reference.samples_color[0, ..., 3] == 1.0).sum() > 200
+    assert fast.samples_color.tobytes() == reference.samples_color.tobytes()
+    assert fast.samples_depth.tobytes() == reference.samples_depth.tobytes()
+
+
+@pytest.mark.parametrize("topology, state", [("lines", {"line_width": 2.0}), ("points", {"point_size": 3.0}),
+                                             ("triangles", {"polygon_mode": "line"})])
+def test_points_and_lines_take_their_tile_walk_and_make_no_fragment_list(monkeypatch, topology, state):
+    """The route: the visibility stage is a PrimitiveVisibility, and the reference rasterizer is not called."""
+    import softpipe.pipeline.draw as pipeline
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the fast path of points and lines made the rasterizer's list of fragments")
+    monkeypatch.setattr(pipeline, "count_fragments", refused)
+    monkeypatch.setattr(pipeline, "rasterize", refused)
+    rng = np.random.default_rng(3)
+    pos = clip(rng.uniform(0, [W, H], (30, 2)), rng.uniform(-1, 1, 30))
+    fb = sp.Framebuffer(W, H)
+    fb.clear((0, 0, 0, 0))
+    call = sp.DrawCall(fb, pos, None, {"color": rng.uniform(0, 1, (30, 3))}, topology=topology, path="fast", **state)
+    stages = {stage.name: stage.output for stage in call.steps()}
+    assert call.path_taken == "fast"
+    visibility = stages["visibility"]
+    assert isinstance(visibility, PrimitiveVisibility)
+    assert repr(visibility).startswith("PrimitiveVisibility(")
+    shown = visibility.vis >= 0
+    assert shown.sum() == (fb.samples_color[..., 3] == 1.0).sum() > 30
+    kind = "points" if topology == "points" else "lines"
+    assert f" {kind}, " in repr(visibility)
+
+
+def gives_up_right_of(v, u, frag):
+    if frag.x > u.cut:
+        raise ValueError("the shader gave up")
+    return (v.color[0], v.color[1], v.color[2], 1.0)
+
+
+@pytest.mark.parametrize("topology", ["lines", "points"])
+def test_a_shader_that_raises_on_the_fast_path_names_the_fragment_and_leaves_the_framebuffer_as_it_was(topology):
+    rng = np.random.default_rng(5)
+    pos = clip(rng.uniform(0, [W, H], (40, 2)), rng.uniform(-1, 1, 40))
+    errors, framebuffers = {}, {}
+    for path in ("reference", "fast"):
+        fb = framebuffers[path] = sp.Framebuffer(W, H)
+        fb.clear((0.1, 0.2, 0.3, 1.0))
+        before = (fb.samples_color.tobytes(), fb.samples_depth.tobytes())
+        with pytest.raises(sp.ShaderError) as e:
+            sp.draw(fb, pos, varyings={"color": rng.uniform(0, 1, (40, 3))}, fragment_shader=gives_up_right_of,
+                    uniforms={"cut": 150.0}, topology=topology, point_size=3.0, path=path)
+        errors[path] = str(e.value)
+        assert (fb.samples_color.tobytes(), fb.samples_depth.tobytes()) == before, path
+    for text in errors.values():
+        assert "the shader gave up" in text and "the fragment at pixel (" in text, text
