@@ -580,11 +580,12 @@ BENCH_OUTPUTS = ("color", "depth", "normal", "object_id", "triangle_id")
 def bunny_outputs(scale: float = 1.0) -> Scene:
     """``bunny`` drawn into a framebuffer with a visibility record, then five outputs derived from it
     (:func:`softpipe.scenes.outputs.derive_outputs`: color, depth, normal, object_id, triangle_id):
-    what ``render(..., outputs=...)`` adds to a frame, beside ``bunny`` for the cost."""
+    what ``render(..., outputs=...)`` adds to a frame, beside ``bunny`` for the cost (``color`` handed
+    out uncopied, as ``render`` does)."""
     from softpipe.scenes.outputs import derive_outputs
     base = bunny(scale)
     return replace(base, name="bunny-outputs", record=True,
-                               finish=lambda fb: derive_outputs(fb, BENCH_OUTPUTS) and None,
+                               finish=lambda fb: derive_outputs(fb, BENCH_OUTPUTS, copy_color=False) and None,
                                description=base.description + "; five outputs from the visibility record: "
                                + ", ".join(BENCH_OUTPUTS))
 
