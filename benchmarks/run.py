@@ -227,7 +227,8 @@ def _counting(fb: Framebuffer):
         return counted
 
     saved = {}
-    for name, wrap in (("assemble", assembly), ("run_fragment_stage", reference), ("shade_visible", fast)):
+    for name, wrap in (("assemble", assembly), ("run_fragment_stage", reference), ("shade_visible", fast),
+                       ("shade_primitives", fast)):      # points and lines on the fast path
         if hasattr(_pipeline, name):
             saved[name] = getattr(_pipeline, name)
             setattr(_pipeline, name, wrap(saved[name]))
@@ -317,8 +318,8 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
 
     covered, fragments = count_fragments_of(scene, fb)
     if fragments is None:
-        notes.append(f"{scene.name}: could not count shaded fragments (softpipe.pipeline.draw has neither "
-                     "run_fragment_stage nor shade_visible any more); shaded px/s left out")
+        notes.append(f"{scene.name}: could not count shaded fragments (softpipe.pipeline.draw has none of "
+                     "run_fragment_stage, shade_visible, shade_primitives any more); shaded px/s left out")
     image = fb.to_uint8()
     clear = np.rint(np.clip(np.asarray(scene.clear_color, np.float64), 0, 1) * 255).astype(np.uint8)
     pixels_drawn = int(np.any(image != clear, axis=-1).sum())
