@@ -26,6 +26,11 @@ material with ``kt`` ≠ 0, transmitting kt; or with opacity < 1, transmitting
 1 − opacity), whose nearest layer's depth and transmission color give the notes'
 weighted shadow (§21): light behind glass is dimmed and tinted, not cut off.
 
+The opaque pass is a depth-only draw (every color channel masked off, a constant
+fragment shader: :func:`softpipe.pipeline.visibility.depth_only`): its visibility
+pass's depth is the map and no fragment is shaded. A caster whose bounding box lies
+outside a map's frustum is not drawn into it (nor transformed).
+
 The depth bias is the depth pass's polygon offset
 (:func:`softpipe.pipeline.setup.apply_polygon_offset`), set per light by
 :class:`~softpipe.light.shadowmap.ShadowSettings`. The maps have ``cull="none"``: a
@@ -76,6 +81,15 @@ class ShadowCaster:
     positions: np.ndarray   # float64 [N, 3], world space
     indices: np.ndarray     # int [M, 3]
     transmission: Optional[Tuple[float, float, float]] = None
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """float64 [2, 3]: the lowest and the highest corner of its vertices' box (a box of NaN
+        when it has none, which no map's cull then leaves out)."""
+        p = np.asarray(self.positions, np.float64).reshape(-1, 3)
+        if not len(p):
+            return np.full((2, 3), np.nan)
+        return np.stack([p.min(axis=0), p.max(axis=0)])
 
 
 def casters_of(objects) -> List[ShadowCaster]:
@@ -177,6 +191,11 @@ def light_frusta(light: Light, settings: ShadowSettings, points: np.ndarray) -> 
 
 # ------------------------------------------------------------------ the depth passes
 
+#: The opaque depth pass's color mask: no channel written, which with :func:`_depth_fragment` (a constant)
+#: makes it a depth-only draw.
+_DEPTH_ONLY = (False, False, False, False)
+
+
 def _transmission_fragment(varyings, uniforms, frag):
     t = uniforms.transmission
     return (t[0], t[1], t[2], 1.0)
@@ -257,6 +276,21 @@ def _in_frustum(clip: np.ndarray, indices: np.ndarray) -> np.ndarray:
     return indices[keep]
 
 
+def _outside_map(matrix: np.ndarray, bounds: np.ndarray) -> bool:
+    """Is a caster's bounding box (``bounds``: [2, 3], its lowest and highest corner) wholly outside one
+    clip plane of the map's ``matrix``? Then so is each of its vertices (a convex combination of the
+    box's corners, and each plane's outside a half-space), and :func:`_in_frustum` would keep none
+    of its triangles. "Outside" by a margin far above rounding (10⁻⁹ of the coordinates' size): a
+    vertex within rounding of a plane is left to :func:`_in_frustum`."""
+    lo, hi = bounds
+    corners = np.array([(x, y, z, 1.0) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    with np.errstate(invalid="ignore", over="ignore"):
+        clip = corners @ matrix.T
+        margin = 1e-9 * float(np.max(np.abs(corners) @ np.abs(matrix).T))
+        w = clip[:, 3]
+        return bool(any((clip[:, a] - w > margin).all() or (-clip[:, a] - w > margin).all() for a in range(3)))
+
+
 def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: np.ndarray,
                 settings: ShadowSettings, light_index: int, face: str, target: Framebuffer,
                 depth_out: np.ndarray) -> ShadowMap:
@@ -270,17 +304,21 @@ def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: n
     opaque = target
     clear = Framebuffer(res, res).clear((1.0, 1.0, 1.0, 1.0)) if any(c.transmission for c in casters) else None
     for c in casters:
+        if _outside_map(matrix, c.bounds):
+            continue                    # nothing of it reaches this map: not even transformed
         clip = transform_points(matrix, c.positions, rows=4)
         indices = _in_frustum(clip, c.indices)
         if not len(indices):
             continue
         if c.transmission is None:
-            fb, shader, uniforms = opaque, _depth_fragment, None
+            # depth only (every color channel off, a constant shader): the draw's visibility pass is the
+            # map, no fragment is shaded (softpipe.pipeline.visibility.depth_only)
+            DrawCall(opaque, clip, indices, None, None, _depth_fragment, None, cull="none",
+                     polygon_offset=settings.polygon_offset, color_mask=_DEPTH_ONLY).run()
         else:
             assert clear is not None    # made above: this caster lets light through
-            fb, shader, uniforms = clear, _transmission_fragment, {"transmission": c.transmission}
-        DrawCall(fb, clip, indices, None, None, shader, uniforms, cull="none",
-                 polygon_offset=settings.polygon_offset).run()
+            DrawCall(clear, clip, indices, None, None, _transmission_fragment, {"transmission": c.transmission},
+                     cull="none", polygon_offset=settings.polygon_offset).run()
     # a framebuffer's rows are an image's, top first; a map's are window rows, bottom first
     depth_out[...] = opaque.depth[::-1]
     if clear is None:
