@@ -280,3 +280,15 @@ def test_the_pcf_lookup_gives_the_bits_it_gave_before():
             assert np.array(got).tobytes() == np.array(want).tobytes(), (k, x, y, ref, got, want)
             checked += 1
     assert checked == 4 * 307
+
+
+def test_the_casters_bounds_are_numpys_min_and_max():
+    """The compiled column bounds that fit the maps (shadow_pass._column_bounds) give numpy's
+    min(axis=0) and max(axis=0): on random points, with infinities, signed zeros and a NaN column."""
+    rng = np.random.default_rng(7)
+    for points in (rng.normal(size=(5000, 3)) * 1e3, rng.integers(-3, 3, (64, 3)).astype(np.float64),
+                   np.array([[0.0, -0.0, np.inf], [-0.0, 0.0, -np.inf], [1.0, np.nan, 2.0]]),
+                   np.array([[np.nan, 1.0, 2.0], [3.0, 4.0, 5.0]]), np.array([[1.5, -2.5, 0.25]])):
+        lo, hi = shadow_pass._column_bounds(np.ascontiguousarray(points))
+        np.testing.assert_array_equal(lo, points.min(axis=0))
+        np.testing.assert_array_equal(hi, points.max(axis=0))

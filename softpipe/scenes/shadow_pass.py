@@ -86,10 +86,10 @@ class ShadowCaster:
     def bounds(self) -> np.ndarray:
         """float64 [2, 3]: the lowest and the highest corner of its vertices' box (a box of NaN
         when it has none, which no map's cull then leaves out)."""
-        p = np.asarray(self.positions, np.float64).reshape(-1, 3)
+        p = np.ascontiguousarray(self.positions, np.float64).reshape(-1, 3)
         if not len(p):
             return np.full((2, 3), np.nan)
-        return np.stack([p.min(axis=0), p.max(axis=0)])
+        return _column_bounds(p)
 
 
 def casters_of(objects) -> List[ShadowCaster]:
@@ -108,6 +108,24 @@ def casters_of(objects) -> List[ShadowCaster]:
 
 
 # ------------------------------------------------------------------ fitting the light's frusta
+
+@numba.njit(cache=True)
+def _column_bounds(points: np.ndarray) -> np.ndarray:
+    """[2, k]: each column's least and greatest value, as numpy's ``min(axis=0)``, ``max(axis=0)``
+    give them (a NaN makes its column's both NaN), in one pass: numpy's reductions along axis 0 of
+    an [N, 3] array took about a millisecond each, a few per map."""
+    out = np.empty((2, points.shape[1]))
+    for c in range(points.shape[1]):
+        lo = hi = points[0, c]
+        for n in range(1, points.shape[0]):
+            v = points[n, c]
+            if v < lo or v != v:
+                lo = v if lo == lo else lo
+            if v > hi or v != v:
+                hi = v if hi == hi else hi
+        out[0, c], out[1, c] = lo, hi
+    return out
+
 
 def _view_along(eye: np.ndarray, forward: np.ndarray, up) -> np.ndarray:
     """look_at(eye, eye + forward, up), also where eye is so large that eye + forward rounds to eye."""
@@ -155,14 +173,13 @@ def light_frusta(light: Light, settings: ShadowSettings, points: np.ndarray) -> 
     if light.kind == "directional":
         d = np.asarray(light.direction, np.float64)
         view = _basis_view(points.mean(axis=0), d)
-        q = _in_view(view, points)
-        (x0, y0), (x1, y1) = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
+        (x0, y0, z0), (x1, y1, z1) = _column_bounds(_in_view(view, points))
         # PCF reads r + 1 texels beyond a caster's edge: keep them inside the map
         pad_x = (x1 - x0) * (settings.pcf + 2) / settings.resolution + 1e-6
         pad_y = (y1 - y0) * (settings.pcf + 2) / settings.resolution + 1e-6
-        depth = -q[:, 2]
-        span = float(depth.max() - depth.min())
-        near, far = float(depth.min()) - 0.01 * span - 1e-6, float(depth.max()) + 0.01 * span + 1e-6
+        nearest, farthest = -z1, -z0                    # the depths are −z
+        span = float(farthest - nearest)
+        near, far = float(nearest) - 0.01 * span - 1e-6, float(farthest) + 0.01 * span + 1e-6
         return [(view, orthographic(x0 - pad_x, x1 + pad_x, y0 - pad_y, y1 + pad_y, near, far))]
     eye = np.asarray(light.position, np.float64)
     if light.kind == "spot" and light.cutoff <= MAX_SPOT_MAP_CUTOFF:
@@ -460,7 +477,7 @@ def _check_map_light(j: int, light: Light, points: np.ndarray) -> None:
         raise ValueError(f"{label}: a spot with cutoff {light.cutoff!r}° lights nothing, so it has no shadow map; "
                          "give it a cutoff in (0, 90] degrees (at least 1e-6), or no shadows")
     eye = np.asarray(light.position, np.float64)
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    lo, hi = _column_bounds(np.ascontiguousarray(points, np.float64))
     size = float(np.linalg.norm(hi - lo))
     distance = float(np.abs(points - eye).max())
     if distance > MAX_LIGHT_DISTANCE_RATIO * size:
