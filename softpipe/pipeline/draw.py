@@ -62,7 +62,9 @@ from softpipe.pipeline.vertex import check_instances, run_vertex_stage
 from softpipe.pipeline.visibility import (
     PATHS,
     DiscardOnFastPath,
+    ShadedSamples,
     choose_path,
+    depth_only,
     primitive_visibility_pass,
     shade_outputs,
     shade_primitives,
@@ -251,7 +253,7 @@ class DrawCall:
         if blocker is not None and self.path == "auto":
             return "reference", blocker
         return choose_path(self.path, self.state, self.fragment_shader, fb.width * fb.height * fb.samples,
-                           keep_fragments, fb.samples, self.query is not None)
+                           keep_fragments, fb.samples, self.query is not None, len(self.attachments))
 
     def steps(self, record: bool = False) -> Iterator[Stage]:
         """Run the draw one stage at a time, yielding each stage's result as it is made.
@@ -397,9 +399,13 @@ class DrawCall:
         Triangles: the tiled visibility pass (:func:`~softpipe.pipeline.visibility.visibility_pass`).
         Points and lines: their own walk over the same tiles
         (:func:`~softpipe.pipeline.visibility.primitive_visibility_pass`); no fragment list is made.
+        A depth-only draw (:func:`~softpipe.pipeline.visibility.depth_only`) stops after the
+        visibility pass: nothing is shaded.
         """
         fb = self.framebuffer
-        undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) else False
+        # a depth-only draw (a shadow map's pass): the visibility pass's depth is its whole result
+        only = depth_only(self.state, self.fragment_shader, len(self.attachments))
+        undo = shading_may_fail(self.fragment_shader, prims.layout) if len(prims) and not only else False
         if len(self.attachments) > 1 and len(prims):
             # the proofs that shading cannot fail read a single RGBA's alpha; a shader returning a value per
             # attachment is not proved, so the depth is kept to put back
@@ -417,6 +423,12 @@ class DrawCall:
                 shade = shade_outputs
         clock("raster")
         yield Stage("visibility", visibility)
+        if only:        # no shader runs, no color is read or written
+            if self._record_ids is not None:
+                record_visible(fb, visibility.vis, self._record_ids, self.state)
+            clock("fragment")
+            yield Stage("fragment", ShadedSamples(visibility, self.sample_shading, depth_only=True))
+            return
         try:
             shaded = shade(prims, visibility, fb, self.fragment_shader, self.uniforms, self.sample_shading)
         except DiscardOnFastPath as e:

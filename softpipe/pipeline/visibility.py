@@ -14,7 +14,9 @@ buffer, a shading loop over that buffer, and no output merger.
 Here:
 
 1. **The choice** (:func:`choose_path`, :func:`fast_path_blocker`): the one place
-   that decides which back end a draw takes, and why.
+   that decides which back end a draw takes, and why; :func:`depth_only` decides
+   whether a draw writes depth alone (a shadow map's pass), whose result is then the
+   visibility pass's depth, with nothing shaded.
 2. **The visibility pass** (:func:`visibility_pass`): the tiles' binning and walk over
    the draw's triangle setup. Output: :class:`Visibility`, the last triangle that
    passed the depth test at each sample.
@@ -36,6 +38,9 @@ test_properties.py hold them so); docs/08-fast-path.md walks through it and says
 """
 from __future__ import annotations
 
+import dis
+import inspect
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Tuple, Union
 
@@ -44,6 +49,7 @@ import numpy as np
 
 from softpipe.core.parallel import in_bands, threads
 from softpipe.language import kernels
+from softpipe.language.contract import python_function
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import (
     ShadedFragments,
@@ -86,7 +92,7 @@ from softpipe.pipeline.tiles import (
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
            "visible_loop_args", "PrimitiveVisibility", "primitive_visibility_pass", "shade_primitives",
-           "shade_outputs"]
+           "shade_outputs", "depth_only", "constant_color"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -98,20 +104,65 @@ FAST_PATH_MIN_SAMPLES = 128 * 128
 
 # ------------------------------------------------------------------ the decision
 
+#: Bytecode that does nothing (a function's prologue, padding), read past by :func:`constant_color`.
+_NO_OPS = ("RESUME", "NOP", "CACHE", "PRECALL")
+
+
+def constant_color(shader: Optional[Callable]) -> Optional[Tuple[float, float, float, float]]:
+    """The color a fragment shader returns when its whole body is ``return (r, g, b, a)`` of four finite
+    number literals (``lambda varyings, uniforms, frag: (0.0, 0.0, 0.0, 1.0)``), else None.
+
+    A proof, read from the bytecode: such a shader takes the three parameters, compiles, cannot
+    raise, discard or return a non-finite color, and gives every fragment the same color, so
+    running it changes nothing a draw that writes no color keeps.
+    """
+    f = python_function(shader) if shader is not None else None
+    code = getattr(f, "__code__", None)
+    if code is None or code.co_argcount != 3 or code.co_kwonlyargcount \
+            or code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS):
+        return None
+    body = [(i.opname, i.argval) for i in dis.get_instructions(code) if i.opname not in _NO_OPS]
+    if len(body) == 1 and body[0][0] == "RETURN_CONST":
+        value = body[0][1]
+    elif len(body) == 2 and body[0][0] == "LOAD_CONST" and body[1][0] == "RETURN_VALUE":
+        value = body[0][1]
+    else:
+        return None
+    if not (isinstance(value, tuple) and len(value) == 4
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
+        return None
+    r, g, b, a = (float(v) for v in value)
+    return r, g, b, a
+
+
+def depth_only(state: MergeState, fragment_shader: Optional[Callable], attachments: int = 1) -> bool:
+    """Does the draw write depth alone, so that its visibility pass's depth is all it leaves?
+
+    True when every color channel is masked off (``color_mask=(False,) * 4``) in a framebuffer
+    of one color attachment and the fragment shader returns a constant color
+    (:func:`constant_color`): it cannot discard, raise or warn, and writes nothing. Such a draw
+    (a shadow map's depth pass) takes the fast path without its shading: no shader runs, no
+    color is read or written; the depth and the visibility record are those of the reference
+    path (which runs the shader and throws its colors away).
+    """
+    return (attachments == 1 and not any(state.color_mask) and state.blend is None
+            and constant_color(fragment_shader) is not None)
+
+
 def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable], samples_per_pixel: int = 1,
-                      counts_samples: bool = False) -> Optional[str]:
+                      counts_samples: bool = False, attachments: int = 1) -> Optional[str]:
     """Why a draw with this merge state and shader cannot take the fast path, or None if it can.
 
-    The fast path tests depth and writes whole colors; the scissor it takes as the rectangle
-    its coverage walk stays in (the same pixels). ``samples_per_pixel`` is the framebuffer's
-    (the multisample operations apply only with more than one); ``counts_samples``: an
-    occlusion query counts the samples that pass.
+    The fast path tests depth and writes whole colors, or none (:func:`depth_only`); the scissor it
+    takes as the rectangle its coverage walk stays in (the same pixels). ``samples_per_pixel`` is the
+    framebuffer's (the multisample operations apply only with more than one); ``counts_samples``: an
+    occlusion query counts the samples that pass; ``attachments``: the framebuffer's color attachments.
     """
     if state.blend is not None:
         return "blending is on (the result depends on every fragment, not only the last)"
     if state.stencil is not None:
         return "the stencil test is on (the fast path's visibility pass tests depth only)"
-    if state.masks_color:
+    if state.masks_color and not depth_only(state, fragment_shader, attachments):
         return f"the color mask {state.color_mask} holds back a channel (the fast path writes whole colors)"
     if state.depth_clamp:
         return "depth clamp is on (the fast path's visibility pass compares unclamped depths)"
@@ -133,30 +184,36 @@ def fast_path_blocker(state: MergeState, fragment_shader: Optional[Callable], sa
 
 def choose_path(path: str, state: MergeState, fragment_shader: Optional[Callable], samples: int,
                 keep_fragments: bool = False, samples_per_pixel: int = 1,
-                counts_samples: bool = False) -> Tuple[str, str]:
+                counts_samples: bool = False, attachments: int = 1) -> Tuple[str, str]:
     """Which order a draw takes, and why: ("reference" | "fast", reason).
 
     ``path`` is the draw's request (:data:`PATHS`), ``samples`` the framebuffer's
     width × height × samples per pixel, ``keep_fragments`` whether the caller
-    needs every fragment (a trace with ``path="auto"``); ``samples_per_pixel`` and
-    ``counts_samples`` as :func:`fast_path_blocker` takes them. The same for every kind of
+    needs every fragment (a trace with ``path="auto"``); ``samples_per_pixel``,
+    ``counts_samples`` and ``attachments`` as :func:`fast_path_blocker` takes them. A depth-only
+    draw (:func:`depth_only`) on the fast path says so in its reason. The same for every kind of
     primitive (points and lines have a visibility pass of their own, :func:`primitive_visibility_pass`).
     """
     if path not in PATHS:
         raise ValueError(f"path must be one of {PATHS}, got {path!r}")
     if path == "reference":
         return "reference", "path='reference' was asked for"
-    blocker = fast_path_blocker(state, fragment_shader, samples_per_pixel, counts_samples)
+    blocker = fast_path_blocker(state, fragment_shader, samples_per_pixel, counts_samples, attachments)
+    only = depth_only(state, fragment_shader, attachments)
+    why_only = ("depth only (every color channel masked off, a constant fragment shader): the visibility "
+                "pass's depth is the draw's result, nothing is shaded")
     if path == "fast":
         if blocker:
             raise ValueError(f"path='fast' is not possible for this draw: {blocker}")
-        return "fast", "path='fast' was asked for"
+        return "fast", "path='fast' was asked for" + (f"; {why_only}" if only else "")
     if blocker:
         return "reference", blocker
     if keep_fragments:
         return "reference", "a trace keeps every fragment, which only the reference path makes (path='fast' traces the fast path)"
     if samples < FAST_PATH_MIN_SAMPLES:
         return "reference", f"a small framebuffer ({samples} samples < FAST_PATH_MIN_SAMPLES = {FAST_PATH_MIN_SAMPLES})"
+    if only:
+        return "fast", why_only
     return "fast", "opaque draw without discard: only the visible samples are shaded"
 
 
@@ -296,13 +353,18 @@ class ShadedSamples:
         Fragment shader invocations (one per written sample; with multisampling,
         one per pixel and visible triangle).
 
-    Both are computed when first asked for (a full-frame pass each), not by every draw.
+    Both are computed when first asked for (a full-frame pass each), not by every draw. A
+    depth-only draw (:func:`depth_only`, ``depth_only`` True) wrote the depth of those samples
+    and ran no shader: 0 invocations.
     """
 
-    def __init__(self, visibility: Visibility, shading: str, non_finite: Optional[NonFinite] = None):
+    def __init__(self, visibility: Visibility, shading: str, non_finite: Optional[NonFinite] = None,
+                 depth_only: bool = False):
         self.visibility, self.shading = visibility, shading
         #: the samples written with a NaN or infinite color (:class:`~softpipe.pipeline.output.NonFinite`), or None
         self.non_finite = non_finite
+        #: a depth-only draw: nothing was shaded, no color written
+        self.depth_only = depth_only
 
     @property
     def written(self) -> np.ndarray:
@@ -310,9 +372,11 @@ class ShadedSamples:
 
     @property
     def invocations(self) -> int:
-        return _invocations(self.visibility.vis, self.shading)
+        return 0 if self.depth_only else _invocations(self.visibility.vis, self.shading)
 
     def __repr__(self) -> str:
+        if self.depth_only:
+            return f"ShadedSamples({int(self.written.sum())} samples' depth written, depth only: nothing shaded)"
         return f"ShadedSamples({int(self.written.sum())} samples written, {self.invocations} shader invocations)"
 
 

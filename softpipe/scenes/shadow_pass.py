@@ -26,6 +26,11 @@ material with ``kt`` ≠ 0, transmitting kt; or with opacity < 1, transmitting
 1 − opacity), whose nearest layer's depth and transmission color give the notes'
 weighted shadow (§21): light behind glass is dimmed and tinted, not cut off.
 
+The opaque pass is a depth-only draw (every color channel masked off, a constant
+fragment shader: :func:`softpipe.pipeline.visibility.depth_only`): its visibility
+pass's depth is the map and no fragment is shaded. A caster whose bounding box lies
+outside a map's frustum is not drawn into it (nor transformed).
+
 The depth bias is the depth pass's polygon offset
 (:func:`softpipe.pipeline.setup.apply_polygon_offset`), set per light by
 :class:`~softpipe.light.shadowmap.ShadowSettings`. The maps have ``cull="none"``: a
@@ -77,6 +82,15 @@ class ShadowCaster:
     indices: np.ndarray     # int [M, 3]
     transmission: Optional[Tuple[float, float, float]] = None
 
+    @property
+    def bounds(self) -> np.ndarray:
+        """float64 [2, 3]: the lowest and the highest corner of its vertices' box (a box of NaN
+        when it has none, which no map's cull then leaves out)."""
+        p = np.ascontiguousarray(self.positions, np.float64).reshape(-1, 3)
+        if not len(p):
+            return np.full((2, 3), np.nan)
+        return _column_bounds(p)
+
 
 def casters_of(objects) -> List[ShadowCaster]:
     """The shadow casters among scene objects (:class:`softpipe.scenes.scene.SceneObject`): those with
@@ -94,6 +108,24 @@ def casters_of(objects) -> List[ShadowCaster]:
 
 
 # ------------------------------------------------------------------ fitting the light's frusta
+
+@numba.njit(cache=True)
+def _column_bounds(points: np.ndarray) -> np.ndarray:
+    """[2, k]: each column's least and greatest value, as numpy's ``min(axis=0)``, ``max(axis=0)``
+    give them (a NaN makes its column's both NaN), in one pass: numpy's reductions along axis 0 of
+    an [N, 3] array took about a millisecond each, a few per map."""
+    out = np.empty((2, points.shape[1]))
+    for c in range(points.shape[1]):
+        lo = hi = points[0, c]
+        for n in range(1, points.shape[0]):
+            v = points[n, c]
+            if v < lo or v != v:
+                lo = v if lo == lo else lo
+            if v > hi or v != v:
+                hi = v if hi == hi else hi
+        out[0, c], out[1, c] = lo, hi
+    return out
+
 
 def _view_along(eye: np.ndarray, forward: np.ndarray, up) -> np.ndarray:
     """look_at(eye, eye + forward, up), also where eye is so large that eye + forward rounds to eye."""
@@ -141,14 +173,13 @@ def light_frusta(light: Light, settings: ShadowSettings, points: np.ndarray) -> 
     if light.kind == "directional":
         d = np.asarray(light.direction, np.float64)
         view = _basis_view(points.mean(axis=0), d)
-        q = _in_view(view, points)
-        (x0, y0), (x1, y1) = q[:, :2].min(axis=0), q[:, :2].max(axis=0)
+        (x0, y0, z0), (x1, y1, z1) = _column_bounds(_in_view(view, points))
         # PCF reads r + 1 texels beyond a caster's edge: keep them inside the map
         pad_x = (x1 - x0) * (settings.pcf + 2) / settings.resolution + 1e-6
         pad_y = (y1 - y0) * (settings.pcf + 2) / settings.resolution + 1e-6
-        depth = -q[:, 2]
-        span = float(depth.max() - depth.min())
-        near, far = float(depth.min()) - 0.01 * span - 1e-6, float(depth.max()) + 0.01 * span + 1e-6
+        nearest, farthest = -z1, -z0                    # the depths are −z
+        span = float(farthest - nearest)
+        near, far = float(nearest) - 0.01 * span - 1e-6, float(farthest) + 0.01 * span + 1e-6
         return [(view, orthographic(x0 - pad_x, x1 + pad_x, y0 - pad_y, y1 + pad_y, near, far))]
     eye = np.asarray(light.position, np.float64)
     if light.kind == "spot" and light.cutoff <= MAX_SPOT_MAP_CUTOFF:
@@ -176,6 +207,11 @@ def light_frusta(light: Light, settings: ShadowSettings, points: np.ndarray) -> 
 
 
 # ------------------------------------------------------------------ the depth passes
+
+#: The opaque depth pass's color mask: no channel written, which with :func:`_depth_fragment` (a constant)
+#: makes it a depth-only draw.
+_DEPTH_ONLY = (False, False, False, False)
+
 
 def _transmission_fragment(varyings, uniforms, frag):
     t = uniforms.transmission
@@ -257,6 +293,21 @@ def _in_frustum(clip: np.ndarray, indices: np.ndarray) -> np.ndarray:
     return indices[keep]
 
 
+def _outside_map(matrix: np.ndarray, bounds: np.ndarray) -> bool:
+    """Is a caster's bounding box (``bounds``: [2, 3], its lowest and highest corner) wholly outside one
+    clip plane of the map's ``matrix``? Then so is each of its vertices (a convex combination of the
+    box's corners, and each plane's outside a half-space), and :func:`_in_frustum` would keep none
+    of its triangles. "Outside" by a margin far above rounding (10⁻⁹ of the coordinates' size): a
+    vertex within rounding of a plane is left to :func:`_in_frustum`."""
+    lo, hi = bounds
+    corners = np.array([(x, y, z, 1.0) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    with np.errstate(invalid="ignore", over="ignore"):
+        clip = corners @ matrix.T
+        margin = 1e-9 * float(np.max(np.abs(corners) @ np.abs(matrix).T))
+        w = clip[:, 3]
+        return bool(any((clip[:, a] - w > margin).all() or (-clip[:, a] - w > margin).all() for a in range(3)))
+
+
 def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: np.ndarray,
                 settings: ShadowSettings, light_index: int, face: str, target: Framebuffer,
                 depth_out: np.ndarray) -> ShadowMap:
@@ -270,17 +321,21 @@ def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: n
     opaque = target
     clear = Framebuffer(res, res).clear((1.0, 1.0, 1.0, 1.0)) if any(c.transmission for c in casters) else None
     for c in casters:
+        if _outside_map(matrix, c.bounds):
+            continue                    # nothing of it reaches this map: not even transformed
         clip = transform_points(matrix, c.positions, rows=4)
         indices = _in_frustum(clip, c.indices)
         if not len(indices):
             continue
         if c.transmission is None:
-            fb, shader, uniforms = opaque, _depth_fragment, None
+            # depth only (every color channel off, a constant shader): the draw's visibility pass is the
+            # map, no fragment is shaded (softpipe.pipeline.visibility.depth_only)
+            DrawCall(opaque, clip, indices, None, None, _depth_fragment, None, cull="none",
+                     polygon_offset=settings.polygon_offset, color_mask=_DEPTH_ONLY).run()
         else:
             assert clear is not None    # made above: this caster lets light through
-            fb, shader, uniforms = clear, _transmission_fragment, {"transmission": c.transmission}
-        DrawCall(fb, clip, indices, None, None, shader, uniforms, cull="none",
-                 polygon_offset=settings.polygon_offset).run()
+            DrawCall(clear, clip, indices, None, None, _transmission_fragment, {"transmission": c.transmission},
+                     cull="none", polygon_offset=settings.polygon_offset).run()
     # a framebuffer's rows are an image's, top first; a map's are window rows, bottom first
     depth_out[...] = opaque.depth[::-1]
     if clear is None:
@@ -422,7 +477,7 @@ def _check_map_light(j: int, light: Light, points: np.ndarray) -> None:
         raise ValueError(f"{label}: a spot with cutoff {light.cutoff!r}° lights nothing, so it has no shadow map; "
                          "give it a cutoff in (0, 90] degrees (at least 1e-6), or no shadows")
     eye = np.asarray(light.position, np.float64)
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    lo, hi = _column_bounds(np.ascontiguousarray(points, np.float64))
     size = float(np.linalg.norm(hi - lo))
     distance = float(np.abs(points - eye).max())
     if distance > MAX_LIGHT_DISTANCE_RATIO * size:

@@ -1,0 +1,294 @@
+"""Depth-only draws (issue #35): a shadow map's opaque pass shades nothing, and its depth is the reference's.
+
+A draw with every color channel masked off and a fragment shader that returns a constant
+color (``softpipe.pipeline.visibility.depth_only``) takes the fast path without its shading:
+the visibility pass's depth is its result. The oracle is the reference path (every
+fragment shaded and merged) and the fast path as it was before, with its shading: every
+shadow map is compared with both bit for bit, on a directional light, a spot, a point
+light's cube map and transparent casters, and at one and two threads.
+"""
+import numba
+import numpy as np
+import pytest
+
+from softpipe import DrawCall, Framebuffer, render_shadow_maps
+from softpipe.light.material import Light, Lighting, Material
+from softpipe.light.shadowmap import ShadowSettings
+from softpipe.pipeline.merge_state import MergeState
+from softpipe.pipeline.transforms import rotate, scale, translate
+from softpipe.pipeline.visibility import constant_color, depth_only, fast_path_blocker
+from softpipe.scenes import shadow_pass, shapes
+from softpipe.scenes.scene import SceneObject
+
+OFF = (False, False, False, False)
+
+
+def floor():
+    return SceneObject("floor", shapes.plane(8.0), np.eye(4))
+
+
+def box(model, material=None, name="box"):
+    return SceneObject(name, shapes.cube(1.0, material=material), np.asarray(model, np.float64))
+
+
+def sphere(model, name="sphere"):
+    return SceneObject(name, shapes.uv_sphere(1.0, 24, 12), model)
+
+
+def scenes():
+    """name → (objects, lighting): each light kind, and transparent casters among opaque ones."""
+    casters = [floor(), box(translate(0.1, 1.5, -0.2) @ rotate(30.0, (1.0, 2.0, 0.5))),
+               sphere(translate(-1.2, 0.9, 0.8) @ scale(0.6))]
+    glass = box(translate(-0.8, 0.8, 0.5) @ scale(1.0, 0.1, 1.0), Material(kt=(0.2, 0.6, 0.9)), "glass")
+    veil = box(translate(1.0, 1.1, 0.6) @ scale(0.8, 0.1, 0.8), Material(opacity=0.25), "veil")
+    settings = ShadowSettings(resolution=256)
+    return {
+        "directional": (casters, Lighting((Light.directional((0.5, -1.0, 0.3), shadows=settings),))),
+        "spot": (casters, Lighting((Light.spot((2.0, 4.0, 1.5), (-0.5, -1.0, -0.4), 35.0, 2.0,
+                                               shadows=settings),))),
+        "point": (casters, Lighting((Light.point((0.2, 2.6, 0.1), shadows=ShadowSettings(resolution=160)),))),
+        "transparent": (casters + [glass, veil],
+                        Lighting((Light.directional((0.3, -1.0, 0.2), shadows=settings),
+                                  Light.spot((1.5, 3.5, 1.0), (-0.4, -1.0, -0.3), 40.0, 1.0, shadows=settings)))),
+    }
+
+
+def maps_by(monkeypatch, objects, lighting, **forced):
+    """render_shadow_maps with every DrawCall of the shadow pass given ``forced`` keywords (a color mask
+    of None: the keyword left out, as before depth-only draws); returns (maps, the calls made)."""
+    made = []
+
+    def call(*args, **kwargs):
+        kwargs = dict(kwargs, **forced)
+        if kwargs.get("color_mask", ()) is None:
+            del kwargs["color_mask"]
+        c = DrawCall(*args, **kwargs)
+        made.append(c)
+        return c
+
+    with monkeypatch.context() as m:
+        m.setattr(shadow_pass, "DrawCall", call)
+        maps = render_shadow_maps(objects, lighting)
+    return maps, made
+
+
+def same_maps(a, b, what):
+    assert len(a.maps) == len(b.maps), what
+    for x, y in zip(a.maps, b.maps):
+        assert x.depth.tobytes() == y.depth.tobytes(), (what, x.face)
+        for name in ("transparent_depth", "transmission"):
+            u, v = getattr(x, name), getattr(y, name)
+            assert (u is None) == (v is None), (what, name)
+            if u is not None:
+                assert u.tobytes() == v.tobytes(), (what, name, x.face)
+
+
+@pytest.mark.parametrize("scene", ["directional", "spot", "point", "transparent"])
+def test_depth_only_maps_are_the_reference_paths_bit_for_bit(monkeypatch, scene):
+    """Every map (depth, and the transparent casters' depth and transmission) made by the depth-only
+    route is the one the reference path makes and the one the fast path with its shading made;
+    every opaque pass took the depth-only route, and every transparent one the shading fast path."""
+    objects, lighting = scenes()[scene]
+    new, calls = maps_by(monkeypatch, objects, lighting)
+    assert (np.concatenate([m.depth.ravel() for m in new.maps]) < 1.0).sum() > 1000   # the casters are in them
+    opaque = [c for c in calls if not any(c.state.color_mask)]
+    assert opaque and all(c.path_taken == "fast" and "depth only" in c.path_reason for c in opaque)
+    assert all(constant_color(c.fragment_shader) == (0.0, 0.0, 0.0, 1.0) for c in opaque)
+    clear = [c for c in calls if c not in opaque]
+    assert all(c.path_taken == "fast" and "depth only" not in c.path_reason for c in clear)
+    assert bool(clear) == (scene == "transparent")
+    reference, _ = maps_by(monkeypatch, objects, lighting, path="reference")
+    shaded, _ = maps_by(monkeypatch, objects, lighting, color_mask=None)
+    same_maps(new, reference, "reference path")
+    same_maps(new, shaded, "fast path with shading")
+
+
+@pytest.mark.parametrize("scene", ["directional", "point", "transparent"])
+def test_depth_only_maps_are_the_same_on_one_and_two_threads(scene):
+    objects, lighting = scenes()[scene]
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = render_shadow_maps(objects, lighting)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = render_shadow_maps(objects, lighting)
+    finally:
+        numba.set_num_threads(before)
+    same_maps(one, two, "1 vs 2 threads")
+
+
+def constant(varyings, uniforms, frag):
+    return (0.25, 0.5, 0.75, 1.0)
+
+
+def from_varying(varyings, uniforms, frag):
+    return (varyings.color[0], 0.0, 0.0, 1.0)
+
+
+def triangles(n=60, seed=3):
+    rng = np.random.default_rng(seed)
+    clip = np.c_[rng.uniform(-1.2, 1.2, (3 * n, 2)), rng.uniform(-0.9, 0.9, 3 * n), np.ones(3 * n)]
+    return clip, np.arange(3 * n).reshape(-1, 3), {"color": rng.uniform(0.0, 1.0, (3 * n, 3))}
+
+
+@pytest.mark.parametrize("record", [False, True])
+def test_a_users_depth_only_draw_shades_nothing_and_writes_the_reference_depth(record):
+    """color_mask all off with a constant shader: the fast path with no shading (0 invocations), the
+    depth (and the visibility record) of the reference path, the color untouched."""
+    clip, indices, varyings = triangles()
+    out = {}
+    for path in ("auto", "reference"):
+        fb = Framebuffer(160, 160, record=record).clear((0.1, 0.2, 0.3, 1.0))
+        call = DrawCall(fb, clip, indices, varyings, None, constant, None, color_mask=OFF, path=path)
+        stages = list(call.steps())
+        out[path] = (fb, call, stages)
+    fb, call, stages = out["auto"]
+    assert call.path_taken == "fast"
+    assert call.path_reason.startswith("depth only (every color channel masked off, a constant fragment shader)")
+    assert [s.name for s in stages] == ["vertex", "assembly", "visibility", "fragment"]
+    assert stages[-1].output.invocations == 0 and stages[-1].output.written.sum() > 10000
+    ref = out["reference"][0]
+    assert fb.samples_depth.tobytes() == ref.samples_depth.tobytes()
+    assert (fb.samples_depth < 1.0).sum() > 10000
+    assert fb.samples_color.tobytes() == ref.samples_color.tobytes()
+    assert (fb.color == np.float32([0.1, 0.2, 0.3, 1.0])).all()
+    if record:
+        assert fb.record.tobytes() == ref.record.tobytes()
+
+
+def test_a_masked_draw_whose_shader_is_not_constant_keeps_to_the_reference_path():
+    """Only a constant shader makes a masked draw depth-only: one reading a varying (which could be NaN,
+    a discard) or a mask with a channel on keeps the reference path and its reason, as before."""
+    clip, indices, varyings = triangles()
+    for shader, mask in ((from_varying, OFF), (constant, (False, False, False, True))):
+        fb = Framebuffer(160, 160)
+        call = DrawCall(fb, clip, indices, varyings, None, shader, None, color_mask=mask)
+        call.run()
+        assert call.path_taken == "reference"
+        assert call.path_reason == f"the color mask {mask} holds back a channel (the fast path writes whole colors)"
+    assert fast_path_blocker(MergeState(color_mask=OFF), constant, attachments=2).startswith("the color mask")
+    assert not depth_only(MergeState(color_mask=OFF, blend="alpha"), constant)
+
+
+def test_constant_color_is_a_proof_read_from_the_code():
+    def with_work(v, u, f):
+        x = u.gain
+        return (x, 0.0, 0.0, 1.0)
+
+    def nan_alpha(v, u, f):
+        return (0.0, 0.0, 0.0, float("nan"))
+
+    def rgb(v, u, f):
+        return (0.0, 0.0, 0.0)
+
+    def two(v, u):
+        return (0.0, 0.0, 0.0, 1.0)
+
+    def prologue(v, u, f):
+        u.gain  # noqa: B018  (an attribute read: work before the return)
+        return (0.0, 0.0, 0.0, 1.0)
+
+    assert constant_color(constant) == (0.25, 0.5, 0.75, 1.0)
+    assert constant_color(lambda v, u, f: (0, 0, 0, 1)) == (0.0, 0.0, 0.0, 1.0)
+    assert constant_color(numba.njit(constant)) == (0.25, 0.5, 0.75, 1.0)
+    for shader in (with_work, nan_alpha, rgb, two, prologue, from_varying, None,
+                   lambda v, u, f: (0.0, 0.0, 0.0, float("inf")), lambda v, u, f: (True, 0.0, 0.0, 1.0)):
+        assert constant_color(shader) is None, shader
+
+
+def test_a_caster_outside_a_map_is_not_even_transformed(monkeypatch):
+    """A point light's six faces and a small box on its +x axis: the box is transformed (and drawn) for
+    the +x face only; the other five faces leave it out by its bounding box. The maps are the
+    same as without the cull (the triangle cull would have dropped all its triangles)."""
+    light = Light.point((0.0, 0.0, 0.0), shadows=ShadowSettings(resolution=128))
+    small = box(translate(5.0, 0.0, 0.0) @ scale(0.8), name="small")
+    lighting = Lighting((light,))
+    transformed = []
+    real = shadow_pass.transform_points
+
+    def counting(matrix, points, *args, **kwargs):
+        if len(points) == len(small.mesh.positions):
+            transformed.append(1)
+        return real(matrix, points, *args, **kwargs)
+
+    with monkeypatch.context() as m:
+        m.setattr(shadow_pass, "transform_points", counting)
+        maps = render_shadow_maps([small], lighting)
+    assert [m.face for m in maps.maps] == ["+x", "-x", "+y", "-y", "+z", "-z"]
+    # once for the caster into world space (casters_of), once for the +x face's clip coordinates
+    assert len(transformed) == 2
+    assert (maps.maps[0].depth < 1.0).sum() > 20 and all((m.depth == 1.0).all() for m in maps.maps[1:])
+    with monkeypatch.context() as m:
+        m.setattr(shadow_pass, "_outside_map", lambda matrix, bounds: False)
+        uncut = render_shadow_maps([small], lighting)
+    same_maps(maps, uncut, "without the bounding-box cull")
+
+
+def pcf_as_before(shadows, k, x, y, ref):
+    """shadow_compare as it was before its opaque-map shortcut: every tap's bounds and transparency tested."""
+    offset, width, height, r = shadows.maps[k, 0], shadows.maps[k, 1], shadows.maps[k, 2], shadows.maps[k, 3]
+    clear = shadows.maps[k, 4]
+    i0, j0 = int(np.floor(x)), int(np.floor(y))
+    red, green, blue = 0.0, 0.0, 0.0
+    for j in range(j0 - r, j0 + r + 1):
+        for i in range(i0 - r, i0 + r + 1):
+            if i < 0 or j < 0 or i >= width or j >= height:
+                red += 1.0
+                green += 1.0
+                blue += 1.0
+                continue
+            texel = j * width + i
+            if ref > shadows.depth[offset + texel]:
+                continue
+            if clear >= 0 and ref > shadows.transparent_depth[clear + texel]:
+                red += shadows.transmission[clear + texel, 0]
+                green += shadows.transmission[clear + texel, 1]
+                blue += shadows.transmission[clear + texel, 2]
+            else:
+                red += 1.0
+                green += 1.0
+                blue += 1.0
+    taps = (2 * r + 1) * (2 * r + 1)
+    return red / taps, green / taps, blue / taps
+
+
+def test_the_pcf_lookup_gives_the_bits_it_gave_before():
+    """shadow_compare's shortcut for taps inside an opaque-only map: the same three values, bit for bit,
+    as the general loop, compiled both, on maps of PCF r = 0…2 (one with a transparent layer), depths
+    with NaNs and ties, points inside, on the border, outside and NaN."""
+    from softpipe.light.shadowmap import ShadowUniform, shadow_compare
+
+    rng = np.random.default_rng(35)
+    sizes, radii = [(16, 12), (9, 20), (24, 24), (16, 16)], [0, 1, 2, 1]
+    depth = [rng.choice([0.25, 0.5, 0.75, 1.0], w * h).astype(np.float32) for w, h in sizes]
+    depth[2][::7] = np.nan
+    offsets = np.cumsum([0] + [w * h for w, h in sizes])
+    maps = np.array([[offsets[m], w, h, r, 0 if m == 3 else -1] for m, ((w, h), r) in enumerate(zip(sizes, radii))],
+                    np.int64)
+    w3, h3 = sizes[3]
+    shadows = ShadowUniform(np.zeros((0, 3), np.int64), maps, np.zeros((4, 4, 4)), np.concatenate(depth),
+                            rng.choice([0.1, 0.3, 1.0], w3 * h3).astype(np.float32),
+                            rng.uniform(0.0, 1.0, (w3 * h3, 3)).astype(np.float32), None)
+    before = numba.njit(pcf_as_before)
+    checked = 0
+    for k, (w, h) in enumerate(sizes):
+        xs = np.r_[rng.uniform(-3.0, w + 3.0, 300), 0.0, 0.5, 1.0, w - 1.0, w - 0.5, float(w), np.nan]
+        ys = np.r_[rng.uniform(-3.0, h + 3.0, 300), 0.0, 0.5, 1.0, h - 1.0, h - 0.5, float(h), 3.5]
+        refs = np.r_[rng.choice([0.25, 0.5, 0.6, 0.75, 1.0], 306), np.nan]
+        for x, y, ref in zip(xs, ys, refs):
+            got, want = shadow_compare(shadows, k, x, y, ref), before(shadows, k, x, y, ref)
+            assert np.array(got).tobytes() == np.array(want).tobytes(), (k, x, y, ref, got, want)
+            checked += 1
+    assert checked == 4 * 307
+
+
+def test_the_casters_bounds_are_numpys_min_and_max():
+    """The compiled column bounds that fit the maps (shadow_pass._column_bounds) give numpy's
+    min(axis=0) and max(axis=0): on random points, with infinities, signed zeros and a NaN column."""
+    rng = np.random.default_rng(7)
+    for points in (rng.normal(size=(5000, 3)) * 1e3, rng.integers(-3, 3, (64, 3)).astype(np.float64),
+                   np.array([[0.0, -0.0, np.inf], [-0.0, 0.0, -np.inf], [1.0, np.nan, 2.0]]),
+                   np.array([[np.nan, 1.0, 2.0], [3.0, 4.0, 5.0]]), np.array([[1.5, -2.5, 0.25]])):
+        lo, hi = shadow_pass._column_bounds(np.ascontiguousarray(points))
+        np.testing.assert_array_equal(lo, points.min(axis=0))
+        np.testing.assert_array_equal(hi, points.max(axis=0))
