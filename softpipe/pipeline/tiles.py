@@ -122,6 +122,11 @@ def _bin_fill(band_lo, band_hi, bounds, box, tiles_x, fill, items):
                     fill[band, tile] += 1
 
 
+#: :func:`bin_primitives` runs in bands of at least this many points or lines: copying their setup
+#: as well, a band has several times a triangle's work (benchmarks/README.md).
+PRIMITIVE_BAND_MIN = 16384
+
+
 def bin_primitives(box: np.ndarray, tiles_x: int, tiles_y: int, setup: tuple) -> tuple:
     """:func:`bin_triangles` for points and lines, their setup copied in the bins' order as they are
     binned: (starts, items, rows), ``rows[m][k]`` being ``setup[m][items[k]]``.
@@ -131,7 +136,7 @@ def bin_primitives(box: np.ndarray, tiles_x: int, tiles_y: int, setup: tuple) ->
     ``items`` was a cache miss a point).
     """
     n_tiles = tiles_x * tiles_y
-    bands = max(1, min(2 * threads(), box.shape[0] // BIN_BAND_MIN))
+    bands = max(1, min(2 * threads(), box.shape[0] // PRIMITIVE_BAND_MIN))
     bounds = np.linspace(0, box.shape[0], bands + 1).astype(np.int64)
     counts = np.zeros((bands, n_tiles), np.int64)
     in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
@@ -477,7 +482,7 @@ def _test_sample(s, row, i, z, t, func, write, depth, vis):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, forceinline=True)
 def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis, run):
     """Depth-test the fragments of line t (its setup at row k of ``ends``, ``width``, ``zends``) in pixels
     [x_lo, x_hi] × [y_lo, y_hi]: the reference rasterizer's walk
@@ -514,7 +519,7 @@ def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets
                         run[s, row, pi] = r
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, forceinline=True)
 def _draw_point(centre, size, zpoint, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis):
     """Depth-test the fragments of point t (its setup at row k of ``centre``, ``size``, ``zpoint``) in
     pixels [x_lo, x_hi] × [y_lo, y_hi] (GL's square, :func:`~softpipe.pipeline.points.in_square`)."""

@@ -44,6 +44,7 @@ import numpy as np
 
 from softpipe.core.parallel import in_bands, threads
 from softpipe.language import kernels
+from softpipe.language.kernels.generate import point_kernel
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import (
     ShadedFragments,
@@ -722,6 +723,44 @@ def _shade_band(lo, hi, kernel, args) -> None:
     kernel(*(a[lo:hi] for a in args[:5]), *args[5:-1], args[-1][lo:hi])
 
 
+#: Points a band of :func:`_shade_points` holds at least.
+POINT_SHADE_GRAIN = 8192
+
+
+def _shade_points(prims: Primitives, visibility: PrimitiveVisibility, fb, shader: Callable, uniforms,
+                  mode: int) -> Optional[NonFinite]:
+    """Shade the visible samples of points point by point, writing their colors into ``fb`` as they are made
+    (``point_loop``, :func:`~softpipe.language.kernels.generate.point_kernel`): for a shader proved not to fail
+    (:func:`_failure_modes`), which leaves nothing to put back. No list of samples is made: each point
+    looks its square up in the visibility buffer (sorting the samples by point, then making their
+    inputs and writing them took most of the points' shading). Returns the non-finite colors written,
+    as :func:`shade_primitives` reports them."""
+    setup = visibility.setup
+    assert isinstance(setup, PointSetup)
+    kernel = point_kernel(shader, prims.layout)
+    bad = np.zeros(len(prims) + 1, np.int64)
+    args = (visibility.vis, setup.centre, setup.size, setup.depth, fb.pattern.offsets, fb.pattern.positions, mode,
+            prims.inv_w, prims.varyings, prims.front_facing, prims.primitive_id,
+            derivative_gradients(shader, setup), uniforms, fb.samples_color, bad)
+    # compile (or load) once, in this thread, where errors are reported clearly
+    kernels.run_compiled("fragment", shader, kernel, 0, 0, *args)
+    kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, len(prims), *a, grain=POINT_SHADE_GRAIN),
+                         *args)
+    if not bad.any():
+        return None
+    return _first_non_finite(visibility.vis, fb.samples_color, prims.primitive_id)
+
+
+def _first_non_finite(vis: np.ndarray, color: np.ndarray, primitive_id: np.ndarray) -> NonFinite:
+    """The visible samples written with a non-finite color: how many, and the first as
+    :func:`shade_primitives` names it (the lowest image row, then column, then primitive, then sample)."""
+    total = color.astype(np.float64).sum(axis=-1)
+    samples, rows, cols = np.nonzero((vis >= 0) & ~np.isfinite(total))
+    prim = vis[samples, rows, cols]
+    first = int(np.lexsort((samples, prim, cols, rows))[0])
+    return NonFinite(len(rows), int(cols[first]), int(rows[first]), int(primitive_id[prim[first]]))
+
+
 def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fragment_shader: Optional[Callable],
                      uniforms, shading: str = "sample") -> ShadedSamples:
     """Run the shader on the samples a :class:`PrimitiveVisibility` kept and write their color into ``fb``.
@@ -739,6 +778,11 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
     buffers: dict = {}
     try:
         shader = fragment_shader or default_fragment_shader(prims.layout)
+        if isinstance(visibility.setup, PointSetup) and len(prims) and not any(_failure_modes(shader, prims.layout)):
+            non_finite = _shade_points(prims, visibility, fb, shader, uniforms, SHADING_POSITIONS.index(shading))
+            _release(visibility.saved_depth)
+            visibility.saved_depth = None
+            return ShadedSamples(visibility, shading, non_finite)
         keys, tri = _sorted_samples(visibility, len(prims), pooled=True)
         n = len(keys)
         if n:

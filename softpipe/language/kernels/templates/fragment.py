@@ -7,6 +7,8 @@
 - ``fragment_loop``: the reference path: the shader once per fragment row.
 - ``visible_loop``: the fast path: the shader once per sample the visibility pass kept
   (``visible_loop_at_samples`` is this loop with ``shading`` 0).
+- ``point_loop``: the fast path's points: the shader once per sample the visibility pass
+  kept, point by point (in a module of its own, kernels/generate.py's ``point_kernel``).
 - ``fragment_loop_outputs``: ``fragment_loop`` for a framebuffer of several attachments
   (multiple render targets), generated only for one: the shader returns one value per
   attachment. Both paths run it (the fast path on the visible samples' fragments).
@@ -40,6 +42,7 @@ def JIT(function):
 
 shader = Varyings = FragInfo = Derivatives = borrowed_tuple = rgba = outputs = None
 pixel_coverage = shading_point = sample_depth = finite_rgba = None
+point_box = in_square = point_shading_point = sample_means = SUBPIXEL = None
 SMOOTH = DERIVATIVES = None
 VARYINGS_AT_BARYCENTRICS = VARYING_VALUES = DERIVATIVES_X = DERIVATIVES_Y = DX_VALUES = DY_VALUES = None
 STORE_VARYINGS = OUTPUT_FORMATS = STORE_OUTPUTS = None
@@ -216,3 +219,53 @@ def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plan
                             status[1 + row] += 1
                     else:                      # NaN alpha: the reference path discards it
                         status[0] = 1
+
+
+@JIT
+def point_loop(lo, hi, vis, centre, size, zpoint, offsets, positions, shading, inv_w, corner, front, prim_id,
+               bary_grad, uniforms, out_color, bad):
+    """Shade the samples of points lo:hi that their visibility pass kept (softpipe/pipeline/visibility.py),
+    writing each color into out_color; bad[lo] counts those written NaN or infinite.
+
+    Point by point, in primitive order: each point's varyings are read once, where walking the
+    screen read them in no order at all. Its square's pixels (softpipe/pipeline/points.py:
+    point_box, in_square, the rasterizer's rule) are looked up in ``vis``; a sample where this
+    point is the one kept gets the reference fragment's inputs (point_shading_point: gl_PointCoord
+    as barycentrics, the window position; the point's depth) and is shaded on its own, so the
+    order does not change a byte. Only for a shader proved not to fail (no raise, a finite
+    alpha): nothing is kept to put back.
+    """
+    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+    uniforms = borrowed_tuple(uniforms)
+    _, _, mx, my = sample_means(offsets, positions)
+    means = (mx, my)
+    n_bad = 0
+    for t in range(lo, hi):
+        cx, cy = centre[t, 0], centre[t, 1]
+        half = size[t] * (SUBPIXEL // 2)
+        z = zpoint[t]
+        i0, i1, j0, j1 = point_box(centre, size, t, 0, width - 1, 0, height - 1)
+        for j in range(j0, j1 + 1):
+            if not in_square(j * SUBPIXEL - cy, half):
+                continue
+            row = height - 1 - j
+            for i in range(i0, i1 + 1):
+                if not in_square(i * SUBPIXEL - cx, half):
+                    continue
+                for s in range(samples):
+                    if vis[s, row, i] != t:
+                        continue
+                    ps, pt, fx, fy = point_shading_point(centre, size, t, i, j, s, positions, shading, means)
+                    if DERIVATIVES:
+                        varyings, frag, derivatives = interpolate(t, 1.0 - ps - pt, ps, pt, fx, fy, z, inv_w, corner, front, prim_id, bary_grad)
+                        c = rgba(shader(varyings, uniforms, frag, derivatives))
+                    else:
+                        varyings, frag = interpolate(t, 1.0 - ps - pt, ps, pt, fx, fy, z, inv_w, corner, front, prim_id, bary_grad)
+                        c = rgba(shader(varyings, uniforms, frag))
+                    out_color[s, row, i, 0] = c[0]
+                    out_color[s, row, i, 1] = c[1]
+                    out_color[s, row, i, 2] = c[2]
+                    out_color[s, row, i, 3] = c[3]
+                    if not finite_rgba(out_color, s, row, i):
+                        n_bad += 1
+    bad[lo] = n_bad
