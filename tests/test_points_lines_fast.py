@@ -187,13 +187,15 @@ def test_a_shader_that_raises_on_the_fast_path_names_the_fragment_and_leaves_the
         assert "the shader gave up" in text and "the fragment at pixel (" in text, text
 
 
-def test_points_are_shaded_point_by_point_with_no_sorted_list_of_their_samples(monkeypatch):
-    """A shader that cannot fail shades a cloud's visible samples point by point (``point_loop``): no list
-    of the samples is sorted by point and made into fragments (which took most of the points' shading)."""
+@pytest.mark.parametrize("topology, state", [("points", {"point_size": 2.5}), ("lines", {"line_width": 2.0})])
+def test_points_and_lines_are_shaded_with_their_inputs_made_in_place(monkeypatch, topology, state):
+    """A shader that cannot fail shades the visible samples of points or lines with ``primitive_loop``, which
+    makes each sample's inputs where it shades it and writes its color at once: no arrays of inputs
+    (which, with the array of colors written afterwards, took most of their shading)."""
     import softpipe.pipeline.visibility as visibility
 
     def refused(*args, **kwargs):
-        raise AssertionError("the points' shading sorted their visible samples")
+        raise AssertionError("the shading made the samples' inputs into arrays")
     rng = np.random.default_rng(8)
     pos = clip(rng.uniform(-3, [W + 3, H + 3], (400, 2)), rng.choice([-0.5, 0.0, 0.5], 400))
     colors = rng.uniform(0, 1, (400, 3))
@@ -202,8 +204,8 @@ def test_points_are_shaded_point_by_point_with_no_sorted_list_of_their_samples(m
         fb[path] = sp.Framebuffer(W, H)
         fb[path].clear((0.1, 0.2, 0.3, 1.0))
         if path == "fast":
-            monkeypatch.setattr(visibility, "_sorted_samples", refused)
-        call = sp.DrawCall(fb[path], pos, None, {"color": colors}, topology="points", point_size=2.5, path=path)
+            monkeypatch.setattr(visibility, "_shader_inputs", refused)
+        call = sp.DrawCall(fb[path], pos, None, {"color": colors}, topology=topology, path=path, **state)
         call.run()
         assert call.path_taken == path
     assert (fb["fast"].samples_color[0, ..., 3] == 1.0).sum() > 1000
@@ -221,11 +223,11 @@ def point_derivatives(varyings, uniforms, frag, derivatives):
 def test_points_of_sizes_per_vertex_with_derivatives_give_the_reference_bytes_on_one_and_two_threads(shading,
                                                                                                     monkeypatch):
     """Each point its own size (gl_PointSize, a varying), a shader taking derivatives, 4 samples a pixel;
-    shaded point by point (no sorted list of samples)."""
+    their inputs made in place (no arrays of them)."""
     import softpipe.pipeline.visibility as visibility
 
     def refused(*args, **kwargs):
-        raise AssertionError("the points' shading sorted their visible samples")
+        raise AssertionError("the shading made the samples' inputs into arrays")
     _two_threads()
     rng = np.random.default_rng(21)
     n = 300
@@ -239,7 +241,7 @@ def test_points_of_sizes_per_vertex_with_derivatives_give_the_reference_bytes_on
         try:
             if threads is not None:
                 numba.set_num_threads(threads)
-                monkeypatch.setattr(visibility, "_sorted_samples", refused)
+                monkeypatch.setattr(visibility, "_shader_inputs", refused)
             call = sp.DrawCall(fb, pos, None, varyings, None, point_derivatives, None, topology="points", path=path,
                                sample_shading=shading, depth_test="lequal")
             call.run()
