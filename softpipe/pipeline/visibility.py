@@ -738,7 +738,9 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
     reference path's fragments there give the shader (the same as
     :meth:`PrimitiveVisibility.fragments`) and are shaded by the reference path's loop
     (``fragment_loop``) in bands on the helper threads; nothing is written before every one is
-    shaded. As :func:`shade_visible`: a shader that raises has the depth put back and nothing
+    shaded. A shader proved not to fail (:func:`_failure_modes`) is run by ``primitive_loop`` instead
+    (:func:`_shade_in_place`), which makes each sample's inputs where it shades it and writes its
+    color at once: the same bytes, with no arrays of inputs or colors. As :func:`shade_visible`: a shader that raises has the depth put back and nothing
     written; a NaN alpha (DISCARD) at a visible sample raises :class:`DiscardOnFastPath` with the
     depth put back. With multisampling at the centre or centroid each visible sample is shaded
     with its pixel's inputs, so it gets the color the reference path copies to it.

@@ -48,6 +48,6 @@ from softpipe.language.kernels.generate import (
 )
 
 __all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "primitive_kernel",
-           "python_fragment_module", "kernel_source", "run_compiled", "vertex_site", "fragment_site", "visible_site", "may_discard",
-           "may_raise", "alpha_is_finite", "probe_vertex_shader", "borrowed_tuple", "jit_function", "rgba", "finite_rgba",
+           "python_fragment_module", "kernel_source", "run_compiled", "vertex_site", "fragment_site", "visible_site",
+           "may_discard", "may_raise", "alpha_is_finite", "probe_vertex_shader", "borrowed_tuple", "jit_function", "rgba", "finite_rgba",
            "short_repr", "outputs"]

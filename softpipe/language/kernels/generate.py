@@ -61,9 +61,8 @@ from softpipe.language.kernels.template import template_expression, template_fun
 #: A framebuffer's color attachments, ((name, format), ...) in location order.
 Attachments = Tuple[Tuple[str, str], ...]
 
-__all__ = ["outputs_spec", "vertex_kernel", "varyings_module", "fragment_module", "fragment_kernel", "visible_kernel", "primitive_kernel",
-           "python_fragment_module",
-           "kernel_source", "exec_module", "jit_function", "short_repr"]
+__all__ = ["outputs_spec", "vertex_kernel", "varyings_module", "fragment_module", "fragment_kernel", "visible_kernel",
+           "primitive_kernel", "python_fragment_module", "kernel_source", "exec_module", "jit_function", "short_repr"]
 
 
 #: softpipe's own shaders as dispatchers, one each per process: every loop that runs one links the same

@@ -222,7 +222,6 @@ def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plan
                         status[0] = 1
 
 
-
 @JIT
 def primitive_loop(lo, hi, keys, tri, run, setup_a, setup_b, setup_c, offsets, positions, shading, inv_w, corner,
                    front, prim_id, bary_grad, uniforms, out_color, bad):
