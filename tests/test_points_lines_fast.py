@@ -185,3 +185,98 @@ def test_a_shader_that_raises_on_the_fast_path_names_the_fragment_and_leaves_the
         assert (fb.samples_color.tobytes(), fb.samples_depth.tobytes()) == before, path
     for text in errors.values():
         assert "the shader gave up" in text and "the fragment at pixel (" in text, text
+
+
+@pytest.mark.parametrize("topology, state", [("points", {"point_size": 2.5}), ("lines", {"line_width": 2.0})])
+def test_points_and_lines_are_shaded_with_their_inputs_made_in_place(monkeypatch, topology, state):
+    """A shader that cannot fail shades the visible samples of points or lines with ``primitive_loop``, which
+    makes each sample's inputs where it shades it and writes its color at once: no arrays of inputs
+    (which, with the array of colors written afterwards, took most of their shading)."""
+    import softpipe.pipeline.visibility as visibility
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the shading made the samples' inputs into arrays")
+    rng = np.random.default_rng(8)
+    pos = clip(rng.uniform(-3, [W + 3, H + 3], (400, 2)), rng.choice([-0.5, 0.0, 0.5], 400))
+    colors = rng.uniform(0, 1, (400, 3))
+    fb = {}
+    for path in ("reference", "fast"):
+        fb[path] = sp.Framebuffer(W, H)
+        fb[path].clear((0.1, 0.2, 0.3, 1.0))
+        if path == "fast":
+            monkeypatch.setattr(visibility, "_shader_inputs", refused)
+        call = sp.DrawCall(fb[path], pos, None, {"color": colors}, topology=topology, path=path, **state)
+        call.run()
+        assert call.path_taken == path
+    assert (fb["fast"].samples_color[0, ..., 3] == 1.0).sum() > 1000
+    assert fb["fast"].samples_color.tobytes() == fb["reference"].samples_color.tobytes()
+    assert fb["fast"].samples_depth.tobytes() == fb["reference"].samples_depth.tobytes()
+
+
+def point_derivatives(varyings, uniforms, frag, derivatives):
+    """Reads a point's derivatives (zero: its corners are one vertex), gl_PointCoord, the depth and the position."""
+    return (varyings.color[0] + derivatives.dx.color[0] * 10.0, frag.point_coord[0] + derivatives.dy.color[1],
+            frag.point_coord[1] + frag.z + frag.x * 0.01 + frag.y * 0.001, 1.0)
+
+
+@pytest.mark.parametrize("shading", ["sample", "center", "centroid"])
+def test_points_of_sizes_per_vertex_with_derivatives_give_the_reference_bytes_on_one_and_two_threads(shading,
+                                                                                                    monkeypatch):
+    """Each point its own size (gl_PointSize, a varying), a shader taking derivatives, 4 samples a pixel;
+    their inputs made in place (no arrays of them)."""
+    import softpipe.pipeline.visibility as visibility
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the shading made the samples' inputs into arrays")
+    _two_threads()
+    rng = np.random.default_rng(21)
+    n = 300
+    pos = clip(rng.uniform(-5, [W + 5, H + 5], (n, 2)), rng.uniform(-1.2, 1.2, n))
+    varyings = {"color": rng.uniform(0, 1, (n, 3)), "point_size": rng.choice([0.5, 1.0, 2.0, 2.75, 6.0], n)}
+    fbs = {}
+    for path, threads in (("reference", None), ("fast", 1), ("fast", 2)):
+        before = numba.get_num_threads()
+        fb = fbs[path, threads] = sp.Framebuffer(W, H, pattern=pattern_named("rgss4"))
+        fb.clear((0.1, 0.2, 0.3, 1.0))
+        try:
+            if threads is not None:
+                numba.set_num_threads(threads)
+                monkeypatch.setattr(visibility, "_shader_inputs", refused)
+            call = sp.DrawCall(fb, pos, None, varyings, None, point_derivatives, None, topology="points", path=path,
+                               sample_shading=shading, depth_test="lequal")
+            call.run()
+        finally:
+            numba.set_num_threads(before)
+        assert call.path_taken == path
+    reference = fbs["reference", None]
+    assert len(np.unique(reference.samples_color[..., 1])) > 100
+    for threads in (1, 2):
+        assert fbs["fast", threads].samples_color.tobytes() == reference.samples_color.tobytes(), threads
+        assert fbs["fast", threads].samples_depth.tobytes() == reference.samples_depth.tobytes(), threads
+
+
+def test_points_written_with_infinite_colors_are_counted_and_the_first_named_on_the_fast_path():
+    """The draw says how many visible samples it wrote NaN or infinite and names the first: the lowest image
+    row, its first column, and the point shown there."""
+    rng = np.random.default_rng(4)
+    n = 200
+    pos = clip(rng.uniform(0, [W, H], (n, 2)), rng.uniform(-1, 1, n))
+    colors = rng.uniform(0, 1, (n, 3))
+    colors[::3, 0] = np.inf
+    fb = sp.Framebuffer(W, H)
+    fb.clear((0.0, 0.0, 0.0, 0.0))
+    with pytest.warns(sp.NonFiniteColorWarning) as record:
+        call = sp.DrawCall(fb, pos, None, {"color": colors}, topology="points", point_size=3.0, path="fast")
+        call.run()
+    assert call.path_taken == "fast" and len(record) == 1
+    bad = ~np.isfinite(fb.samples_color[0]).all(axis=-1)
+    rows, cols = np.nonzero(bad)
+    assert 100 < len(rows) == call.non_finite.count
+    first = np.lexsort((cols, rows))[0]
+    assert (call.non_finite.x, call.non_finite.y) == (cols[first], rows[first])
+    # the point there: the last of those whose square holds that pixel, at the nearest depth (LESS)
+    x, y = cols[first] + 0.5, H - 1 - rows[first] + 0.5
+    window = (pos[:, :2] + 1) / 2 * [W, H]
+    holds = (np.abs(window[:, 0] - x) <= 1.5) & (np.abs(window[:, 1] - y) <= 1.5)
+    assert call.non_finite.primitive_id in np.flatnonzero(holds & ~np.isfinite(colors[:, 0]))
+    assert f"the first at pixel ({cols[first]}, {rows[first]})" in str(record[0].message)

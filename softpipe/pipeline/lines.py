@@ -46,7 +46,7 @@ from softpipe.pipeline.setup import SHADE_CENTER, SHADE_SAMPLE, snap
 
 __all__ = ["LineSetup", "setup_lines", "crosses_diamond", "holds_end", "produces", "cover_line", "run_width",
            "line_walk", "column_candidates", "sample_means", "line_parameter", "depth_along", "line_sample_depth",
-           "line_shading_point"]
+           "line_shading_point", "line_sample_inputs"]
 
 #: The diamond's half-diagonal, ½ pixel, in fixed point.
 RADIUS = SUBPIXEL // 2
@@ -203,7 +203,7 @@ def _parameter(xa, ya, dx, dy, length2, px, py):
     return min(max(t, 0.0), 1.0)
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def line_walk(ends, t):
     """What walking line t needs: (x_major, ma, mb, na, nd, md, step, first, last), or step 0 for a line of
     length 0 (no fragment).
@@ -269,7 +269,7 @@ def sample_means(offsets, positions):
     return mx / samples, my / samples, px / samples, py / samples
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def line_parameter(ends, t, px, py):
     """t = ((p − a)·(b − a)) / |b − a|² along line t at the fixed-point position (px, py), clamped to [0, 1]."""
     xa, ya = ends[t, 0], ends[t, 1]
@@ -277,14 +277,14 @@ def line_parameter(ends, t, px, py):
     return _parameter(xa, ya, dx, dy, float(dx * dx + dy * dy), px, py)
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def depth_along(depth, t, ts):
     """The window depth (1 − t)·z_a + t·z_b of line t at ``ts``, clamped to [0, 1]."""
     z_a, z_b = depth[t, 0], depth[t, 1]
     return min(max(z_a + ts * (z_b - z_a), 0.0), 1.0)
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def line_sample_depth(ends, depth, t, i, j, s, offsets):
     """The window depth of line t's fragment of run start (i, j) at sample s: t taken at the sample."""
     return depth_along(depth, t, line_parameter(ends, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]))
@@ -308,6 +308,30 @@ def line_shading_point(ends, t, i, j, pi, pj, s, offsets, positions, mode, means
     # the centroid of the covered samples: all of them
     mx, my, px, py = means
     return _parameter(xa, ya, dx, dy, length2, i * SUBPIXEL + mx, j * SUBPIXEL + my), pi + px, pj + py
+
+
+@numba.njit(cache=True, inline="always")
+def line_sample_inputs(ends, zends, run, t, i, j, s, row, offsets, positions, mode, means):
+    """The shader's inputs at sample s of pixel (i, j) (image row ``row``) where line t is the one kept:
+    (b0, b1, b2, fx, fy, z), the barycentrics, window position and depth the reference path's
+    fragment there has (``run``: the place in its run of a wide line's fragment at each sample,
+    or empty; ``means``: :func:`sample_means`).
+
+    A run's fragments have its first fragment's attributes; shaded at the sample, t and the depth
+    are the sample's; at the centre or centroid the depth is the run's first sample's, where the
+    reference path shades a multisampled pixel's run once.
+    """
+    r = np.int64(run[s, row, i]) if run.shape[0] > 0 else np.int64(0)
+    x_major = abs(ends[t, 2] - ends[t, 0]) >= abs(ends[t, 3] - ends[t, 1])
+    i0, j0 = (i, j - r) if x_major else (i - r, j)          # the run's first fragment
+    if mode == SHADE_SAMPLE:     # t at the sample, for the depth and the attributes alike
+        tb = line_parameter(ends, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
+        px, py = i + positions[s, 0], j + positions[s, 1]
+        z = depth_along(zends, t, tb)
+    else:
+        tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
+        z = line_sample_depth(ends, zends, t, i0, j0, 0, offsets)
+    return 1.0 - tb, tb, 0.0, px, py, z
 
 
 @numba.njit(cache=True)

@@ -28,7 +28,8 @@ from softpipe.core.parallel import in_bands
 from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import SHADE_CENTER, SHADE_SAMPLE, snap
 
-__all__ = ["PointSetup", "setup_points", "in_square", "cover_point", "point_box", "point_shading_point"]
+__all__ = ["PointSetup", "setup_points", "in_square", "cover_point", "point_box", "point_shading_point",
+           "point_sample_inputs"]
 
 
 @dataclass
@@ -92,7 +93,7 @@ def in_square(c, half):
     return -half <= c < half
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def point_box(centre, size, t, x_lo, x_hi, y_lo, y_hi):
     """The pixels (i0, i1, j0, j1) around point t whose centres may lie in its square, within
     [x_lo, x_hi] × [y_lo, y_hi] (window rows, y up); :func:`in_square` decides each."""
@@ -119,6 +120,16 @@ def point_shading_point(centre, size, t, i, j, s, positions, mode, means):
         fx, fy = i + means[0], j + means[1]
     side = size[t]
     return 0.5 + (fx - x) / side, 0.5 - (fy - y) / side, fx, fy
+
+
+@numba.njit(cache=True, inline="always")
+def point_sample_inputs(centre, size, zpoint, t, i, j, s, positions, mode, means):
+    """The shader's inputs at sample s of pixel (i, j) where point t is the one kept: (b0, b1, b2, fx, fy, z),
+    the barycentrics (1 − s_p − t_p, s_p, t_p) of its gl_PointCoord, the window position and the point's
+    depth, as the reference path's fragment there has them (``means``: the four of
+    :func:`~softpipe.pipeline.lines.sample_means`)."""
+    ps, pt, px, py = point_shading_point(centre, size, t, i, j, s, positions, mode, (means[2], means[3]))
+    return 1.0 - ps - pt, ps, pt, px, py, zpoint[t]
 
 
 @numba.njit(cache=True)

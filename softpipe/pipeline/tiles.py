@@ -28,6 +28,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from softpipe.core.borrow import borrowed_tuple
 from softpipe.core.parallel import in_bands, threads
 from softpipe.pipeline.lines import LineSetup, column_candidates, line_sample_depth, line_walk, produces
 from softpipe.pipeline.output import depth_passes
@@ -122,6 +123,11 @@ def _bin_fill(band_lo, band_hi, bounds, box, tiles_x, fill, items):
                     fill[band, tile] += 1
 
 
+#: :func:`bin_primitives` runs in bands of at least this many points or lines: copying their setup
+#: as well, a band has several times a triangle's work (benchmarks/README.md).
+PRIMITIVE_BAND_MIN = 16384
+
+
 def bin_primitives(box: np.ndarray, tiles_x: int, tiles_y: int, setup: tuple) -> tuple:
     """:func:`bin_triangles` for points and lines, their setup copied in the bins' order as they are
     binned: (starts, items, rows), ``rows[m][k]`` being ``setup[m][items[k]]``.
@@ -131,7 +137,7 @@ def bin_primitives(box: np.ndarray, tiles_x: int, tiles_y: int, setup: tuple) ->
     ``items`` was a cache miss a point).
     """
     n_tiles = tiles_x * tiles_y
-    bands = max(1, min(2 * threads(), box.shape[0] // BIN_BAND_MIN))
+    bands = max(1, min(2 * threads(), box.shape[0] // PRIMITIVE_BAND_MIN))
     bounds = np.linspace(0, box.shape[0], bands + 1).astype(np.int64)
     counts = np.zeros((bands, n_tiles), np.int64)
     in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
@@ -464,7 +470,7 @@ def primitive_boxes(setup, rect: np.ndarray) -> np.ndarray:
     return box
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def _test_sample(s, row, i, z, t, func, write, depth, vis):
     """The early depth test of one fragment's sample (the merger's, :func:`depth_passes`, on float32):
     does it pass (and then it is written)?"""
@@ -477,7 +483,7 @@ def _test_sample(s, row, i, z, t, func, write, depth, vis):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis, run):
     """Depth-test the fragments of line t (its setup at row k of ``ends``, ``width``, ``zends``) in pixels
     [x_lo, x_hi] × [y_lo, y_hi]: the reference rasterizer's walk
@@ -514,7 +520,7 @@ def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets
                         run[s, row, pi] = r
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _draw_point(centre, size, zpoint, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis):
     """Depth-test the fragments of point t (its setup at row k of ``centre``, ``size``, ``zpoint``) in
     pixels [x_lo, x_hi] × [y_lo, y_hi] (GL's square, :func:`~softpipe.pipeline.points.in_square`)."""
@@ -533,7 +539,7 @@ def _draw_point(centre, size, zpoint, k, t, x_lo, x_hi, y_lo, y_hi, height, offs
                 _test_sample(s, row, i, z, t, func, write, depth, vis)
 
 
-@numba.njit(cache=True, forceinline=True)
+@numba.njit(cache=True, inline="always")
 def _begin_tile(tile, starts, tiles_x, rect, width, height, samples, depth, vis, touched, saved_depth):
     """A tile of the points' or lines' pass: nothing visible in it yet; if some primitive is binned
     to it, it is touched and its depth saved (unless ``saved_depth`` is empty). Returns its pixels
@@ -567,6 +573,10 @@ def raster_line_tiles(tile_lo, tile_hi, ends, width, zends, starts, items, tiles
     reading them through ``items`` was a cache miss a line); ``rect`` the scissor (window pixels
     (i_0, i_1, j_0, j_1)); ``run`` as :func:`_draw_line`'s.
     """
+    # borrowed: handing the arrays to each tile's and line's walk counted references to them, an atomic
+    # add and subtract per array and line, which both threads made on the same counts (benchmarks/README.md)
+    ends, width, zends, starts, items, rect, offsets, depth, vis, run, touched, saved_depth = borrowed_tuple(
+        (ends, width, zends, starts, items, rect, offsets, depth, vis, run, touched, saved_depth))
     for tile in range(tile_lo, tile_hi):
         x_lo, x_hi, y_lo, y_hi = _begin_tile(tile, starts, tiles_x, rect, fb_width, height, offsets.shape[0],
                                              depth, vis, touched, saved_depth)
@@ -582,6 +592,8 @@ def raster_point_tiles(tile_lo, tile_hi, centre, size, zpoint, starts, items, ti
                        offsets, func, depth_write, depth, vis, touched, saved_depth):
     """The visibility pass of points over tiles [tile_lo, tile_hi): :func:`raster_line_tiles` for a
     :class:`~softpipe.pipeline.points.PointSetup`'s (centre, size, depth), in the bins' order."""
+    centre, size, zpoint, starts, items, rect, offsets, depth, vis, touched, saved_depth = borrowed_tuple(
+        (centre, size, zpoint, starts, items, rect, offsets, depth, vis, touched, saved_depth))    # (as above)
     for tile in range(tile_lo, tile_hi):
         x_lo, x_hi, y_lo, y_hi = _begin_tile(tile, starts, tiles_x, rect, fb_width, height, offsets.shape[0],
                                              depth, vis, touched, saved_depth)

@@ -57,19 +57,11 @@ from softpipe.pipeline.fragment import (
     derivative_gradients,
     run_fragment_stage,
 )
-from softpipe.pipeline.lines import (
-    LineSetup,
-    depth_along,
-    line_parameter,
-    line_sample_depth,
-    line_shading_point,
-    sample_means,
-)
+from softpipe.pipeline.lines import LineSetup, line_sample_inputs, sample_means
 from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
 from softpipe.pipeline.output import NonFinite
-from softpipe.pipeline.points import PointSetup, point_shading_point
+from softpipe.pipeline.points import PointSetup, point_sample_inputs
 from softpipe.pipeline.raster import Fragments
-from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import (
     SHADE_SAMPLE,
     SHADING_POSITIONS,
@@ -620,26 +612,13 @@ def _line_inputs(lo, hi, keys, tri, run, samples, width, height, ends, zends, of
     """The shader's inputs at the visible samples lo:hi (``keys``, ``tri``: :func:`_visible_by_primitive`) of
     lines: depth, barycentrics and window position, as the reference path's fragments have them."""
     means = sample_means(offsets, positions)
-    keep_run = run.shape[0] > 0
     for k in range(lo, hi):
         key, t = keys[k], tri[k]
         i = key % width
         s = (key // width) % samples
         row = key // (width * samples)
-        j = height - 1 - row
-        r = np.int64(run[s, row, i]) if keep_run else np.int64(0)
-        x_major = abs(ends[t, 2] - ends[t, 0]) >= abs(ends[t, 3] - ends[t, 1])
-        i0, j0 = (i, j - r) if x_major else (i - r, j)          # the run's first fragment
-        if mode == SHADE_SAMPLE:     # t at the sample, for the depth and the attributes alike
-            tb = line_parameter(ends, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
-            px, py = i + positions[s, 0], j + positions[s, 1]
-            depth[k] = depth_along(zends, t, tb)
-        else:
-            tb, px, py = line_shading_point(ends, t, i0, j0, i, j, s, offsets, positions, mode, means)
-            # the reference path shades a multisampled pixel's run once, at its first sample
-            depth[k] = line_sample_depth(ends, zends, t, i0, j0, 0, offsets)
-        bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - tb, tb, 0.0
-        fx[k], fy[k] = px, py
+        bary[k, 0], bary[k, 1], bary[k, 2], fx[k], fy[k], depth[k] = line_sample_inputs(
+            ends, zends, run, t, i, height - 1 - row, s, row, offsets, positions, mode, means)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -647,17 +626,14 @@ def _point_inputs(lo, hi, keys, tri, samples, width, height, centre, size, zpoin
                   bary, fx, fy):
     """The shader's inputs at the visible samples lo:hi (``keys``, ``tri``: :func:`_visible_by_primitive`) of
     points."""
-    _, _, mx, my = sample_means(offsets, positions)
-    means = (mx, my)
+    means = sample_means(offsets, positions)
     for k in range(lo, hi):
         key, t = keys[k], tri[k]
         i = key % width
         s = (key // width) % samples
         row = key // (width * samples)
-        ps, pt, px, py = point_shading_point(centre, size, t, i, height - 1 - row, s, positions, mode, means)
-        depth[k] = zpoint[t]
-        bary[k, 0], bary[k, 1], bary[k, 2] = 1.0 - ps - pt, ps, pt
-        fx[k], fy[k] = px, py
+        bary[k, 0], bary[k, 1], bary[k, 2], fx[k], fy[k], depth[k] = point_sample_inputs(
+            centre, size, zpoint, t, i, height - 1 - row, s, positions, mode, means)
 
 
 #: Buffers of the points' and lines' shading (its sorted samples and the shader's inputs and colors), kept
@@ -775,6 +751,38 @@ def _write_by_keys(lo, hi, keys, color, samples, height, width, fb_color, bad):
     bad[lo] = n
 
 
+def _shade_in_place(prims: Primitives, visibility: PrimitiveVisibility, fb, shader: Callable, uniforms, mode: int,
+                    keys: np.ndarray, tri: np.ndarray) -> Optional[NonFinite]:
+    """Shade the sorted visible samples (:func:`_sorted_samples`) with ``primitive_loop``
+    (:func:`~softpipe.language.kernels.primitive_kernel`), which computes each sample's inputs where it
+    shades it and writes its color into ``fb`` at once: for a shader proved not to fail
+    (:func:`_failure_modes`), which leaves nothing to put back. Making the inputs into arrays, the colors
+    into another and then writing them took most of the points' and lines' shading. Returns the
+    non-finite colors written, as :func:`shade_primitives` names them."""
+    setup = visibility.setup
+    shape = visibility.vis.shape
+    if isinstance(setup, LineSetup):
+        kind, arrays, run = "lines", (setup.ends, setup.width, setup.depth), visibility.run
+    else:
+        assert isinstance(setup, PointSetup)
+        kind, arrays, run = "points", (setup.centre, setup.size, setup.depth), np.zeros((0, 0, 0), np.uint8)
+    kernel = kernels.primitive_kernel(shader, prims.layout, kind)
+    n = len(keys)
+    bad = np.zeros(n + 1, np.int64)
+    args = (keys, tri, run, *arrays, fb.pattern.offsets, fb.pattern.positions, mode, prims.inv_w, prims.varyings,
+            prims.front_facing, prims.primitive_id, derivative_gradients(shader, setup), uniforms,
+            fb.samples_color, bad)
+    # compile (or load) once, in this thread, where errors are reported clearly
+    kernels.run_compiled("fragment", shader, kernel, 0, 0, *args)
+    kernels.run_compiled("fragment", shader, lambda *a: in_bands(kernel, n, *a, grain=SHADE_GRAIN // 4), *args)
+    if not bad.any():
+        return None
+    x, y, s = _decode(keys, shape)
+    wrong = np.flatnonzero(~np.isfinite(fb.samples_color[s, y, x]).all(axis=1))
+    first = int(wrong[np.lexsort((x[wrong], y[wrong]))[0]])     # the lowest image row, then column
+    return NonFinite(len(wrong), int(x[first]), int(y[first]), int(prims.primitive_id[tri[first]]))
+
+
 #: Fragments a band of the points' and lines' shading holds at least (a band costs a call of the
 #: compiled loop from Python, some microseconds).
 SHADE_GRAIN = 65536
@@ -794,7 +802,9 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
     reference path's fragments there give the shader (the same as
     :meth:`PrimitiveVisibility.fragments`) and are shaded by the reference path's loop
     (``fragment_loop``) in bands on the helper threads; nothing is written before every one is
-    shaded. As :func:`shade_visible`: a shader that raises has the depth put back and nothing
+    shaded. A shader proved not to fail (:func:`_failure_modes`) is run by ``primitive_loop`` instead
+    (:func:`_shade_in_place`), which makes each sample's inputs where it shades it and writes its
+    color at once: the same bytes, with no arrays of inputs or colors. As :func:`shade_visible`: a shader that raises has the depth put back and nothing
     written; a NaN alpha (DISCARD) at a visible sample raises :class:`DiscardOnFastPath` with the
     depth put back. With multisampling at the centre or centroid each visible sample is shaded
     with its pixel's inputs, so it gets the color the reference path copies to it.
@@ -804,6 +814,13 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
     try:
         shader = fragment_shader or default_fragment_shader(prims.layout)
         keys, tri = _sorted_samples(visibility, len(prims), pooled=True)
+        if len(keys) and not any(_failure_modes(shader, prims.layout)):
+            buffers = dict(keys=keys.base, tri=tri.base)
+            non_finite = _shade_in_place(prims, visibility, fb, shader, uniforms, SHADING_POSITIONS.index(shading),
+                                         keys, tri)
+            _release(visibility.saved_depth)
+            visibility.saved_depth = None          # the draw stands: nothing to undo
+            return ShadedSamples(visibility, shading, non_finite)
         n = len(keys)
         if n:
             buffers = dict(keys=keys.base, tri=tri.base, depth=_pooled("depth", n, np.float64),

@@ -40,13 +40,14 @@ from softpipe.language.kernels.generate import (
                                                 fragment_module,
                                                 jit_function,
                                                 kernel_source,
+                                                primitive_kernel,
                                                 python_fragment_module,
                                                 short_repr,
                                                 vertex_kernel,
                                                 visible_kernel,
 )
 
-__all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "python_fragment_module",
-           "kernel_source", "run_compiled", "vertex_site", "fragment_site", "visible_site", "may_discard",
-           "may_raise", "alpha_is_finite", "probe_vertex_shader", "borrowed_tuple", "jit_function", "rgba", "finite_rgba",
+__all__ = ["vertex_kernel", "fragment_module", "fragment_kernel", "visible_kernel", "primitive_kernel",
+           "python_fragment_module", "kernel_source", "run_compiled", "vertex_site", "fragment_site", "visible_site",
+           "may_discard", "may_raise", "alpha_is_finite", "probe_vertex_shader", "borrowed_tuple", "jit_function", "rgba", "finite_rgba",
            "short_repr", "outputs"]

@@ -7,6 +7,9 @@
 - ``fragment_loop``: the reference path: the shader once per fragment row.
 - ``visible_loop``: the fast path: the shader once per sample the visibility pass kept
   (``visible_loop_at_samples`` is this loop with ``shading`` 0).
+- ``primitive_loop``: the fast path's points and lines: the shader once per sample their
+  visibility pass kept, in primitive order (in a module of its own, kernels/generate.py's
+  ``primitive_kernel``; ``LINES`` says which).
 - ``fragment_loop_outputs``: ``fragment_loop`` for a framebuffer of several attachments
   (multiple render targets), generated only for one: the shader returns one value per
   attachment. Both paths run it (the fast path on the visible samples' fragments).
@@ -40,6 +43,7 @@ def JIT(function):
 
 shader = Varyings = FragInfo = Derivatives = borrowed_tuple = rgba = outputs = None
 pixel_coverage = shading_point = sample_depth = finite_rgba = None
+point_sample_inputs = line_sample_inputs = sample_means = LINES = None
 SMOOTH = DERIVATIVES = None
 VARYINGS_AT_BARYCENTRICS = VARYING_VALUES = DERIVATIVES_X = DERIVATIVES_Y = DX_VALUES = DY_VALUES = None
 STORE_VARYINGS = OUTPUT_FORMATS = STORE_OUTPUTS = None
@@ -216,3 +220,51 @@ def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plan
                             status[1 + row] += 1
                     else:                      # NaN alpha: the reference path discards it
                         status[0] = 1
+
+
+@JIT
+def primitive_loop(lo, hi, keys, tri, run, setup_a, setup_b, setup_c, offsets, positions, shading, inv_w, corner,
+                   front, prim_id, bary_grad, uniforms, out_color, bad):
+    """Shade the visible samples lo:hi of points or lines (``keys``, ``tri``: sorted by primitive,
+    softpipe/pipeline/visibility.py), writing each color into out_color; bad[lo] counts those written
+    NaN or infinite.
+
+    Each sample's inputs are computed here, from the primitive's setup (``setup_a``, ``setup_b``,
+    ``setup_c``: a point's centre, size and depth, or a line's ends, width and depths) by the
+    functions the reference path's fragments are made with (softpipe/pipeline/points.py:
+    point_sample_inputs; lines.py: line_sample_inputs, ``run`` the place of a wide line's
+    fragment in its run), rather than written to arrays and read back. Each sample is shaded on
+    its own, so the bands do not change a byte. Only for a shader proved not to fail (no raise, a
+    finite alpha): nothing is kept to put back.
+    """
+    samples, height, width = out_color.shape[0], out_color.shape[1], out_color.shape[2]
+    uniforms = borrowed_tuple(uniforms)
+    # borrowed too: handed to interpolate and the setup's functions at every sample, each array's
+    # references were counted there (an atomic add and subtract, on counts both threads share)
+    keys, tri, run, setup_a, setup_b, setup_c, offsets, positions, inv_w, corner, front, prim_id, bary_grad, out_color = borrowed_tuple(
+        (keys, tri, run, setup_a, setup_b, setup_c, offsets, positions, inv_w, corner, front, prim_id, bary_grad, out_color))
+    means = sample_means(offsets, positions)
+    n_bad = 0
+    for k in range(lo, hi):
+        key, t = keys[k], tri[k]
+        i = key % width
+        s = (key // width) % samples
+        row = key // (width * samples)
+        j = height - 1 - row
+        if LINES:
+            b0, b1, b2, fx, fy, z = line_sample_inputs(setup_a, setup_c, run, t, i, j, s, row, offsets, positions, shading, means)
+        else:
+            b0, b1, b2, fx, fy, z = point_sample_inputs(setup_a, setup_b, setup_c, t, i, j, s, positions, shading, means)
+        if DERIVATIVES:
+            varyings, frag, derivatives = interpolate(t, b0, b1, b2, fx, fy, z, inv_w, corner, front, prim_id, bary_grad)
+            c = rgba(shader(varyings, uniforms, frag, derivatives))
+        else:
+            varyings, frag = interpolate(t, b0, b1, b2, fx, fy, z, inv_w, corner, front, prim_id, bary_grad)
+            c = rgba(shader(varyings, uniforms, frag))
+        out_color[s, row, i, 0] = c[0]
+        out_color[s, row, i, 1] = c[1]
+        out_color[s, row, i, 2] = c[2]
+        out_color[s, row, i, 3] = c[3]
+        if not finite_rgba(out_color, s, row, i):
+            n_bad += 1
+    bad[lo] = n_bad
