@@ -280,3 +280,30 @@ def test_points_written_with_infinite_colors_are_counted_and_the_first_named_on_
     holds = (np.abs(window[:, 0] - x) <= 1.5) & (np.abs(window[:, 1] - y) <= 1.5)
     assert call.non_finite.primitive_id in np.flatnonzero(holds & ~np.isfinite(colors[:, 0]))
     assert f"the first at pixel ({cols[first]}, {rows[first]})" in str(record[0].message)
+
+
+def test_indexed_lines_corners_are_their_vertices_values_and_unused_vertices_are_never_divided():
+    """Assembly copies each accepted line's corners (a, b, b) from its vertices: window position, 1/w and
+    varyings exactly the vertex's, in any index order; a vertex no line uses, with w = 0 or NaN, is no
+    error and changes nothing."""
+    rng = np.random.default_rng(11)
+    n = 500
+    pos = clip(rng.uniform(0, [W, H], (n, 2)), rng.uniform(-0.9, 0.9, n))
+    pos *= rng.uniform(0.5, 3.0, (n, 1))                    # w ≠ 1: 1/w is not trivial
+    pos[7] = (0.3, 0.2, 0.1, 0.0)                           # never indexed: w = 0
+    pos[9] = np.nan                                         # never indexed: not finite
+    varyings = {"color": rng.uniform(0, 1, (n, 3))}
+    used = np.setdiff1d(np.arange(n), [7, 9])
+    indices = rng.choice(used, (3000, 2)).ravel()           # in no order, vertices shared by many lines
+    vout = sp.run_vertex_stage(pos, varyings=varyings)
+    prims = sp.assemble(vout, "lines", indices, viewport=sp.Viewport(0, 0, W, H))
+    corners = indices.reshape(-1, 2)[prims.primitive_id]
+    corners = np.column_stack([corners, corners[:, 1]])
+    assert len(prims) > 2000 and not prims.clipped.any()
+    assert prims.inv_w.tobytes() == (1.0 / pos[corners, 3]).tobytes()
+    assert prims.varyings.tobytes() == vout.varyings[corners].tobytes()
+    # the window positions: those of the same lines assembled unindexed, their vertices copied in order
+    flat = sp.assemble(sp.run_vertex_stage(pos[indices], varyings={"color": varyings["color"][indices]}),
+                       "lines", viewport=sp.Viewport(0, 0, W, H))
+    assert prims.window.tobytes() == flat.window.tobytes()
+    assert prims.window.tobytes() == prims.window[:, [0, 1, 1]].tobytes()
