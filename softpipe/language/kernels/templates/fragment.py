@@ -247,9 +247,17 @@ def primitive_loop(lo, hi, keys, tri, run, setup_a, setup_b, setup_c, offsets, p
     n_bad = 0
     for k in range(lo, hi):
         key, t = keys[k], tri[k]
-        i = key % width
-        s = (key // width) % samples
-        row = key // (width * samples)
+        # the key's (row, sample, column) with one integer division (two with multisampling), not
+        # three: a 64-bit division is tens of cycles, a good part of a sample's shading
+        if samples == 1:
+            row = key // width
+            s = 0
+            i = key - row * width
+        else:
+            place = key // width
+            i = key - place * width
+            row = place // samples
+            s = place - row * samples
         j = height - 1 - row
         if LINES:
             b0, b1, b2, fx, fy, z = line_sample_inputs(setup_a, setup_c, run, t, i, j, s, row, offsets, positions, shading, means)
