@@ -589,30 +589,10 @@ def _classify_points(lo, hi, pos, codes, tri, status):
             status[t] = ACCEPTED
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _pack_vertices(lo, hi, pos, vertex_window, var, packed):
-    """Vertices lo:hi's corner values in one row each: window x, y, z, 1/w, then the varyings.
-
-    (The numpy error model: a vertex no accepted primitive uses may have w = 0, whose 1/w is then
-    never read; every used one has w > 0, and its 1/w is the same number either way.)
-    """
-    k = var.shape[1]
-    for v in range(lo, hi):
-        packed[v, 0] = vertex_window[v, 0]
-        packed[v, 1] = vertex_window[v, 1]
-        packed[v, 2] = vertex_window[v, 2]
-        packed[v, 3] = 1.0 / pos[v, 3]
-        for c in range(k):
-            packed[v, 4 + c] = var[v, c]
-
-
 @numba.njit(cache=True, nogil=True)
-def _emit_accepted(lo, hi, packed, tri, provoking, status, offset, flat, window, inv_w, out_var, key):
-    """Write the accepted primitives among lo:hi at their output rows (primitive order kept by ``offset``),
-    their corners' values from ``packed`` (:func:`_pack_vertices`): one row a corner, where reading
-    the window position, w and the varyings from three arrays was three cache misses (an indexed
-    list's corners come in no order; a wireframe's assembly was mostly those misses)."""
-    k_var = packed.shape[1] - 4
+def _emit_accepted(lo, hi, pos, var, tri, provoking, status, offset, vertex_window, flat, window, inv_w, out_var,
+                   key):
+    """Write the accepted primitives among lo:hi at their output rows (primitive order kept by ``offset``)."""
     for t in range(lo, hi):
         if status[t] != ACCEPTED:
             continue
@@ -620,14 +600,14 @@ def _emit_accepted(lo, hi, packed, tri, provoking, status, offset, flat, window,
         key[o] = t
         for c in range(3):
             v = tri[t, c]
-            window[o, c, 0] = packed[v, 0]
-            window[o, c, 1] = packed[v, 1]
-            window[o, c, 2] = packed[v, 2]
-            inv_w[o, c] = packed[v, 3]
-            for k in range(k_var):
-                out_var[o, c, k] = packed[v, 4 + k]
+            window[o, c, 0] = vertex_window[v, 0]
+            window[o, c, 1] = vertex_window[v, 1]
+            window[o, c, 2] = vertex_window[v, 2]
+            inv_w[o, c] = 1.0 / pos[v, 3]
+            for k in range(var.shape[1]):
+                out_var[o, c, k] = var[v, k]
             for k in flat:                       # the provoking vertex's value on every corner
-                out_var[o, c, k] = packed[provoking[t], 4 + k]
+                out_var[o, c, k] = var[provoking[t], k]
 
 
 @numba.njit(cache=True)
@@ -872,10 +852,8 @@ def _assemble(vout: VertexOut, tri: np.ndarray, provoking: np.ndarray, kind: str
         window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
         out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
         if n:
-            packed = np.empty((len(vout.position), 4 + k))
-            in_bands(_pack_vertices, len(packed), vout.position, vertex_window, vout.varyings, packed, grain=8192)
-            in_bands(_emit_accepted, n, packed, tri, np.ascontiguousarray(provoking), status, offset, flat, window,
-                     inv_w, out_var, key, grain=8192)
+            in_bands(_emit_accepted, n, vout.position, vout.varyings, tri, np.ascontiguousarray(provoking), status,
+                     offset, vertex_window, flat, window, inv_w, out_var, key, grain=8192)
     clipped = np.zeros(total, bool)
     for t, (win, iw, pv, _) in pieces.items():
         rows = slice(offset[t], offset[t] + len(win))
