@@ -75,15 +75,23 @@ def bin_triangles(box: np.ndarray, tiles_x: int, tiles_y: int) -> tuple:
     items : int32
         The triangles (rows of the setup), tile after tile.
     """
+    bands, bounds, starts, fill, items = _bin_layout(box, tiles_x, tiles_y, BIN_BAND_MIN)
+    in_bands(_bin_fill, bands, bounds, box, tiles_x, fill, items)
+    return starts, items
+
+
+def _bin_layout(box: np.ndarray, tiles_x: int, tiles_y: int, band_min: int) -> tuple:
+    """The binning's first half, for triangles and for points and lines alike: the primitives cut into
+    bands (one per ``band_min`` primitives, up to two per thread), each band's count per tile, and from
+    them (bands, bounds, starts, fill, items): where each tile's list begins and each band writes, and
+    the list to fill."""
     n_tiles = tiles_x * tiles_y
-    bands = max(1, min(2 * threads(), box.shape[0] // BIN_BAND_MIN))
+    bands = max(1, min(2 * threads(), box.shape[0] // band_min))
     bounds = np.linspace(0, box.shape[0], bands + 1).astype(np.int64)
     counts = np.zeros((bands, n_tiles), np.int64)
     in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
     starts, fill = _bin_places(counts)
-    items = np.empty(starts[-1], np.int32)
-    in_bands(_bin_fill, bands, bounds, box, tiles_x, fill, items)
-    return starts, items
+    return bands, bounds, starts, fill, np.empty(starts[-1], np.int32)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -136,13 +144,7 @@ def bin_primitives(box: np.ndarray, tiles_x: int, tiles_y: int, setup: tuple) ->
     tile's walk reads its primitives' setup in one sweep (reading a point cloud's through
     ``items`` was a cache miss a point).
     """
-    n_tiles = tiles_x * tiles_y
-    bands = max(1, min(2 * threads(), box.shape[0] // PRIMITIVE_BAND_MIN))
-    bounds = np.linspace(0, box.shape[0], bands + 1).astype(np.int64)
-    counts = np.zeros((bands, n_tiles), np.int64)
-    in_bands(_bin_count, bands, bounds, box, tiles_x, counts)
-    starts, fill = _bin_places(counts)
-    items = np.empty(starts[-1], np.int32)
+    bands, bounds, starts, fill, items = _bin_layout(box, tiles_x, tiles_y, PRIMITIVE_BAND_MIN)
     # every array as rows of columns (a view), so that one compiled loop copies them all
     columns = tuple(a.reshape(len(a), int(np.prod(a.shape[1:]))) for a in setup)
     rows = tuple(np.empty((len(items), a.shape[1]), a.dtype) for a in columns)
