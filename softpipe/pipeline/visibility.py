@@ -606,6 +606,12 @@ def _visible_by_primitive(band_lo, band_hi, bounds, vis, touched, tile_w, tile_h
                         at[t] += 1
 
 
+@numba.njit(cache=True, nogil=True, forceinline=True)
+def _key_place(key, width, samples):
+    """(row, sample, column) of a sorted visible sample's key, (row·S + sample)·W + column."""
+    return key // (width * samples), (key // width) % samples, key % width
+
+
 @numba.njit(cache=True, nogil=True)
 def _line_inputs(lo, hi, keys, tri, run, samples, width, height, ends, zends, offsets, positions, mode, depth, bary,
                  fx, fy):
@@ -613,10 +619,8 @@ def _line_inputs(lo, hi, keys, tri, run, samples, width, height, ends, zends, of
     lines: depth, barycentrics and window position, as the reference path's fragments have them."""
     means = sample_means(offsets, positions)
     for k in range(lo, hi):
-        key, t = keys[k], tri[k]
-        i = key % width
-        s = (key // width) % samples
-        row = key // (width * samples)
+        t = tri[k]
+        row, s, i = _key_place(keys[k], width, samples)
         bary[k, 0], bary[k, 1], bary[k, 2], fx[k], fy[k], depth[k] = line_sample_inputs(
             ends, zends, run, t, i, height - 1 - row, s, row, offsets, positions, mode, means)
 
@@ -628,10 +632,8 @@ def _point_inputs(lo, hi, keys, tri, samples, width, height, centre, size, zpoin
     points."""
     means = sample_means(offsets, positions)
     for k in range(lo, hi):
-        key, t = keys[k], tri[k]
-        i = key % width
-        s = (key // width) % samples
-        row = key // (width * samples)
+        t = tri[k]
+        row, s, i = _key_place(keys[k], width, samples)
         bary[k, 0], bary[k, 1], bary[k, 2], fx[k], fy[k], depth[k] = point_sample_inputs(
             centre, size, zpoint, t, i, height - 1 - row, s, positions, mode, means)
 
