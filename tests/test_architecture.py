@@ -45,7 +45,8 @@ LATE_UPWARD = {("pipeline.trace", "views.pictures"), ("pipeline.trace", "views.e
                ("pipeline.framebuffer", "views.zoom"), ("", "tools.viewer")}
 #: softpipe/pipeline/ in pipeline order; each may import only those before it.
 STAGES = ["transforms", "camera", "sampling", "framebuffer", "vertex", "assembly", "setup", "lines", "points",
-          "raster", "fragment", "merge_state", "output", "tiles", "visibility", "trace", "draw"]
+          "raster", "fragment", "merge_state", "output", "tiles", "primitive_tiles", "visibility", "primitive_visibility",
+          "trace", "draw"]
 
 
 def _module_name(path: Path) -> str:

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import softpipe as sp
+from softpipe.pipeline.primitive_visibility import PrimitiveVisibility
 from softpipe.pipeline.sampling import pattern_named
-from softpipe.pipeline.visibility import PrimitiveVisibility
 
 # several tiles (128 × 32 pixels) each way, the last ones cut short
 W, H = 300, 100
@@ -192,7 +192,7 @@ def test_points_and_lines_are_shaded_with_their_inputs_made_in_place(monkeypatch
     """A shader that cannot fail shades the visible samples of points or lines with ``primitive_loop``, which
     makes each sample's inputs where it shades it and writes its color at once: no arrays of inputs
     (which, with the array of colors written afterwards, took most of their shading)."""
-    import softpipe.pipeline.visibility as visibility
+    import softpipe.pipeline.primitive_visibility as visibility
 
     def refused(*args, **kwargs):
         raise AssertionError("the shading made the samples' inputs into arrays")
@@ -224,7 +224,7 @@ def test_points_of_sizes_per_vertex_with_derivatives_give_the_reference_bytes_on
                                                                                                     monkeypatch):
     """Each point its own size (gl_PointSize, a varying), a shader taking derivatives, 4 samples a pixel;
     their inputs made in place (no arrays of them)."""
-    import softpipe.pipeline.visibility as visibility
+    import softpipe.pipeline.primitive_visibility as visibility
 
     def refused(*args, **kwargs):
         raise AssertionError("the shading made the samples' inputs into arrays")

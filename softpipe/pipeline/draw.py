@@ -55,6 +55,7 @@ from softpipe.pipeline.output import (
     non_finite_written,
     record_visible,
 )
+from softpipe.pipeline.primitive_visibility import primitive_visibility_pass, shade_primitives
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
 from softpipe.pipeline.setup import SHADING_POSITIONS, TriangleSetup, apply_polygon_offset, pixel_rect, setup_triangles
 from softpipe.pipeline.transforms import Viewport
@@ -65,9 +66,7 @@ from softpipe.pipeline.visibility import (
     ShadedSamples,
     choose_path,
     depth_only,
-    primitive_visibility_pass,
     shade_outputs,
-    shade_primitives,
     shade_visible,
     shading_may_fail,
     visibility_pass,
@@ -398,7 +397,7 @@ class DrawCall:
 
         Triangles: the tiled visibility pass (:func:`~softpipe.pipeline.visibility.visibility_pass`).
         Points and lines: their own walk over the same tiles
-        (:func:`~softpipe.pipeline.visibility.primitive_visibility_pass`); no fragment list is made.
+        (:func:`~softpipe.pipeline.primitive_visibility.primitive_visibility_pass`); no fragment list is made.
         A depth-only draw (:func:`~softpipe.pipeline.visibility.depth_only`) stops after the
         visibility pass: nothing is shaded.
         """

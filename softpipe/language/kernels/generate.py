@@ -465,7 +465,7 @@ def visible_kernel(shader: Callable, layout: VaryingLayout, shading: str = "samp
 
 def primitive_kernel(shader: Callable, layout: VaryingLayout, kind: str) -> Callable:
     """The compiled loop that shades the visible samples of points or lines (``kind``), sorted by primitive
-    (``primitive_loop``, :func:`~softpipe.pipeline.visibility.shade_primitives`): a module of its own,
+    (``primitive_loop``, :func:`~softpipe.pipeline.primitive_visibility.shade_primitives`): a module of its own,
     built and compiled once per set of the shader's globals' values, importing its layout's varyings."""
     if kind not in ("points", "lines"):
         raise ValueError(f"primitive_kernel: kind must be 'points' or 'lines', got {kind!r}")
