@@ -99,3 +99,22 @@ def test_the_stage_pictures_mark_the_non_finite_pixels_only_when_there_are_some(
     assert (pics["non-finite"][:, 10:] == pics["final"][:, 10:]).all()
     finite = sp.draw(sp.Framebuffer(W, H), QUAD, varyings={"color": np.ones((12, 3))}, trace=True)
     assert "non-finite" not in stage_pictures(finite)
+
+
+@pytest.mark.parametrize("mask, warns", [((False, False, False, False), False), ((False, True, True, True), False),
+                                         ((True, False, False, False), True)])
+def test_only_the_channels_the_color_mask_writes_count_as_written(mask, warns):
+    """The shader's NaN is in red alone: masked off (a depth-only pass, or red held back), nothing NaN is
+    written and nothing is said; red written, the draw says so. The fast path draws a masked color only
+    depth-only, where no shader runs: the reference path is the one that shades under a mask."""
+    fb = sp.Framebuffer(W, H).clear((0.25, 0.25, 0.25, 1.0))
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        call = sp.DrawCall(fb, QUAD, fragment_shader=sqrt_of_x_less_10, color_mask=mask, path="reference")
+        call.run()
+    said = [w for w in record if issubclass(w.category, sp.NonFiniteColorWarning)]
+    assert len(said) == (1 if warns else 0)
+    assert (call.non_finite is not None) == warns
+    assert np.isnan(fb.color[:, :10, 0]).all() == warns
+    if warns:
+        assert call.non_finite.count == 160

@@ -386,7 +386,7 @@ class DrawCall:
                 merge_more(frags, shaded, merged.verdict, fb, self.attachment_states, self.state.blend_color)
             if self.query is not None:
                 passed += merged.samples_passed
-            self._note_non_finite(non_finite_written(frags, shaded, merged))
+            self._note_non_finite(non_finite_written(frags, shaded, merged, self.state.color_mask))
             clock("output")
             yield Stage("output", merged, batch)
         if self.query is not None:

@@ -38,7 +38,7 @@ attachments are never blended.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 import numba
 import numpy as np
@@ -451,9 +451,16 @@ class NonFinite:
                 "math's functions giving NaN or infinity as the compiled shader's do")
 
 
-def non_finite_written(frags: Fragments, shaded: ShadedFragments, merged: MergeResult) -> Optional[NonFinite]:
-    """The fragments the merger wrote with a NaN or infinite color component, or None."""
-    bad = np.flatnonzero((merged.verdict == WRITTEN) & ~np.isfinite(shaded.color).all(axis=1))
+def non_finite_written(frags: Fragments, shaded: ShadedFragments, merged: MergeResult,
+                       color_mask: Tuple[bool, bool, bool, bool] = (True, True, True, True)) -> Optional[NonFinite]:
+    """The fragments the merger wrote with a NaN or infinite color component, or None.
+
+    Only the channels ``color_mask`` lets through count: a channel masked off is not written,
+    whatever the shader returned for it (a depth-only pass's NaN says nothing)."""
+    channels = np.flatnonzero(np.asarray(color_mask, bool))
+    if not len(channels):
+        return None
+    bad = np.flatnonzero((merged.verdict == WRITTEN) & ~np.isfinite(shaded.color[:, channels]).all(axis=1))
     if not len(bad):
         return None
     k = int(bad[0])
