@@ -247,7 +247,9 @@ class Visibility:
 
         One per visible sample, in (sample, image row, column) order, with the
         barycentrics, depth and window position the shading loop gave the
-        shader. (The fragments that lost the depth test were never made.)
+        shader (with multisampling at the centre or centroid, those of the pixel's
+        shading point, and the depth of the first sample the triangle covers there).
+        (The fragments that lost the depth test were never made.)
         """
         s_idx, rows, cols = np.nonzero(self.vis >= 0)
         n = len(s_idx)
@@ -263,13 +265,16 @@ class Visibility:
 @numba.njit(cache=True)
 def _visible_fragments(s_idx, rows, cols, tri, edges, bias, plane, height, offsets, positions, mode, depth, bary,
                        pos):
+    """Each visible sample's shader inputs; with multisampling at the centre or centroid, the depth is
+    that of the first sample the triangle covers in the pixel (visible or not), as the reference
+    path's run of the pixel's samples and ``visible_loop`` give the shader."""
     for k in range(s_idx.shape[0]):
         s, i, j, t = s_idx[k], cols[k], height - 1 - rows[k], tri[k]
-        mask, count = np.int64(0), 1
+        mask, depth_sample, count = np.int64(0), s, 1
         if mode != SHADE_SAMPLE:
-            mask, _, count = pixel_coverage(edges, bias, t, i, j, offsets)
+            mask, depth_sample, count = pixel_coverage(edges, bias, t, i, j, offsets)
         b0, b1, b2, fx, fy = shading_point(edges, plane, t, i, j, s, mask, count, offsets, positions, mode)
-        depth[k] = sample_depth(edges, plane, t, i, j, s, offsets)
+        depth[k] = sample_depth(edges, plane, t, i, j, depth_sample, offsets)
         bary[k, 0], bary[k, 1], bary[k, 2] = b0, b1, b2
         pos[0, k], pos[1, k] = fx, fy
 
