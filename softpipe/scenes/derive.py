@@ -498,7 +498,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
         # its own over the listed pixels, whose iterations do not wait for each other: in the one loop that
         # did everything, a pixel's long chain of dependent steps (record value, corners, clip rows, cross
         # product, divisions, interpolation, matrix, square root, division) left the processor little to do
-        # beside it (split, the pass took about 0.9 of the time: docs/outputs.md, "Cost"). Each step keeps
+        # beside it (split, the pass took 0.87–0.99 of its time: docs/outputs.md, "Cost"). Each step keeps
         # its own current draw (`seen`): step 1's `current` goes with the draw numbers it read.
         seen = -1
         for s in range(n):
