@@ -652,6 +652,61 @@ def test_empty_bands_and_a_single_covered_pixel_give_the_numpy_derivations_bits(
     assert (got["depth"][:40] == 1.0).all() and (got["triangle_id"][60:80] == -1).all()
 
 
+def _side_by_side_frame() -> Framebuffer:
+    """A 40×16 frame where each row runs through several draws whose pixels name the same primitive:
+    draw 0 (two instances of triangle 0, side by side, shifted by an attribute), draw 1 (triangle 0
+    of other corners, normals and uv, in a viewport of its own), touching draw 0 in the same rows, and
+    draw 2, two lines (no surface) that end some rows after the last surface pixel, among them rows of
+    draw 1 alone followed by a row that starts with draw 1."""
+    fb = Framebuffer(40, 16, record=True)
+
+    def vs(attributes, uniforms):
+        p = attributes.position
+        w = 1.0 + 0.3 * p[2]
+        return (w * (p[0] + attributes.shift), w * p[1], w * p[2], w), Varyings((1.0, 1.0, 1.0))
+
+    def flat(attributes, uniforms):
+        p = attributes.position
+        return (p[0], p[1], p[2], 1.0), Varyings((1.0, 1.0, 1.0))
+
+    left = np.array([[-1.0, -1.0, 0.4], [-0.5, -1.0, 0.1], [-1.0, 0.4, 0.3]])
+    sp.draw(fb, left, np.array([[0, 1, 2]]), vertex_shader=vs, instances=2,
+            instance_attributes={"shift": np.array([[0.0], [0.45]])},
+            attributes={"normal": np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, 0.6, 0.8]]),
+                        "uv": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])})
+    right = np.array([[-1.0, -1.0, 0.2], [1.0, -1.0, 0.5], [-1.0, 1.0, 0.0]])
+    sp.draw(fb, right, np.array([[0, 1, 2]]), vertex_shader=flat, viewport=sp.Viewport(18, 0, 22, 16),
+            attributes={"normal": np.array([[0.0, 0.8, 0.6], [-0.6, 0.0, 0.8], [0.0, 0.0, -1.0]]),
+                        "uv": np.array([[0.5, 0.5], [0.25, 1.0], [1.0, 0.25]])})
+    sp.draw(fb, np.array([[-1.0, -0.9, -0.5, 1.0], [1.0, 0.2, -0.5, 1.0], [0.3, 0.95, -0.5, 1.0],
+                          [1.0, 0.6, -0.5, 1.0]]), varyings={"color": np.ones((4, 3))}, topology="lines",
+            depth_test="less")
+    return fb
+
+
+def test_neighbouring_pixels_of_the_same_primitive_in_other_draws_and_instances_give_the_numpy_bits():
+    # a row's covered pixels are taken apart in one loop and their surfaces computed in loops after it,
+    # each keeping the draw it last read: pixels side by side that name triangle 0 of another instance,
+    # another draw or another viewport, and rows whose last covered pixel is a line's, all as the numpy
+    # derivation
+    fb = _side_by_side_frame()
+    got, expected = derive_outputs(fb, OUTPUTS), _numpy_derive_outputs(fb, OUTPUTS)
+    for name in OUTPUTS:
+        _assert_same_bits(name, got[name], expected[name])
+    draw, instance, primitive = split_record(fb.record[0], fb.recorded_draws)
+    surface = (draw >= 0) & (draw <= 1)
+    assert (primitive[surface] == 0).all() and {0, 1} <= set(np.unique(instance[draw == 0]))
+    # in some row the two instances touch, and draw 0 touches draw 1
+    key = np.where(draw == 0, instance, np.where(draw == 1, 2, -1))
+    touching = {(int(a), int(b)) for a, b in zip(key[:, :-1].ravel(), key[:, 1:].ravel()) if a != b}
+    assert {(0, 1), (1, 2)} <= touching
+    # a row of draw 1 ending in the line, and the next row starting with draw 1
+    ends = [j for j in range(fb.height - 1) if set(draw[j][draw[j] >= 0]) == {1, 2} and draw[j][draw[j] >= 0][-1] == 2
+            and draw[j + 1][draw[j + 1] >= 0][0] == 1]
+    assert ends
+    assert np.isfinite(got["normal"][surface]).all() and np.isnan(got["normal"][draw == 2]).all()
+
+
 def test_the_buffers_do_not_depend_on_the_thread_count():
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread here")

@@ -18,10 +18,13 @@ with ``record=True`` and the names of the buffers asked for. Three steps:
    row (:func:`_fill_background`, one short loop per buffer, into memory the row then
    finds in cache), then the row's covered pixels listed (record value ≥ 0), and only
    those computed: the sample of least depth (the first of equals), the record value
-   taken apart (draw, instance, primitive), the ids, and for a triangle the
-   perspective-correct barycentrics at the pixel centre from its source clip corners,
-   then position, eye depth, normal and uv; only the buffers asked for are written. (A
-   frame is mostly background: the bunny at 1024² covers 22 % of its pixels.)
+   taken apart (draw, instance, primitive) and the ids, in one loop that also lists the
+   pixels of a surface; then, each in a loop of its own over that list, their corners,
+   the perspective-correct barycentrics at the pixel centre from the source clip corners,
+   position and eye depth, normal, and uv (short loops whose pixels do not wait for each
+   other, where one loop doing it all made each pixel wait on the last); only the
+   buffers asked for are written. (A frame is mostly background: the bunny at 1024²
+   covers 22 % of its pixels.)
 3. **the textures** (:func:`_sample_textures`): a textured draw's albedo is kd times
    :func:`softpipe.light.texture.texture_lod` at the pixel's uv, level 0 — the
    texture is a different numba type per draw, so the pass leaves the uv of those
@@ -374,13 +377,17 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
     w_albedo, w_texture = want[W_ALBEDO], want[W_TEXTURE_UV]
     geometric = w_linear or w_position or w_normal or w_bary or w_uv or w_albedo
     # the current draw's numbers, read again only where the draw changes (neighbours mostly share one)
-    current = -1
+    current = seen = -1
     base = count = per = object_id = map_at = map_length = corner_at = primitives = vertices = clip_at = \
-        positions_at = normals_at = uvs_at = np.int64(0)
+        positions_at = normals_at = uvs_at = viewport = np.int64(0)
     triangle_topology = surface = textured = False
-    viewport = np.int64(0)
     kd0 = kd1 = kd2 = np.float32(0.0)
     covered, picks = np.empty(width, np.int64), np.empty(width, np.int64)    # a row's covered pixels, samples
+    # a row's pixels of a surface, listed by step 1 for the steps after it: pixel, draw, the first clip row of
+    # its instance, its primitive's corners (first the primitive's row of `corners`), barycentrics
+    at, drawn, first = np.empty(width, np.int64), np.empty(width, np.int64), np.empty(width, np.int64)
+    corner0, corner1, corner2 = np.empty(width, np.int64), np.empty(width, np.int64), np.empty(width, np.int64)
+    bary0, bary1, bary2 = np.empty(width), np.empty(width), np.empty(width)
     for j in range(lo, hi):
         bad[j] = -1
         _fill_background(j * width, (j + 1) * width, w_depth, w_linear, w_position, w_normal, w_object, w_triangle,
@@ -411,6 +418,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 if record[pick, p] >= 0:
                     covered[m], picks[m] = p, pick
                     m += 1
+        # 1. each covered pixel's record value taken apart: its ids and depth written, and a pixel of a
+        # surface listed with its draw and corners for the steps after (a short loop of integers)
+        n = 0
         for c in range(m):
             p = covered[c]
             pick = picks[c] if samples > 1 else 0
@@ -434,9 +444,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 triangle_topology, surface = ints[k, I_TRIANGLE_TOPOLOGY] > 0, ints[k, I_SURFACE] > 0
                 map_at, map_length, corner_at, primitives = ints[k, I_MAP], ints[k, I_MAP_LENGTH], \
                     ints[k, I_CORNERS], ints[k, I_PRIMITIVES]
-                vertices, clip_at, positions_at = ints[k, I_VERTICES], ints[k, I_CLIP], ints[k, I_POSITIONS]
-                normals_at, uvs_at, textured = ints[k, I_NORMALS], ints[k, I_UVS], ints[k, I_TEXTURED] > 0
-                viewport = ints[k, I_VIEWPORT]
+                vertices, clip_at = ints[k, I_VERTICES], ints[k, I_CLIP]
                 kd0, kd1, kd2 = np.float32(floats[k, F_KD]), np.float32(floats[k, F_KD + 1]), \
                     np.float32(floats[k, F_KD + 2])
                 if present[k] == 0:              # (a store per pixel would bounce the line between cores)
@@ -472,18 +480,34 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 if bad[j] < 0:
                     bad[j] = p - j * width
                 continue
-            corner = corner_at + primitive
-            v0, v1, v2 = corners[corner, 0], corners[corner, 1], corners[corner, 2]
-            first = clip_at + instance * vertices
-            q0, q1, q2 = first + v0, first + v1, first + v2
             if not surface:
                 # a line or point has no surface: its eye depth from the clip w of its first corner
                 if w_linear:
-                    out_linear[p] = np.float32(clip[q0, 3])
+                    v0 = corners[corner_at + primitive, 0]
+                    out_linear[p] = np.float32(clip[clip_at + instance * vertices + v0, 3])
                 continue
+            at[n], drawn[n], first[n], corner0[n] = p, k, clip_at + instance * vertices, corner_at + primitive
+            n += 1
+        # the listed pixels' corners, in a loop of nothing else: a frame's triangles are spread over the
+        # corner array, and in this loop the reads of many pixels wait for memory at once
+        for s in range(n):
+            corner = corner0[s]
+            corner0[s], corner1[s], corner2[s] = corners[corner, 0], corners[corner, 1], corners[corner, 2]
+        # 2. the listed pixels' barycentrics: the cross product of the rows x_i − X·w_i and y_i − Y·w_i (in
+        # np.cross's order), normalized to sum 1 (docs/outputs.md). This step and each after it is a loop of
+        # its own over the listed pixels, whose iterations do not wait for each other: in the one loop that
+        # did everything, a pixel's long chain of dependent steps (record value, corners, clip rows, cross
+        # product, divisions, interpolation, matrix, square root, division) left the processor little to do
+        # beside it (split, the pass took 0.87–0.99 of its time: docs/outputs.md, "Cost"). Each step keeps
+        # its own current draw (`seen`): step 1's `current` goes with the draw numbers it read.
+        seen = -1
+        for s in range(n):
+            k = drawn[s]
+            if k != seen:
+                seen, viewport = k, ints[k, I_VIEWPORT]
+            p = at[s]
             x, y = ndc_x[viewport, p - j * width], ndc_y[viewport, j]          # the pixel centre in NDC
-            # the barycentrics: the cross product of the rows x_i − X·w_i and y_i − Y·w_i (in np.cross's
-            # order), normalized to sum 1 (docs/outputs.md)
+            q0, q1, q2 = first[s] + corner0[s], first[s] + corner1[s], first[s] + corner2[s]
             a0, a1, a2 = clip[q0, 0] - x * clip[q0, 3], clip[q1, 0] - x * clip[q1, 3], clip[q2, 0] - x * clip[q2, 3]
             c0, c1, c2 = clip[q0, 1] - y * clip[q0, 3], clip[q1, 1] - y * clip[q1, 3], clip[q2, 1] - y * clip[q2, 3]
             e0 = a1 * c2 - a2 * c1
@@ -494,10 +518,18 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 b0, b1, b2 = e0 / total, e1 / total, e2 / total
             else:
                 b0 = b1 = b2 = np.nan             # a triangle seen edge-on
+            bary0[s], bary1[s], bary2[s] = b0, b1, b2
             if w_bary:
                 out_bary[p, 0], out_bary[p, 1], out_bary[p, 2] = b0, b1, b2
-            if w_linear or w_position:
-                r0, r1, r2 = positions_at + v0, positions_at + v1, positions_at + v2
+        # 3. position and eye depth
+        if w_linear or w_position:
+            seen = -1
+            for s in range(n):
+                k = drawn[s]
+                if k != seen:
+                    seen, positions_at = k, ints[k, I_POSITIONS]
+                p, b0, b1, b2 = at[s], bary0[s], bary1[s], bary2[s]
+                r0, r1, r2 = positions_at + corner0[s], positions_at + corner1[s], positions_at + corner2[s]
                 l0 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 0)
                 l1 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 1)
                 l2 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 2)
@@ -508,8 +540,17 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                     out_position[p, 0] = _matrix_row(floats, k, F_MODEL, 0, 4, l0, l1, l2, l3)
                     out_position[p, 1] = _matrix_row(floats, k, F_MODEL, 1, 4, l0, l1, l2, l3)
                     out_position[p, 2] = _matrix_row(floats, k, F_MODEL, 2, 4, l0, l1, l2, l3)
-            if w_normal and normals_at >= 0:
-                r0, r1, r2 = normals_at + v0, normals_at + v1, normals_at + v2
+        # 4. the normal
+        if w_normal:
+            seen = -1
+            for s in range(n):
+                k = drawn[s]
+                if k != seen:
+                    seen, normals_at = k, ints[k, I_NORMALS]
+                if normals_at < 0:
+                    continue
+                p, b0, b1, b2 = at[s], bary0[s], bary1[s], bary2[s]
+                r0, r1, r2 = normals_at + corner0[s], normals_at + corner1[s], normals_at + corner2[s]
                 n0 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 0)
                 n1 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 1)
                 n2 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 2)
@@ -520,8 +561,17 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 # by a zero length as IEEE does, too
                 length = np.float64(np.sqrt((m0 * m0 + m1 * m1) + m2 * m2))
                 out_normal[p, 0], out_normal[p, 1], out_normal[p, 2] = m0 / length, m1 / length, m2 / length
-            if (w_uv or w_texture) and uvs_at >= 0:
-                r0, r1, r2 = uvs_at + v0, uvs_at + v1, uvs_at + v2
+        # 5. uv, and the textures' uv
+        if w_uv or w_texture:
+            seen = -1
+            for s in range(n):
+                k = drawn[s]
+                if k != seen:
+                    seen, uvs_at, textured = k, ints[k, I_UVS], ints[k, I_TEXTURED] > 0
+                if uvs_at < 0:
+                    continue
+                p, b0, b1, b2 = at[s], bary0[s], bary1[s], bary2[s]
+                r0, r1, r2 = uvs_at + corner0[s], uvs_at + corner1[s], uvs_at + corner2[s]
                 t0 = _interpolated(b0, b1, b2, uvs, r0, r1, r2, 0)
                 t1 = _interpolated(b0, b1, b2, uvs, r0, r1, r2, 1)
                 if w_uv:
