@@ -9,7 +9,8 @@ depth plane :func:`~softpipe.pipeline.setup.plane_depth`), and the depth compare
 visibility buffer, the last triangle that passed the depth test at each sample:
 
 1. **Binning** (:func:`bin_triangles`): each TILE_W × TILE_H tile gets the list of
-   triangles whose box touches it, in primitive order.
+   triangles whose box touches it, in primitive order; when those lists jump about the
+   mesh (:func:`scattered`), the setup is copied into their order (:func:`gather_setup`).
 2. **Tiles** (:func:`raster_tiles`): bands of tiles in parallel; inside a tile, its
    triangles in order (so every sample sees them in the reference's order, on
    any thread count), and a hierarchical depth bound that skips the triangles
@@ -35,7 +36,8 @@ from softpipe.pipeline.output import depth_passes
 from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import covers, depth_at, edge_values, inside, inside_edge, offset_bounds, plane_depth
 
-__all__ = ["TILE_W", "TILE_H", "NARROW", "bin_triangles", "SCATTERED", "scattered", "gather_setup", "raster_tiles", "bin_primitives", "save_tile"]
+__all__ = ["TILE_W", "TILE_H", "NARROW", "bin_triangles", "SCATTERED", "scattered", "gather_setup", "raster_tiles",
+           "bin_primitives", "save_tile"]
 
 #: Tiles are wide and short: rows inside a tile are long enough for the compiler's
 #: vectorized loop to pay off, and a tile's depth and visibility (128×32×8 bytes)
@@ -331,7 +333,7 @@ def _draw_narrow(edges, bias, plane, t, tid, i0, i1, j0, j1, offsets, height, fu
     """
     z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
     step0, step1, step2 = edges[t, 0, 0] * SUBPIXEL, edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
-    down0, down1, down2 = edges[t, 0, 1] * SUBPIXEL, edges[t, 1, 1] * SUBPIXEL, edges[t, 2, 1] * SUBPIXEL
+    up0, up1, up2 = edges[t, 0, 1] * SUBPIXEL, edges[t, 1, 1] * SUBPIXEL, edges[t, 2, 1] * SUBPIXEL
     for s in range(offsets.shape[0]):
         r0, r1, r2 = edge_values(edges, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
         for j in range(j0, j1 + 1):
@@ -347,9 +349,9 @@ def _draw_narrow(edges, bias, plane, t, tid, i0, i1, j0, j1, offsets, height, fu
                 e0 += step0
                 e1 += step1
                 e2 += step2
-            r0 += down0
-            r1 += down1
-            r2 += down2
+            r0 += up0
+            r1 += up1
+            r2 += up2
 
 
 @numba.njit(cache=True)
