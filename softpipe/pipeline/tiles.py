@@ -9,7 +9,8 @@ depth plane :func:`~softpipe.pipeline.setup.plane_depth`), and the depth compare
 visibility buffer, the last triangle that passed the depth test at each sample:
 
 1. **Binning** (:func:`bin_triangles`): each TILE_W × TILE_H tile gets the list of
-   triangles whose box touches it, in primitive order.
+   triangles whose box touches it, in primitive order; when those lists jump about the
+   mesh (:func:`scattered`), the setup is copied into their order (:func:`gather_setup`).
 2. **Tiles** (:func:`raster_tiles`): bands of tiles in parallel; inside a tile, its
    triangles in order (so every sample sees them in the reference's order, on
    any thread count), and a hierarchical depth bound that skips the triangles
@@ -35,7 +36,8 @@ from softpipe.pipeline.output import depth_passes
 from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import covers, depth_at, edge_values, inside, inside_edge, offset_bounds, plane_depth
 
-__all__ = ["TILE_W", "TILE_H", "NARROW", "bin_triangles", "raster_tiles", "bin_primitives", "save_tile"]
+__all__ = ["TILE_W", "TILE_H", "NARROW", "bin_triangles", "SCATTERED", "scattered", "gather_setup", "raster_tiles",
+           "bin_primitives", "save_tile"]
 
 #: Tiles are wide and short: rows inside a tile are long enough for the compiler's
 #: vectorized loop to pay off, and a tile's depth and visibility (128×32×8 bytes)
@@ -76,6 +78,56 @@ def bin_triangles(box: np.ndarray, tiles_x: int, tiles_y: int) -> tuple:
     bands, bounds, starts, fill, items = _bin_layout(box, tiles_x, tiles_y, BIN_BAND_MIN)
     in_bands(_bin_fill, bands, bounds, box, tiles_x, fill, items)
     return starts, items
+
+
+#: The share of a tile list's neighbours that are not consecutive triangles from which the visibility
+#: pass copies the setup into the bins' order (:func:`gather_setup`): a mesh drawn in an order far from the
+#: screen's (the bunny from its lights: 0.6) gains more than the copy costs; one in order (a UV sphere,
+#: 0.03; ``tiny``, 0.01) only pays for it (benchmarks/README.md, issue 35).
+SCATTERED = 0.25
+
+
+def scattered(items: np.ndarray) -> bool:
+    """Do the tiles' lists :func:`bin_triangles` made jump about the triangles (more than :data:`SCATTERED`)?"""
+    return len(items) > 1 and _breaks(items) > SCATTERED * (len(items) - 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def _breaks(items):
+    n = 0
+    for k in range(1, items.shape[0]):
+        n += items[k] != items[k - 1] + 1
+    return n
+
+
+def gather_setup(edges: np.ndarray, bias: np.ndarray, plane: np.ndarray, box: np.ndarray,
+                 items: np.ndarray) -> tuple:
+    """The setup's rows in the bins' order, (edges, bias, plane, box): row k is triangle ``items[k]``'s.
+
+    The tile walk (:func:`raster_tiles`) then reads each tile's triangles in one sweep. Read through
+    ``items``, the triangles of a mesh drawn in another order than the screen's lie all over its
+    arrays, and the walk of a small triangle waited on the cache for its setup longer than it took to
+    draw; gathered in one compiled loop, in bands, the reads overlap (benchmarks/README.md, issue 35).
+    """
+    n = len(items)
+    rows = (np.empty((n, 3, 3), edges.dtype), np.empty((n, 3), bias.dtype), np.empty((n, 4), plane.dtype),
+            np.empty((n, 4), box.dtype))
+    in_bands(_gather_rows, n, items, edges.reshape(-1, 9), bias, plane, box, rows[0].reshape(n, 9), *rows[1:],
+             grain=16384)
+    return rows
+
+
+@numba.njit(cache=True, nogil=True)
+def _gather_rows(lo, hi, items, a, b, c, d, a_out, b_out, c_out, d_out):
+    for k in range(lo, hi):
+        t = items[k]
+        for m in range(9):
+            a_out[k, m] = a[t, m]
+        for m in range(3):
+            b_out[k, m] = b[t, m]
+        for m in range(4):
+            c_out[k, m] = c[t, m]
+            d_out[k, m] = d[t, m]
 
 
 def _bin_layout(box: np.ndarray, tiles_x: int, tiles_y: int, band_min: int) -> tuple:
@@ -230,8 +282,9 @@ def _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi):
 
 
 @numba.njit(cache=True)
-def _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, strict, write):
-    """One span (contiguous views of one row of one sample plane) under LESS (strict) or LEQUAL.
+def _row_less(drow, vrow, tid, e1, e2, a1, a2, z0, dz1, dz2, inv_area, strict, write):
+    """One span (contiguous views of one row of one sample plane) under LESS (strict) or LEQUAL; ``tid``
+    is recorded where a sample passes.
 
     Written so that the compiler vectorizes it: 1-D contiguous views indexed
     from 0, and selects rather than branches. e1 + k·a1 is exact in float64
@@ -245,11 +298,11 @@ def _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, strict, wri
         passed = zf < old if strict else zf <= old
         if write:
             drow[k] = zf if passed else old
-        vrow[k] = t if passed else vrow[k]
+        vrow[k] = tid if passed else vrow[k]
 
 
 @numba.njit(cache=True)
-def _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write):
+def _row_any(drow, vrow, tid, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write):
     """One span under any compare function."""
     for k in range(drow.shape[0]):
         kf = float(k)
@@ -257,7 +310,7 @@ def _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
         if depth_passes(func, zf, drow[k]):
             if write:
                 drow[k] = zf
-            vrow[k] = t
+            vrow[k] = tid
 
 
 #: A triangle whose box inside a tile is at most this many pixels wide is walked
@@ -267,11 +320,12 @@ NARROW = 16
 
 
 @numba.njit(cache=True)
-def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, write, depth, vis):
-    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample.
+def _draw_narrow(edges, bias, plane, t, tid, i0, i1, j0, j1, offsets, height, func, write, depth, vis):
+    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1], testing every sample; record ``tid``.
 
-    Along a row the edge values step by A_k·256 (exact integers), and the triangle
-    setup's fill rule decides on them (:func:`~softpipe.pipeline.setup.inside`); depth is
+    The edge values are found once, at the box's first sample, and stepped from there: by
+    A_k·256 along a row, by B_k·256 from row to row (exact integers); the triangle setup's
+    fill rule decides on them (:func:`~softpipe.pipeline.setup.inside`); depth is
     :func:`~softpipe.pipeline.setup.plane_depth` of the sample's exact edge values.
     (Calling :func:`~softpipe.pipeline.setup.covers` at each sample instead, which
     evaluates the edges there rather than stepping them, made the tile pass slower;
@@ -279,28 +333,30 @@ def _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, w
     """
     z0, dz1, dz2, inv_area = plane[t, 0], plane[t, 1], plane[t, 2], plane[t, 3]
     step0, step1, step2 = edges[t, 0, 0] * SUBPIXEL, edges[t, 1, 0] * SUBPIXEL, edges[t, 2, 0] * SUBPIXEL
+    up0, up1, up2 = edges[t, 0, 1] * SUBPIXEL, edges[t, 1, 1] * SUBPIXEL, edges[t, 2, 1] * SUBPIXEL
     for s in range(offsets.shape[0]):
-        ox, oy = offsets[s, 0], offsets[s, 1]
-        px = i0 * SUBPIXEL + ox
+        r0, r1, r2 = edge_values(edges, t, i0 * SUBPIXEL + offsets[s, 0], j0 * SUBPIXEL + offsets[s, 1])
         for j in range(j0, j1 + 1):
-            py = j * SUBPIXEL + oy
             row = height - 1 - j
-            e0, e1, e2 = edge_values(edges, t, px, py)
+            e0, e1, e2 = r0, r1, r2
             for i in range(i0, i1 + 1):
                 if inside(e0, e1, e2, bias, t):
                     zf = np.float32(plane_depth(z0, dz1, dz2, inv_area, e1, e2))
                     if depth_passes(func, zf, depth[s, row, i]):
                         if write:
                             depth[s, row, i] = zf
-                        vis[s, row, i] = t
+                        vis[s, row, i] = tid
                 e0 += step0
                 e1 += step1
                 e2 += step2
+            r0 += up0
+            r1 += up1
+            r2 += up2
 
 
 @numba.njit(cache=True)
-def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, func, write, depth, vis):
-    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1] row span by row span.
+def _draw_spans(edges, bias, plane, t, tid, i0, i1, j0, j1, whole, offsets, height, func, write, depth, vis):
+    """Depth-test the covered samples of pixels [i0, i1] × [j0, j1] row span by row span; record ``tid``.
 
     ``whole``: every sample of the box is inside (no span to solve).
     """
@@ -320,9 +376,9 @@ def _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, f
             row = height - 1 - j
             drow, vrow = dplane[row, lo:hi + 1], vplane[row, lo:hi + 1]
             if func == LESS or func == LEQUAL:
-                _row_less(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func == LESS, write)
+                _row_less(drow, vrow, tid, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func == LESS, write)
             else:
-                _row_any(drow, vrow, t, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
+                _row_any(drow, vrow, tid, e1, e2, a1, a2, z0, dz1, dz2, inv_area, func, write)
 
 
 # ------------------------------------------------------------------------- tiles
@@ -338,9 +394,10 @@ def save_tile(depth, saved_depth, row_lo, row_hi, col_lo, col_hi):
 
 
 @numba.njit(cache=True, forceinline=True)
-def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func, depth_write,
+def _raster_tile(tile, edges, bias, plane, box, starts, items, gathered, tiles_x, width, height, offsets, func, depth_write,
                  depth, vis, touched, saved_depth):
-    """One tile of the visibility pass: its triangles, in primitive order (see :func:`raster_tiles`)."""
+    """One tile of the visibility pass: its triangles, in primitive order (see :func:`raster_tiles`); the
+    setup's rows are the triangles', or the bins' when ``gathered`` (row k is then triangle ``items[k]``)."""
     hiz = depth_write and (func == LESS or func == LEQUAL)
     ox_lo, ox_hi, oy_lo, oy_hi = offset_bounds(offsets)
     tx, ty = tile % tiles_x, tile // tiles_x
@@ -358,7 +415,7 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
                 for i in range(x_lo, x_hi + 1):
                     far = max(far, depth[s, row, i])
     for k in range(starts[tile], starts[tile + 1]):
-        t = items[k]
+        t = k if gathered else items[k]             # the triangle's row of the setup
         i0, i1 = max(box[t, 0], x_lo), min(box[t, 1], x_hi)
         j0, j1 = max(box[t, 2], y_lo), min(box[t, 3], y_hi)
         if i0 > i1 or j0 > j1:
@@ -381,15 +438,16 @@ def _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, h
             # line, and the other thread is drawing those tiles
             touched[tile] = tile_touched = True
         if i1 - i0 < NARROW:
-            _draw_narrow(edges, bias, plane, t, i0, i1, j0, j1, offsets, height, func, depth_write, depth, vis)
+            _draw_narrow(edges, bias, plane, t, items[k], i0, i1, j0, j1, offsets, height, func, depth_write, depth,
+                         vis)
         else:
             whole = _covers_box(edges, bias, t, i0, i1, j0, j1, ox_lo, ox_hi, oy_lo, oy_hi)
-            _draw_spans(edges, bias, plane, t, i0, i1, j0, j1, whole, offsets, height, func, depth_write,
-                        depth, vis)
+            _draw_spans(edges, bias, plane, t, items[k], i0, i1, j0, j1, whole, offsets, height, func,
+                        depth_write, depth, vis)
 
 
 @numba.njit(cache=True, nogil=True)
-def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func,
+def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, gathered, tiles_x, width, height, offsets, func,
                  depth_write, depth, vis, touched, saved_depth):
     """The visibility pass over tiles [tile_lo, tile_hi) (run in bands by softpipe.core.parallel).
 
@@ -405,8 +463,10 @@ def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles
     ----------
     tile_lo, tile_hi : int
         The tiles of this band (tile ``ty * tiles_x + tx``, tile row 0 at the bottom).
-    edges, bias, plane, box : arrays of a :class:`~softpipe.pipeline.setup.TriangleSetup`
+    edges, bias, plane, box : the arrays of a :class:`~softpipe.pipeline.setup.TriangleSetup`, or
+        when ``gathered`` its rows in the bins' order (:func:`gather_setup`: row k is triangle ``items[k]``'s)
     starts, items : the tiles' triangle lists (:func:`bin_triangles`)
+    gathered : bool
     tiles_x, width, height : int
         Tiles across; the framebuffer's size in pixels.
     offsets : int64 [S, 2]
@@ -423,5 +483,5 @@ def raster_tiles(tile_lo, tile_hi, edges, bias, plane, box, starts, items, tiles
     saved_depth : float32 [S, H, W], or empty [0, 0, 0] to save nothing
     """
     for tile in range(tile_lo, tile_hi):
-        _raster_tile(tile, edges, bias, plane, box, starts, items, tiles_x, width, height, offsets, func,
+        _raster_tile(tile, edges, bias, plane, box, starts, items, gathered, tiles_x, width, height, offsets, func,
                      depth_write, depth, vis, touched, saved_depth)

@@ -66,7 +66,7 @@ from softpipe.pipeline.setup import (
     sample_depth,
     shading_point,
 )
-from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, raster_tiles
+from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, gather_setup, raster_tiles, scattered
 
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
@@ -317,11 +317,15 @@ def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeSta
         vis.fill(-1)
         return Visibility(vis, setup, touched)
     starts, items = bin_triangles(setup.box, tiles_x, tiles_y)
+    # a mesh far from the screen's order has its setup copied in the bins' order, read in one sweep per tile
+    gathered = scattered(items)
+    rows = (gather_setup(setup.edges, setup.bias, setup.plane, setup.box, items) if gathered
+            else (setup.edges, setup.bias, setup.plane, setup.box))
     # the depth the pass replaces, kept (tile by tile, as each is first touched) until shading succeeded
     undo = undo and depth_write
     saved = scratch_buffer(fb.samples_depth) if undo else np.empty((0, 0, 0), np.float32)
-    in_bands(raster_tiles, tiles_x * tiles_y, setup.edges, setup.bias, setup.plane, setup.box, starts, items,
-             tiles_x, w, h, offsets, func, depth_write, fb.samples_depth, vis, touched.reshape(-1), saved)
+    in_bands(raster_tiles, tiles_x * tiles_y, *rows, starts, items, gathered, tiles_x, w, h, offsets, func, depth_write,
+             fb.samples_depth, vis, touched.reshape(-1), saved)
     return Visibility(vis, setup, touched, saved if undo else None)
 
 
