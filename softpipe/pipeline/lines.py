@@ -49,7 +49,8 @@ from softpipe.pipeline.setup import SHADE_CENTER, SHADE_SAMPLE, snap
 
 __all__ = ["LineSetup", "setup_lines", "crosses_diamond", "holds_end", "produces", "cover_line", "run_width",
            "line_walk", "minor_start", "minor_step", "column_candidates", "sample_means", "line_parameter",
-           "depth_along", "line_sample_depth", "line_shading_point", "line_sample_inputs"]
+           "depth_along", "line_depth_terms", "depth_at", "line_sample_depth", "line_shading_point",
+           "line_sample_inputs"]
 
 #: The diamond's half-diagonal, ½ pixel, in fixed point.
 RADIUS = SUBPIXEL // 2
@@ -307,9 +308,26 @@ def depth_along(depth, t, ts):
 
 
 @numba.njit(cache=True, inline="always")
+def line_depth_terms(ends, depth, t):
+    """What the depth along line t needs, read once a line: (X_a, Y_a, ΔX, ΔY, |Δ|², z_a, z_b − z_a), for
+    :func:`depth_at`."""
+    xa, ya = ends[t, 0], ends[t, 1]
+    dx, dy = ends[t, 2] - xa, ends[t, 3] - ya
+    return xa, ya, dx, dy, float(dx * dx + dy * dy), depth[t, 0], depth[t, 1] - depth[t, 0]
+
+
+@numba.njit(cache=True, inline="always")
+def depth_at(terms, px, py):
+    """The window depth at the fixed-point position (px, py) of the line of ``terms`` (:func:`line_depth_terms`):
+    :func:`depth_along` at :func:`line_parameter`'s t there, the same operations, so the same bits."""
+    xa, ya, dx, dy, length2, z_a, dz = terms
+    return min(max(z_a + _parameter(xa, ya, dx, dy, length2, px, py) * dz, 0.0), 1.0)
+
+
+@numba.njit(cache=True, inline="always")
 def line_sample_depth(ends, depth, t, i, j, s, offsets):
     """The window depth of line t's fragment of run start (i, j) at sample s: t taken at the sample."""
-    return depth_along(depth, t, line_parameter(ends, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]))
+    return depth_at(line_depth_terms(ends, depth, t), i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
 
 
 @numba.njit(cache=True, forceinline=True)
@@ -374,6 +392,7 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
         return 0
     samples = offsets.shape[0]
     means = sample_means(offsets, positions)
+    terms = line_depth_terms(ends, depth, t)
     n = 0
     row, rem, inc, span = minor_start(first, ma, na, nd, md)
     for major in range(first, last + step, step):
@@ -396,7 +415,7 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
                     out_x[k] = pi
                     out_y[k] = height - 1 - pj     # the y flip: window row → image row
                     out_s[k] = s
-                    out_depth[k] = line_sample_depth(ends, depth, t, i, j, s, offsets)
+                    out_depth[k] = depth_at(terms, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
                     out_bary[k, 0] = 1.0 - tb
                     out_bary[k, 1] = tb
                     out_bary[k, 2] = 0.0

@@ -25,7 +25,8 @@ from softpipe.core.parallel import in_bands
 from softpipe.pipeline.lines import (
     LineSetup,
     column_candidates,
-    line_sample_depth,
+    depth_at,
+    line_depth_terms,
     line_walk,
     minor_start,
     minor_step,
@@ -97,10 +98,11 @@ def _test_sample(s, row, i, z, t, func, write, depth, vis):
 
 
 @numba.njit(cache=True, inline="always")
-def _draw_column(xa, ya, xb, yb, x_major, major, lo, hi, sure, w, n_lo, n_hi, k, t, height, offsets, func, write,
-                 depth, vis, ends, zends, run, keep_run):
+def _draw_column(xa, ya, xb, yb, x_major, major, lo, hi, sure, w, n_lo, n_hi, t, height, offsets, func, write,
+                 depth, vis, terms, run, keep_run):
     """One column (row) of :func:`_draw_line`'s walk: its candidates lo..hi, each fragment's run within
-    the tile's rows (columns) [n_lo, n_hi] and every sample."""
+    the tile's rows (columns) [n_lo, n_hi] and every sample (``terms``: the line's
+    :func:`~softpipe.pipeline.lines.line_depth_terms`)."""
     for minor in range(lo, hi + 1):
         r_lo, r_hi = max(n_lo - minor, 0), min(n_hi - minor, w - 1)    # the run's part in the tile
         if r_lo > r_hi:
@@ -112,7 +114,7 @@ def _draw_column(xa, ya, xb, yb, x_major, major, lo, hi, sure, w, n_lo, n_hi, k,
             pi, pj = (i, j + r) if x_major else (i + r, j)
             row = height - 1 - pj
             for s in range(offsets.shape[0]):
-                z = np.float32(line_sample_depth(ends, zends, k, i, j, s, offsets))
+                z = np.float32(depth_at(terms, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]))
                 if _test_sample(s, row, pi, z, t, func, write, depth, vis) and keep_run:
                     run[s, row, pi] = r
 
@@ -127,9 +129,11 @@ def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets
 
     The walk starts at the tile's first column with the line's row there computed exactly
     (:func:`~softpipe.pipeline.lines.minor_start`), so it is the same in every tile the line
-    crosses. A thin line on a framebuffer of one sample (the common case: a wireframe) takes
-    a loop without the inner loops over the candidates, the run and the samples: at most one
-    fragment a column, where each of those short loops cost a mispredicted branch."""
+    crosses; the line's depth terms (:func:`~softpipe.pipeline.lines.line_depth_terms`) are read
+    once, and each sample's depth is :func:`~softpipe.pipeline.lines.depth_at`'s, the reference
+    path's arithmetic. A thin line on a framebuffer of one sample (the common case: a wireframe)
+    takes a loop without the inner loops over the candidates, the run and the samples: at most
+    one fragment a column, where each of those short loops cost a mispredicted branch."""
     xa, ya, xb, yb = ends[k, 0], ends[k, 1], ends[k, 2], ends[k, 3]
     x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, k)
     if step == 0:
@@ -145,24 +149,26 @@ def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets
     w = width[k]
     keep_run = run.shape[0] > 0
     row, rem, inc, span = minor_start(first, ma, na, nd, md)
+    terms = line_depth_terms(ends, zends, k)      # once a line and tile, not once a sample
     if w == 1 and offsets.shape[0] == 1 and not keep_run:
+        ox, oy = offsets[0, 0], offsets[0, 1]
         for major in range(first, last + step, step):
             lo, minor, sure = column_candidates(major, ma, mb, row, rem, span)
             row, rem = minor_step(row, rem, inc, span)
             if lo < minor:            # a tie between two rows: the general loop below, for this column
-                _draw_column(xa, ya, xb, yb, x_major, major, lo, minor, sure, 1, n_lo, n_hi, k, t, height,
-                             offsets, func, write, depth, vis, ends, zends, run, False)
+                _draw_column(xa, ya, xb, yb, x_major, major, lo, minor, sure, 1, n_lo, n_hi, t, height, offsets,
+                             func, write, depth, vis, terms, run, False)
             elif n_lo <= minor <= n_hi:
                 i, j = (major, minor) if x_major else (minor, major)
                 if sure or produces(xa, ya, xb, yb, i, j):
-                    z = np.float32(line_sample_depth(ends, zends, k, i, j, 0, offsets))
+                    z = np.float32(depth_at(terms, i * SUBPIXEL + ox, j * SUBPIXEL + oy))
                     _test_sample(0, height - 1 - j, i, z, t, func, write, depth, vis)
         return
     for major in range(first, last + step, step):
         lo, hi, sure = column_candidates(major, ma, mb, row, rem, span)
         row, rem = minor_step(row, rem, inc, span)
-        _draw_column(xa, ya, xb, yb, x_major, major, lo, hi, sure, w, n_lo, n_hi, k, t, height, offsets, func,
-                     write, depth, vis, ends, zends, run, keep_run)
+        _draw_column(xa, ya, xb, yb, x_major, major, lo, hi, sure, w, n_lo, n_hi, t, height, offsets, func,
+                     write, depth, vis, terms, run, keep_run)
 
 
 @numba.njit(cache=True, inline="always")
