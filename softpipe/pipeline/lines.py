@@ -382,9 +382,9 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
 
     Along the major axis from a's end to b's (:func:`line_walk`), the candidate diamonds of
     each column (row, for a y-major line) are the one nearest the line there, and at a tie
-    the one below it too (:func:`column_candidates`); :func:`produces` decides. Each produced fragment is a run of
-    ``width`` pixels across the minor axis (within ``rect``, the scissor), and every sample of
-    a pixel is covered.
+    the one below it too (:func:`column_candidates`); :func:`produces` decides. Each produced
+    fragment is a run of ``width`` pixels across the minor axis (within ``rect``, the
+    scissor), and every sample of a pixel is covered.
     """
     xa, ya, xb, yb = ends[t, 0], ends[t, 1], ends[t, 2], ends[t, 3]
     x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, t)
