@@ -9,6 +9,9 @@ random clouds and line sets full of overlaps and depth ties, on 1 and 2 threads.
 """
 from __future__ import annotations
 
+import random
+from fractions import Fraction
+
 import numba
 import numpy as np
 import pytest
@@ -16,6 +19,7 @@ import pytest
 import softpipe as sp
 from softpipe.pipeline.primitive_visibility import PrimitiveVisibility
 from softpipe.pipeline.sampling import pattern_named
+from softpipe.testing import reference_line
 
 # several tiles (128 × 32 pixels) each way, the last ones cut short
 W, H = 300, 100
@@ -307,3 +311,72 @@ def test_indexed_lines_corners_are_their_vertices_values_and_unused_vertices_are
                        "lines", viewport=sp.Viewport(0, 0, W, H))
     assert prims.window.tobytes() == flat.window.tobytes()
     assert prims.window.tobytes() == prims.window[:, [0, 1, 1]].tobytes()
+
+
+def segment_id(varyings, uniforms, frag):
+    """The segment's number as its red (k/1024, exact in float32): which segment each sample shows."""
+    return (frag.primitive_id / 1024.0, 0.0, 0.0, 1.0)
+
+
+def _tie_point(rng, w, h):
+    """A window position, a Fraction on the 1/256 grid, often a tie: a pixel centre, edge or corner, a
+    diamond vertex or 1/256 beside one, or a tile's border (x a multiple of 128, y of 32)."""
+    kind = rng.random()
+    if kind < 0.3:
+        return Fraction(rng.randint(0, 256 * w), 256), Fraction(rng.randint(0, 256 * h), 256)
+    nudge = Fraction(rng.choice((-1, 0, 0, 1)), 256)
+    x, y = Fraction(rng.randint(0, 2 * w), 2) + nudge, Fraction(rng.randint(0, 2 * h), 2) + nudge
+    if kind < 0.5:
+        x = Fraction(128 * rng.randint(0, w // 128)) + rng.choice((Fraction(-1, 2), 0, Fraction(1, 2)))
+    elif kind < 0.6:
+        y = Fraction(32 * rng.randint(0, h // 32)) + rng.choice((Fraction(-1, 2), 0, Fraction(1, 2)))
+    return min(max(x, Fraction(0)), Fraction(w)), min(max(y, Fraction(0)), Fraction(h))
+
+
+@pytest.mark.parametrize("width, pattern", [(1, "center"), (1, "rgss4"), (3, "center")])
+def test_lines_across_tiles_at_ties_give_the_rational_references_pixels_on_the_fast_path(width, pattern):
+    """Segments long and short across the tiles (whose walk starts again in each tile, the line's row
+    there computed exactly), through ties (slopes ½, 1 and 2 from pixel centres and edges: rows exactly
+    halfway between two, ends on diamond borders and tile borders): each sample shows the last segment
+    whose pixels by the rational reference (softpipe.testing.reference_line) hold it, on 1 and 2 threads.
+    Width 1 on one sample takes the tile walk's loop for thin lines, the others its general loop."""
+    _two_threads()
+    w, h = 512, 128           # powers of two: window positions on the 1/256 grid are exact in clip space
+    rng = random.Random(f"29-tiles-{width}-{pattern}")
+    segments = []
+    while len(segments) < 160:
+        a = _tie_point(rng, w, h)
+        if rng.random() < 0.5:
+            b = _tie_point(rng, w, h)
+        else:
+            d = Fraction(rng.randint(-120, 120), 2)
+            k = rng.choice((Fraction(1), Fraction(1, 2), Fraction(2), Fraction(-1), Fraction(-1, 2)))
+            b = (a[0] + d, a[1] + k * d) if rng.random() < 0.5 else (a[0] + k * d, a[1] + d)
+            if not (0 <= b[0] <= w and 0 <= b[1] <= h):
+                continue
+        if a != b:
+            segments.append((a, b))
+    pos = np.array([[float(2 * x / w - 1), float(2 * y / h - 1), 0.0, 1.0] for s in segments for x, y in s])
+    want = np.full((h, w), -1)
+    for k, (a, b) in enumerate(segments):
+        for i, j in reference_line(a, b, width):
+            if 0 <= i < w and 0 <= j < h:
+                want[h - 1 - j, i] = k
+    assert (want >= 0).sum() > 8000
+    for threads in (1, 2):
+        before = numba.get_num_threads()
+        fb = sp.Framebuffer(w, h, pattern=pattern_named(pattern))
+        fb.clear((0.0, 0.0, 0.0, 0.0))
+        try:
+            numba.set_num_threads(threads)
+            call = sp.DrawCall(fb, pos, None, {"color": np.zeros((len(pos), 3))}, None, segment_id, None,
+                               topology="lines", path="fast", depth_test=None, line_width=float(width))
+            call.run()
+        finally:
+            numba.set_num_threads(before)
+        assert call.path_taken == "fast"
+        have = np.where(fb.samples_color[..., 3] == 1.0, np.rint(fb.samples_color[..., 0] * 1024), -1)
+        for s in range(len(have)):
+            wrong = np.argwhere(have[s] != want)
+            assert len(wrong) == 0, (threads, s, [(int(i), h - 1 - int(r), int(want[r, i]), int(have[s, r, i]))
+                                                  for r, i in wrong[:10]])

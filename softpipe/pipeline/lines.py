@@ -11,7 +11,10 @@ the specification says, by perturbing both ends by −(ε, ε²) for an infinite
 The ends are snapped to the triangles' grid (1/256 pixel, :func:`~softpipe.pipeline.setup.snap`),
 so the tests are exact 64-bit integer arithmetic. A segment is *x-major* when
 |Δx| ≥ |Δy|; then at most one diamond per column can meet it (the one whose centre
-is within ½ of the line vertically), which is where :func:`cover_line` looks.
+is within ½ of the line vertically), which is where :func:`cover_line` looks: the
+walk (:func:`line_walk`, :func:`minor_start`, :func:`minor_step`, :func:`column_candidates`)
+visits the columns whose diamonds the segment's extent can reach and carries the line's
+row there as an exact fraction, stepped by one addition a column.
 
 **Wide lines** (width w, rounded to the nearest integer, at least 1; GL's
 non-antialiased wide-line rule, OpenGL 4.6 compatibility profile §14.5.2.1): the
@@ -45,15 +48,12 @@ from softpipe.pipeline.sampling import SUBPIXEL
 from softpipe.pipeline.setup import SHADE_CENTER, SHADE_SAMPLE, snap
 
 __all__ = ["LineSetup", "setup_lines", "crosses_diamond", "holds_end", "produces", "cover_line", "run_width",
-           "line_walk", "column_candidates", "sample_means", "line_parameter", "depth_along", "line_sample_depth",
-           "line_shading_point", "line_sample_inputs"]
+           "line_walk", "minor_start", "minor_step", "column_candidates", "sample_means", "line_parameter",
+           "depth_along", "line_depth_terms", "depth_at", "line_sample_depth", "line_shading_point",
+           "line_sample_inputs"]
 
 #: The diamond's half-diagonal, ½ pixel, in fixed point.
 RADIUS = SUBPIXEL // 2
-#: How near (in fixed-point units, 1/256 pixel) a line's minor coordinate computed in floating point
-#: may come to ½ pixel from a row's centre before that row is asked the exact rule: far above the
-#: float error of :func:`column_candidates`'s ``minor_at`` (below 1e-6 on any framebuffer).
-CANDIDATE_MARGIN = 0.01
 
 
 @dataclass
@@ -210,7 +210,10 @@ def line_walk(ends, t):
 
     (ma, mb) are the ends' major coordinates, na the first end's minor one, (nd, md) the
     minor and major extents; the walk goes from column (row, for a y-major line) ``first``
-    to ``last`` by ``step`` (±1), the columns whose diamonds the segment's major extent meets.
+    to ``last`` by ``step`` (±1): exactly the columns whose open slab (centre ± ½) the
+    segment's major extent meets once moved by −ε (the perturbation's part along the major
+    axis, ε or ε²), the only ones where one of its diamonds can be crossed: column c with
+    c·256 + 128 ≥ min(ma, mb) and c·256 − 128 < max(ma, mb).
     """
     xa, ya, xb, yb = ends[t, 0], ends[t, 1], ends[t, 2], ends[t, 3]
     dx, dy = xb - xa, yb - ya
@@ -219,40 +222,60 @@ def line_walk(ends, t):
     ma, mb, na, nd, md = (xa, xb, ya, dy, dx) if x_major else (ya, yb, xa, dx, dy)
     if dx == 0 and dy == 0:
         return x_major, ma, mb, na, nd, md, 0, 0, -1
-    step = 1 if mb >= ma else -1
-    first = (ma - RADIUS) // SUBPIXEL if step > 0 else -((-(ma + RADIUS)) // SUBPIXEL)
-    last = -((-(mb + RADIUS)) // SUBPIXEL) if step > 0 else (mb - RADIUS) // SUBPIXEL
-    return x_major, ma, mb, na, nd, md, step, first, last
+    low = -((RADIUS - min(ma, mb)) // SUBPIXEL)                # ⌈(min − 128)/256⌉
+    high = -((-(max(ma, mb) + RADIUS)) // SUBPIXEL) - 1         # ⌈(max + 128)/256⌉ − 1
+    if mb >= ma:
+        return x_major, ma, mb, na, nd, md, 1, low, high
+    return x_major, ma, mb, na, nd, md, -1, high, low
 
 
 @numba.njit(cache=True, forceinline=True)
-def column_candidates(major, ma, mb, na, nd, md):
-    """The candidate diamonds of column (row) ``major`` of a line: (lo, hi, sure), minor indices lo..hi.
+def minor_start(major, ma, na, nd, md):
+    """Where the line (as :func:`line_walk` gives it) passes column (row) ``major``, exactly: (row, rem, inc,
+    span), with its minor coordinate there na + (256·major − ma)·nd/md = 256·row + rem/|md|.
+
+    ``row`` is the row (column) nearest the line, halves down, so rem is in [−128·|md|, 128·|md|);
+    ``inc`` is what rem gains from one column to the next along the walk's step, and ``span`` =
+    256·|md| (one row): :func:`minor_step` carries them on. All integers, so the walk's rows are
+    exact: no row is missed or guessed where the line passes ½ pixel from two.
+    """
+    span = SUBPIXEL * abs(md)
+    sign = 1 if md > 0 else -1
+    p = (na * md + (major * SUBPIXEL - ma) * nd) * sign          # = the minor coordinate · |md|
+    row = (2 * p + span) // (2 * span)                          # ⌊p / span + ½⌋
+    # the walk steps by sign(md) columns, so p gains sign(md)·256·nd·sign = 256·nd a column
+    return row, p - row * span, SUBPIXEL * nd, span
+
+
+@numba.njit(cache=True, forceinline=True)
+def minor_step(row, rem, inc, span):
+    """(row, rem) of :func:`minor_start` at the walk's next column: |inc| ≤ span (|slope| ≤ 1), so the
+    row moves by at most one; without a branch (which row it moves to follows the line, not a pattern)."""
+    rem += inc
+    carry = np.int64(2 * rem >= span) - np.int64(2 * rem < -span)
+    return row + carry, rem - carry * span
+
+
+@numba.njit(cache=True, forceinline=True)
+def column_candidates(major, ma, mb, row, rem, span):
+    """The candidate diamonds of column (row) ``major`` of a line, at (row, rem) of :func:`minor_start`:
+    (lo, hi, sure), minor indices lo..hi.
 
     An x-major line (|slope| ≤ 1) meets a diamond of this column only if it passes within ½
     pixel of its centre here: along the line the minor coordinate moves no faster than the
-    major one, and the diamond's |u| + |v| < ½ then bounds |v| at u = 0. So the candidates
-    are the row ``guess`` nearest the line, and a neighbour only where the line passes
-    within ½ of it too — at a tie, or within a margin far above the float error of
-    ``minor_at`` (a neighbour nearer than ½ + :data:`CANDIDATE_MARGIN`); :func:`produces` decides.
+    major one, and the diamond's |u| + |v| < ½ then bounds |v| at u = 0. So the candidate is
+    ``row``, the row nearest the line, and the row below it too where the line passes exactly
+    halfway between them (rem = −½ pixel: the perturbation decides); :func:`produces` decides.
 
     A column whose whole slab (centre ± ½) lies strictly inside the segment's major extent,
-    where the line passes strictly within ½ of ``guess`` by that margin, is ``sure``: the
-    segment crosses that diamond (through its centre's column) and no other in the column,
-    the end is not in it (it is beyond the slab), and no tie needs the perturbation. So the
-    rule's answer is known without the exact tests.
+    where the line passes strictly within ½ of ``row``, is ``sure``: the segment crosses that
+    diamond (through its centre's column) and no other in the column, the end is not in it
+    (it is beyond the slab), and no tie needs the perturbation. So the rule's answer is known
+    without the exact tests.
     """
-    minor_at = na + (major * SUBPIXEL - ma) * nd / md        # the line's minor coordinate here
-    guess = np.int64(np.floor(minor_at / SUBPIXEL + 0.5))
-    off = minor_at - guess * SUBPIXEL                        # in [−½, ½] pixel, up to the float error
-    lo_major, hi_major = min(ma, mb), max(ma, mb)
-    sure = (major * SUBPIXEL - RADIUS > lo_major and major * SUBPIXEL + RADIUS < hi_major
-            and abs(off) < RADIUS - CANDIDATE_MARGIN)
-    if sure:
-        return guess, guess, True
-    lo = guess - 1 if off <= CANDIDATE_MARGIN - RADIUS else guess       # the row below is within ½ (or nearly)
-    hi = guess + 1 if off >= RADIUS - CANDIDATE_MARGIN else guess       # the row above
-    return lo, hi, False
+    tie = 2 * rem == -span
+    inside = major * SUBPIXEL - RADIUS > min(ma, mb) and major * SUBPIXEL + RADIUS < max(ma, mb)
+    return (row - 1 if tie else row), row, inside and not tie
 
 
 @numba.njit(cache=True, forceinline=True)
@@ -285,9 +308,26 @@ def depth_along(depth, t, ts):
 
 
 @numba.njit(cache=True, inline="always")
+def line_depth_terms(ends, depth, t):
+    """What the depth along line t needs, read once a line: (X_a, Y_a, ΔX, ΔY, |Δ|², z_a, z_b − z_a), for
+    :func:`depth_at`."""
+    xa, ya = ends[t, 0], ends[t, 1]
+    dx, dy = ends[t, 2] - xa, ends[t, 3] - ya
+    return xa, ya, dx, dy, float(dx * dx + dy * dy), depth[t, 0], depth[t, 1] - depth[t, 0]
+
+
+@numba.njit(cache=True, inline="always")
+def depth_at(terms, px, py):
+    """The window depth at the fixed-point position (px, py) of the line of ``terms`` (:func:`line_depth_terms`):
+    :func:`depth_along` at :func:`line_parameter`'s t there, the same operations, so the same bits."""
+    xa, ya, dx, dy, length2, z_a, dz = terms
+    return min(max(z_a + _parameter(xa, ya, dx, dy, length2, px, py) * dz, 0.0), 1.0)
+
+
+@numba.njit(cache=True, inline="always")
 def line_sample_depth(ends, depth, t, i, j, s, offsets):
     """The window depth of line t's fragment of run start (i, j) at sample s: t taken at the sample."""
-    return depth_along(depth, t, line_parameter(ends, t, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]))
+    return depth_at(line_depth_terms(ends, depth, t), i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
 
 
 @numba.njit(cache=True, forceinline=True)
@@ -341,10 +381,10 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
     ``emit``. Returns the count.
 
     Along the major axis from a's end to b's (:func:`line_walk`), the candidate diamonds of
-    each column (row, for a y-major line) are the ones within a pixel of the line there
-    (:func:`column_candidates`); :func:`produces` decides. Each produced fragment is a run of
-    ``width`` pixels across the minor axis (within ``rect``, the scissor), and every sample of
-    a pixel is covered.
+    each column (row, for a y-major line) are the one nearest the line there, and at a tie
+    the one below it too (:func:`column_candidates`); :func:`produces` decides. Each produced
+    fragment is a run of ``width`` pixels across the minor axis (within ``rect``, the
+    scissor), and every sample of a pixel is covered.
     """
     xa, ya, xb, yb = ends[t, 0], ends[t, 1], ends[t, 2], ends[t, 3]
     x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, t)
@@ -352,9 +392,12 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
         return 0
     samples = offsets.shape[0]
     means = sample_means(offsets, positions)
+    terms = line_depth_terms(ends, depth, t)
     n = 0
+    row, rem, inc, span = minor_start(first, ma, na, nd, md)
     for major in range(first, last + step, step):
-        lo, hi, sure = column_candidates(major, ma, mb, na, nd, md)
+        lo, hi, sure = column_candidates(major, ma, mb, row, rem, span)
+        row, rem = minor_step(row, rem, inc, span)
         for minor in range(lo, hi + 1):
             i, j = (major, minor) if x_major else (minor, major)
             if not sure and not produces(xa, ya, xb, yb, i, j):
@@ -372,7 +415,7 @@ def cover_line(ends, width, depth, t, rect, height, offsets, positions, mode, ou
                     out_x[k] = pi
                     out_y[k] = height - 1 - pj     # the y flip: window row → image row
                     out_s[k] = s
-                    out_depth[k] = line_sample_depth(ends, depth, t, i, j, s, offsets)
+                    out_depth[k] = depth_at(terms, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1])
                     out_bary[k, 0] = 1.0 - tb
                     out_bary[k, 1] = tb
                     out_bary[k, 2] = 0.0

@@ -22,7 +22,16 @@ import numpy as np
 
 from softpipe.core.borrow import borrowed_tuple
 from softpipe.core.parallel import in_bands
-from softpipe.pipeline.lines import LineSetup, column_candidates, line_sample_depth, line_walk, produces
+from softpipe.pipeline.lines import (
+    LineSetup,
+    column_candidates,
+    depth_at,
+    line_depth_terms,
+    line_walk,
+    minor_start,
+    minor_step,
+    produces,
+)
 from softpipe.pipeline.output import depth_passes
 from softpipe.pipeline.points import in_square, point_box
 from softpipe.pipeline.sampling import SUBPIXEL
@@ -36,10 +45,11 @@ def _line_boxes(lo, hi, ends, width, rect, box):
     """The pixels each of lines lo:hi may produce, within ``rect``: a box around its candidate diamonds
     and its runs; empty for a line of length 0.
 
-    The walk's columns reach 1½ pixels (383/256) past an end, where the line's minor coordinate
-    is at most that far beyond the ends' (|slope| ≤ 1); a candidate's centre is within ½ pixel
-    (and :data:`~softpipe.pipeline.lines.CANDIDATE_MARGIN`) of it
-    (:func:`~softpipe.pipeline.lines.column_candidates`): 2 pixels in all, either way."""
+    The walk's columns (:func:`~softpipe.pipeline.lines.line_walk`) have their centres less than
+    ½ pixel past an end along the major axis, where the line's minor coordinate is at most ½
+    pixel beyond the ends' (|slope| ≤ 1); a candidate's centre is within ½ pixel of it
+    (:func:`~softpipe.pipeline.lines.column_candidates`): rows from ⌈min/256⌉ − 1 to
+    ⌊max/256⌋ + 1 of the ends' minor coordinates, and a run's w − 1 more."""
     for t in range(lo, hi):
         x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, t)
         if step == 0:
@@ -47,8 +57,8 @@ def _line_boxes(lo, hi, ends, width, rect, box):
             continue
         m0, m1 = min(first, last), max(first, last)
         nb = na + nd
-        n0 = min(na, nb) // SUBPIXEL - 2
-        n1 = max(na, nb) // SUBPIXEL + 3 + width[t] - 1          # a run goes up (right) from its fragment
+        n0 = -((-min(na, nb)) // SUBPIXEL) - 1
+        n1 = max(na, nb) // SUBPIXEL + 1 + width[t] - 1          # a run goes up (right) from its fragment
         i0, i1, j0, j1 = (m0, m1, n0, n1) if x_major else (n0, n1, m0, m1)
         box[t, 0], box[t, 1] = max(i0, rect[0]), min(i1, rect[1])
         box[t, 2], box[t, 3] = max(j0, rect[2]), min(j1, rect[3])
@@ -88,12 +98,42 @@ def _test_sample(s, row, i, z, t, func, write, depth, vis):
 
 
 @numba.njit(cache=True, inline="always")
+def _draw_column(xa, ya, xb, yb, x_major, major, lo, hi, sure, w, n_lo, n_hi, t, height, offsets, func, write,
+                 depth, vis, terms, run, keep_run):
+    """One column (row) of :func:`_draw_line`'s walk: its candidates lo..hi, each fragment's run within
+    the tile's rows (columns) [n_lo, n_hi] and every sample (``terms``: the line's
+    :func:`~softpipe.pipeline.lines.line_depth_terms`)."""
+    for minor in range(lo, hi + 1):
+        r_lo, r_hi = max(n_lo - minor, 0), min(n_hi - minor, w - 1)    # the run's part in the tile
+        if r_lo > r_hi:
+            continue
+        i, j = (major, minor) if x_major else (minor, major)
+        if not sure and not produces(xa, ya, xb, yb, i, j):
+            continue
+        for r in range(r_lo, r_hi + 1):
+            pi, pj = (i, j + r) if x_major else (i + r, j)
+            row = height - 1 - pj
+            for s in range(offsets.shape[0]):
+                z = np.float32(depth_at(terms, i * SUBPIXEL + offsets[s, 0], j * SUBPIXEL + offsets[s, 1]))
+                if _test_sample(s, row, pi, z, t, func, write, depth, vis) and keep_run:
+                    run[s, row, pi] = r
+
+
+@numba.njit(cache=True, inline="always")
 def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets, func, write, depth, vis, run):
     """Depth-test the fragments of line t (its setup at row k of ``ends``, ``width``, ``zends``) in pixels
     [x_lo, x_hi] × [y_lo, y_hi]: the reference rasterizer's walk
     (:func:`~softpipe.pipeline.lines.cover_line`, in its order) over the columns (rows) of the tile
     alone, each fragment's samples at their depth; ``run`` (unless empty) gets the place in its
-    run of each sample written, from which shading finds the run's first fragment."""
+    run of each sample written, from which shading finds the run's first fragment.
+
+    The walk starts at the tile's first column with the line's row there computed exactly
+    (:func:`~softpipe.pipeline.lines.minor_start`), so it is the same in every tile the line
+    crosses; the line's depth terms (:func:`~softpipe.pipeline.lines.line_depth_terms`) are read
+    once, and each sample's depth is :func:`~softpipe.pipeline.lines.depth_at`'s, the reference
+    path's arithmetic. A thin line on a framebuffer of one sample (the common case: a wireframe)
+    takes a loop without the inner loops over the candidates, the run and the samples: at most
+    one fragment a column, where each of those short loops cost a mispredicted branch."""
     xa, ya, xb, yb = ends[k, 0], ends[k, 1], ends[k, 2], ends[k, 3]
     x_major, ma, mb, na, nd, md, step, first, last = line_walk(ends, k)
     if step == 0:
@@ -104,24 +144,31 @@ def _draw_line(ends, width, zends, k, t, x_lo, x_hi, y_lo, y_hi, height, offsets
         first, last = max(first, m_lo), min(last, m_hi)
     else:
         first, last = min(first, m_hi), max(last, m_lo)
+    if (last - first) * step < 0:
+        return
     w = width[k]
     keep_run = run.shape[0] > 0
+    row, rem, inc, span = minor_start(first, ma, na, nd, md)
+    terms = line_depth_terms(ends, zends, k)      # once a line and tile, not once a sample
+    if w == 1 and offsets.shape[0] == 1 and not keep_run:
+        ox, oy = offsets[0, 0], offsets[0, 1]
+        for major in range(first, last + step, step):
+            lo, minor, sure = column_candidates(major, ma, mb, row, rem, span)
+            row, rem = minor_step(row, rem, inc, span)
+            if lo < minor:            # a tie between two rows: the general loop below, for this column
+                _draw_column(xa, ya, xb, yb, x_major, major, lo, minor, sure, 1, n_lo, n_hi, t, height, offsets,
+                             func, write, depth, vis, terms, run, False)
+            elif n_lo <= minor <= n_hi:
+                i, j = (major, minor) if x_major else (minor, major)
+                if sure or produces(xa, ya, xb, yb, i, j):
+                    z = np.float32(depth_at(terms, i * SUBPIXEL + ox, j * SUBPIXEL + oy))
+                    _test_sample(0, height - 1 - j, i, z, t, func, write, depth, vis)
+        return
     for major in range(first, last + step, step):
-        lo, hi, sure = column_candidates(major, ma, mb, na, nd, md)
-        for minor in range(lo, hi + 1):
-            r_lo, r_hi = max(n_lo - minor, 0), min(n_hi - minor, w - 1)    # the run's part in the tile
-            if r_lo > r_hi:
-                continue
-            i, j = (major, minor) if x_major else (minor, major)
-            if not sure and not produces(xa, ya, xb, yb, i, j):
-                continue
-            for r in range(r_lo, r_hi + 1):
-                pi, pj = (i, j + r) if x_major else (i + r, j)
-                row = height - 1 - pj
-                for s in range(offsets.shape[0]):
-                    z = np.float32(line_sample_depth(ends, zends, k, i, j, s, offsets))
-                    if _test_sample(s, row, pi, z, t, func, write, depth, vis) and keep_run:
-                        run[s, row, pi] = r
+        lo, hi, sure = column_candidates(major, ma, mb, row, rem, span)
+        row, rem = minor_step(row, rem, inc, span)
+        _draw_column(xa, ya, xb, yb, x_major, major, lo, hi, sure, w, n_lo, n_hi, t, height, offsets, func,
+                     write, depth, vis, terms, run, keep_run)
 
 
 @numba.njit(cache=True, inline="always")
