@@ -140,6 +140,25 @@ def _visible_by_primitive(band_lo, band_hi, bounds, vis, touched, tile_w, tile_h
                         at[t] += 1
 
 
+@numba.njit(cache=True, nogil=True)
+def _first_places(places):
+    """The counts ``places[band, t]`` (:func:`_visible_by_primitive`) replaced, in place, by each band's first
+    place for primitive t: a running sum over (primitive, band) in that order, so that a primitive's
+    samples are its bands' in turn. Returns the total.
+
+    In place and in one pass: the table stays in (band, primitive) order, each band's places
+    its own rows (numpy's running sum over the transposed table made three copies of it, and a
+    table left transposed put the two bands' places side by side, where the bands' threads
+    wrote each other's cache lines)."""
+    total = 0
+    for t in range(places.shape[1]):
+        for band in range(places.shape[0]):
+            count = places[band, t]
+            places[band, t] = total
+            total += count
+    return total
+
+
 @numba.njit(cache=True, nogil=True, forceinline=True)
 def _key_place(key, width, samples):
     """(row, sample, column) of a sorted visible sample's key, (row·S + sample)·W + column."""
@@ -215,12 +234,9 @@ def _sorted_samples(visibility: PrimitiveVisibility, n_prims: int, pooled: bool)
     keys, tri = np.empty(0, np.int64), np.empty(0, np.int32)
     if touched.any() and n_prims:
         in_bands(_visible_by_primitive, bands, bounds, vis, touched, TILE_W, TILE_H, places, keys, tri, False)
-    running = np.zeros(places.size + 1, np.int64)
-    np.cumsum(places.T.ravel(), out=running[1:])
-    n = int(running[-1])
+    n = int(_first_places(places))
     if not n:
         return keys, tri
-    places = running[:-1].reshape(n_prims, bands).T.astype(places_type)
     keys = _pooled("keys", n, np.int64)[:n] if pooled else np.empty(n, np.int64)
     tri = _pooled("tri", n, np.int32)[:n] if pooled else np.empty(n, np.int32)
     in_bands(_visible_by_primitive, bands, bounds, vis, touched, TILE_W, TILE_H, places, keys, tri, True)
@@ -290,7 +306,7 @@ def _shade_in_place(prims: Primitives, visibility: PrimitiveVisibility, fb, shad
         kind, arrays, run = "points", (setup.centre, setup.size, setup.depth), np.zeros((0, 0, 0), np.uint8)
     kernel = kernels.primitive_kernel(shader, prims.layout, kind)
     n = len(keys)
-    bad = np.zeros(n + 1, np.int64)
+    bad = np.zeros(n + 1, np.uint8)        # a flag at each band's first sample (bytes: the array is read whole)
     args = (keys, tri, run, *arrays, fb.pattern.offsets, fb.pattern.positions, mode, prims.inv_w, prims.varyings,
             prims.front_facing, prims.primitive_id, derivative_gradients(shader, setup), uniforms,
             fb.samples_color, bad)
