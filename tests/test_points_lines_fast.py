@@ -372,3 +372,22 @@ def test_visible_samples_are_sorted_by_primitive_then_row_tile_sample_and_column
     order = np.lexsort((col, s, col // TILE_W, row, t))
     assert tri.tolist() == t[order].tolist()
     assert keys.tolist() == ((row * samples + s) * width + col)[order].tolist()
+
+
+@pytest.mark.parametrize("bands", [2, 3, 4])
+def test_the_sort_bands_hold_about_as_many_visible_samples_each(bands):
+    """The sort's bands of rows (the threads' work) are cut where the visible samples, counted in every
+    8th row, are shared evenly: a screen whose top quarter holds most of them is not cut in halves."""
+    from softpipe.pipeline.primitive_visibility import _balanced_bounds
+
+    rng = np.random.default_rng(8)
+    samples, height, width = 1, 256, 300
+    dense = np.arange(height)[:, None] < 64                  # the top quarter: 9 in 10 samples visible
+    vis = np.where(rng.random((samples, height, width)) < np.where(dense, 0.9, 0.05), 7, -1).astype(np.int32)
+    touched = np.ones((-(-height // 32), -(-width // 128)), np.bool_)
+    bounds = _balanced_bounds(vis, touched, bands)
+    assert bounds[0] == 0 and bounds[-1] == height and (np.diff(bounds) >= 0).all() and len(bounds) == bands + 1
+    counts = [int((vis[:, bounds[k]:bounds[k + 1]] >= 0).sum()) for k in range(bands)]
+    assert max(counts) < 1.15 * min(counts), counts
+    assert _balanced_bounds(np.full_like(vis, -1), touched, bands).tolist() == \
+        np.linspace(0, height, bands + 1).astype(np.int64).tolist()
