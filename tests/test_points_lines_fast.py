@@ -380,3 +380,86 @@ def test_lines_across_tiles_at_ties_give_the_rational_references_pixels_on_the_f
             wrong = np.argwhere(have[s] != want)
             assert len(wrong) == 0, (threads, s, [(int(i), h - 1 - int(r), int(want[r, i]), int(have[s, r, i]))
                                                   for r, i in wrong[:10]])
+
+def test_lines_sharing_vertices_and_wireframe_edges_take_flat_varyings_from_the_provoking_vertex():
+    """Lines that share their vertices (more lines than vertices: assembly packs each vertex's values in
+    a row first) and a mesh's edges in polygon mode "line": window position, 1/w and varyings are
+    exactly those of the same primitives assembled one vertex per corner, and a flat varying is the
+    provoking vertex's on every corner (a line's second end; an edge's triangle's third corner)."""
+    rng = np.random.default_rng(5)
+    n = 300
+    pos = clip(rng.uniform(0, [W, H], (n, 2)), rng.uniform(-0.9, 0.9, n)) * rng.uniform(0.5, 3.0, (n, 1))
+    color, tint = rng.uniform(0, 1, (n, 3)), rng.uniform(0, 1, (n, 2))
+    viewport = sp.Viewport(0, 0, W, H)
+
+    def vertices(rows):
+        vout = sp.run_vertex_stage(pos[rows], varyings={"color": color[rows], "tint": tint[rows]})
+        vout.layout = vout.layout.with_qualifiers({"tint": "flat"})
+        return vout
+
+    def same(a, b):
+        return all(getattr(a, k).tobytes() == getattr(b, k).tobytes() for k in ("window", "inv_w", "varyings"))
+
+    indices = rng.choice(n, (2000, 2))
+    shared = sp.assemble(vertices(np.arange(n)), "lines", indices.ravel(), viewport=viewport)
+    one_each = sp.assemble(vertices(indices.ravel()), "lines", viewport=viewport)
+    assert len(shared) == 2000 and same(shared, one_each)
+    assert shared.varyings[:, :, 3:].tobytes() == np.repeat(tint[indices[:, 1], None, :], 3, axis=1).tobytes()
+
+    faces = rng.choice(n, (600, 3))
+    edges = sp.assemble(vertices(np.arange(n)), "triangles", faces.ravel(), viewport=viewport, polygon_mode="line")
+    one_each = sp.assemble(vertices(faces.ravel()), "triangles", viewport=viewport, polygon_mode="line")
+    assert len(edges) == 1800 and same(edges, one_each)
+    provoking = faces[edges.primitive_id, 2]
+    assert edges.varyings[:, :, 3:].tobytes() == np.repeat(tint[provoking, None, :], 3, axis=1).tobytes()
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_visible_samples_are_sorted_by_primitive_then_row_tile_sample_and_column(threads):
+    """The shading's counting sort (in bands of rows, each band's places from one running sum over
+    (primitive, band)) puts each primitive's visible samples in (image row, tile, sample, column) order,
+    whatever the number of bands; tiles no primitive touched are not read (what they hold is left out)."""
+    from softpipe.pipeline.primitive_visibility import _sorted_samples
+    from softpipe.pipeline.tiles import TILE_H, TILE_W
+
+    rng = np.random.default_rng(3)
+    samples, height, width, n_prims = 2, 100, 300, 500
+    vis = np.where(rng.random((samples, height, width)) < 0.3, rng.integers(0, n_prims, (samples, height, width)),
+                   -1).astype(np.int32)
+    touched = rng.random((-(-height // TILE_H), -(-width // TILE_W))) < 0.7
+    in_touched = np.zeros(vis.shape, bool)
+    for ty, tx in zip(*np.nonzero(touched)):              # a touched tile's rows (image rows, y down)
+        rows = slice(max(height - (ty + 1) * TILE_H, 0), height - ty * TILE_H)
+        in_touched[:, rows, tx * TILE_W:(tx + 1) * TILE_W] = True
+    assert (in_touched & (vis >= 0)).any() and (~in_touched & (vis >= 0)).any()
+    visibility = PrimitiveVisibility(vis, None, touched, None)          # type: ignore[arg-type]
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        keys, tri = _sorted_samples(visibility, n_prims, pooled=False)
+    finally:
+        numba.set_num_threads(before)
+    s, row, col = np.nonzero(in_touched & (vis >= 0))
+    t = vis[s, row, col]
+    order = np.lexsort((col, s, col // TILE_W, row, t))
+    assert tri.tolist() == t[order].tolist()
+    assert keys.tolist() == ((row * samples + s) * width + col)[order].tolist()
+
+
+@pytest.mark.parametrize("bands", [2, 3, 4])
+def test_the_sort_bands_hold_about_as_many_visible_samples_each(bands):
+    """The sort's bands of rows (the threads' work) are cut where the visible samples, counted in every
+    8th row, are shared evenly: a screen whose top quarter holds most of them is not cut in halves."""
+    from softpipe.pipeline.primitive_visibility import _balanced_bounds
+
+    rng = np.random.default_rng(8)
+    samples, height, width = 1, 256, 300
+    dense = np.arange(height)[:, None] < 64                  # the top quarter: 9 in 10 samples visible
+    vis = np.where(rng.random((samples, height, width)) < np.where(dense, 0.9, 0.05), 7, -1).astype(np.int32)
+    touched = np.ones((-(-height // 32), -(-width // 128)), np.bool_)
+    bounds = _balanced_bounds(vis, touched, bands)
+    assert bounds[0] == 0 and bounds[-1] == height and (np.diff(bounds) >= 0).all() and len(bounds) == bands + 1
+    counts = [int((vis[:, bounds[k]:bounds[k + 1]] >= 0).sum()) for k in range(bands)]
+    assert max(counts) < 1.15 * min(counts), counts
+    assert _balanced_bounds(np.full_like(vis, -1), touched, bands).tolist() == \
+        np.linspace(0, height, bands + 1).astype(np.int64).tolist()

@@ -610,6 +610,53 @@ def _emit_accepted(lo, hi, pos, var, tri, provoking, status, offset, vertex_wind
                 out_var[o, c, k] = var[provoking[t], k]
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _pack_line_vertices(lo, hi, pos, vertex_window, var, packed):
+    """Vertices lo:hi's corner values in one row each, for :func:`_emit_lines`: window x, y, z, 1/w, then
+    the varyings. (The numpy error model: a vertex no accepted line uses may have w = 0, whose 1/w is
+    then never read; every used one has w > 0, and its 1/w is the number :func:`_emit_accepted` makes.)"""
+    k = var.shape[1]
+    for v in range(lo, hi):
+        packed[v, 0] = vertex_window[v, 0]
+        packed[v, 1] = vertex_window[v, 1]
+        packed[v, 2] = vertex_window[v, 2]
+        packed[v, 3] = 1.0 / pos[v, 3]
+        for c in range(k):
+            packed[v, 4 + c] = var[v, c]
+
+
+@numba.njit(cache=True, nogil=True)
+def _emit_lines(lo, hi, packed, tri, provoking, status, offset, flat, window, inv_w, out_var, key):
+    """:func:`_emit_accepted` for lines whose vertices are shared (an indexed wireframe's): each end's values
+    read once from its packed row (:func:`_pack_line_vertices`), the second written to corners 1 and 2.
+
+    A wireframe's second ends come in no order: reading an end's window position, w and varyings
+    from three arrays was three cache misses, and the second end was read twice."""
+    k_var = packed.shape[1] - 4
+    for t in range(lo, hi):
+        if status[t] != ACCEPTED:
+            continue
+        o = offset[t]
+        key[o] = t
+        a, b = tri[t, 0], tri[t, 1]
+        window[o, 0, 0] = packed[a, 0]
+        window[o, 0, 1] = packed[a, 1]
+        window[o, 0, 2] = packed[a, 2]
+        inv_w[o, 0] = packed[a, 3]
+        x, y, z, w = packed[b, 0], packed[b, 1], packed[b, 2], packed[b, 3]
+        window[o, 1, 0] = window[o, 2, 0] = x
+        window[o, 1, 1] = window[o, 2, 1] = y
+        window[o, 1, 2] = window[o, 2, 2] = z
+        inv_w[o, 1] = inv_w[o, 2] = w
+        for k in range(k_var):
+            out_var[o, 0, k] = packed[a, 4 + k]
+            value = packed[b, 4 + k]
+            out_var[o, 1, k] = out_var[o, 2, k] = value
+        for k in flat:                       # the provoking vertex's value on every corner
+            value = packed[provoking[t], 4 + k]
+            out_var[o, 0, k] = out_var[o, 1, k] = out_var[o, 2, k] = value
+
+
 @numba.njit(cache=True)
 def _windows_of(clip, vp):
     out = np.empty((clip.shape[0], 3))
@@ -851,9 +898,20 @@ def _assemble(vout: VertexOut, tri: np.ndarray, provoking: np.ndarray, kind: str
     else:
         window, inv_w = np.empty((total, 3, 3)), np.empty((total, 3))
         out_var, key = np.empty((total, 3, k)), np.empty(total, np.int64)
-        if n:
-            in_bands(_emit_accepted, n, vout.position, vout.varyings, tri, np.ascontiguousarray(provoking), status,
-                     offset, vertex_window, flat, window, inv_w, out_var, key, grain=8192)
+        # the provoking vertices are read only for flat varyings
+        provoking = np.ascontiguousarray(provoking) if len(flat) else np.zeros(0, np.int64)
+        if n and kind == "lines" and n > len(vout.position):
+            # lines sharing their vertices (more lines than vertices: a wireframe's edges), whose ends
+            # come in no order: each vertex's values packed in one row first (_emit_lines). Not for
+            # triangles and points, which it made slower (benchmarks/README.md, round 3)
+            packed = np.empty((len(vout.position), 4 + k))
+            in_bands(_pack_line_vertices, len(packed), vout.position, vertex_window, vout.varyings, packed,
+                     grain=8192)
+            in_bands(_emit_lines, n, packed, tri, provoking, status, offset, flat, window, inv_w, out_var, key,
+                     grain=8192)
+        elif n:
+            in_bands(_emit_accepted, n, vout.position, vout.varyings, tri, provoking, status, offset,
+                     vertex_window, flat, window, inv_w, out_var, key, grain=8192)
     clipped = np.zeros(total, bool)
     for t, (win, iw, pv, _) in pieces.items():
         rows = slice(offset[t], offset[t] + len(win))

@@ -226,8 +226,8 @@ def visible_loop(row_lo, row_hi, vis, touched, tile_w, tile_h, edges, bias, plan
 def primitive_loop(lo, hi, keys, tri, run, setup_a, setup_b, setup_c, offsets, positions, shading, inv_w, corner,
                    front, prim_id, bary_grad, uniforms, out_color, bad):
     """Shade the visible samples lo:hi of points or lines (``keys``, ``tri``: sorted by primitive,
-    softpipe/pipeline/visibility.py), writing each color into out_color; bad[lo] counts those written
-    NaN or infinite.
+    softpipe/pipeline/visibility.py), writing each color into out_color; bad[lo] is 1 if one was written
+    NaN or infinite (a flag a band: the array is as long as the samples).
 
     Each sample's inputs are computed here, from the primitive's setup (``setup_a``, ``setup_b``,
     ``setup_c``: a point's centre, size and depth, or a line's ends, width and depths) by the
@@ -275,4 +275,4 @@ def primitive_loop(lo, hi, keys, tri, run, setup_a, setup_b, setup_c, offsets, p
         out_color[s, row, i, 3] = c[3]
         if not finite_rgba(out_color, s, row, i):
             n_bad += 1
-    bad[lo] = n_bad
+    bad[lo] = 1 if n_bad > 0 else 0
