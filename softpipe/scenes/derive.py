@@ -294,10 +294,7 @@ def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geome
 
 # ------------------------------------------------------------------ the pass
 
-# The helpers are compiled functions of their own, which LLVM inlines into the pass (the same machine code);
-# numba's own inlining (inline="always") copied them into the pass's numba IR and made its compile take ~4 s
-# more (benchmarks/README.md, "Outputs, round 4").
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _matrix_row(floats, k, offset, row, columns, a0, a1, a2, a3):
     """Σ_c a_c·M[row, c] of the row-major matrix M of draw k stored at floats[k, offset:], as fused
     multiply-adds in the order c = 0, 1, … from +0 (OpenBLAS's dgemm on a machine with FMA, where
@@ -312,13 +309,13 @@ def _matrix_row(floats, k, offset, row, columns, a0, a1, a2, a3):
     return s
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _interpolated(b0, b1, b2, a, r0, r1, r2, c):
     """b0·a[r0, c] + b1·a[r1, c] + b2·a[r2, c], summed as ``np.einsum`` sums: ((0 + t0) + t1) + t2."""
     return ((0.0 + b0 * a[r0, c]) + b1 * a[r1, c]) + b2 * a[r2, c]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _fill_background(a, b, w_depth, w_linear, w_position, w_normal, w_object, w_triangle, w_bary, w_uv, w_albedo,
                      w_texture, out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary,
                      out_uv, out_albedo, texture_draw):
