@@ -491,7 +491,8 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
             n += 1
         # Below, an index into an array is unsigned (np.uint64) where it is only an index: numba wraps a
         # negative signed index around (a compare and an add per index per access), an unsigned one it takes
-        # as it is; none of these is ever negative (4–9 % of the pass: benchmarks/README.md, "Outputs, round 4").
+        # as it is; none of these is ever negative (the pass took 0.82–0.94× its time: benchmarks/README.md,
+        # "Outputs, round 4").
         # the listed pixels' corners, in a loop of nothing else: a frame's triangles are spread over the
         # corner array, and in this loop the reads of many pixels wait for memory at once
         for s in range(n):
