@@ -423,8 +423,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
         n = 0
         for c in range(m):
             p = covered[c]
+            u = np.uint64(p)                     # (p as an unsigned index: see the steps below)
             pick = picks[c] if samples > 1 else 0
-            value = record[pick, p]
+            value = record[pick, u]
             # the record value taken apart: the last draw whose range starts at or below it
             k = 0
             if draws > 1:
@@ -459,9 +460,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
             else:
                 instance, primitive = local // per, local % per
             if w_depth:
-                out_depth[p] = depth[pick, p]
+                out_depth[u] = depth[pick, u]
             if w_object:
-                out_object[p] = np.int32(object_id)
+                out_object[u] = np.int32(object_id)
             if w_triangle:
                 triangle = np.int64(-1)
                 if triangle_topology:            # edges and corners in a polygon mode name their triangle
@@ -471,7 +472,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                             triangle = maps[map_at + primitive]
                         elif bad[j] < 0:
                             bad[j] = p - j * width
-                out_triangle[p] = triangle
+                out_triangle[u] = triangle
             if not geometric:
                 continue
             if w_albedo:
@@ -488,10 +489,14 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 continue
             at[n], drawn[n], first[n], corner0[n] = p, k, clip_at + instance * vertices, corner_at + primitive
             n += 1
+        # Below, an index into an array is unsigned (np.uint64) where it is only an index: numba wraps a
+        # negative signed index around (a compare and an add per index per access), an unsigned one it takes
+        # as it is; none of these is ever negative (the pass took 0.82–0.94× its time: benchmarks/README.md,
+        # "Outputs, round 4").
         # the listed pixels' corners, in a loop of nothing else: a frame's triangles are spread over the
         # corner array, and in this loop the reads of many pixels wait for memory at once
         for s in range(n):
-            corner = corner0[s]
+            corner = np.uint64(corner0[s])
             corner0[s], corner1[s], corner2[s] = corners[corner, 0], corners[corner, 1], corners[corner, 2]
         # 2. the listed pixels' barycentrics: the cross product of the rows x_i − X·w_i and y_i − Y·w_i (in
         # np.cross's order), normalized to sum 1 (docs/outputs.md). This step and each after it is a loop of
@@ -507,7 +512,8 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 seen, viewport = k, ints[k, I_VIEWPORT]
             p = at[s]
             x, y = ndc_x[viewport, p - j * width], ndc_y[viewport, j]          # the pixel centre in NDC
-            q0, q1, q2 = first[s] + corner0[s], first[s] + corner1[s], first[s] + corner2[s]
+            q0, q1, q2 = np.uint64(first[s] + corner0[s]), np.uint64(first[s] + corner1[s]), \
+                np.uint64(first[s] + corner2[s])
             a0, a1, a2 = clip[q0, 0] - x * clip[q0, 3], clip[q1, 0] - x * clip[q1, 3], clip[q2, 0] - x * clip[q2, 3]
             c0, c1, c2 = clip[q0, 1] - y * clip[q0, 3], clip[q1, 1] - y * clip[q1, 3], clip[q2, 1] - y * clip[q2, 3]
             e0 = a1 * c2 - a2 * c1
@@ -520,7 +526,8 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 b0 = b1 = b2 = np.nan             # a triangle seen edge-on
             bary0[s], bary1[s], bary2[s] = b0, b1, b2
             if w_bary:
-                out_bary[p, 0], out_bary[p, 1], out_bary[p, 2] = b0, b1, b2
+                u = np.uint64(p)
+                out_bary[u, 0], out_bary[u, 1], out_bary[u, 2] = b0, b1, b2
         # 3. position and eye depth
         if w_linear or w_position:
             seen = -1
@@ -528,8 +535,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 k = drawn[s]
                 if k != seen:
                     seen, positions_at = k, ints[k, I_POSITIONS]
-                p, b0, b1, b2 = at[s], bary0[s], bary1[s], bary2[s]
-                r0, r1, r2 = positions_at + corner0[s], positions_at + corner1[s], positions_at + corner2[s]
+                p, b0, b1, b2 = np.uint64(at[s]), bary0[s], bary1[s], bary2[s]
+                r0, r1, r2 = np.uint64(positions_at + corner0[s]), np.uint64(positions_at + corner1[s]), \
+                    np.uint64(positions_at + corner2[s])
                 l0 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 0)
                 l1 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 1)
                 l2 = _interpolated(b0, b1, b2, positions, r0, r1, r2, 2)
@@ -549,8 +557,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                     seen, normals_at = k, ints[k, I_NORMALS]
                 if normals_at < 0:
                     continue
-                p, b0, b1, b2 = at[s], bary0[s], bary1[s], bary2[s]
-                r0, r1, r2 = normals_at + corner0[s], normals_at + corner1[s], normals_at + corner2[s]
+                p, b0, b1, b2 = np.uint64(at[s]), bary0[s], bary1[s], bary2[s]
+                r0, r1, r2 = np.uint64(normals_at + corner0[s]), np.uint64(normals_at + corner1[s]), \
+                    np.uint64(normals_at + corner2[s])
                 n0 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 0)
                 n1 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 1)
                 n2 = _interpolated(b0, b1, b2, normals, r0, r1, r2, 2)
@@ -570,8 +579,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                     seen, uvs_at, textured = k, ints[k, I_UVS], ints[k, I_TEXTURED] > 0
                 if uvs_at < 0:
                     continue
-                p, b0, b1, b2 = at[s], bary0[s], bary1[s], bary2[s]
-                r0, r1, r2 = uvs_at + corner0[s], uvs_at + corner1[s], uvs_at + corner2[s]
+                p, b0, b1, b2 = np.uint64(at[s]), bary0[s], bary1[s], bary2[s]
+                r0, r1, r2 = np.uint64(uvs_at + corner0[s]), np.uint64(uvs_at + corner1[s]), \
+                    np.uint64(uvs_at + corner2[s])
                 t0 = _interpolated(b0, b1, b2, uvs, r0, r1, r2, 0)
                 t1 = _interpolated(b0, b1, b2, uvs, r0, r1, r2, 1)
                 if w_uv:
