@@ -38,7 +38,7 @@ attachments are never blended.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Sequence
 
 import numba
 import numpy as np
@@ -452,7 +452,7 @@ class NonFinite:
 
 
 def non_finite_written(frags: Fragments, shaded: ShadedFragments, merged: MergeResult,
-                       color_mask: Tuple[bool, bool, bool, bool] = (True, True, True, True)) -> Optional[NonFinite]:
+                       color_mask: Sequence[bool] = (True, True, True, True)) -> Optional[NonFinite]:
     """The fragments the merger wrote with a NaN or infinite color component, or None.
 
     Only the channels ``color_mask`` lets through count: a channel masked off is not written,
