@@ -31,7 +31,7 @@ from softpipe.language import kernels
 from softpipe.pipeline.assembly import Primitives
 from softpipe.pipeline.fragment import default_fragment_shader, derivative_gradients
 from softpipe.pipeline.lines import LineSetup, line_sample_inputs, sample_means
-from softpipe.pipeline.merge_state import DEPTH_FUNCS, MergeState
+from softpipe.pipeline.merge_state import MergeState
 from softpipe.pipeline.output import NonFinite
 from softpipe.pipeline.points import PointSetup, point_sample_inputs
 from softpipe.pipeline.primitive_tiles import primitive_boxes, raster_line_tiles, raster_point_tiles
@@ -43,6 +43,7 @@ from softpipe.pipeline.visibility import (
     ShadedSamples,
     Visibility,
     failure_modes,
+    pass_buffers,
     release_scratch,
     scratch_buffer,
 )
@@ -91,11 +92,7 @@ def primitive_visibility_pass(prims: Primitives, setup: Union[LineSetup, PointSe
     the framebuffer's depth is updated. ``rect`` is the scissor (:func:`~softpipe.pipeline.setup.pixel_rect`);
     ``undo`` keeps the depth it replaces, as :func:`~softpipe.pipeline.visibility.visibility_pass`."""
     w, h, offsets = fb.width, fb.height, fb.pattern.offsets
-    func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
-    depth_write = bool(state.depth_write) and func >= 0
-    vis = np.empty((len(offsets), h, w), np.int32)      # every tile is set to −1 first
-    tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
-    touched = np.zeros((tiles_y, tiles_x), np.bool_)
+    func, depth_write, vis, tiles_x, tiles_y, touched = pass_buffers(fb, state)
     lines = isinstance(setup, LineSetup)
     wide = isinstance(setup, LineSetup) and len(prims) > 0 and int(setup.width.max()) > 1
     run = np.empty(vis.shape if wide else (0, 0, 0), np.uint8)

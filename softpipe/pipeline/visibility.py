@@ -71,7 +71,7 @@ from softpipe.pipeline.tiles import TILE_H, TILE_W, bin_triangles, gather_setup,
 __all__ = ["Visibility", "ShadedSamples", "visibility_pass", "shade_visible", "choose_path", "fast_path_blocker",
            "PATHS", "FAST_PATH_MIN_SAMPLES", "DiscardOnFastPath", "shading_may_fail",
            "visible_loop_args", "shade_outputs", "depth_only", "constant_color", "failure_modes",
-           "scratch_buffer", "release_scratch"]
+           "scratch_buffer", "release_scratch", "pass_buffers"]
 
 #: The orders a draw can take: "reference" (rasterize, shade every fragment, merge
 #: in order), "fast" (this module), or "auto" (fast when it can, see :func:`choose_path`).
@@ -300,6 +300,17 @@ def failure_modes(shader: Callable, layout) -> Tuple[bool, bool]:
     return modes
 
 
+def pass_buffers(fb, state: MergeState) -> Tuple[int, bool, np.ndarray, int, int, np.ndarray]:
+    """What a visibility pass starts from, for any kind of primitive: (depth compare code, or −1 for no
+    depth test; whether it writes depth; ``vis`` int32 [S, H, W], unset: each tile's walk sets its own
+    part to −1 first; tiles_x, tiles_y; ``touched`` bool [tiles_y, tiles_x], all False)."""
+    func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
+    depth_write = bool(state.depth_write) and func >= 0
+    vis = np.empty((len(fb.pattern.offsets), fb.height, fb.width), np.int32)
+    tiles_x, tiles_y = -(-fb.width // TILE_W), -(-fb.height // TILE_H)
+    return func, depth_write, vis, tiles_x, tiles_y, np.zeros((tiles_y, tiles_x), np.bool_)
+
+
 def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeState,
                     undo: bool = True) -> Visibility:
     """Binning and the tiled visibility pass of a draw's set-up triangles; the framebuffer's depth is updated.
@@ -308,11 +319,7 @@ def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeSta
     :func:`shade_visible` can put it back if shading fails (see :func:`shading_may_fail`).
     """
     w, h, offsets = fb.width, fb.height, fb.pattern.offsets
-    func = -1 if state.depth_test is None else DEPTH_FUNCS.index(state.depth_test)
-    depth_write = bool(state.depth_write) and func >= 0
-    vis = np.empty((len(offsets), h, w), np.int32)      # raster_tiles sets every tile to −1 first
-    tiles_x, tiles_y = -(-w // TILE_W), -(-h // TILE_H)
-    touched = np.zeros((tiles_y, tiles_x), np.bool_)
+    func, depth_write, vis, tiles_x, tiles_y, touched = pass_buffers(fb, state)
     if len(prims) == 0:
         vis.fill(-1)
         return Visibility(vis, setup, touched)
