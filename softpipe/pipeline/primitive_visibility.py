@@ -44,7 +44,6 @@ from softpipe.pipeline.visibility import (
     Visibility,
     failure_modes,
     pass_buffers,
-    release_scratch,
     scratch_buffer,
 )
 
@@ -392,8 +391,7 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
             buffers = dict(keys=keys.base, tri=tri.base)
             non_finite = _shade_in_place(prims, visibility, fb, shader, uniforms, SHADING_POSITIONS.index(shading),
                                          keys, tri)
-            release_scratch(visibility.saved_depth)
-            visibility.saved_depth = None          # the draw stands: nothing to undo
+            visibility.keep()
             return ShadedSamples(visibility, shading, non_finite)
         n = len(keys)
         if n:
@@ -428,12 +426,9 @@ def shade_primitives(prims: Primitives, visibility: PrimitiveVisibility, fb, fra
             non_finite = NonFinite(len(wrong), int(x[first]), int(y[first]),
                                    int(prims.primitive_id[tri[wrong[first]]]))
     except BaseException:
-        visibility.restore_depth(fb)
-        release_scratch(visibility.saved_depth)
-        visibility.saved_depth = None
+        visibility.undo(fb)
         raise
     finally:
         _return_pooled(**buffers)
-    release_scratch(visibility.saved_depth)
-    visibility.saved_depth = None              # the draw stands: nothing to undo
+    visibility.keep()
     return ShadedSamples(visibility, shading, non_finite)

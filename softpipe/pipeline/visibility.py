@@ -234,6 +234,16 @@ class Visibility:
             cols = slice(tx * TILE_W, min((tx + 1) * TILE_W, w))
             depth[:, rows, cols] = self.saved_depth[:, rows, cols]
 
+    def undo(self, fb) -> None:
+        """The draw failed: put back the depth the pass replaced, and hand its copy back (:meth:`keep`)."""
+        self.restore_depth(fb)
+        self.keep()
+
+    def keep(self) -> None:
+        """The draw stands: nothing to undo, so the saved depth's buffer goes back for the next draw."""
+        release_scratch(self.saved_depth)
+        self.saved_depth = None
+
     def __repr__(self) -> str:
         return (f"Visibility({int((self.vis >= 0).sum())} visible samples of {self.vis.size}, "
                 f"{len(self.setup)} triangles, {int(self.touched.sum())} of {self.touched.size} tiles touched)")
@@ -483,14 +493,11 @@ def shade_visible(prims: Primitives, visibility: Visibility, fb, fragment_shader
             raise DiscardOnFastPath("the fragment shader returned a NaN alpha (DISCARD) at a visible sample")
         non_finite = _non_finite_from_rows(status[1:], fb.samples_color, visibility.vis, prims.primitive_id)
     except BaseException:
-        visibility.restore_depth(fb)
-        release_scratch(visibility.saved_depth)
-        visibility.saved_depth = None
+        visibility.undo(fb)
         raise
     finally:
         release_scratch(saved_color)
-    release_scratch(visibility.saved_depth)
-    visibility.saved_depth = None          # the draw stands: nothing to undo
+    visibility.keep()
     return ShadedSamples(visibility, shading, non_finite)
 
 
@@ -565,14 +572,9 @@ def shade_outputs(prims: Primitives, visibility, fb, fragment_shader: Optional[C
         if shaded.discarded.any():
             raise DiscardOnFastPath("the fragment shader returned DISCARD (a NaN alpha) at a visible sample")
     except BaseException:
-        visibility.restore_depth(fb)
-        if isinstance(visibility, Visibility):       # its saved depth is a scratch buffer to hand back
-            release_scratch(visibility.saved_depth)
-        visibility.saved_depth = None
+        visibility.undo(fb)
         raise
-    if isinstance(visibility, Visibility):
-        release_scratch(visibility.saved_depth)
-    visibility.saved_depth = None
+    visibility.keep()
     non_finite = None
     if _write_kept(frags.x, frags.y, frags.sample, shaded.color, fb.samples_color):
         bad = np.flatnonzero(~np.isfinite(shaded.color).all(axis=1))
