@@ -201,6 +201,19 @@ def test_render_without_outputs_is_unchanged_and_the_colour_is_the_pictures():
     assert np.isnan(out["uv"][~shown]).all()
 
 
+def test_the_colour_alone_derives_nothing(monkeypatch):
+    """outputs=("color",) is the framebuffer's color: no record is kept, and the pass over it does not run."""
+    import softpipe.scenes.derive as derive
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the derive pass ran for the color alone")
+    plain = sp.render("suzanne", width=W, height=H)
+    monkeypatch.setattr(derive, "_derive_rows", refused)
+    out = sp.render("suzanne", width=W, height=H, outputs=("color",))
+    assert out.names == ("color",) and out.framebuffer.record is None
+    np.testing.assert_array_equal(out["color"], plain.color)
+
+
 def test_bad_output_names_are_refused_with_the_accepted_ones():
     with pytest.raises(ValueError) as e:
         sp.render("cube", width=8, height=8, outputs=("depth", "foo"))

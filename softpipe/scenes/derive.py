@@ -629,6 +629,8 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
         inputs do not match its record (an attribute of the wrong shape).
     """
     want_names = set(names)
+    if not want_names:          # (the color alone: it is the framebuffer's, nothing to derive)
+        return {}
     h, w = fb.height, fb.width
     want = np.array([n in want_names for n in BUFFER_NAMES] + [False], np.bool_)
     geometric = bool(want_names & {"linear_depth", "position", "normal", "barycentrics", "uv", "albedo"})

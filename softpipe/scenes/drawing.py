@@ -789,7 +789,8 @@ def render(model, *, width: Optional[int] = None, height: Optional[int] = None,
     camera = camera or scene.view_camera()
     drawn: List[DrawResult] = []
     fb = render_scene(scene, camera=camera, trace=trace or stages is not None, results=drawn, progress=progress,
-                      wireframe=False, record=names is not None)
+                      wireframe=False,
+                      record=names is not None and any(n != "color" for n in names))   # (the color is the fb's)
     if stages is not None:   # before the wireframe: the "final" picture is the framebuffer as drawn
         folder = Path(stages)
         for k, r in enumerate(drawn):

@@ -147,7 +147,7 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
     dict name → array, in the order of ``names`` (docs/outputs.md).
     """
     names = check_outputs(names)
-    if fb.record is None:
+    if fb.record is None and any(n != "color" for n in names):
         raise ValueError("derive_outputs needs a framebuffer drawn with a visibility record: "
                          "Framebuffer(width, height, record=True)")
     maps = _triangle_maps(objects, fb.recorded_draws) if objects else {}
