@@ -303,8 +303,13 @@ def line_parameter(ends, t, px, py):
 @numba.njit(cache=True, inline="always")
 def depth_along(depth, t, ts):
     """The window depth (1 − t)·z_a + t·z_b of line t at ``ts``, clamped to [0, 1]."""
-    z_a, z_b = depth[t, 0], depth[t, 1]
-    return min(max(z_a + ts * (z_b - z_a), 0.0), 1.0)
+    return _clamped_depth(depth[t, 0], depth[t, 1] - depth[t, 0], ts)
+
+
+@numba.njit(cache=True, forceinline=True)
+def _clamped_depth(z_a, dz, ts):
+    """z_a + t·(z_b − z_a) (``dz`` = z_b − z_a) clamped to [0, 1]: the one formula of a line's depth."""
+    return min(max(z_a + ts * dz, 0.0), 1.0)
 
 
 @numba.njit(cache=True, inline="always")
@@ -321,7 +326,7 @@ def depth_at(terms, px, py):
     """The window depth at the fixed-point position (px, py) of the line of ``terms`` (:func:`line_depth_terms`):
     :func:`depth_along` at :func:`line_parameter`'s t there, the same operations, so the same bits."""
     xa, ya, dx, dy, length2, z_a, dz = terms
-    return min(max(z_a + _parameter(xa, ya, dx, dy, length2, px, py) * dz, 0.0), 1.0)
+    return _clamped_depth(z_a, dz, _parameter(xa, ya, dx, dy, length2, px, py))
 
 
 @numba.njit(cache=True, inline="always")
