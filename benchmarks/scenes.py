@@ -580,14 +580,18 @@ BENCH_OUTPUTS = ("color", "depth", "normal", "object_id", "triangle_id")
 def bunny_outputs(scale: float = 1.0) -> Scene:
     """``bunny`` drawn into a framebuffer with a visibility record, then five outputs derived from it
     (:func:`softpipe.scenes.outputs.derive_outputs`: color, depth, normal, object_id, triangle_id):
-    what ``render(..., outputs=...)`` adds to a frame, beside ``bunny`` for the cost (``color`` handed
-    out uncopied, as ``render`` does)."""
+    what ``render(..., outputs=...)`` adds to a frame, beside ``bunny`` for the cost. As ``bunny`` draws
+    every frame into the same framebuffer, the buffers are written every frame into the same arrays
+    (``out=``, the last frame's), and ``color`` is handed out uncopied, as ``render`` does."""
     from softpipe.scenes.outputs import derive_outputs
     base = bunny(scale)
-    return replace(base, name="bunny-outputs", record=True,
-                               finish=lambda fb: derive_outputs(fb, BENCH_OUTPUTS, copy_color=False) and None,
-                               description=base.description + "; five outputs from the visibility record: "
-                               + ", ".join(BENCH_OUTPUTS))
+    kept: Dict[str, np.ndarray] = {}
+
+    def finish(fb) -> None:
+        kept.update(derive_outputs(fb, BENCH_OUTPUTS, copy_color=False, out=kept))
+    return replace(base, name="bunny-outputs", record=True, finish=finish,
+                   description=base.description + "; five outputs from the visibility record: "
+                   + ", ".join(BENCH_OUTPUTS))
 
 
 SCENES: Dict[str, Callable[[float], Scene]] = {

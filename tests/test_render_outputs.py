@@ -780,3 +780,57 @@ def test_a_zero_normal_gives_nan_as_the_numpy_derivation_did():
     for name in ("normal", "object_id"):
         _assert_same_bits(name, got[name], expected[name])
     assert (got["object_id"] == 0).all() and np.isnan(got["normal"]).all()
+
+
+def test_buffers_written_into_the_arrays_given_are_the_new_arrays_bits_with_nothing_left_of_before():
+    # derive_outputs(..., out=...) writes each buffer into the array given (numpy's out=): the
+    # arrays come back, every pixel rewritten: a frame of other objects derived into the last
+    # frame's arrays gives the bits of new ones, background included
+    first = sp.render(_objects(), outputs=OUTPUTS)
+    second = sp.render(_lines_and_points(), outputs=OUTPUTS)
+    fb = second.framebuffer
+    assert (fb.width, fb.height) == (first.framebuffer.width, first.framebuffer.height)
+    given = {name: first[name] for name in OUTPUTS}
+    kept = {name: a.copy() for name, a in given.items()}
+    got = derive_outputs(fb, OUTPUTS, out=given)
+    fresh = derive_outputs(fb, OUTPUTS)
+    for name in OUTPUTS:
+        assert got[name] is given[name], name
+        _assert_same_bits(name, got[name], fresh[name])
+        assert got[name].tobytes() != kept[name].tobytes(), name          # it was written
+    # out["color"] gets a copy of the color; the framebuffer's own color is left as it is
+    assert not np.shares_memory(got["color"], fb.color)
+    own = derive_outputs(fb, ("color", "depth"), copy_color=False, out={"color": fb.color})
+    assert own["color"] is fb.color
+
+
+@pytest.mark.parametrize("name, bad, message", [
+    ("depth", np.zeros((H, W), np.float64), f"out['depth'] is float64 [{H}, {W}]; the depth buffer of this frame "
+                                            f"is float32 [{H}, {W}], C-contiguous and writeable"),
+    ("normal", np.zeros((H, W, 4), np.float32), f"out['normal'] is float32 [{H}, {W}, 4]; the normal buffer"),
+    ("object_id", np.zeros((W, H), np.int32).T, "not C-contiguous"),
+    ("triangle_id", np.broadcast_to(np.int64(0), (H, W)), "read-only"),
+    ("color", [[0.0]], "out['color'] is a list, not an array"),
+])
+def test_an_array_given_for_a_buffer_that_does_not_fit_is_refused_naming_it(name, bad, message):
+    fb = sp.render("suzanne", width=W, height=H, outputs=("color", "depth")).framebuffer
+    with pytest.raises(ValueError) as e:
+        derive_outputs(fb, ("color", "depth", "normal", "object_id", "triangle_id"), out={name: bad})
+    assert message in str(e.value)
+
+
+def test_too_few_positions_for_the_indices_are_refused_where_positions_are_read():
+    fb = Framebuffer(16, 12, record=True)
+
+    def vs(attributes, uniforms):
+        p = attributes.position
+        return (p[0], p[1], p[2], 1.0), Varyings((1.0, 1.0, 1.0))
+
+    sp.draw(fb, np.array([[-1, -1, 0.2], [3, -1, 0.2], [-1, 3, 0.2]]), vertex_shader=vs,
+            attributes={"normal": np.tile([0.0, 0.0, 1.0], (3, 1))})
+    fb.recorded_draws[0].call.positions = np.zeros((2, 3))        # changed after drawing: index 2 is gone
+    normal = derive_outputs(fb, ("normal",))["normal"]            # the normal does not read the positions
+    assert (normal == np.float32([0, 0, 1])).all()
+    for name in ("position", "linear_depth"):
+        with pytest.raises(ValueError, match="recorded draw 0 has 2 positions; its indices reach 2"):
+            derive_outputs(fb, (name,))

@@ -53,7 +53,6 @@ from softpipe.pipeline.output import (
     merge,
     merge_more,
     non_finite_written,
-    record_visible,
 )
 from softpipe.pipeline.primitive_visibility import primitive_visibility_pass, shade_primitives
 from softpipe.pipeline.raster import Fragments, count_fragments, rasterize, setup_primitives
@@ -66,6 +65,7 @@ from softpipe.pipeline.visibility import (
     ShadedSamples,
     choose_path,
     depth_only,
+    record_visible,
     shade_outputs,
     shade_visible,
     shading_may_fail,
@@ -424,7 +424,7 @@ class DrawCall:
         yield Stage("visibility", visibility)
         if only:        # no shader runs, no color is read or written
             if self._record_ids is not None:
-                record_visible(fb, visibility.vis, self._record_ids, self.state)
+                record_visible(fb, visibility, self._record_ids, self.state)
             clock("fragment")
             yield Stage("fragment", ShadedSamples(visibility, self.sample_shading, depth_only=True))
             return
@@ -441,7 +441,7 @@ class DrawCall:
             return
         self._note_non_finite(shaded.non_finite)
         if self._record_ids is not None:
-            record_visible(fb, visibility.vis, self._record_ids, self.state)
+            record_visible(fb, visibility, self._record_ids, self.state)
         clock("fragment")
         yield Stage("fragment", shaded)
 

@@ -26,8 +26,9 @@ verdict is recorded (:data:`VERDICTS`: which step stopped it) so a trace can say
 what happened to it, and the samples that passed every test are counted
 (:class:`OcclusionQuery`). A framebuffer with a visibility record
 (``Framebuffer(..., record=True)``) gets one more store where a fragment writes the depth:
-which draw, instance and source primitive it came from (:func:`record_visible` is the fast
-path's; docs/outputs.md).
+which draw, instance and source primitive it came from (the fast path has its own,
+:func:`softpipe.pipeline.visibility.record_visible`;
+docs/outputs.md).
 
 A framebuffer of several color attachments (multiple render targets) gets each other
 attachment's value where location 0's was written: through that attachment's own blending
@@ -70,7 +71,7 @@ from softpipe.pipeline.raster import Fragments
 
 __all__ = ["MergeResult", "merge", "VERDICTS", "depth_passes", "compare", "stencil_op", "blend_factor",
            "blend_channel", "covered_by_alpha", "OcclusionQuery", "NonFiniteColorWarning", "NonFinite",
-           "non_finite_written", "record_visible", "merge_more"]
+           "non_finite_written", "merge_more"]
 
 #: What the merger did with a fragment: its index in this tuple is stored per fragment
 #: (the step of the chain that stopped it, or "written": it passed every test).
@@ -465,27 +466,3 @@ def non_finite_written(frags: Fragments, shaded: ShadedFragments, merged: MergeR
         return None
     k = int(bad[0])
     return NonFinite(len(bad), int(frags.x[k]), int(frags.y[k]), int(frags.primitive_id[k]))
-
-
-
-# ------------------------------------------------------------------ the visibility record
-
-def record_visible(fb: Framebuffer, vis: np.ndarray, record_ids: np.ndarray, state: MergeState) -> None:
-    """The fast path's record write: at every sample where ``vis`` (int32 [S, H, W], the row of the
-    Primitives written last there, or −1) names a primitive, store its ``record_ids`` entry in the
-    framebuffer's visibility record, as the merger does where it writes the depth (so only with
-    the depth test on and depth writes on). Nothing without a record."""
-    if fb.record is None or state.depth_test is None or not state.depth_write:
-        return
-    # one compiled pass over the samples: numpy's masks read and wrote the record several times
-    # (3 ms at 1024², beside a frame of 34; this loop is memory-bound, about 1 ms, on one thread)
-    _store_visible(vis.reshape(-1), np.ascontiguousarray(record_ids, np.int64), fb.record.reshape(-1))
-
-
-@numba.njit(cache=True, nogil=True)
-def _store_visible(vis, ids, record):
-    """record[s] = ids[vis[s]] where vis names a primitive (≥ 0), over flat samples s."""
-    for s in range(vis.shape[0]):
-        v = vis[s]
-        if v >= 0:
-            record[s] = ids[v]

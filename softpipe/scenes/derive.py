@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Mapping, Optional, Sequence
 
 import numba
 import numpy as np
@@ -54,12 +54,13 @@ from numba import types
 from numba.extending import intrinsic, overload
 
 from softpipe.core.parallel import in_bands
+from softpipe.core.streaming import stream_fence, stream_row
 from softpipe.light.texture import texture_lod
 from softpipe.pipeline.assembly import TRIANGLE_TOPOLOGIES, primitive_indices
 from softpipe.pipeline.framebuffer import Framebuffer, RecordedDraw
 from softpipe.pipeline.transforms import normal_matrix
 
-__all__ = ["DrawTable", "pack_draws", "derive_buffers", "fma", "BUFFER_NAMES"]
+__all__ = ["DrawTable", "pack_draws", "derive_buffers", "check_out_array", "fma", "BUFFER_NAMES"]
 
 #: The buffers the pass writes (``color`` is the framebuffer's own, copied by the caller).
 BUFFER_NAMES = ("depth", "linear_depth", "position", "normal", "object_id", "triangle_id", "barycentrics", "uv",
@@ -210,13 +211,14 @@ class _Joined:
 
 
 def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geometric: bool,
-               textured: bool, width: int, height: int) -> DrawTable:
+               textured: bool, width: int, height: int, positional: bool = True) -> DrawTable:
     """The recorded draws of a ``width`` × ``height`` frame as the pass reads them.
 
     ``maps`` gives, for a draw of one material of a mesh of several, its triangles' indices in
     the whole mesh. With ``geometric`` (a buffer that needs the surface is asked for) the clip
-    corners, positions, attributes and matrices are packed too; with ``textured`` the draws'
-    textures are noted (albedo asked for).
+    corners, attributes and matrices are packed too, and with ``positional`` (position or
+    linear depth asked for) the positions as (x, y, z, 1); with ``textured`` the draws' textures
+    are noted (albedo asked for).
     """
     d_count = len(draws)
     ints = np.full((d_count, I_COLUMNS), -1, np.int64)
@@ -266,10 +268,12 @@ def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geome
         if not row[I_SURFACE]:
             continue
         needed = int(corner.max()) + 1 if len(corner) else 0
-        p = _homogeneous(call.positions)
-        if len(p) < needed:
-            raise ValueError(f"derive_outputs: recorded draw {k} has {len(p)} positions; its indices reach {needed - 1}")
-        row[I_POSITIONS] = positions.add(p)
+        if positional:                           # (a copy of every position: only where they are read)
+            p = _homogeneous(call.positions)
+            if len(p) < needed:
+                raise ValueError(f"derive_outputs: recorded draw {k} has {len(p)} positions; its indices reach "
+                                 f"{needed - 1}")
+            row[I_POSITIONS] = positions.add(p)
         normal = _attribute(call, "normal", 3, k, needed)
         uv = _attribute(call, "uv", 2, k, needed)
         row[I_NORMALS], row[I_UVS] = normals.add(normal), uvs.add(uv)
@@ -317,12 +321,11 @@ def _interpolated(b0, b1, b2, a, r0, r1, r2, c):
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _fill_background(a, b, w_depth, w_linear, w_position, w_normal, w_object, w_triangle, w_bary, w_uv, w_albedo,
-                     w_texture, out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary,
-                     out_uv, out_albedo, texture_draw):
+                     out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary, out_uv,
+                     out_albedo):
     """Pixels a:b of the buffers asked for, as where no recorded surface is: depth 1, ids −1, NaN
-    elsewhere (docs/outputs.md's "no surface" column), and no texture lookup. The pass writes a whole
-    row so before its covered pixels: one tight loop per buffer over memory the row then finds in
-    cache, rather than a chain of tests per background pixel."""
+    elsewhere (docs/outputs.md's "no surface" column). The pass writes a whole row so before its
+    covered pixels: one tight loop per buffer, rather than a chain of tests per background pixel."""
     nan = np.float32(np.nan)
     if w_depth:
         for p in range(a, b):
@@ -351,23 +354,22 @@ def _fill_background(a, b, w_depth, w_linear, w_position, w_normal, w_object, w_
     if w_uv:
         for p in range(a, b):
             out_uv[p, 0] = out_uv[p, 1] = nan
-    if w_texture:
-        for p in range(a, b):
-            texture_draw[p] = -1
 
 
 # error_model="numpy": a division by zero gives IEEE's inf or NaN, as the numpy derivation's did (a zero
 # normal's length), not a ZeroDivisionError
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip, positions, normals, uvs,
-                 ndc_x, ndc_y, want, out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary, out_uv,
-                 out_albedo, texture_uv, texture_draw, present, bad):
+                 ndc_x, ndc_y, want, whole_depth, whole_linear, whole_position, whole_normal, whole_object,
+                 whole_triangle, whole_bary, whole_uv, whole_albedo, texture_uv, texture_draw, present, bad):
     """Rows lo:hi of the buffers. The pixel arrays are flat (pixel p = row·width + column): record and
     depth [S, H·W], the buffers [H·W] or [H·W, c]; a buffer not asked for is empty and not written.
 
-    Each row is first written as background (:func:`_fill_background`); then its covered pixels (a
-    record value ≥ 0) are listed in a loop of nothing else, and only they are computed, overwriting
-    the fill where they have a value (a line's normal stays the fill's NaN)."""
+    Each row is made in arrays of one row (``out_*``, indexed by column, in the cache): first written
+    as background (:func:`_fill_background`); then its covered pixels (a record value ≥ 0) are listed
+    in a loop of nothing else, and only they are computed, overwriting the fill where they have a value
+    (a line's normal stays the fill's NaN). Then the row is copied into each buffer by streaming stores
+    (:mod:`softpipe.core.streaming`: each buffer is written once, in whole lines, and never read)."""
     samples = record.shape[0]
     draws = ints.shape[0]
     # the flags read once into scalars: a flag in an array would be loaded again after every store to a
@@ -383,23 +385,44 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
     triangle_topology = surface = textured = False
     kd0 = kd1 = kd2 = np.float32(0.0)
     covered, picks = np.empty(width, np.int64), np.empty(width, np.int64)    # a row's covered pixels, samples
-    # a row's pixels of a surface, listed by step 1 for the steps after it: pixel, draw, the first clip row of
+    # a row's pixels of a surface, listed by step 1 for the steps after it: column, draw, the first clip row of
     # its instance, its primitive's corners (first the primitive's row of `corners`), barycentrics
     at, drawn, first = np.empty(width, np.int64), np.empty(width, np.int64), np.empty(width, np.int64)
     corner0, corner1, corner2 = np.empty(width, np.int64), np.empty(width, np.int64), np.empty(width, np.int64)
     bary0, bary1, bary2 = np.empty(width), np.empty(width), np.empty(width)
+    # one row of each buffer asked for (empty if not), indexed by column; and the rows and the buffers with
+    # their channels in one axis, for the streaming copy
+    out_depth = np.empty(width if w_depth else 0, np.float32)
+    out_linear = np.empty(width if w_linear else 0, np.float32)
+    out_position = np.empty((width if w_position else 0, 3), np.float32)
+    out_normal = np.empty((width if w_normal else 0, 3), np.float32)
+    out_object = np.empty(width if w_object else 0, np.int32)
+    out_triangle = np.empty(width if w_triangle else 0, np.int64)
+    out_bary = np.empty((width if w_bary else 0, 3), np.float32)
+    out_uv = np.empty((width if w_uv else 0, 2), np.float32)
+    out_albedo = np.empty((width if w_albedo else 0, 3), np.float32)
+    row_position, row_normal = out_position.reshape(out_position.size), out_normal.reshape(out_normal.size)
+    row_bary, row_uv, row_albedo = out_bary.reshape(out_bary.size), out_uv.reshape(out_uv.size), \
+        out_albedo.reshape(out_albedo.size)
+    all_position, all_normal = whole_position.reshape(whole_position.size), whole_normal.reshape(whole_normal.size)
+    all_bary, all_uv, all_albedo = whole_bary.reshape(whole_bary.size), whole_uv.reshape(whole_uv.size), \
+        whole_albedo.reshape(whole_albedo.size)
     for j in range(lo, hi):
         bad[j] = -1
-        _fill_background(j * width, (j + 1) * width, w_depth, w_linear, w_position, w_normal, w_object, w_triangle,
-                         w_bary, w_uv, w_albedo, w_texture, out_depth, out_linear, out_position, out_normal,
-                         out_object, out_triangle, out_bary, out_uv, out_albedo, texture_draw)
-        if draws == 0:                           # no surface (a frame of no draws has none): the fill's values
-            continue
+        row_start = j * width
+        _fill_background(0, width, w_depth, w_linear, w_position, w_normal, w_object, w_triangle, w_bary, w_uv,
+                         w_albedo, out_depth, out_linear, out_position, out_normal, out_object, out_triangle, out_bary,
+                         out_uv, out_albedo)
+        if w_texture:                            # (no texture lookup where no textured draw shows)
+            for p in range(row_start, row_start + width):
+                texture_draw[p] = -1
         # the row's covered pixels first, in a loop of nothing else (a record value < 0: no surface, the
         # fill's values), with each one's sample: the one of least depth, the first of equals (np.argmin:
-        # a NaN first)
+        # a NaN first); a frame of no draws has none
         m = 0
-        if samples == 1:
+        if draws == 0:
+            pass
+        elif samples == 1:
             for p in range(j * width, (j + 1) * width):
                 if record[0, p] >= 0:
                     covered[m] = p
@@ -424,6 +447,8 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
         for c in range(m):
             p = covered[c]
             u = np.uint64(p)                     # (p as an unsigned index: see the steps below)
+            column = p - row_start
+            cu = np.uint64(column)
             pick = picks[c] if samples > 1 else 0
             value = record[pick, u]
             # the record value taken apart: the last draw whose range starts at or below it
@@ -453,16 +478,16 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
             local = value - base
             if local >= count:
                 if bad[j] < 0:
-                    bad[j] = p - j * width       # no draw of this frame made it: the caller raises
+                    bad[j] = column              # no draw of this frame made it: the caller raises
                 continue
             if local < per:                      # the first instance (every draw without instancing): no division
                 instance, primitive = np.int64(0), local
             else:
                 instance, primitive = local // per, local % per
             if w_depth:
-                out_depth[u] = depth[pick, u]
+                out_depth[cu] = depth[pick, u]
             if w_object:
-                out_object[u] = np.int32(object_id)
+                out_object[cu] = np.int32(object_id)
             if w_triangle:
                 triangle = np.int64(-1)
                 if triangle_topology:            # edges and corners in a polygon mode name their triangle
@@ -471,23 +496,23 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                         if primitive < map_length:
                             triangle = maps[map_at + primitive]
                         elif bad[j] < 0:
-                            bad[j] = p - j * width
-                out_triangle[u] = triangle
+                            bad[j] = column
+                out_triangle[cu] = triangle
             if not geometric:
                 continue
             if w_albedo:
-                out_albedo[p, 0], out_albedo[p, 1], out_albedo[p, 2] = kd0, kd1, kd2
+                out_albedo[cu, 0], out_albedo[cu, 1], out_albedo[cu, 2] = kd0, kd1, kd2
             if primitive >= primitives:
                 if bad[j] < 0:
-                    bad[j] = p - j * width
+                    bad[j] = column
                 continue
             if not surface:
                 # a line or point has no surface: its eye depth from the clip w of its first corner
                 if w_linear:
                     v0 = corners[corner_at + primitive, 0]
-                    out_linear[p] = np.float32(clip[clip_at + instance * vertices + v0, 3])
+                    out_linear[cu] = np.float32(clip[clip_at + instance * vertices + v0, 3])
                 continue
-            at[n], drawn[n], first[n], corner0[n] = p, k, clip_at + instance * vertices, corner_at + primitive
+            at[n], drawn[n], first[n], corner0[n] = column, k, clip_at + instance * vertices, corner_at + primitive
             n += 1
         # Below, an index into an array is unsigned (np.uint64) where it is only an index: numba wraps a
         # negative signed index around (a compare and an add per index per access), an unsigned one it takes
@@ -511,7 +536,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
             if k != seen:
                 seen, viewport = k, ints[k, I_VIEWPORT]
             p = at[s]
-            x, y = ndc_x[viewport, p - j * width], ndc_y[viewport, j]          # the pixel centre in NDC
+            x, y = ndc_x[viewport, p], ndc_y[viewport, j]          # the pixel centre in NDC
             q0, q1, q2 = np.uint64(first[s] + corner0[s]), np.uint64(first[s] + corner1[s]), \
                 np.uint64(first[s] + corner2[s])
             a0, a1, a2 = clip[q0, 0] - x * clip[q0, 3], clip[q1, 0] - x * clip[q1, 3], clip[q2, 0] - x * clip[q2, 3]
@@ -587,8 +612,29 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 if w_uv:
                     out_uv[p, 0], out_uv[p, 1] = t0, t1
                 if w_texture and textured:
-                    texture_uv[p, 0], texture_uv[p, 1] = t0, t1
-                    texture_draw[p] = k
+                    q = p + np.uint64(row_start)
+                    texture_uv[q, 0], texture_uv[q, 1] = t0, t1
+                    texture_draw[q] = k
+        # the row, out
+        if w_depth:
+            stream_row(whole_depth, row_start, out_depth)
+        if w_linear:
+            stream_row(whole_linear, row_start, out_linear)
+        if w_position:
+            stream_row(all_position, 3 * row_start, row_position)
+        if w_normal:
+            stream_row(all_normal, 3 * row_start, row_normal)
+        if w_object:
+            stream_row(whole_object, row_start, out_object)
+        if w_triangle:
+            stream_row(whole_triangle, row_start, out_triangle)
+        if w_bary:
+            stream_row(all_bary, 3 * row_start, row_bary)
+        if w_uv:
+            stream_row(all_uv, 2 * row_start, row_uv)
+        if w_albedo:
+            stream_row(all_albedo, 3 * row_start, row_albedo)
+    stream_fence()
 
 
 @numba.njit(cache=True)
@@ -618,15 +664,33 @@ def _sample_textures(table: DrawTable, texture_uv: np.ndarray, texture_draw: np.
 _NONE1, _NONE2, _NONE3 = np.zeros(0, np.float32), np.zeros((0, 0), np.float32), np.zeros((0, 0, 0), np.float32)
 
 
-def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.ndarray]) -> Dict[str, np.ndarray]:
+def check_out_array(out: Mapping[str, np.ndarray], name: str, shape: tuple, dtype) -> np.ndarray:
+    """``out[name]``, checked to be a writeable C-contiguous array of ``shape`` and ``dtype`` (the buffer
+    it stands in for); a ValueError naming it and what it should be otherwise."""
+    a = out[name]
+    want = f"{np.dtype(dtype)} {list(shape)}, C-contiguous and writeable"
+    if not isinstance(a, np.ndarray):
+        raise ValueError(f"derive_outputs: out[{name!r}] is a {type(a).__name__}, not an array; the {name} "
+                         f"buffer is {want}")
+    if a.shape != tuple(shape) or a.dtype != dtype or not a.flags.c_contiguous or not a.flags.writeable:
+        what = f"{a.dtype} {list(a.shape)}" + ("" if a.flags.c_contiguous else ", not C-contiguous") + \
+            ("" if a.flags.writeable else ", read-only")
+        raise ValueError(f"derive_outputs: out[{name!r}] is {what}; the {name} buffer of this frame is {want}")
+    return a
+
+
+def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.ndarray],
+                   out: Optional[Mapping[str, np.ndarray]] = None) -> Dict[str, np.ndarray]:
     """The buffers ``names`` (of :data:`BUFFER_NAMES`) of a framebuffer drawn with a visibility record,
-    in one compiled pass over its pixels (module docstring); ``maps`` as :func:`pack_draws` takes it.
+    in one compiled pass over its pixels (module docstring); ``maps`` as :func:`pack_draws` takes it;
+    a buffer named in ``out`` is written into its array there (checked by :func:`check_out_array`).
 
     Raises
     ------
     ValueError
         The record holds a value no recorded draw made (it was changed after drawing), or a draw's
-        inputs do not match its record (an attribute of the wrong shape).
+        inputs do not match its record (an attribute of the wrong shape), or an array of ``out`` is
+        not its buffer's shape and dtype.
     """
     want_names = set(names)
     if not want_names:          # (the color alone: it is the framebuffer's, nothing to derive)
@@ -635,14 +699,19 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
     want = np.array([n in want_names for n in BUFFER_NAMES] + [False], np.bool_)
     geometric = bool(want_names & {"linear_depth", "position", "normal", "barycentrics", "uv", "albedo"})
     draws = fb.recorded_draws
-    table = pack_draws(draws, maps, geometric, "albedo" in want_names, w, h)
+    table = pack_draws(draws, maps, geometric, "albedo" in want_names, w, h,
+                       positional=bool(want_names & {"linear_depth", "position"}))
     textured = any(t is not None for t in table.textures)
     want[W_TEXTURE_UV] = textured
 
     def buffer(name, shape, dtype):
-        return np.empty(shape, dtype) if name in want_names else np.zeros((0,) * len(shape), dtype)
+        if name not in want_names:
+            return np.zeros((0,) * len(shape), dtype)
+        if out is not None and name in out:
+            return check_out_array(out, name, shape, dtype)
+        return np.empty(shape, dtype)
 
-    out = {"depth": buffer("depth", (h, w), np.float32), "linear_depth": buffer("linear_depth", (h, w), np.float32),
+    buffers = {"depth": buffer("depth", (h, w), np.float32), "linear_depth": buffer("linear_depth", (h, w), np.float32),
            "position": buffer("position", (h, w, 3), np.float32), "normal": buffer("normal", (h, w, 3), np.float32),
            "object_id": buffer("object_id", (h, w), np.int32), "triangle_id": buffer("triangle_id", (h, w), np.int64),
            "barycentrics": buffer("barycentrics", (h, w, 3), np.float32), "uv": buffer("uv", (h, w, 2), np.float32),
@@ -661,9 +730,8 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
     samples = record.shape[0]
     in_bands(_derive_rows, h, w, record.reshape(samples, h * w), fb.samples_depth.reshape(samples, h * w),
              table.ints, table.floats, table.corners, table.maps, table.clip, table.positions, table.normals,
-             table.uvs, table.ndc_x, table.ndc_y, want, flat(out["depth"]), flat(out["linear_depth"]), flat(out["position"]),
-             flat(out["normal"]), flat(out["object_id"]), flat(out["triangle_id"]), flat(out["barycentrics"]),
-             flat(out["uv"]), flat(out["albedo"]), flat(texture_uv), flat(texture_draw), present, bad,
+             table.uvs, table.ndc_x, table.ndc_y, want, *(flat(buffers[n]) for n in BUFFER_NAMES), flat(texture_uv),
+             flat(texture_draw), present, bad,
              grain=max(1, 16384 // w))
     broken = np.flatnonzero(bad >= 0)
     if len(broken):
@@ -677,5 +745,5 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
         if e is not None and present[k]:
             raise e
     if textured:
-        _sample_textures(table, texture_uv, texture_draw, out["albedo"])
-    return {n: out[n] for n in names}
+        _sample_textures(table, texture_uv, texture_draw, buffers["albedo"])
+    return {n: buffers[n] for n in names}
