@@ -83,6 +83,15 @@ LIT_PASS = "lit pass"
 TARGETS_MS = {"sphere200k": 25.0, "sphere200k-color": 20.0, "bunny": 12.0, "fill": 200.0, "fill-b2f": 450.0,
               "tiny": 150.0}
 
+#: The issues' targets that compare scenes of one run: (issue, scene, baseline scene, at most this ratio of
+#: their medians). The scene's frame costs at most (ratio − 1) × the baseline's more.
+RATIO_TARGETS = (
+    (31, "bunny-outputs", "bunny", 1.3),            # five outputs cost at most 30 % over color alone
+    (35, "bunny-shadows", "bunny-plane", 1.6),      # shadows add at most 60 % to bunny-plane
+)
+#: Issue 35: peak memory on every scene (VmHWM), in MB.
+PEAK_MEMORY_TARGET_MB = 1024.0
+
 DEFAULT_FRAMES = 7
 DEFAULT_BUDGET_S = 30.0
 DEFAULT_JSON = REPO_ROOT / "out" / "bench.json"
@@ -438,6 +447,32 @@ def format_tables(rows: List[dict]) -> str:
     return t1 + "\n\n" + t2 + "\n\n" + t3
 
 
+def target_rows(rows: List[dict]) -> List[dict]:
+    """The issues' targets this run's scenes measure (:data:`RATIO_TARGETS`, full-size scenes only, and
+    :data:`PEAK_MEMORY_TARGET_MB` over every scene): each with what was measured and whether it is met."""
+    by_name = {r["scene"]: r for r in rows if r["scale"] == 1.0}
+    out = []
+    for issue, scene, baseline, most in RATIO_TARGETS:
+        if scene in by_name and baseline in by_name:
+            ratio = by_name[scene]["median_ms"] / by_name[baseline]["median_ms"]
+            out.append({"issue": issue, "target": f"{scene} ÷ {baseline} ≤ {most}", "measured": f"{ratio:.2f}",
+                        "met": ratio <= most})
+    if rows:
+        peak = max(rows, key=lambda r: r["peak_rss_mb"])
+        out.append({"issue": 35, "target": f"peak memory ≤ {PEAK_MEMORY_TARGET_MB:.0f} MB on every scene run",
+                    "measured": f"{peak['peak_rss_mb']:.0f} MB ({peak['scene']})",
+                    "met": peak["peak_rss_mb"] <= PEAK_MEMORY_TARGET_MB})
+    return out
+
+
+def format_targets(targets: List[dict]) -> str:
+    """The targets of :func:`target_rows` as a table (empty string: none measured)."""
+    if not targets:
+        return ""
+    return _table(["target (ratios of this run's medians)", "issue", "measured", "met"],
+                  [[t["target"], f"#{t['issue']}", t["measured"], "yes" if t["met"] else "NO"] for t in targets])
+
+
 def machine_info() -> dict:
     cpu = "unknown"
     try:
@@ -524,6 +559,7 @@ def run(names: Sequence[str] = (), frames: int = DEFAULT_FRAMES, scale: float = 
             "settings": {"frames": frames, "scale": scale, "budget_s": budget},
             "total_s": time.perf_counter() - started,
             "scenes": rows,
+            "targets": target_rows(rows),
             "failed": failed,
             "notes": [n for r in rows for n in r["notes"]] + [f"{f['scene']}: FAILED: {f['error']}" for f in failed],
         }
@@ -574,6 +610,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     print()
     if report["scenes"]:
         print(format_tables(report["scenes"]))
+    if report["targets"]:
+        print("\n" + format_targets(report["targets"]))
     if report["notes"]:
         print("\nnotes:")
         for note in report["notes"]:

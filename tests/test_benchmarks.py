@@ -218,3 +218,22 @@ def test_the_cold_start_report_says_which_targets_are_met():
     assert rows[cold.LABELS["render"]].endswith("met") and " 9.50 " in rows[cold.LABELS["render"]]
     assert rows[cold.LABELS["stripes"]].endswith("1.50x")
     assert rows[cold.LABELS["lit"]].endswith("met")
+
+
+def test_the_targets_between_scenes_are_their_medians_ratios_and_say_whether_met():
+    def row(scene, median, peak=300.0, scale=1.0):
+        return {"scene": scene, "median_ms": median, "peak_rss_mb": peak, "scale": scale}
+    rows = [row("bunny", 10.0), row("bunny-outputs", 12.9), row("bunny-plane", 20.0),
+            row("bunny-shadows", 32.2, peak=1100.0)]
+    targets = {t["target"]: t for t in bench.target_rows(rows)}
+    assert targets["bunny-outputs ÷ bunny ≤ 1.3"] == {"issue": 31, "target": "bunny-outputs ÷ bunny ≤ 1.3",
+                                                       "measured": "1.29", "met": True}
+    shadows = targets["bunny-shadows ÷ bunny-plane ≤ 1.6"]
+    assert (shadows["measured"], shadows["met"]) == ("1.61", False)
+    memory = targets["peak memory ≤ 1024 MB on every scene run"]
+    assert (memory["measured"], memory["met"]) == ("1100 MB (bunny-shadows)", False)
+    text = bench.format_targets(bench.target_rows(rows))
+    assert "bunny-outputs ÷ bunny ≤ 1.3" in text and "NO" in text and "yes" in text
+    # a pair is compared only when both scenes ran, at full size
+    assert [t["issue"] for t in bench.target_rows([row("bunny", 10.0), row("bunny-outputs", 12.0, scale=0.5)])] == [35]
+    assert bench.format_targets([]) == ""
