@@ -50,7 +50,7 @@ test-deps:
 	fi
 
 bench: $(STAMP)
-	$(PY) -m benchmarks.run
+	$(PY) -m benchmarks.run --scaling
 
 # Cold start, in fresh processes (benchmarks/cold.py): `softpipe render bunny` with empty kernel
 # caches, and the first draw of a user's shader (README's stripes, a lit user program).

@@ -89,8 +89,10 @@ RATIO_TARGETS = (
     (31, "bunny-outputs", "bunny", 1.3),            # five outputs cost at most 30 % over color alone
     (35, "bunny-shadows", "bunny-plane", 1.6),      # shadows add at most 60 % to bunny-plane
 )
-#: Issue 35: peak memory on every scene (VmHWM), in MB.
+#: Issue 35: peak memory on every scene (VmHWM), in MB; and a whole frame on 2 threads at least this many
+#: times as fast as on 1 (``--scaling``).
 PEAK_MEMORY_TARGET_MB = 1024.0
+SCALING_TARGET = 1.8
 
 DEFAULT_FRAMES = 7
 DEFAULT_BUDGET_S = 30.0
@@ -103,7 +105,7 @@ ROW_FIELDS = ("scene", "description", "shading", "path", "width", "height", "sca
               "triangles_per_s", "shaded_pixels_per_s", "covered_per_s", "cpu_per_wall",
               "stages_ms", "first_stages_ms", "parts_ms", "first_parts_ms",
               "peak_rss_mb", "start_rss_mb", "memory_method", "build_s",
-              "target_ms", "vs_target", "notes")
+              "target_ms", "vs_target", "one_thread_ms", "scaling", "notes")
 
 
 # --------------------------------------------------------------------------
@@ -282,13 +284,17 @@ def _median_parts(frames: List[Dict[str, float]]) -> Dict[str, float]:
 
 
 def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: Optional[float] = DEFAULT_BUDGET_S,
-              keep_image: bool = False, log: Callable[[str], None] = print) -> dict:
+              keep_image: bool = False, log: Callable[[str], None] = print, scaling: bool = False) -> dict:
     """Benchmark one scene (a name or a :class:`Scene`); returns its result row (see :data:`ROW_FIELDS`).
 
     ``budget`` (seconds, None = no limit) caps the time spent on warm frames:
     when the next frame would overrun it, the scene stops early (after at
     least one warm frame) and says so in ``notes``. With ``keep_image`` the
     row also has ``image``, the last frame as uint8 [H, W, 4] (not JSON).
+    With ``scaling`` each warm frame is paired with one drawn on 1 thread just
+    before it (the pairs alternate, so drift falls on both): the row's
+    ``one_thread_ms`` is their median and ``scaling`` the median of the pairs'
+    ratios (1 thread ÷ the run's threads; issue 35's target: ≥ 1.8 on 2).
     """
     if frames < 1:
         raise ValueError(f"frames must be at least 1, got {frames}")
@@ -309,11 +315,25 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
     first_parts: Dict[str, float] = {}
     first_s, first_stages = render_frame(scene, fb, paths, first_parts)
     log(f"  {scene.name}: first frame {first_s * 1e3:.0f} ms (includes compiling); warm frames ...")
-    times, stage_frames, part_frames = [], [], []
-    warm_start, cpu_start = time.perf_counter(), time.process_time()
+    times, stage_frames, part_frames, one_thread = [], [], [], []
+    threads_now = numba.get_num_threads()
+    if scaling:
+        numba.set_num_threads(1)        # (the first frame on 1 thread too: some kernels compile per thread count)
+        render_frame(scene, fb)
+        numba.set_num_threads(threads_now)
+    warm_start = time.perf_counter()
+    wall = cpu = 0.0                    # of the frames on the run's threads (cpu: every thread of the process)
     while len(times) < frames:
+        if scaling:
+            numba.set_num_threads(1)
+            try:
+                one_thread.append(render_frame(scene, fb)[0])
+            finally:
+                numba.set_num_threads(threads_now)
         parts: Dict[str, float] = {}
+        wall_0, cpu_0 = time.perf_counter(), time.process_time()
         seconds, stages = render_frame(scene, fb, parts=parts)
+        wall, cpu = wall + time.perf_counter() - wall_0, cpu + time.process_time() - cpu_0
         times.append(seconds)
         stage_frames.append(stages)
         part_frames.append(parts)
@@ -322,7 +342,6 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
             notes.append(f"{scene.name}: only {len(times)} warm frame(s) of {frames}: a frame takes about "
                          f"{seconds:.1f} s and the warm-frame budget is {budget:.0f} s per scene (--budget)")
             break
-    wall, cpu = time.perf_counter() - warm_start, time.process_time() - cpu_start
     peak_rss, memory_method = _peak_rss_mb(reset)
 
     covered, fragments = count_fragments_of(scene, fb)
@@ -369,6 +388,8 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
         "build_s": build_s,
         "target_ms": target,
         "vs_target": None if target is None else median * 1e3 / target,
+        "one_thread_ms": statistics.median(one_thread) * 1e3 if one_thread else None,
+        "scaling": statistics.median(a / b for a, b in zip(one_thread, times)) if one_thread else None,
         "notes": notes,
     }
     if keep_image:
@@ -434,17 +455,23 @@ def format_tables(rows: List[dict]) -> str:
         stage_rows.append([r["scene"], *(_ms(st.get(n)) if n in st else "-" for n in names),
                            f"{STAGE_TITLES.get(biggest, biggest)} {100 * st[biggest] / total:.0f}%"])
     t2 = _table(["median ms by stage", *(STAGE_TITLES.get(n, n) for n in names), "largest"], stage_rows)
+    tables = [t1, t2]
+    scaled = [r for r in rows if r.get("scaling") is not None]
+    if scaled:
+        tables.append(_table(["threads (paired frames)", "1 thread ms", "threads", "ms", "1 ÷ threads"],
+                             [[r["scene"], _ms(r["one_thread_ms"]), str(r["threads"]), _ms(r["median_ms"]),
+                               f"{r['scaling']:.2f}"] for r in scaled]))
     with_parts = [r for r in rows if r.get("parts_ms")]
     if not with_parts:
-        return t1 + "\n\n" + t2
+        return "\n\n".join(tables)
     part_names: List[str] = []
     for r in with_parts:
         part_names += [n for n in r["parts_ms"] if n not in part_names and n != LIT_PASS]
     part_names.append(LIT_PASS)
     part_rows = [[r["scene"], *(_ms(r["parts_ms"].get(n)) if n in r["parts_ms"] else "-" for n in part_names),
                   _ms(r["median_ms"])] for r in with_parts]
-    t3 = _table(["median ms by part", *part_names, "frame"], part_rows)
-    return t1 + "\n\n" + t2 + "\n\n" + t3
+    tables.append(_table(["median ms by part", *part_names, "frame"], part_rows))
+    return "\n\n".join(tables)
 
 
 def target_rows(rows: List[dict]) -> List[dict]:
@@ -457,6 +484,13 @@ def target_rows(rows: List[dict]) -> List[dict]:
             ratio = by_name[scene]["median_ms"] / by_name[baseline]["median_ms"]
             out.append({"issue": issue, "target": f"{scene} ÷ {baseline} ≤ {most}", "measured": f"{ratio:.2f}",
                         "met": ratio <= most})
+    scaled = [r for r in rows if r.get("scaling") is not None and r["threads"] == 2]
+    if scaled:
+        missed = sorted((r for r in scaled if r["scaling"] < SCALING_TARGET), key=lambda r: r["scaling"])
+        measured = f"{len(scaled) - len(missed)} of {len(scaled)} scenes" + \
+            ("" if not missed else "; below: " + ", ".join(f"{r['scene']} {r['scaling']:.2f}" for r in missed))
+        out.append({"issue": 35, "target": f"2 threads ≥ {SCALING_TARGET}× 1 thread, whole frames", "measured": measured,
+                    "met": not missed})
     if rows:
         peak = max(rows, key=lambda r: r["peak_rss_mb"])
         out.append({"issue": 35, "target": f"peak memory ≤ {PEAK_MEMORY_TARGET_MB:.0f} MB on every scene run",
@@ -515,7 +549,7 @@ def _threading_layer() -> str:
 
 def run(names: Sequence[str] = (), frames: int = DEFAULT_FRAMES, scale: float = 1.0, threads: Optional[int] = None,
         budget: Optional[float] = DEFAULT_BUDGET_S, keep_images: bool = False,
-        log: Callable[[str], None] = print) -> dict:
+        log: Callable[[str], None] = print, scaling: bool = False) -> dict:
     """Benchmark ``names`` (all scenes if empty); returns the report (what ``--json`` writes, plus images)."""
     names = list(names) or list(SCENES)
     unknown = [n for n in names if n not in SCENES]
@@ -540,7 +574,7 @@ def run(names: Sequence[str] = (), frames: int = DEFAULT_FRAMES, scale: float = 
         for name in names:
             try:
                 rows.append(run_scene(name, frames=frames, scale=scale, budget=budget, keep_image=keep_images,
-                                      log=log))
+                                      log=log, scaling=scaling))
             except Exception as err:  # one broken scene must not hide the others' figures
                 log(f"  {name}: FAILED: {type(err).__name__}: {err}")
                 failed.append({"scene": name, "error": f"{type(err).__name__}: {err}",
@@ -556,7 +590,7 @@ def run(names: Sequence[str] = (), frames: int = DEFAULT_FRAMES, scale: float = 
                         "threading_layer": _threading_layer(),
                         "blas_env": {v: os.environ.get(v) for v in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                                                                      "OMP_NUM_THREADS")}},
-            "settings": {"frames": frames, "scale": scale, "budget_s": budget},
+            "settings": {"frames": frames, "scale": scale, "budget_s": budget, "scaling": scaling},
             "total_s": time.perf_counter() - started,
             "scenes": rows,
             "targets": target_rows(rows),
@@ -591,6 +625,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                              f"(default {DEFAULT_BUDGET_S:.0f}; 0 = no limit)")
     parser.add_argument("--json", type=Path, default=DEFAULT_JSON,
                         help=f"where to write the results (default {DEFAULT_JSON.relative_to(REPO_ROOT)})")
+    parser.add_argument("--scaling", action="store_true",
+                        help="also draw each warm frame on 1 thread, alternated with the run's threads, and report "
+                             "the ratio (issue 35's target: 2 threads at least 1.8x as fast)")
     parser.add_argument("--save-images", type=Path, default=None, metavar="DIR",
                         help="also write each scene's last frame as DIR/SCENE.png")
     args = parser.parse_args(argv)
@@ -604,7 +641,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     keep_freed_memory()     # a program of softpipe's own, as the softpipe command is (softpipe/core/runtime.py)
     try:
         report = run(args.scenes, frames=args.frames, scale=args.scale, threads=args.threads,
-                     budget=args.budget or None, keep_images=args.save_images is not None)
+                     budget=args.budget or None, keep_images=args.save_images is not None, scaling=args.scaling)
     except ValueError as e:
         parser.error(str(e))
     print()

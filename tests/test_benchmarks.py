@@ -75,7 +75,7 @@ def test_every_scene_runs_and_reports_every_field(report):
         assert row["triangles_per_s"] > 0 and row["shaded_pixels_per_s"] > 0
         assert row["target_ms"] is None  # targets apply to the full-size scenes only
     assert data["threads"]["numba_threads"] == 1
-    assert data["settings"] == {"frames": 1, "scale": SCALE, "budget_s": None}
+    assert data["settings"] == {"frames": 1, "scale": SCALE, "budget_s": None, "scaling": False}
     for key in ("nproc", "cpu_model", "python", "numba"):
         assert data["machine"][key]
     for row in data["scenes"]:
@@ -237,3 +237,22 @@ def test_the_targets_between_scenes_are_their_medians_ratios_and_say_whether_met
     # a pair is compared only when both scenes ran, at full size
     assert [t["issue"] for t in bench.target_rows([row("bunny", 10.0), row("bunny-outputs", 12.0, scale=0.5)])] == [35]
     assert bench.format_targets([]) == ""
+
+
+def test_scaling_pairs_each_frame_with_one_on_one_thread_and_the_target_names_the_misses():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread here")
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        row = bench.run_scene("bunny", frames=2, scale=SCALE, budget=None, log=lambda s: None, scaling=True)
+        assert numba.get_num_threads() == 2                      # put back after the 1-thread frames
+    finally:
+        numba.set_num_threads(before)
+    assert row["one_thread_ms"] > 0 and row["scaling"] > 0 and row["warm_frames"] == 2
+    assert "threads (paired frames)" in bench.format_tables([row])
+    rows = [dict(row, scene="a", scaling=1.9), dict(row, scene="b", scaling=1.2), dict(row, scene="c", scaling=1.5)]
+    target = [t for t in bench.target_rows(rows) if t["target"].startswith("2 threads")][0]
+    assert target["measured"] == "1 of 3 scenes; below: b 1.20, c 1.50" and target["met"] is False
+    plain = bench.run_scene("bunny", frames=1, scale=SCALE, budget=None, log=lambda s: None)
+    assert plain["scaling"] is None and "threads (paired frames)" not in bench.format_tables([plain])
