@@ -253,33 +253,40 @@ def pcf_as_before(shadows, k, x, y, ref):
 
 
 def test_the_pcf_lookup_gives_the_bits_it_gave_before():
-    """shadow_compare's shortcut for taps inside an opaque-only map: the same three values, bit for bit,
-    as the general loop, compiled both, on maps of PCF r = 0…2 (one with a transparent layer), depths
-    with NaNs and ties, points inside, on the border, outside and NaN."""
+    """shadow_compare's shortcuts — every tap inside an opaque-only map (the 3×3 of r = 1 written out),
+    every tap outside the map — give the same three values, bit for bit, as the general loop,
+    compiled both, on maps of PCF r = 0…2 (one with a transparent layer), depths with NaNs and
+    ties, points inside, on the border, just and far outside (infinite, NaN)."""
     from softpipe.light.shadowmap import ShadowUniform, shadow_compare
 
     rng = np.random.default_rng(35)
-    sizes, radii = [(16, 12), (9, 20), (24, 24), (16, 16)], [0, 1, 2, 1]
+    sizes, radii = [(16, 12), (9, 20), (24, 24), (16, 16), (20, 14)], [0, 1, 2, 1, 1]
     depth = [rng.choice([0.25, 0.5, 0.75, 1.0], w * h).astype(np.float32) for w, h in sizes]
     depth[2][::7] = np.nan
+    depth[4][::5] = np.nan
     offsets = np.cumsum([0] + [w * h for w, h in sizes])
     maps = np.array([[offsets[m], w, h, r, 0 if m == 3 else -1] for m, ((w, h), r) in enumerate(zip(sizes, radii))],
                     np.int64)
     w3, h3 = sizes[3]
-    shadows = ShadowUniform(np.zeros((0, 3), np.int64), maps, np.zeros((4, 4, 4)), np.concatenate(depth),
+    shadows = ShadowUniform(np.zeros((0, 3), np.int64), maps, np.zeros((5, 4, 4)), np.concatenate(depth),
                             rng.choice([0.1, 0.3, 1.0], w3 * h3).astype(np.float32),
                             rng.uniform(0.0, 1.0, (w3 * h3, 3)).astype(np.float32), None)
     before = numba.njit(pcf_as_before)
     checked = 0
     for k, (w, h) in enumerate(sizes):
-        xs = np.r_[rng.uniform(-3.0, w + 3.0, 300), 0.0, 0.5, 1.0, w - 1.0, w - 0.5, float(w), np.nan]
-        ys = np.r_[rng.uniform(-3.0, h + 3.0, 300), 0.0, 0.5, 1.0, h - 1.0, h - 0.5, float(h), 3.5]
-        refs = np.r_[rng.choice([0.25, 0.5, 0.6, 0.75, 1.0], 306), np.nan]
+        r = radii[k]
+        edges = [-r - 1.0, -r - 0.5, -r + 0.0, w + r - 0.5, w + r + 0.0, w + r + 0.5]   # the last taps in, the first out
+        far = [-1e30, 1e30, -np.inf, np.inf, np.nan, 3.5, 3.5]
+        xs = np.r_[rng.uniform(-6.0, w + 6.0, 300), 0.0, 0.5, 1.0, w - 1.0, w - 0.5, float(w), np.nan, edges, far,
+                   [3.5] * 7]
+        ys = np.r_[rng.uniform(-6.0, h + 6.0, 300), 0.0, 0.5, 1.0, h - 1.0, h - 0.5, float(h), 3.5, edges[::-1],
+                   [3.5] * 5, 1e30, np.nan, far]
+        refs = np.r_[rng.choice([0.25, 0.5, 0.6, 0.75, 1.0], 306), np.nan, [0.6] * 20]
         for x, y, ref in zip(xs, ys, refs):
             got, want = shadow_compare(shadows, k, x, y, ref), before(shadows, k, x, y, ref)
             assert np.array(got).tobytes() == np.array(want).tobytes(), (k, x, y, ref, got, want)
             checked += 1
-    assert checked == 4 * 307
+    assert checked == 5 * 327
 
 
 def test_the_casters_bounds_are_numpys_min_and_max():
