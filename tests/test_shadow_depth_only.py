@@ -299,3 +299,62 @@ def test_the_casters_bounds_are_numpys_min_and_max():
         lo, hi = shadow_pass._column_bounds(np.ascontiguousarray(points))
         np.testing.assert_array_equal(lo, points.min(axis=0))
         np.testing.assert_array_equal(hi, points.max(axis=0))
+
+
+def shuffled_sphere(seed=5):
+    """A sphere's caster with its triangles in a random order (as a scanned mesh's come) and duplicated
+    (every texel then has two triangles of the very same depth: a tie the order could decide)."""
+    mesh = shapes.uv_sphere(1.0, 40, 20)
+    positions = np.asarray(mesh.positions, np.float64) + (0.0, 1.2, 0.0)
+    tri = np.asarray(mesh.indices).reshape(-1, 3)
+    tri = np.concatenate([tri, tri[:, ::-1]])                  # both windings: the same depths twice
+    tri = tri[np.random.default_rng(seed).permutation(len(tri))]
+    return shadow_pass.ShadowCaster("sphere", positions, tri)
+
+
+def test_the_opaque_casters_order_changes_no_map(monkeypatch):
+    """The opaque casters reach the depth pass in Morton order (shadow_pass._in_coherent_order): every
+    map is the same bytes as with the triangles in the order given, on each light kind, with
+    transparent casters (kept in their order), a shuffled mesh with duplicated triangles (ties), and
+    through the reference path."""
+    cases = dict(scenes())
+    cases["shuffled"] = ([shuffled_sphere(), *shadow_pass.casters_of([floor()])],
+                         cases["transparent"][1])
+    for name, (objects, lighting) in cases.items():
+        ordered, _ = maps_by(monkeypatch, objects, lighting)
+        reference, _ = maps_by(monkeypatch, objects, lighting, path="reference")
+        with monkeypatch.context() as m:
+            m.setattr(shadow_pass, "_in_coherent_order", lambda caster: caster)
+            given, _ = maps_by(monkeypatch, objects, lighting)
+        same_maps(ordered, given, f"{name}: Morton order vs the order given")
+        same_maps(ordered, reference, f"{name}: Morton order, reference path")
+
+
+def test_a_scattered_mesh_is_drawn_in_morton_order_sorted_once(monkeypatch):
+    """A mesh in random order reaches the opaque pass with its triangles' Morton codes in increasing
+    order (what makes the tiles' lists run through neighbours); the order is made once per index
+    array, not every frame; a transparent caster keeps the order it was given."""
+    caster = shuffled_sphere()
+    glass = shadow_pass.casters_of([box(translate(-0.8, 2.8, 0.5) @ scale(1.0, 0.1, 1.0),
+                                        Material(kt=(0.2, 0.6, 0.9)), "glass")])[0]
+    lighting = Lighting((Light.directional((0.3, -1.0, 0.2), shadows=ShadowSettings(resolution=128)),))
+    sorts = []
+    real = shadow_pass._morton_codes
+
+    def counting(positions, indices):
+        sorts.append(len(indices))
+        return real(positions, indices)
+
+    with monkeypatch.context() as m:
+        m.setattr(shadow_pass, "_morton_codes", counting)
+        shadow_pass._ORDERS.clear()
+        _, calls = maps_by(monkeypatch, [caster, glass], lighting)
+        _, again = maps_by(monkeypatch, [caster, glass], lighting)
+    assert sorts == [len(caster.indices)]                      # once, for the opaque caster only
+    for made in (calls, again):
+        opaque, clear = [c for c in made if not any(c.state.color_mask)], [c for c in made if any(c.state.color_mask)]
+        drawn = np.asarray(opaque[0].indices)
+        assert sorted(map(tuple, drawn)) == sorted(map(tuple, caster.indices))
+        assert (np.diff(real(caster.positions, drawn.astype(np.int64))) >= 0).all()
+        assert (np.diff(real(caster.positions, caster.indices.astype(np.int64))) < 0).any()   # it was not
+        assert np.array_equal(np.asarray(clear[0].indices), glass.indices)
