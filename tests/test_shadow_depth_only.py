@@ -360,3 +360,15 @@ def test_a_scattered_mesh_is_drawn_in_morton_order_sorted_once(monkeypatch):
         assert (np.diff(real(caster.positions, drawn.astype(np.int64))) >= 0).all()
         assert (np.diff(real(caster.positions, caster.indices.astype(np.int64))) < 0).any()   # it was not
         assert np.array_equal(np.asarray(clear[0].indices), glass.indices)
+
+
+def test_at_most_ORDERS_KEPT_orders_are_kept_the_newest():
+    rng = np.random.default_rng(1)
+    shadow_pass._ORDERS.clear()
+    casters = [shadow_pass.ShadowCaster("c", rng.normal(size=(30, 3)), rng.integers(0, 30, (10 + k, 3)))
+               for k in range(shadow_pass._ORDERS_KEPT + 4)]
+    for c in casters:
+        shadow_pass._in_coherent_order(c)
+    assert len(shadow_pass._ORDERS) == shadow_pass._ORDERS_KEPT
+    assert [key[0][0] for key in shadow_pass._ORDERS] == [len(c.indices) for c in casters[4:]]
+    shadow_pass._ORDERS.clear()
