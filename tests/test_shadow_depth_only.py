@@ -253,33 +253,40 @@ def pcf_as_before(shadows, k, x, y, ref):
 
 
 def test_the_pcf_lookup_gives_the_bits_it_gave_before():
-    """shadow_compare's shortcut for taps inside an opaque-only map: the same three values, bit for bit,
-    as the general loop, compiled both, on maps of PCF r = 0…2 (one with a transparent layer), depths
-    with NaNs and ties, points inside, on the border, outside and NaN."""
+    """shadow_compare's shortcuts — every tap inside an opaque-only map (the 3×3 of r = 1 written out),
+    every tap outside the map — give the same three values, bit for bit, as the general loop,
+    compiled both, on maps of PCF r = 0…2 (one with a transparent layer), depths with NaNs and
+    ties, points inside, on the border, just and far outside (infinite, NaN)."""
     from softpipe.light.shadowmap import ShadowUniform, shadow_compare
 
     rng = np.random.default_rng(35)
-    sizes, radii = [(16, 12), (9, 20), (24, 24), (16, 16)], [0, 1, 2, 1]
+    sizes, radii = [(16, 12), (9, 20), (24, 24), (16, 16), (20, 14)], [0, 1, 2, 1, 1]
     depth = [rng.choice([0.25, 0.5, 0.75, 1.0], w * h).astype(np.float32) for w, h in sizes]
     depth[2][::7] = np.nan
+    depth[4][::5] = np.nan
     offsets = np.cumsum([0] + [w * h for w, h in sizes])
     maps = np.array([[offsets[m], w, h, r, 0 if m == 3 else -1] for m, ((w, h), r) in enumerate(zip(sizes, radii))],
                     np.int64)
     w3, h3 = sizes[3]
-    shadows = ShadowUniform(np.zeros((0, 3), np.int64), maps, np.zeros((4, 4, 4)), np.concatenate(depth),
+    shadows = ShadowUniform(np.zeros((0, 3), np.int64), maps, np.zeros((5, 4, 4)), np.concatenate(depth),
                             rng.choice([0.1, 0.3, 1.0], w3 * h3).astype(np.float32),
                             rng.uniform(0.0, 1.0, (w3 * h3, 3)).astype(np.float32), None)
     before = numba.njit(pcf_as_before)
     checked = 0
     for k, (w, h) in enumerate(sizes):
-        xs = np.r_[rng.uniform(-3.0, w + 3.0, 300), 0.0, 0.5, 1.0, w - 1.0, w - 0.5, float(w), np.nan]
-        ys = np.r_[rng.uniform(-3.0, h + 3.0, 300), 0.0, 0.5, 1.0, h - 1.0, h - 0.5, float(h), 3.5]
-        refs = np.r_[rng.choice([0.25, 0.5, 0.6, 0.75, 1.0], 306), np.nan]
+        r = radii[k]
+        edges = [-r - 1.0, -r - 0.5, -r + 0.0, w + r - 0.5, w + r + 0.0, w + r + 0.5]   # the last taps in, the first out
+        far = [-1e30, 1e30, -np.inf, np.inf, np.nan, 3.5, 3.5]
+        xs = np.r_[rng.uniform(-6.0, w + 6.0, 300), 0.0, 0.5, 1.0, w - 1.0, w - 0.5, float(w), np.nan, edges, far,
+                   [3.5] * 7]
+        ys = np.r_[rng.uniform(-6.0, h + 6.0, 300), 0.0, 0.5, 1.0, h - 1.0, h - 0.5, float(h), 3.5, edges[::-1],
+                   [3.5] * 5, 1e30, np.nan, far]
+        refs = np.r_[rng.choice([0.25, 0.5, 0.6, 0.75, 1.0], 306), np.nan, [0.6] * 20]
         for x, y, ref in zip(xs, ys, refs):
             got, want = shadow_compare(shadows, k, x, y, ref), before(shadows, k, x, y, ref)
             assert np.array(got).tobytes() == np.array(want).tobytes(), (k, x, y, ref, got, want)
             checked += 1
-    assert checked == 4 * 307
+    assert checked == 5 * 327
 
 
 def test_the_casters_bounds_are_numpys_min_and_max():
@@ -292,3 +299,76 @@ def test_the_casters_bounds_are_numpys_min_and_max():
         lo, hi = shadow_pass._column_bounds(np.ascontiguousarray(points))
         np.testing.assert_array_equal(lo, points.min(axis=0))
         np.testing.assert_array_equal(hi, points.max(axis=0))
+
+
+def shuffled_sphere(seed=5):
+    """A sphere's caster with its triangles in a random order (as a scanned mesh's come) and duplicated
+    (every texel then has two triangles of the very same depth: a tie the order could decide)."""
+    mesh = shapes.uv_sphere(1.0, 40, 20)
+    positions = np.asarray(mesh.positions, np.float64) + (0.0, 1.2, 0.0)
+    tri = np.asarray(mesh.indices).reshape(-1, 3)
+    tri = np.concatenate([tri, tri[:, ::-1]])                  # both windings: the same depths twice
+    tri = tri[np.random.default_rng(seed).permutation(len(tri))]
+    return shadow_pass.ShadowCaster("sphere", positions, tri)
+
+
+def test_the_opaque_casters_order_changes_no_map(monkeypatch):
+    """The opaque casters reach the depth pass in Morton order (shadow_pass._in_coherent_order): every
+    map is the same bytes as with the triangles in the order given, on each light kind, with
+    transparent casters (kept in their order), a shuffled mesh with duplicated triangles (ties), and
+    through the reference path."""
+    cases = dict(scenes())
+    cases["shuffled"] = ([shuffled_sphere(), *shadow_pass.casters_of([floor()])],
+                         cases["transparent"][1])
+    for name, (objects, lighting) in cases.items():
+        ordered, _ = maps_by(monkeypatch, objects, lighting)
+        reference, _ = maps_by(monkeypatch, objects, lighting, path="reference")
+        with monkeypatch.context() as m:
+            m.setattr(shadow_pass, "_in_coherent_order", lambda caster: caster)
+            given, _ = maps_by(monkeypatch, objects, lighting)
+        same_maps(ordered, given, f"{name}: Morton order vs the order given")
+        same_maps(ordered, reference, f"{name}: Morton order, reference path")
+
+
+def test_a_scattered_mesh_is_drawn_in_morton_order_sorted_once(monkeypatch):
+    """A mesh in random order reaches the opaque pass with its triangles' Morton codes in increasing
+    order (what makes the tiles' lists run through neighbours); the order is made once per mesh, not
+    every frame, also when its index array is made anew each frame (as a part of a mesh of several
+    materials is); a transparent caster keeps the order it was given."""
+    caster = shuffled_sphere()
+    glass = shadow_pass.casters_of([box(translate(-0.8, 2.8, 0.5) @ scale(1.0, 0.1, 1.0),
+                                        Material(kt=(0.2, 0.6, 0.9)), "glass")])[0]
+    lighting = Lighting((Light.directional((0.3, -1.0, 0.2), shadows=ShadowSettings(resolution=128)),))
+    sorts = []
+    real = shadow_pass._morton_codes
+
+    def counting(positions, indices):
+        sorts.append(len(indices))
+        return real(positions, indices)
+
+    with monkeypatch.context() as m:
+        m.setattr(shadow_pass, "_morton_codes", counting)
+        shadow_pass._ORDERS.clear()
+        _, calls = maps_by(monkeypatch, [caster, glass], lighting)
+        anew = shadow_pass.ShadowCaster(caster.name, caster.positions, caster.indices.copy())   # the same rows
+        _, again = maps_by(monkeypatch, [anew, glass], lighting)
+    assert sorts == [len(caster.indices)]                      # once, for the opaque caster only
+    for made in (calls, again):
+        opaque, clear = [c for c in made if not any(c.state.color_mask)], [c for c in made if any(c.state.color_mask)]
+        drawn = np.asarray(opaque[0].indices)
+        assert sorted(map(tuple, drawn)) == sorted(map(tuple, caster.indices))
+        assert (np.diff(real(caster.positions, drawn.astype(np.int64))) >= 0).all()
+        assert (np.diff(real(caster.positions, caster.indices.astype(np.int64))) < 0).any()   # it was not
+        assert np.array_equal(np.asarray(clear[0].indices), glass.indices)
+
+
+def test_at_most_ORDERS_KEPT_orders_are_kept_the_newest():
+    rng = np.random.default_rng(1)
+    shadow_pass._ORDERS.clear()
+    casters = [shadow_pass.ShadowCaster("c", rng.normal(size=(30, 3)), rng.integers(0, 30, (10 + k, 3)))
+               for k in range(shadow_pass._ORDERS_KEPT + 4)]
+    for c in casters:
+        shadow_pass._in_coherent_order(c)
+    assert len(shadow_pass._ORDERS) == shadow_pass._ORDERS_KEPT
+    assert [key[0][0] for key in shadow_pass._ORDERS] == [len(c.indices) for c in casters[4:]]
+    shadow_pass._ORDERS.clear()

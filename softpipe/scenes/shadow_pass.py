@@ -308,6 +308,101 @@ def _outside_map(matrix: np.ndarray, bounds: np.ndarray) -> bool:
         return bool(any((clip[:, a] - w > margin).all() or (-clip[:, a] - w > margin).all() for a in range(3)))
 
 
+# ------------------------------------------------------------------ the opaque casters' triangle order
+
+@numba.njit(cache=True, inline="never")
+def _spread_bits(q):
+    """The 10 low bits of ``q`` spread two zero bits apart (bit b to bit 3b), for a 3D Morton code."""
+    q &= 0x3FF
+    q = (q | (q << 16)) & 0x030000FF
+    q = (q | (q << 8)) & 0x0300F00F
+    q = (q | (q << 4)) & 0x030C30C3
+    return (q | (q << 2)) & 0x09249249
+
+
+@numba.njit(cache=True)
+def _morton_codes(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Each triangle's 30-bit Morton code: its centroid's place in the casters' box, 10 bits an axis,
+    interleaved. A triangle with a corner index out of range or a coordinate not finite gets the
+    code of the box's lowest corner (the codes only order the triangles: any value is correct)."""
+    n, count = indices.shape[0], positions.shape[0]
+    centroids = np.zeros((n, 3))
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for t in range(n):
+        a, b, c = indices[t, 0], indices[t, 1], indices[t, 2]
+        if not (0 <= a < count and 0 <= b < count and 0 <= c < count):
+            continue
+        for k in range(3):
+            v = (positions[a, k] + positions[b, k] + positions[c, k]) / 3.0
+            centroids[t, k] = v
+            if v == v and abs(v) < np.inf:
+                lo[k] = min(lo[k], v)
+                hi[k] = max(hi[k], v)
+    codes = np.zeros(n, np.int64)
+    for t in range(n):
+        code = 0
+        for k in range(3):
+            q = 0.0
+            if hi[k] > lo[k]:
+                q = (centroids[t, k] - lo[k]) / (hi[k] - lo[k]) * 1023.0
+            q = min(q, 1023.0) if q >= 0.0 else 0.0      # (NaN and below the box: 0)
+            code |= _spread_bits(np.int64(q)) << k
+        codes[t] = code
+    return codes
+
+
+#: The opaque casters' triangle orders (:func:`_in_coherent_order`), kept per index array, known by its
+#: shape, type and a sample of its rows (:func:`_order_key`): made once per mesh, not every frame, also
+#: for a mesh whose index arrays are made anew each frame (a part of a mesh of several materials,
+#: ``Mesh.by_material``). At most _ORDERS_KEPT of them.
+_ORDERS: Dict[tuple, np.ndarray] = {}
+_ORDERS_KEPT = 16
+#: How many rows, evenly spaced, :func:`_order_key` reads.
+_KEY_ROWS = 64
+
+
+def _order_key(indices: np.ndarray) -> tuple:
+    """What a kept order is found by: the array's shape and type and _KEY_ROWS of its rows. Two arrays
+    with the same key may differ elsewhere: the order found is then still a permutation of the rows,
+    which draws the same map (only perhaps in a worse order), so a cheap key is enough."""
+    step = max(1, len(indices) // _KEY_ROWS)
+    return indices.shape, indices.dtype.str, np.ascontiguousarray(indices[::step][:_KEY_ROWS]).tobytes()
+
+
+def _in_coherent_order(caster: ShadowCaster) -> ShadowCaster:
+    """An opaque caster with its triangles in a spatially coherent order (the Morton order of their
+    centroids, :func:`_morton_codes`); a transparent caster as it is.
+
+    An opaque pass's map does not depend on the order of its triangles: with the depth test LESS
+    and nothing but depth kept, each texel ends with the least depth any triangle's fragment has
+    there (a minimum of float32 values, whatever the order; the polygon offset, the clipping and
+    the fill rule are each triangle's own). A scanned mesh's triangles come in an order far from
+    any map's (the bunny's tile lists from its lights jumped between triangles 0.59 and 0.49 of
+    the time): its triangles set up all over their arrays cost the tile walk a cache miss each,
+    or a copy of the setup into tile order (``tiles.gather_setup``) a map. In Morton order the
+    lists run through neighbouring triangles (0.16 and 0.09): no copy, and the walk reads in
+    sweeps (benchmarks/README.md, "Shadows, round 3"). The order is kept per index array
+    (:func:`_order_key`), so a mesh is sorted once (7.7 ms for the bunny's 69,451 triangles); one kept
+    for an array since changed is still a permutation of its rows, so the map is still the same,
+    only perhaps drawn in a worse order.
+    """
+    indices = np.asarray(caster.indices)
+    if caster.transmission is not None or not np.issubdtype(indices.dtype, np.integer) \
+            or indices.ndim != 2 or indices.shape[1] != 3 or len(indices) < 2:
+        return caster               # (a transparent pass keeps the order: its colors depend on it)
+    key = _order_key(indices)
+    order = _ORDERS.get(key)
+    if order is None:
+        positions = np.ascontiguousarray(caster.positions, np.float64).reshape(-1, 3)
+        order = np.argsort(_morton_codes(positions, np.ascontiguousarray(indices, np.int64)), kind="stable")
+        _ORDERS[key] = order
+        for old in list(_ORDERS)[:-_ORDERS_KEPT]:     # the oldest go (list(): one step under the GIL)
+            _ORDERS.pop(old, None)
+    # (np.take: a quarter of the time of indices[order] on the bunny's int32 rows)
+    return ShadowCaster(caster.name, caster.positions, np.take(indices, order, axis=0), caster.transmission)
+
+
 def _render_map(casters: Sequence[ShadowCaster], view: np.ndarray, projection: np.ndarray,
                 settings: ShadowSettings, light_index: int, face: str, target: Framebuffer,
                 depth_out: np.ndarray) -> ShadowMap:
@@ -528,6 +623,8 @@ def render_shadow_maps(objects, lighting: Lighting, *, max_bytes: Optional[int] 
         names = CUBE_FACE_NAMES if len(frusta) == 6 else ("",)
         planned.extend((j, view, projection, face) for (view, projection), face in zip(frusta, names))
     _check_total(lighting, planned, any(c.transmission for c in casters), max_bytes)
+    if planned:     # the opaque casters' triangles in an order every map's tiles read in sweeps, once for all maps
+        casters = [_in_coherent_order(c) for c in casters]
     # every map's depth goes straight into the one array the shaders read (ShadowMaps.uniform)
     sizes = [lighting.lights[j].shadows.resolution ** 2 for j, *_ in planned]
     depth = np.empty(sum(sizes), np.float32)
