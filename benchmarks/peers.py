@@ -21,6 +21,12 @@ softpipe's do:
   lighting equation (FORMULAS §10) over the scene's packed lights (directional,
   point, spot) with Blinn-Phong (N·H)₊ⁿ or Phong (R·V)₊ⁿ, no clamping before the
   framebuffer's.
+* ``bunny-onelight`` (issue 35's row): the bunny, one directional light and the minimal
+  Blinn-Phong a user writes on each side — :data:`ONE_LIGHT_FRAGMENT` in GLSL (N
+  normalized, L given, H = normalize(L + V), ambient + kd·max(N·L, 0) + ks·max(N·H, 0)ⁿ)
+  and its twin :func:`one_light_fragment` written with :mod:`softpipe.shading`'s words
+  (``normalize``, ``dot``, ``pow_``), not softpipe's general light loop; the same
+  vertex shaders as the lit scenes.
 
 A frame is, for softpipe, what ``benchmarks.run`` times (clear, build the DrawCalls,
 run them); for llvmpipe: clear, draw, ``ctx.finish()`` and reading the color buffer
@@ -59,10 +65,10 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 from softpipe.core.runtime import keep_freed_memory  # noqa: E402
-from softpipe.language.glsl import add, dot, neg, normalize, pow_, scale, vec4  # noqa: E402
 from softpipe.light.material import Light, Lighting  # noqa: E402
 from softpipe.light.packed import LIGHT_COLUMNS  # noqa: E402
 from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
+from softpipe.shading import add, dot, neg, normalize, pow_, scale, vec4  # noqa: E402  (a user's import)
 
 from .run import machine_info, render_frame, source_state  # noqa: E402
 from .scenes import REPO_ROOT, SCENES, Scene, build_scene, color_vertex  # noqa: E402
