@@ -233,6 +233,7 @@ def test_pow_of_a_whole_exponent_is_repeated_squaring():
     for y, expected in squared.items():
         assert py(pow_jitted)(x, y) == expected, y
         assert pow_jitted(x, y) == expected, y
+    assert pow_jitted(2, 100.0) == 2.0 ** 100         # an int x is squared as a float (as an int it overflows)
     for y in (0.5, 2.5, 129.0, -2.0):                 # not whole, or out of range: C's pow
         assert pow_jitted(x, y) == x ** y and py(pow_jitted)(x, y) == x ** y, y
 

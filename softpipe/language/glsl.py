@@ -469,7 +469,7 @@ def pow_(x: VecOrScalar, y: VecOrScalar) -> VecOrScalar:
         if 1.0 <= y <= MAX_SQUARING_EXPONENT and y == math.floor(y):
             k = int(y)
             result = 1.0
-            base = x
+            base = float(x)             # an int x squared as an int would overflow, compiled
             while True:
                 if k & 1:
                     result *= base
