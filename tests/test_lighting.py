@@ -549,3 +549,55 @@ def test_jitted_python_and_nojit_are_bit_identical():
     out = subprocess.run([sys.executable, "-c", code, os.path.dirname(__file__)],
                          capture_output=True, text=True, env=env, check=True).stdout.strip()
     assert out == repr(jitted)
+
+
+# --- the lights by value (LightingUniform.rows) and the packed array give the same bits -------------
+
+@pytest.mark.skipif(numba.config.DISABLE_JIT, reason="compares two compiled forms")
+def test_lights_by_value_and_the_packed_array_give_the_same_bits():
+    """The built-in sums read ``rows`` when the uniform has them, one step per light written out; the
+    same operations in the same order as over the array (``rows=None``), at samples that meet every
+    branch (lights behind, in and out of the spot's cone, a light at P)."""
+    from softpipe.light.lighting import two_sided_lighting
+
+    view = view_matrix((3.0, 2.0, 5.0), (0.0, 0.0, 0.0))
+    by_value = Lighting(SCENE_LIGHTS, global_ambient=(0.1, 0.2, 0.15)).uniform(view)
+    assert by_value.rows == tuple(tuple(row) for row in by_value.lights.tolist())
+    array_only = by_value._replace(rows=None)
+    mat = Material(ke=(0.01, 0.02, 0.0), ka=0.1, kd=(0.6, 0.5, 0.4), ks=0.4, kt=0.3, shininess=17.5,
+                   ior=1.45, roughness=0.25).__softpipe_uniform__()
+
+    @numba.njit
+    def every_sum(P, N, V, m, lighting):
+        return (opengl_lighting(P, N, V, m, lighting, BLINN_PHONG), opengl_lighting(P, N, V, m, lighting, PHONG),
+                hall_local(P, N, V, m, lighting, 1.45), two_sided_lighting(P, N, V, m, lighting),
+                cook_torrance_lighting(P, N, V, m, lighting))
+
+    rng = np.random.default_rng(35)
+    spot_at = tuple(by_value.lights[2, 10:13])
+    points = [tuple(rng.uniform(-3.0, 3.0, 3) + (0.0, 0.0, -5.0)) for _ in range(60)] + [spot_at]
+    for P in points:
+        N = tuple(unit(rng.normal(size=3)))
+        V = tuple(unit(np.negative(P)))
+        assert bits(np.ravel(every_sum(P, N, V, mat, by_value))) == bits(np.ravel(every_sum(P, N, V, mat, array_only))), P
+
+
+@pytest.mark.skipif(numba.config.DISABLE_JIT, reason="the choice is made when numba compiles")
+def test_a_users_own_part_still_reads_the_array_when_the_rows_are_there():
+    """sum_over_lights hands a part of the user's own the packed array (which it may index as
+    ``lights[j, column]``) even when the uniform carries the rows by value."""
+    from softpipe.light.lighting import sum_over_lights
+    from softpipe.light.packed import LIGHT_DIFFUSE, LIGHT_KIND
+
+    @numba.njit
+    def kind_and_red(P, N, V, m, lights, j, option):
+        return 1.0, (lights[j, LIGHT_KIND], 0.0, 0.0), (lights[j, LIGHT_DIFFUSE] * option, 0.0, 0.0), True
+
+    @numba.njit
+    def total(lighting):
+        return sum_over_lights(kind_and_red, (0.0, 0.0, -1.0), N_UP, N_UP, None, lighting, (0.0, 0.0, 0.0), 2.0)
+
+    u = Lighting(SCENE_LIGHTS).uniform(np.eye(4))
+    assert u.rows is not None
+    expected = sum(u.lights[:, 0]) + 2.0 * sum(u.lights[:, 4])
+    assert total(u)[0] == pytest.approx(expected, rel=1e-15) and total(u._replace(rows=None)) == total(u)
