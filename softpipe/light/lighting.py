@@ -240,7 +240,7 @@ def sum_over_lights(light_terms, P: Vec3, N: Vec3, V: Vec3, material: MaterialUn
 @njit(cache=True, forceinline=True)
 def _light_step(light_terms, P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
                 lights, j: int, color: Color, option) -> Color:
-    """``color`` + f_j · (ambient_j + V_j · direct_j) of light j (``lights``: the array, or light j's row)."""
+    """``color`` + f_j · (ambient_j + V_j · direct_j) of light j (``lights``: the array or its rows)."""
     f, ambient_j, direct, reached = light_terms(P, N, V, material, lights, j, option)
     if reached and casts_shadows(lighting, j):
         direct = mul(direct, light_visibility(lighting, j, P))
@@ -272,10 +272,10 @@ def _sum_lights_numba(light_terms, P, N, V, material, lighting, color, option):
     part = getattr(getattr(light_terms, "dispatcher", None), "py_func", None)
     if count < 0 or part not in _BY_VALUE_PARTS:    # a user's part may index the array itself
         return _sum_lights
-    # one line per light, j a constant: the part gets light j's row (its columns read as constants)
+    # one line per light, j a constant: numba reads row j of the tuple with no index to test
     lines = ["def sum_rows(light_terms, P, N, V, material, lighting, color, option):",
              "    rows = lighting.rows"]
-    lines += [f"    color = step(light_terms, P, N, V, material, lighting, rows[{j}], {j}, color, option)"
+    lines += [f"    color = step(light_terms, P, N, V, material, lighting, rows, {j}, color, option)"
               for j in range(count)]
     lines.append("    return color")
     scope = {"step": _light_step}

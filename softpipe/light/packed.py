@@ -35,7 +35,7 @@ from __future__ import annotations
 from typing import Tuple
 
 import numpy as np
-from numba import types
+from numba import njit, types
 from numba.extending import overload
 
 __all__ = [
@@ -63,44 +63,23 @@ LIGHT_COLUMNS = 22
 
 
 def light_value(lights, j: int, column: int) -> float:
-    """``lights[j, column]`` of the packed array, or ``lights[column]`` of one light's row by value.
+    """``lights[j, column]``, of the packed array or of its rows by value (``LightingUniform.rows``).
 
-    The lighting sums read a light through this, so that the same code reads either form
-    (:func:`softpipe.light.lighting.sum_over_lights`: the rows of ``LightingUniform.rows``, one
-    at a time). Compiled, a row's column given as a constant (the ``LIGHT_*`` names) is read
-    as a constant index: no code to choose among the row's 22 values.
+    The lighting sums read a light through this, so that the same code reads either form:
+    compiled, the array is indexed as ``lights[j, column]`` and a tuple of rows as
+    ``lights[j][column]``, each its own implementation chosen when numba types the caller.
     """
-    if isinstance(lights, tuple):
-        return lights[column]
-    return lights[j, column]
+    return lights[j][column]
 
 
-def _row_reader(column):
-    """The numba implementation reading ``column`` of one light's row by value: a constant index for a constant."""
-    if isinstance(column, types.IntegerLiteral):
-        c = column.literal_value
-        return lambda lights, j, column: lights[c]
-    return lambda lights, j, column: lights[column]
-
-
-@overload(light_value, jit_options={"forceinline": True}, prefer_literal=True)
+@overload(light_value, jit_options={"forceinline": True})
 def _light_value_numba(lights, j, column):
     if isinstance(lights, types.Array):
         return lambda lights, j, column: lights[j, column]
-    return _row_reader(column)
+    return lambda lights, j, column: lights[j][column]
 
 
+@njit(cache=True, forceinline=True)
 def light_vec3(lights: np.ndarray, j: int, column: int) -> Tuple[float, float, float]:
-    """The three values at ``lights[j, column:column + 3]`` (of a row by value: ``lights[column:column + 3]``):
-    a color, a position or a direction."""
+    """The three values at ``lights[j, column:column + 3]``: a color, a position or a direction."""
     return (light_value(lights, j, column), light_value(lights, j, column + 1), light_value(lights, j, column + 2))
-
-
-@overload(light_vec3, jit_options={"forceinline": True}, prefer_literal=True)
-def _light_vec3_numba(lights, j, column):
-    if isinstance(lights, types.Array):
-        return lambda lights, j, column: (lights[j, column], lights[j, column + 1], lights[j, column + 2])
-    if isinstance(column, types.IntegerLiteral):
-        c = column.literal_value
-        return lambda lights, j, column: (lights[c], lights[c + 1], lights[c + 2])
-    return lambda lights, j, column: (lights[column], lights[column + 1], lights[column + 2])
