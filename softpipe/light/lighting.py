@@ -39,8 +39,7 @@ import math
 from typing import Tuple
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 from softpipe.language.glsl import add, dot, length, mul, normalize, pow_, reflect, refract, scale, sub
 from softpipe.light.material import LightingUniform, MaterialUniform
@@ -55,7 +54,6 @@ from softpipe.light.packed import (
     LIGHT_SPOT_COS_CUTOFF,
     LIGHT_SPOT_DIRECTION,
     LIGHT_SPOT_EXPONENT,
-    light_value,
     light_vec3,
 )
 from softpipe.light.shadowmap import casts_shadows, light_visibility
@@ -199,15 +197,15 @@ def light_at(P: Vec3, lights: np.ndarray, j: int) -> Tuple[Vec3, float]:
     A directional light stores L itself (w = 0) and has f_att = f_spot = 1.
     """
     position = light_vec3(lights, j, LIGHT_POSITION)  # for a directional light: L itself
-    if light_value(lights, j, LIGHT_KIND) == LIGHT_DIRECTIONAL:
+    if lights[j, LIGHT_KIND] == LIGHT_DIRECTIONAL:
         return position, 1.0
     to_light = sub(position, P)
     r = length(to_light)
     L = scale(to_light, 1.0 / r) if r > 0.0 else ZERO3     # normalize(to_light), one division for three
-    f_att = attenuation(light_value(lights, j, LIGHT_ATTENUATION), light_value(lights, j, LIGHT_ATTENUATION + 1),
-                        light_value(lights, j, LIGHT_ATTENUATION + 2), r)
+    f_att = attenuation(lights[j, LIGHT_ATTENUATION], lights[j, LIGHT_ATTENUATION + 1],
+                        lights[j, LIGHT_ATTENUATION + 2], r)
     f_spot = spot_factor(L, light_vec3(lights, j, LIGHT_SPOT_DIRECTION),
-                         light_value(lights, j, LIGHT_SPOT_COS_CUTOFF), light_value(lights, j, LIGHT_SPOT_EXPONENT))
+                         lights[j, LIGHT_SPOT_COS_CUTOFF], lights[j, LIGHT_SPOT_EXPONENT])
     return L, f_att * f_spot
 
 
@@ -225,62 +223,14 @@ def sum_over_lights(light_terms, P: Vec3, N: Vec3, V: Vec3, material: MaterialUn
     model, §13's η). The models pass their part as a function: numba compiles one loop per
     model with the part inlined, and each model keeps the order of its arithmetic, so the
     sum gives the same bytes a loop of the model's own would.
-
-    Compiled, the built-in parts (:func:`opengl_light`, :func:`hall_light`,
-    :func:`two_sided_light`, :func:`cook_torrance_light`) read the lights by value when the
-    uniform has them (``lighting.rows``, which :meth:`~softpipe.light.material.Lighting.uniform`
-    fills): one step per light, written out, so that what a light contributes that does not
-    depend on the sample — its columns, its kind, the material × light products — is
-    computed once per draw, out of the loop over samples, instead of read from the packed
-    array at every sample (issue 35). The same operations in the same order: the same bytes.
     """
-    return _sum_lights(light_terms, P, N, V, material, lighting, color, option)
-
-
-@njit(cache=True, forceinline=True)
-def _light_step(light_terms, P: Vec3, N: Vec3, V: Vec3, material: MaterialUniform, lighting: LightingUniform,
-                lights, j: int, color: Color, option) -> Color:
-    """``color`` + f_j · (ambient_j + V_j · direct_j) of light j (``lights``: the array or its rows)."""
-    f, ambient_j, direct, reached = light_terms(P, N, V, material, lights, j, option)
-    if reached and casts_shadows(lighting, j):
-        direct = mul(direct, light_visibility(lighting, j, P))
-    return add(color, scale(add(ambient_j, direct), f))
-
-
-def _sum_lights(light_terms, P, N, V, material, lighting, color, option):
-    """The sum over the packed array's rows (plain Python, and compiled where the lights are not by value)."""
     lights = lighting.lights
     for j in range(lights.shape[0]):
-        color = _light_step(light_terms, P, N, V, material, lighting, lights, j, color, option)
+        f, ambient_j, direct, reached = light_terms(P, N, V, material, lights, j, option)
+        if reached and casts_shadows(lighting, j):
+            direct = mul(direct, light_visibility(lighting, j, P))
+        color = add(color, scale(add(ambient_j, direct), f))
     return color
-
-
-def _rows_count(lighting) -> int:
-    """How many lights ``lighting``'s numba type holds by value (``rows``), or −1 when it holds none."""
-    fields = tuple(getattr(lighting, "fields", ()))
-    if "rows" not in fields:
-        return -1
-    rows = lighting.types[fields.index("rows")]
-    if not isinstance(rows, types.BaseTuple):
-        return -1
-    return len(rows.types)
-
-
-@overload(_sum_lights, jit_options={"forceinline": True})
-def _sum_lights_numba(light_terms, P, N, V, material, lighting, color, option):
-    count = _rows_count(lighting)
-    part = getattr(getattr(light_terms, "dispatcher", None), "py_func", None)
-    if count < 0 or part not in _BY_VALUE_PARTS:    # a user's part may index the array itself
-        return _sum_lights
-    # one line per light, j a constant: numba reads row j of the tuple with no index to test
-    lines = ["def sum_rows(light_terms, P, N, V, material, lighting, color, option):",
-             "    rows = lighting.rows"]
-    lines += [f"    color = step(light_terms, P, N, V, material, lighting, rows, {j}, color, option)"
-              for j in range(count)]
-    lines.append("    return color")
-    scope = {"step": _light_step}
-    exec("\n".join(lines), scope)
-    return scope["sum_rows"]
 
 
 @njit(cache=True, forceinline=True)
@@ -449,7 +399,7 @@ def two_sided_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.nd
     """Light i's part of §11 (for :func:`sum_over_lights`): (ρ_d + ρ_s(N·H_i))·L_i·|N·L_i|,
     with weight 1 and no ambient term of its own (L_i holds the falloff)."""
     position = light_vec3(lights, i, LIGHT_POSITION)
-    if light_value(lights, i, LIGHT_KIND) == LIGHT_DIRECTIONAL:
+    if lights[i, LIGHT_KIND] == LIGHT_DIRECTIONAL:
         L, response = position, 1.0
     else:
         to_light = sub(position, P)
@@ -457,8 +407,7 @@ def two_sided_light(P: Vec3, N: Vec3, V: Vec3, m: MaterialUniform, lights: np.nd
         L = normalize(to_light)
         response = 1.0 / r2 if r2 > MIN_ATTENUATION_DENOMINATOR else 1.0 / MIN_ATTENUATION_DENOMINATOR
         response *= spot_factor(L, light_vec3(lights, i, LIGHT_SPOT_DIRECTION),
-                                light_value(lights, i, LIGHT_SPOT_COS_CUTOFF),
-                                light_value(lights, i, LIGHT_SPOT_EXPONENT))
+                                lights[i, LIGHT_SPOT_COS_CUTOFF], lights[i, LIGHT_SPOT_EXPONENT])
     cos_l = abs(dot(N, L))
     if response <= 0.0 or cos_l == 0.0:
         return 1.0, ZERO3, ZERO3, False
@@ -640,9 +589,3 @@ def gooch(N: Vec3, L: Vec3, kd: Color, k_blue: Color, k_yellow: Color, alpha: fl
     k_warm = add(k_yellow, scale(kd, beta))
     t = (1.0 + dot(N, L)) / 2.0
     return add(scale(k_warm, t), scale(k_cool, 1.0 - t))
-
-
-#: The parts of :func:`sum_over_lights` that read a light only through ``light_value`` / ``light_vec3`` /
-#: ``light_at`` / ``light_colors`` (so they read its rows by value as well as the array).
-_BY_VALUE_PARTS = tuple(getattr(f, "py_func", f) for f in (opengl_light, hall_light, two_sided_light,
-                                                          cook_torrance_light))

@@ -462,19 +462,11 @@ def _cos_degrees(beta: float) -> float:
     return math.cos(math.radians(beta))
 
 
-class LightingUniform(namedtuple("LightingUniform", ["global_ambient", "lights", "shadows", "rows"],
-                                 defaults=(None,))):
+class LightingUniform(namedtuple("LightingUniform", ["global_ambient", "lights", "shadows"])):
     """Lighting as a shader sees it: ``global_ambient`` (RGB tuple),
-    ``lights``, the packed eye-space array of :func:`pack_lights`, ``shadows``, their
+    ``lights``, the packed eye-space array of :func:`pack_lights`, and ``shadows``, their
     shadow maps and shadow-ray scene (a :class:`~softpipe.light.shadowmap.ShadowUniform`), or None when
-    no light casts shadows (then a compiled shader leaves the shadow code out), and ``rows``,
-    the same lights by value (a tuple of ``lights``' rows, each a tuple of floats) or None.
-
-    The built-in lighting sums read ``rows`` when it is there
-    (:func:`~softpipe.light.lighting.sum_over_lights`): by value, a light's columns and
-    the material × light products are computed once per draw rather than read from the
-    array at every sample; the same bytes. A compiled shader is then typed by the number
-    of lights (one compile per count).
+    no light casts shadows (then a compiled shader leaves the shadow code out).
 
     A namedtuple, which numba types by its fields (the method below is for plain
     Python: a pixel history asks it, :meth:`softpipe.pipeline.trace.Trace.pixel_history`).
@@ -528,6 +520,4 @@ class Lighting:
         :func:`softpipe.scenes.shadow_pass.render_shadow_maps` makes the maps of the lights that cast
         shadows; its ``uniform(view_matrix)`` is this one with them.
         """
-        packed = pack_lights(self.lights, view_matrix)
-        rows = tuple(tuple(float(v) for v in row) for row in packed)
-        return LightingUniform(self.global_ambient, packed, None, rows)
+        return LightingUniform(self.global_ambient, pack_lights(self.lights, view_matrix), None)

@@ -35,13 +35,12 @@ from __future__ import annotations
 from typing import Tuple
 
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
 __all__ = [
     "LIGHT_COLUMNS", "LIGHT_KIND", "LIGHT_AMBIENT", "LIGHT_DIFFUSE", "LIGHT_SPECULAR",
     "LIGHT_POSITION", "LIGHT_ATTENUATION", "LIGHT_SPOT_DIRECTION", "LIGHT_SPOT_COS_CUTOFF",
-    "LIGHT_SPOT_EXPONENT", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT", "light_vec3", "light_value",
+    "LIGHT_SPOT_EXPONENT", "LIGHT_DIRECTIONAL", "LIGHT_POINT", "LIGHT_SPOT", "light_vec3",
 ]
 
 # The values of LIGHT_KIND
@@ -62,24 +61,7 @@ LIGHT_SPOT_EXPONENT = 21
 LIGHT_COLUMNS = 22
 
 
-def light_value(lights, j: int, column: int) -> float:
-    """``lights[j, column]``, of the packed array or of its rows by value (``LightingUniform.rows``).
-
-    The lighting sums read a light through this, so that the same code reads either form:
-    compiled, the array is indexed as ``lights[j, column]`` and a tuple of rows as
-    ``lights[j][column]``, each its own implementation chosen when numba types the caller.
-    """
-    return lights[j][column]
-
-
-@overload(light_value, jit_options={"forceinline": True})
-def _light_value_numba(lights, j, column):
-    if isinstance(lights, types.Array):
-        return lambda lights, j, column: lights[j, column]
-    return lambda lights, j, column: lights[j][column]
-
-
 @njit(cache=True, forceinline=True)
 def light_vec3(lights: np.ndarray, j: int, column: int) -> Tuple[float, float, float]:
     """The three values at ``lights[j, column:column + 3]``: a color, a position or a direction."""
-    return (light_value(lights, j, column), light_value(lights, j, column + 1), light_value(lights, j, column + 2))
+    return (lights[j, column], lights[j, column + 1], lights[j, column + 2])
