@@ -21,6 +21,12 @@ softpipe's do:
   lighting equation (FORMULAS §10) over the scene's packed lights (directional,
   point, spot) with Blinn-Phong (N·H)₊ⁿ or Phong (R·V)₊ⁿ, no clamping before the
   framebuffer's.
+* ``bunny-onelight`` (issue 35's row): the bunny, one directional light and the minimal
+  Blinn-Phong a user writes on each side — :data:`ONE_LIGHT_FRAGMENT` in GLSL (N
+  normalized, L given, H = normalize(L + V), ambient + kd·max(N·L, 0) + ks·max(N·H, 0)ⁿ)
+  and its twin :func:`one_light_fragment` written with :mod:`softpipe.shading`'s words
+  (``normalize``, ``dot``, ``pow_``), not softpipe's general light loop; the same
+  vertex shaders as the lit scenes.
 
 A frame is, for softpipe, what ``benchmarks.run`` times (clear, build the DrawCalls,
 run them); for llvmpipe: clear, draw, ``ctx.finish()`` and reading the color buffer
@@ -62,13 +68,16 @@ from softpipe.core.runtime import keep_freed_memory  # noqa: E402
 from softpipe.light.material import Light, Lighting  # noqa: E402
 from softpipe.light.packed import LIGHT_COLUMNS  # noqa: E402
 from softpipe.pipeline.framebuffer import Framebuffer  # noqa: E402
+from softpipe.shading import add, dot, neg, normalize, pow_, scale, vec4  # noqa: E402  (a user's import)
 
 from .run import machine_info, render_frame, source_state  # noqa: E402
 from .scenes import REPO_ROOT, SCENES, Scene, build_scene, color_vertex  # noqa: E402
 
 __all__ = ["PEER_SCENES", "peer_context", "install_peer", "LlvmpipeScene", "compare_images", "alternate",
            "summarize", "run_peer_scene", "run", "main", "CLIP_VERTEX", "COLOR_FRAGMENT", "MVP_VERTEX",
-           "LIT_VERTEX", "LIT_FRAGMENT", "MAX_LIGHTS", "DEBIAN_PACKAGES", "MODERNGL_REQUIREMENT"]
+           "LIT_VERTEX", "LIT_FRAGMENT", "MAX_LIGHTS",
+           "ONE_LIGHT_FRAGMENT", "one_light_fragment", "ONE_LIGHT_DIRECTION", "ONE_LIGHT_AMBIENT",
+           "DEBIAN_PACKAGES", "MODERNGL_REQUIREMENT"]
 
 #: What the peer needs (ENVIRONMENT-NOTES.md): Debian's EGL + Mesa (llvmpipe) packages, and moderngl.
 DEBIAN_PACKAGES = ("libegl1", "libegl-mesa0", "libgl1-mesa-dri", "libgles2")
@@ -97,6 +106,55 @@ def _bunny_blinn(scale: float = 1.0) -> Scene:
                            "phong_fragment")
 
 
+def one_light_fragment(varyings, uniforms, frag):
+    """One directional light, Blinn-Phong, as a user writes it with :mod:`softpipe.shading` (GLSL's words).
+
+    The twin of :data:`ONE_LIGHT_FRAGMENT`: N renormalized, L given (eye space, unit, toward
+    the light), V = normalize(−P), H = normalize(L + V), and
+    ambient + kd·max(N·L, 0) + ks·max(N·H, 0)ⁿ (FORMULAS §2, §3, §6 without B), alpha 1.
+    """
+    N = normalize(varyings.normal)
+    L = uniforms.light_dir
+    V = normalize(neg(varyings.position))
+    H = normalize(add(L, V))
+    diffuse = max(dot(N, L), 0.0)
+    specular = pow_(max(dot(N, H), 0.0), uniforms.shininess)
+    color = add(add(uniforms.ambient, scale(uniforms.kd, diffuse)), scale(uniforms.ks, specular))
+    return vec4(color, 1.0)
+
+
+#: bunny-onelight's light: sphere200k's direction (world space, the way the light travels), white,
+#: and the ambient light I_a that ka multiplies (bunny-blinn's global ambient plus its light's).
+ONE_LIGHT_DIRECTION = (-0.4, -1.0, -0.6)
+ONE_LIGHT_AMBIENT = (0.2, 0.2, 0.2)
+
+
+def _bunny_one_light(scale: float = 1.0) -> Scene:
+    """The bunny with one directional light and the minimal Blinn-Phong on both sides (issue 35's row).
+
+    softpipe runs :func:`one_light_fragment`, llvmpipe :data:`ONE_LIGHT_FRAGMENT`; both get
+    the bunny's material and the light as the uniforms a user passes: ``light_dir`` (eye space,
+    toward the light), ``ambient`` = ka·I_a, ``kd``, ``ks`` (the light white) and ``shininess``.
+    """
+    base = build_scene("bunny", scale)
+    draws = []
+    for d in base.draws:
+        u = dict(d["uniforms"])
+        m = u.pop("material")
+        u.pop("lighting")
+        view = np.asarray(u["view"], dtype=np.float64)
+        to_light = view[:3, :3] @ -np.asarray(ONE_LIGHT_DIRECTION, dtype=np.float64)
+        u.update(light_dir=tuple(float(x) for x in to_light / np.linalg.norm(to_light)),
+                 ambient=tuple(float(a * b) for a, b in zip(m.ka, ONE_LIGHT_AMBIENT)),
+                 kd=tuple(float(x) for x in m.kd), ks=tuple(float(x) for x in m.ks), shininess=float(m.shininess))
+        draws.append(dict(d, uniforms=u, fragment_shader=one_light_fragment))
+    return replace(base, name="bunny-onelight", draws=draws, notes=[],
+                   description=f"Stanford bunny ({base.triangles} triangles), one directional light, the minimal "
+                               "Blinn-Phong a user writes (GLSL for llvmpipe, softpipe.shading for softpipe)",
+                   shading="vertex softpipe.programs.common.standard_vertex, fragment benchmarks.peers."
+                           "one_light_fragment")
+
+
 #: softpipe's topologies with a GL peer, and GL's name (moderngl's constant) for each.
 PEER_TOPOLOGIES = {"triangles": "TRIANGLES", "lines": "LINES", "points": "POINTS"}
 
@@ -109,6 +167,7 @@ PEER_SCENES: Dict[str, Callable[[float], Scene]] = {
     "sphere200k": SCENES["sphere200k"],
     "bunny-blinn": _bunny_blinn,
     "bunny": SCENES["bunny"],
+    "bunny-onelight": _bunny_one_light,
     "bunny-wireframe": SCENES["bunny-wireframe"],
     "points200k": SCENES["points200k"],
 }
@@ -241,6 +300,28 @@ void main() {
         color += term * f;
     }
     f_color = vec4(color, opacity);                                 // not clamped: the framebuffer does
+}
+"""
+
+
+ONE_LIGHT_FRAGMENT = """#version 430
+// The minimal one-light Blinn-Phong a user writes (benchmarks.peers.one_light_fragment is its twin).
+uniform vec3 light_dir;             // eye space, unit, toward the light
+uniform vec3 ambient;
+uniform vec3 kd;
+uniform vec3 ks;
+uniform float shininess;
+in vec3 v_position;
+in vec3 v_normal;
+out vec4 f_color;
+void main() {
+    vec3 N = normalize(v_normal);
+    vec3 L = light_dir;
+    vec3 V = normalize(-v_position);
+    vec3 H = normalize(L + V);
+    float diffuse = max(dot(N, L), 0.0);
+    float specular = pow(max(dot(N, H), 0.0), shininess);
+    f_color = vec4(ambient + kd * diffuse + ks * specular, 1.0);
 }
 """
 
@@ -418,6 +499,16 @@ class LlvmpipeScene:
             _set(prog, "mvp", _mat(u["mvp"]))
             content = [(self._buffer(positions[:, :3]), "3f", "in_position"),
                        (self._buffer(d["attributes"]["color"]), "3f", "in_color")]
+        elif fs is one_light_fragment:
+            prog = self._program(LIT_VERTEX, ONE_LIGHT_FRAGMENT)
+            for name in ("model_view", "projection"):
+                _set(prog, name, _mat(u[name]))
+            _set(prog, "normal_matrix", _mat(np.asarray(u["normal_matrix"])[:3, :3]))
+            for name in ("light_dir", "ambient", "kd", "ks"):
+                _set(prog, name, _f4(u[name]))
+            _set(prog, "shininess", _f4([u["shininess"]]))
+            content = [(self._buffer(positions[:, :3]), "3f", "in_position"),
+                       (self._buffer(d["attributes"]["normal"]), "3f", "in_normal")]
         else:
             model = _specular_model(fs)
             prog = self._program(LIT_VERTEX, _lit_fragment_source())

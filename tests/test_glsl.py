@@ -214,6 +214,30 @@ def test_pow_conventions():
     assert pow_(0.25, 0.5) == 0.5
 
 
+@njit   # not cached: numba's cache would not see softpipe/language/glsl.py change
+def pow_jitted(x, y):
+    return pow_(x, y)
+
+
+def test_pow_of_a_whole_exponent_is_repeated_squaring():
+    """A whole exponent in 1..128 is raised by repeated squaring, compiled and in plain Python alike:
+    the products written out here, which C's pow (``x ** y``) misses by an ulp or more at 0.7."""
+    x = 0.7
+    x2 = x * x
+    x4 = x2 * x2
+    x8 = x4 * x4
+    x16 = x8 * x8
+    x128 = ((x16 * x16) * (x16 * x16)) * ((x16 * x16) * (x16 * x16))
+    squared = {1.0: x, 2.0: x2, 3.0: x * x2, 30.0: ((x2 * x4) * x8) * x16, 128.0: x128}
+    assert squared[30.0] != x ** 30.0                 # so the test tells squaring from pow
+    for y, expected in squared.items():
+        assert py(pow_jitted)(x, y) == expected, y
+        assert pow_jitted(x, y) == expected, y
+    assert pow_jitted(2, 100.0) == 2.0 ** 100         # an int x is squared as a float (as an int it overflows)
+    for y in (0.5, 2.5, 129.0, -2.0):                 # not whole, or out of range: C's pow
+        assert pow_jitted(x, y) == x ** y and py(pow_jitted)(x, y) == x ** y, y
+
+
 def test_cross_matches_numpy():
     a, b = random_vec(3), random_vec(3)
     for got in (cross(a, b), vec3_only(a, b, 1.0)[0]):

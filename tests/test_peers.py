@@ -32,6 +32,41 @@ def test_glsl_sources_are_complete():
         assert re.search(rf"^uniform mat[34] {name};$", peers.LIT_VERTEX, re.M), name
 
 
+def test_one_light_glsl_is_the_minimal_blinn_phong():
+    src = peers.ONE_LIGHT_FRAGMENT
+    assert src.startswith("#version 430\n") and src.count("{") == src.count("}")
+    for name in ("light_dir", "ambient", "kd", "ks"):
+        assert re.search(rf"^uniform vec3 {name};", src, re.M), name
+    assert re.search(r"^uniform float shininess;$", src, re.M)
+    for line in ("vec3 N = normalize(v_normal);", "vec3 V = normalize(-v_position);", "vec3 H = normalize(L + V);",
+                 "pow(max(dot(N, H), 0.0), shininess)", "ambient + kd * diffuse + ks * specular"):
+        assert line in src, line
+
+
+def test_one_light_scene_and_shader_compute_the_formula():
+    """bunny-onelight's softpipe shader on one fragment (plain Python) against
+    ambient + kd·max(N·L, 0) + ks·max(N·H, 0)ⁿ evaluated here with numpy; its uniforms
+    are the bunny's material and the light in eye space."""
+    scene = peers.PEER_SCENES["bunny-onelight"](0.1)
+    (draw,) = scene.draws
+    u = draw["uniforms"]
+    assert draw["fragment_shader"] is peers.one_light_fragment and "lighting" not in u and "material" not in u
+    view = np.asarray(u["view"])
+    L = view[:3, :3] @ -np.asarray(peers.ONE_LIGHT_DIRECTION)
+    np.testing.assert_allclose(u["light_dir"], L / np.linalg.norm(L), rtol=0, atol=1e-15)
+    assert u["kd"] == (0.75, 0.7, 0.6) and u["ks"] == (0.4, 0.4, 0.4) and u["shininess"] == 30.0
+    uniforms = types.SimpleNamespace(**u)
+    for P, n in (((0.3, -0.2, -4.0), (0.1, 0.9, 0.4)), ((-1.0, 0.5, -3.0), (-0.5, -0.2, 0.3))):
+        got = peers.one_light_fragment(types.SimpleNamespace(position=P, normal=n), uniforms, None)
+        N = np.asarray(n) / np.linalg.norm(n)
+        V = -np.asarray(P) / np.linalg.norm(P)
+        H = (L / np.linalg.norm(L) + V) / np.linalg.norm(L / np.linalg.norm(L) + V)
+        expected = (np.asarray(u["ambient"]) + np.asarray(u["kd"]) * max(N @ u["light_dir"], 0.0)
+                    + np.asarray(u["ks"]) * max(N @ H, 0.0) ** 30)
+        np.testing.assert_allclose(got[:3], expected, rtol=1e-12, atol=1e-15)
+        assert got[3] == 1.0
+
+
 def test_alternation_is_abba_and_counts_both_sides():
     order = []
     clock = iter(range(1000))
@@ -124,6 +159,15 @@ def test_clip_coordinate_scene_matches_llvmpipe_pixel_for_pixel(llvmpipe):
     for label in ("positions_float64", "positions_float32"):
         assert coverage[label]["pixels_covered"] == scene.width * scene.height
         assert coverage[label]["pixels_other_triangle"] == 0, coverage
+
+
+def test_one_light_row_agrees_with_llvmpipe(llvmpipe):
+    """bunny-onelight at 128² on both: the minimal Blinn-Phong in GLSL and softpipe's user shader
+    give the same picture to one level of 8 bits (float32 on llvmpipe, float64 here)."""
+    report = peers.run(["bunny-onelight"], frames=1, scale=0.125, ctx=llvmpipe, log=lambda s: None)
+    assert not report["failed"], report["failed"]
+    d = report["scenes"][0]["image_difference"]
+    assert d["max_abs"] <= 1 and d["share_over_1"] == 0.0, d
 
 
 def test_a_round_on_both(llvmpipe, tmp_path):

@@ -447,14 +447,36 @@ def smoothstep(edge0: VecOrScalar, edge1: VecOrScalar, x: VecOrScalar) -> VecOrS
     return t * t * (3.0 - 2.0 * t)
 
 
+# Whole exponents up to this are raised by repeated squaring: the usual shininess values
+# (8, 30, 48, …) then cost a few multiplications instead of a call to C's pow, about a third
+# of a one-light Blinn-Phong sample's time (issue 18 for the built-in programs, issue 35 for a
+# user's shader). Each product's rounding is raised to the power still to come, so the result
+# is within about (n − 1) ulp of xⁿ (1.4·10⁻¹⁴ relative at n = 128), where pow is within 1:
+# far below every tolerance, and the same in plain Python.
+MAX_SQUARING_EXPONENT = 128.0
+
+
 @_componentwise
 def pow_(x: VecOrScalar, y: VecOrScalar) -> VecOrScalar:
     """xʸ per component for x > 0; x ≤ 0 counts as 0: 0⁰ = 1, 0ʸ = 0 (y > 0), +inf (y < 0).
 
     GLSL leaves x < 0 undefined; this form is the clamped power (x)₊ʸ of the
-    specular terms (FORMULAS §5, §6), with 0⁰ = 1 as C's ``pow``.
+    specular terms (FORMULAS §5, §6), with 0⁰ = 1 as C's ``pow``. A whole y in
+    1..MAX_SQUARING_EXPONENT is raised by repeated squaring (at most 2·log₂ y
+    products; within about (y − 1) ulp of xʸ), any other y by ``x ** y`` (C's pow).
     """
     if x > 0.0:
+        if 1.0 <= y <= MAX_SQUARING_EXPONENT and y == math.floor(y):
+            k = int(y)
+            result = 1.0
+            base = float(x)             # an int x squared as an int would overflow, compiled
+            while True:
+                if k & 1:
+                    result *= base
+                k >>= 1
+                if k == 0:
+                    return result
+                base *= base
         return x ** y
     if y == 0.0:
         return 1.0

@@ -89,32 +89,14 @@ MIN_ATTENUATION_DENOMINATOR = 1e-12
 # Building blocks
 # --------------------------------------------------------------------------
 
-# Whole exponents up to this are raised by repeated squaring: the usual shininess values
-# (8, 30, 48, …) then cost a few multiplications instead of a call to pow, about a third of
-# a lit sample's time (issue 18). Each product's rounding is raised to the power still to
-# come, so the result is within about (n − 1) ulp of xⁿ (1.4·10⁻¹⁴ relative at n = 128),
-# where pow is within 1: far below every tolerance, and the same in plain Python.
-MAX_SQUARING_EXPONENT = 128.0
-
-
 @njit(cache=True, forceinline=True)
 def positive_power(x: float, n: float) -> float:
     """(x)₊ⁿ with 0⁰ = 1: the specular lobe's power (§5, §6).
 
-    For a whole n in 1..MAX_SQUARING_EXPONENT and x > 0, by repeated squaring
-    (at most 2·log₂ n products; within about (n − 1) ulp of xⁿ); otherwise ``pow_``.
+    It is :func:`~softpipe.language.glsl.pow_`: for a whole n in 1..MAX_SQUARING_EXPONENT
+    and x > 0 by repeated squaring (at most 2·log₂ n products; within about (n − 1) ulp of
+    xⁿ: a third of a lit sample's time less than C's pow, issue 18); otherwise C's pow.
     """
-    if x > 0.0 and 1.0 <= n <= MAX_SQUARING_EXPONENT and n == math.floor(n):
-        k = int(n)
-        result = 1.0
-        base = x
-        while True:
-            if k & 1:
-                result *= base
-            k >>= 1
-            if k == 0:
-                return result
-            base *= base
     return pow_(x, n)
 
 
