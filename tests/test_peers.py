@@ -94,6 +94,15 @@ def test_summary_arithmetic():
         peers.summarize([0.1], [0.1, 0.2])
 
 
+def test_the_targets_against_llvmpipe_are_the_ratios_of_the_full_size_scenes():
+    rows = [{"scene": "bunny", "ratio": 0.49, "scale": 1.0}, {"scene": "tiny", "ratio": 0.48, "scale": 1.0},
+            {"scene": "fill", "ratio": 0.08, "scale": 1.0}, {"scene": "sphere200k", "ratio": 0.1, "scale": 0.5}]
+    targets = peers.target_rows(rows)
+    assert [(t["target"], t["measured"], t["met"]) for t in targets] == [
+        ("bunny ≤ 0.5× llvmpipe", "0.49", True), ("tiny ≤ 0.35× llvmpipe", "0.48", False)]
+    assert set(peers.TARGETS) <= set(peers.PEER_SCENES)       # every target names a scene the bench runs
+
+
 def test_compare_images():
     a = np.zeros((2, 2, 4), np.uint8)
     b = a.copy()
