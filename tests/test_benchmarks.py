@@ -239,7 +239,7 @@ def test_the_targets_between_scenes_are_their_medians_ratios_and_say_whether_met
     assert bench.format_targets([]) == ""
 
 
-def test_scaling_pairs_each_frame_with_one_on_one_thread_and_the_target_names_the_misses():
+def test_scaling_times_as_many_frames_on_one_thread_and_the_target_names_the_misses():
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread here")
     before = numba.get_num_threads()
@@ -250,9 +250,9 @@ def test_scaling_pairs_each_frame_with_one_on_one_thread_and_the_target_names_th
     finally:
         numba.set_num_threads(before)
     assert row["one_thread_ms"] > 0 and row["scaling"] > 0 and row["warm_frames"] == 2
-    assert "threads (paired frames)" in bench.format_tables([row])
+    assert "1 thread ms" in bench.format_tables([row])
     rows = [dict(row, scene="a", scaling=1.9), dict(row, scene="b", scaling=1.2), dict(row, scene="c", scaling=1.5)]
     target = [t for t in bench.target_rows(rows) if t["target"].startswith("2 threads")][0]
     assert target["measured"] == "1 of 3 scenes; below: b 1.20, c 1.50" and target["met"] is False
     plain = bench.run_scene("bunny", frames=1, scale=SCALE, budget=None, log=lambda s: None)
-    assert plain["scaling"] is None and "threads (paired frames)" not in bench.format_tables([plain])
+    assert plain["scaling"] is None and "1 thread ms" not in bench.format_tables([plain])
