@@ -333,7 +333,8 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
             notes.append(f"{scene.name}: only {len(times)} warm frame(s) of {frames}: a frame takes about "
                          f"{seconds:.1f} s and the warm-frame budget is {budget:.0f} s per scene (--budget)")
             break
-    if scaling:
+    peak_rss, memory_method = _peak_rss_mb(reset)
+    if scaling:     # (after the peak is read: what one thread's bands keep is not the run's threads' frame)
         threads_now = numba.get_num_threads()
         numba.set_num_threads(1)
         try:
@@ -341,7 +342,6 @@ def run_scene(scene, frames: int = DEFAULT_FRAMES, scale: float = 1.0, budget: O
             one_thread = [render_frame(scene, fb)[0] for _ in times]
         finally:
             numba.set_num_threads(threads_now)
-    peak_rss, memory_method = _peak_rss_mb(reset)
 
     covered, fragments = count_fragments_of(scene, fb)
     if fragments is None:
