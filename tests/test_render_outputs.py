@@ -834,3 +834,17 @@ def test_too_few_positions_for_the_indices_are_refused_where_positions_are_read(
     for name in ("position", "linear_depth"):
         with pytest.raises(ValueError, match="recorded draw 0 has 2 positions; its indices reach 2"):
             derive_outputs(fb, (name,))
+
+
+def test_a_frame_whose_draws_name_more_primitives_than_the_int32_record_holds_is_refused():
+    from softpipe.pipeline.framebuffer import RECORD_MAX
+    fb = Framebuffer(8, 6, record=True)
+    sp.draw(fb, np.array([[-1, -1, 0, 1], [3, -1, 0, 1], [-1, 3, 0, 1.0]]), varyings={"color": np.ones((3, 3))})
+    assert fb.record.dtype == np.int32 and (fb.record == 0).all()
+    # the frame's next values start at 1: RECORD_MAX − 1 more primitives fit, RECORD_MAX do not
+    fb.add_recorded_draw(None, np.zeros((0, 4)), 3, RECORD_MAX - 1, RECORD_MAX - 1, "triangles")
+    with pytest.raises(ValueError, match=r"at most 2,147,483,647: this draw's 1 primitives .* after the "
+                                         r"2,147,483,647 of the frame's earlier draws do not fit"):
+        fb.add_recorded_draw(None, np.zeros((0, 4)), 3, 1, 1, "triangles")
+    fb.clear()                                   # a clear forgets the draws: the values start at 0 again
+    fb.add_recorded_draw(None, np.zeros((0, 4)), 3, RECORD_MAX, RECORD_MAX, "triangles")

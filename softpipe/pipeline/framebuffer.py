@@ -31,7 +31,7 @@ from softpipe.core.parallel import in_bands
 from softpipe.core.runtime import check_memory
 from softpipe.pipeline.sampling import CENTER, SamplePattern
 
-__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record",
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record", "RECORD_MAX",
            "ATTACHMENT_FORMATS", "DEFAULT_ATTACHMENTS"]
 
 #: Largest width or height, in pixels.
@@ -47,6 +47,9 @@ MAX_TOTAL_SAMPLES = 1 << 26
 ATTACHMENT_FORMATS: Tuple[str, ...] = ("rgba8", "rgba32f", "r32f", "r32i")
 # each format's storage: (channels, numpy dtype), in the order of ATTACHMENT_FORMATS
 _STORAGE = dict(zip(ATTACHMENT_FORMATS, ((4, np.float32), (4, np.float32), (1, np.float32), (1, np.int32))))
+#: The most primitives (over their instances) the draws of one frame can name in a visibility record:
+#: its values are int32 (half the bytes of int64 to clear, write and read at every sample).
+RECORD_MAX = int(np.iinfo(np.int32).max)
 #: The default framebuffer's one attachment.
 DEFAULT_ATTACHMENTS = {"color": "rgba8"}
 
@@ -66,7 +69,7 @@ class RecordedDraw:
     """One draw of a frame whose primitives may enter the framebuffer's visibility record.
 
     The record stores, per sample, ``base + i·per_instance + p`` for primitive ``p`` of
-    instance ``i`` of this draw (:func:`split_record` takes it apart), so one int64 names
+    instance ``i`` of this draw (:func:`split_record` takes it apart), so one int32 names
     the draw, the instance and the source primitive at once.
 
     Attributes
@@ -238,7 +241,7 @@ class Framebuffer:
         contiguous in memory (what the rasterizer's inner loop walks along).
     srgb : bool
         Whether :meth:`to_uint8` encodes (read-only).
-    record : int64 [S, H, W] or None
+    record : int32 [S, H, W] or None
         The visibility record (with ``record=True``): ``split_record(fb.record,
         fb.recorded_draws)`` names the draw, instance and primitive at each sample.
     recorded_draws : list of RecordedDraw
@@ -272,7 +275,7 @@ class Framebuffer:
         _check_size(width, height, len(pattern))
         formats = _check_attachments(attachments)
         s = len(pattern)
-        per_sample = 29 if record else 21
+        per_sample = 25 if record else 21
         per_sample += sum(4 * _STORAGE[f][0] for _, f in formats[1:])
         check_memory(f"a {int(width)}×{int(height)} framebuffer with {s} sample(s) per pixel ({per_sample} bytes "
                      "a sample)", int(width) * int(height) * s * per_sample)
@@ -284,7 +287,7 @@ class Framebuffer:
         object.__setattr__(self, "_samples_color", np.empty((s, self._height, self._width, 4), dtype=np.float32))
         object.__setattr__(self, "_samples_depth", np.empty((s, self._height, self._width), dtype=np.float32))
         object.__setattr__(self, "_samples_stencil", np.empty((s, self._height, self._width), dtype=np.uint8))
-        object.__setattr__(self, "_record", np.empty((s, self._height, self._width), dtype=np.int64)
+        object.__setattr__(self, "_record", np.empty((s, self._height, self._width), dtype=np.int32)
                            if record else None)
         object.__setattr__(self, "_recorded_draws", [])
         object.__setattr__(self, "_formats", formats)
@@ -391,7 +394,7 @@ class Framebuffer:
 
     @property
     def record(self) -> Optional[np.ndarray]:
-        """int64 [S, H, W] or None: the visibility record (``Framebuffer(..., record=True)``), −1 where no
+        """int32 [S, H, W] or None: the visibility record (``Framebuffer(..., record=True)``), −1 where no
         draw wrote the depth since the last clear; :func:`split_record` takes its values apart."""
         return self._record
 
@@ -446,6 +449,11 @@ class Framebuffer:
         """Note a draw about to write (the caller holds :attr:`lock`); its values start after the last draw's."""
         last = self._recorded_draws[-1] if self._recorded_draws else None
         base = 0 if last is None else last.base + max(last.count, 1)
+        if base + int(count) > RECORD_MAX:
+            raise ValueError(f"the visibility record holds int32 values, at most {RECORD_MAX:,}: this draw's "
+                             f"{int(count):,} primitives (over its instances) after the {base:,} of the frame's "
+                             "earlier draws do not fit; clear the framebuffer, or draw with a framebuffer "
+                             "without record=True")
         entry = RecordedDraw(base, int(count), int(per_instance), call, clip, int(vertices_per_instance), kind)
         self._recorded_draws.append(entry)
         return entry

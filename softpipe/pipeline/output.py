@@ -262,8 +262,8 @@ def _merge_kernel(x, y, s, depth, color, discarded, prim, front_facing, st, blen
             stencil_after[k] = fb_stencil[m, j, i]
 
 
-_NO_IDS = np.zeros(0, np.int64)
-_NO_RECORD = np.zeros((0, 0, 0), np.int64)
+_NO_IDS = np.zeros(0, np.int32)
+_NO_RECORD = np.zeros((0, 0, 0), np.int32)
 
 
 @numba.njit(cache=True)
@@ -398,7 +398,7 @@ def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Fram
         _merge_kernel(frags.x, frags.y, frags.sample, frags.depth, shaded.color, shaded.discarded, frags.triangle,
                       facing, state.codes(fb.height), np.asarray(state.blend_color, np.float64), fb.samples_color,
                       fb.samples_depth, fb.samples_stencil, verdict, after, stencil_after,
-                      np.ascontiguousarray(record_ids, np.int64) if keep else _NO_IDS,
+                      np.ascontiguousarray(record_ids, np.int32) if keep else _NO_IDS,
                       fb.record if keep else _NO_RECORD)
     return MergeResult(verdict, after if record else None, stencil_after if record else None)
 

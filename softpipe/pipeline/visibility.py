@@ -361,7 +361,7 @@ def record_visible(fb, visibility: Visibility, record_ids: np.ndarray, state: Me
     # 12.3 ms bunny frame (benchmarks/README.md, "Outputs, round 5")
     vis = visibility.vis
     in_bands(_store_visible, vis.shape[1], vis, visibility.touched, TILE_W, TILE_H,
-             np.ascontiguousarray(record_ids, np.int64), fb.record, grain=TILE_H)
+             np.ascontiguousarray(record_ids, np.int32), fb.record, grain=TILE_H)
 
 
 @numba.njit(cache=True, nogil=True)
