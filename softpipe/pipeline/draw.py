@@ -447,14 +447,15 @@ class DrawCall:
 
     def _recorded(self, vout, prims: Primitives) -> Optional[np.ndarray]:
         """With a framebuffer that keeps a visibility record: note this draw in it and return what its
-        primitives store there (the draw's first value + the draw-wide input primitive); else None."""
+        primitives store there (the draw's first value + the draw-wide input primitive, in the record's
+        dtype: the framebuffer refused a draw whose values would not fit); else None."""
         fb = self.framebuffer
         if fb.record is None:
             return None
         instances = max(prims.instances, 1)
         entry = fb.add_recorded_draw(self, vout.position, vout.vertices_per_instance, prims.input_count,
                                      prims.input_count // instances, prims.kind)
-        return entry.base + _draw_wide_ids(prims)
+        return (entry.base + _draw_wide_ids(prims)).astype(fb.record.dtype)
 
     def _note_non_finite(self, found: Optional[NonFinite]) -> None:
         """Add a batch's non-finite samples to the draw's (the first one kept)."""

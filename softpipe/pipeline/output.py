@@ -383,7 +383,7 @@ def merge(frags: Fragments, shaded: ShadedFragments, state: MergeState, fb: Fram
     ``front_facing`` (bool, one per row of the Primitives the fragments came from) picks each
     fragment's stencil state (front or back); without it every fragment faces the front.
     With ``record``, also keep each sample's color and stencil right after its fragment
-    (for pixel history). ``record_ids`` (int64, one per row of the Primitives) is what a
+    (for pixel history). ``record_ids`` (int32, one per row of the Primitives) is what a
     framebuffer with a visibility record (:attr:`Framebuffer.record`) stores at each sample
     whose depth a fragment writes; without it the record is left as it is.
     """
