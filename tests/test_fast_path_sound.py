@@ -115,18 +115,19 @@ def scene(seed):
     return clip, colors
 
 
-def framebuffer(pattern):
-    """A framebuffer already holding a picture and depths (an earlier draw)."""
-    fb = sp.Framebuffer(W, H, pattern=pattern)
+def framebuffer(pattern, record=False):
+    """A framebuffer already holding a picture and depths (an earlier draw), and with ``record`` a
+    visibility record of it."""
+    fb = sp.Framebuffer(W, H, pattern=pattern, record=record)
     fb.clear((0.1, 0.2, 0.3, 1.0), depth=0.9)
     clip = window_to_clip(np.c_[[(0, 0), (W, 0), (0, H)], np.full(3, 0.5)], W, H)
     sp.draw(fb, clip, varyings={"color": np.array([[0.9, 0.1, 0.1]] * 3)}, path="reference")
     return fb
 
 
-def run(path, shader, seed, pattern=sp.CENTER, shading="sample", uniforms=None, colors=None):
+def run(path, shader, seed, pattern=sp.CENTER, shading="sample", uniforms=None, colors=None, record=False):
     clip, rgb = scene(seed)
-    fb = framebuffer(pattern)
+    fb = framebuffer(pattern, record)
     before = fb.samples_color.tobytes(), fb.samples_depth.tobytes()
     call = DrawCall(fb, clip, varyings={"color": rgb if colors is None else colors}, fragment_shader=shader,
                     uniforms=uniforms or {"cut": 70.0, "alpha": math.nan}, path=path,
@@ -140,8 +141,10 @@ def run(path, shader, seed, pattern=sp.CENTER, shading="sample", uniforms=None, 
 
 
 def same_bytes(a, b):
+    """The same color and depth, and the same visibility record if they keep one."""
     return (a.samples_color.tobytes() == b.samples_color.tobytes()
-            and a.samples_depth.tobytes() == b.samples_depth.tobytes())
+            and a.samples_depth.tobytes() == b.samples_depth.tobytes()
+            and (a.record is None) == (b.record is None) and (a.record is None or a.record.tobytes() == b.record.tobytes()))
 
 
 CASES = [(sp.CENTER, "sample"), (rotated_grid_4x(), "center")]
@@ -201,6 +204,27 @@ def test_a_shader_that_raises_leaves_the_framebuffer_unchanged_on_both_paths(cut
         assert (fb.samples_color.tobytes(), fb.samples_depth.tobytes()) == before, path
         results[path] = type(error), str(error).split(",")[0]
     assert len(set(results.values())) == 1
+
+
+@pytest.mark.parametrize("pattern,shading", CASES, ids=["1x", "4x-center"])
+def test_the_visibility_record_is_the_reference_paths_and_put_back_when_shading_fails(pattern, shading):
+    """The visibility record of the fast path is the reference path's; a draw whose shader raises
+    leaves the record as it was, and one whose alpha is NaN (drawn again on the reference path) leaves
+    the reference path's record."""
+    ref, *_ = run("reference", raising, 5, pattern, shading, uniforms={"cut": 1e9, "alpha": 1.0}, record=True)
+    fast, _, call, error = run("auto", raising, 5, pattern, shading, uniforms={"cut": 1e9, "alpha": 1.0}, record=True)
+    assert error is None and call.path_taken == "fast", call.path_reason
+    assert same_bytes(ref, fast) and (fast.record > 0).sum() > 100     # the draw's values (the first draw's are 0)
+    for cut in (-1.0, 40.0, 150.0):
+        fb, _, call, error = run("auto", raising, 5, pattern, shading, uniforms={"cut": cut, "alpha": 1.0},
+                                 record=True)
+        assert isinstance(error, sp.ShaderError) and call.path_taken == "fast"
+        assert fb.record.tobytes() == framebuffer(pattern, record=True).record.tobytes(), cut
+    for shader in UNSEEN:              # a NaN alpha met while shading: drawn again on the reference path
+        ref, *_ = run("reference", shader, 3, pattern, shading, record=True)
+        fb, _, call, error = run("auto", shader, 3, pattern, shading, record=True)
+        assert error is None and call.path_taken == "reference" and "NaN alpha" in call.path_reason
+        assert same_bytes(ref, fb), shader.__name__
 
 
 @pytest.mark.parametrize("seed", [6, 7])

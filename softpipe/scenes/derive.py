@@ -178,12 +178,15 @@ def _homogeneous(positions) -> np.ndarray:
     return out
 
 
-def _attribute(call, name: str, width: int, k: int, needed_rows: int) -> Optional[np.ndarray]:
-    """The draw's vertex attribute ``name`` as float64 [V, width], or None when it has none."""
+def _attribute(call, name: str, width: int, k: int, needed_rows: int, corners: np.ndarray) -> Optional[np.ndarray]:
+    """The draw's vertex attribute ``name`` as float64 [V, width], or None when it has none; it must have a
+    row for every index of ``corners`` (a row per vertex, ``needed_rows``, or at least up to the greatest)."""
     attributes = call.attributes or {}
     if name not in attributes:
         return None
     a = np.asarray(attributes[name], np.float64)
+    if a.ndim == 2 and len(a) < needed_rows:
+        needed_rows = int(corners.max()) + 1
     if a.ndim != 2 or a.shape[1] != width or len(a) < needed_rows:
         raise ValueError(f"derive_outputs: recorded draw {k}'s attribute {name!r} has shape {a.shape}; the "
                          f"outputs read it as [vertices, {width}] with at least {needed_rows} rows")
@@ -259,11 +262,12 @@ def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geome
             ndc_y.append(2.0 * (height - rows - 0.5 - vp.y) / vp.height - 1.0)
         row[I_VIEWPORT] = viewports[key]
         vertices = int(d.vertices_per_instance)
+        # the corners as assembly makes them: int64, each checked to lie in [0, vertices) (a ValueError
+        # naming the first that does not), in one compiled pass
         corner = np.asarray(primitive_indices(call.topology, call.indices, vertices), np.int64).reshape(-1, 3)
         instances = d.count // max(d.per_instance, 1)
         # what the pass indexes must exist: it does not check bounds per pixel
-        if len(corner) < d.per_instance or (len(corner) and (corner.min() < 0 or corner.max() >= vertices)) \
-                or len(d.clip) < vertices * instances:
+        if len(corner) < d.per_instance or len(d.clip) < vertices * instances:
             raise ValueError(f"derive_outputs: recorded draw {k} does not match its record: {len(corner)} primitives "
                              f"of corners in [0, {vertices}) for {d.per_instance} per instance, and {len(d.clip)} "
                              f"clip rows for {instances} instances of {vertices} vertices")
@@ -271,15 +275,19 @@ def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geome
         row[I_CLIP] = clip.add(np.asarray(d.clip, np.float64))
         if not row[I_SURFACE]:
             continue
-        needed = int(corner.max()) + 1 if len(corner) else 0
+        # the rows the corners read (every index is below `vertices`: the greatest is looked for only if
+        # an array is shorter than that)
+        needed = vertices if len(corner) else 0
         if positional:                           # (a copy of every position: only where they are read)
             p = _homogeneous(call.positions)
+            if len(p) < needed:
+                needed = int(corner.max()) + 1
             if len(p) < needed:
                 raise ValueError(f"derive_outputs: recorded draw {k} has {len(p)} positions; its indices reach "
                                  f"{needed - 1}")
             row[I_POSITIONS] = positions.add(p)
-        normal = _attribute(call, "normal", 3, k, needed)
-        uv = _attribute(call, "uv", 2, k, needed)
+        normal = _attribute(call, "normal", 3, k, needed, corner)
+        uv = _attribute(call, "uv", 2, k, needed, corner)
         row[I_NORMALS], row[I_UVS] = normals.add(normal), uvs.add(uv)
         try:
             model_view = _uniform_matrix(call, "model_view")
