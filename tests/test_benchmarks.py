@@ -239,6 +239,38 @@ def test_the_targets_between_scenes_are_their_medians_ratios_and_say_whether_met
     assert bench.format_targets([]) == ""
 
 
+def test_a_target_between_scenes_is_judged_by_their_frames_drawn_in_turns(monkeypatch):
+    """paired_ratio draws the two scenes in turns (A B, then B A), each turn's first frame not counted;
+    the target reads the median of the pairs' ratios and shows the medians' ratio beside it."""
+    scene, baseline = scenes.build_scene("bunny-outputs", SCALE), scenes.build_scene("bunny", SCALE)
+    drawn = []
+    real = bench.render_frame
+
+    def counting(sc, fb, *args, **kwargs):
+        drawn.append((sc.name, fb.record is not None))
+        return real(sc, fb, *args, **kwargs)
+    monkeypatch.setattr(bench, "render_frame", counting)
+    p = bench.paired_ratio(scene, baseline, pairs=3, block=2)
+    # one untimed frame each, then turns of 2: A A B B, B B A A, A A B B; each draws into its own framebuffer
+    names = [n for n, _ in drawn]
+    assert names == ["bunny-outputs", "bunny"] + ["bunny-outputs"] * 2 + ["bunny"] * 4 + ["bunny-outputs"] * 4 + \
+        ["bunny"] * 2
+    assert all(record == (n == "bunny-outputs") for n, record in drawn)
+    assert (p["scene"], p["baseline"], p["pairs"], p["block"], len(p["ratios"])) == ("bunny-outputs", "bunny", 3, 2, 3)
+    assert all(r > 0 for r in p["ratios"]) and p["low"] <= p["ratio"] <= p["high"]
+    assert p["ratio"] == float(np.median(p["ratios"]))
+    with pytest.raises(ValueError, match="block at least 2"):
+        bench.paired_ratio(scene, baseline, pairs=1, block=1)
+
+    def row(name, median):
+        return {"scene": name, "median_ms": median, "peak_rss_mb": 300.0, "scale": 1.0}
+    paired = [{"scene": "bunny-outputs", "baseline": "bunny", "pairs": 15, "block": 4, "ratio": 1.27, "low": 1.25,
+               "high": 1.29, "ratios": []}]
+    target = bench.target_rows([row("bunny", 10.0), row("bunny-outputs", 13.4)], paired)[0]
+    assert target == {"issue": 31, "target": "bunny-outputs ÷ bunny ≤ 1.3", "met": True,
+                      "measured": "1.27 (median of 15 pairs of turns, quartiles 1.25–1.29); medians' ratio 1.34"}
+
+
 def test_scaling_times_as_many_frames_on_one_thread_and_the_target_names_the_misses():
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread here")
