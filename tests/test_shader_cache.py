@@ -292,4 +292,6 @@ def test_the_shaders_of_one_varying_layout_share_one_compiled_interpolation():
         sp.draw(fb, positions, varyings={"shared_layout_color": color}, fragment_shader=shader, path="reference")
         pictures.append(fb.color[..., :3])
     assert np.all(pictures[0] == np.float32(0.25)) and np.all(pictures[1] == np.float32(0.75))
-    assert len(a.interpolate.signatures) == 1
+    # one signature, shared: compiled here with the first loop, or none here when both loops came from
+    # numba's disk cache (each compiled with interpolate in it, in an earlier run); never a second one
+    assert len(a.interpolate.signatures) <= 1
