@@ -836,6 +836,17 @@ def test_too_few_positions_for_the_indices_are_refused_where_positions_are_read(
             derive_outputs(fb, (name,))
 
 
+def test_indices_changed_after_drawing_to_reach_past_the_vertices_are_refused_naming_the_draw():
+    fb = Framebuffer(16, 12, record=True)
+    sp.draw(fb, np.array([[-1, -1, 0.2, 1], [3, -1, 0.2, 1], [-1, 3, 0.2, 1.0]]), indices=np.array([[0, 1, 2]]),
+            varyings={"color": np.ones((3, 3))})
+    assert (derive_outputs(fb, ("triangle_id",))["triangle_id"] == 0).all()
+    fb.recorded_draws[0].call.indices = np.array([[0, 1, 3]])     # changed after drawing: vertex 3 is not there
+    with pytest.raises(ValueError, match=r"recorded draw 0 does not match its record: indices\[2\] = 3 is out of "
+                                         r"range for 3 vertices"):
+        derive_outputs(fb, ("normal",))
+
+
 def test_a_frame_whose_draws_name_more_primitives_than_the_int32_record_holds_is_refused():
     from softpipe.pipeline.framebuffer import RECORD_MAX
     fb = Framebuffer(8, 6, record=True)

@@ -262,9 +262,11 @@ def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geome
             ndc_y.append(2.0 * (height - rows - 0.5 - vp.y) / vp.height - 1.0)
         row[I_VIEWPORT] = viewports[key]
         vertices = int(d.vertices_per_instance)
-        # the corners as assembly makes them: int64, each checked to lie in [0, vertices) (a ValueError
-        # naming the first that does not), in one compiled pass
-        corner = np.asarray(primitive_indices(call.topology, call.indices, vertices), np.int64).reshape(-1, 3)
+        # the corners as assembly makes them: int64, each checked to lie in [0, vertices), in one compiled pass
+        try:
+            corner = np.asarray(primitive_indices(call.topology, call.indices, vertices), np.int64).reshape(-1, 3)
+        except (ValueError, TypeError) as e:
+            raise ValueError(f"derive_outputs: recorded draw {k} does not match its record: {e}") from e
         instances = d.count // max(d.per_instance, 1)
         # what the pass indexes must exist: it does not check bounds per pixel
         if len(corner) < d.per_instance or len(d.clip) < vertices * instances:
