@@ -765,17 +765,22 @@ def test_a_record_changed_after_drawing_is_refused_naming_the_pixel():
                             "after drawing?")
 
 
-def test_a_zero_normal_gives_nan_as_the_numpy_derivation_did():
-    # the normals interpolate to (0, 0, 0): the numpy derivation divided by the zero length (NaN);
-    # the compiled pass must do the same, not raise ZeroDivisionError
+def _one_triangle_with_normals(normals: np.ndarray) -> Framebuffer:
+    """A 16 × 12 framebuffer with a visibility record, covered by one triangle with these vertex normals."""
     fb = Framebuffer(16, 12, record=True)
 
     def vs(attributes, uniforms):
         p = attributes.position
         return (p[0], p[1], p[2], 1.0), Varyings((1.0, 1.0, 1.0))
 
-    sp.draw(fb, np.array([[-1, -1, 0.2], [3, -1, 0.2], [-1, 3, 0.2]]), vertex_shader=vs,
-            attributes={"normal": np.zeros((3, 3))})
+    sp.draw(fb, np.array([[-1, -1, 0.2], [3, -1, 0.2], [-1, 3, 0.2]]), vertex_shader=vs, attributes={"normal": normals})
+    return fb
+
+
+def test_a_zero_normal_gives_nan_as_the_numpy_derivation_did():
+    # the normals interpolate to (0, 0, 0): the numpy derivation divided by the zero length (NaN);
+    # the compiled pass must do the same, not raise ZeroDivisionError
+    fb = _one_triangle_with_normals(np.zeros((3, 3)))
     got, expected = derive_outputs(fb, ("normal", "object_id")), _numpy_derive_outputs(fb, ("normal", "object_id"))
     for name in ("normal", "object_id"):
         _assert_same_bits(name, got[name], expected[name])
@@ -820,14 +825,7 @@ def test_an_array_given_for_a_buffer_that_does_not_fit_is_refused_naming_it(name
 
 
 def test_too_few_positions_for_the_indices_are_refused_where_positions_are_read():
-    fb = Framebuffer(16, 12, record=True)
-
-    def vs(attributes, uniforms):
-        p = attributes.position
-        return (p[0], p[1], p[2], 1.0), Varyings((1.0, 1.0, 1.0))
-
-    sp.draw(fb, np.array([[-1, -1, 0.2], [3, -1, 0.2], [-1, 3, 0.2]]), vertex_shader=vs,
-            attributes={"normal": np.tile([0.0, 0.0, 1.0], (3, 1))})
+    fb = _one_triangle_with_normals(np.tile([0.0, 0.0, 1.0], (3, 1)))
     fb.recorded_draws[0].call.positions = np.zeros((2, 3))        # changed after drawing: index 2 is gone
     normal = derive_outputs(fb, ("normal",))["normal"]            # the normal does not read the positions
     assert (normal == np.float32([0, 0, 1])).all()

@@ -178,15 +178,22 @@ def _homogeneous(positions) -> np.ndarray:
     return out
 
 
-def _attribute(call, name: str, width: int, k: int, needed_rows: int, corners: np.ndarray) -> Optional[np.ndarray]:
+def _rows_read(rows: int, vertices: int, corners: np.ndarray) -> int:
+    """How many rows ``corners`` read from an array of ``rows`` rows: ``vertices`` bounds every index
+    (assembly checked them), so the greatest index is looked for only when the array is shorter."""
+    if not len(corners):
+        return 0
+    return vertices if rows >= vertices else int(corners.max()) + 1
+
+
+def _attribute(call, name: str, width: int, k: int, vertices: int, corners: np.ndarray) -> Optional[np.ndarray]:
     """The draw's vertex attribute ``name`` as float64 [V, width], or None when it has none; it must have a
-    row for every index of ``corners`` (a row per vertex, ``needed_rows``, or at least up to the greatest)."""
+    row for every index of ``corners`` (:func:`_rows_read`)."""
     attributes = call.attributes or {}
     if name not in attributes:
         return None
     a = np.asarray(attributes[name], np.float64)
-    if a.ndim == 2 and len(a) < needed_rows:
-        needed_rows = int(corners.max()) + 1
+    needed_rows = _rows_read(len(a) if a.ndim == 2 else 0, vertices, corners)
     if a.ndim != 2 or a.shape[1] != width or len(a) < needed_rows:
         raise ValueError(f"derive_outputs: recorded draw {k}'s attribute {name!r} has shape {a.shape}; the "
                          f"outputs read it as [vertices, {width}] with at least {needed_rows} rows")
@@ -277,19 +284,15 @@ def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geome
         row[I_CLIP] = clip.add(np.asarray(d.clip, np.float64))
         if not row[I_SURFACE]:
             continue
-        # the rows the corners read (every index is below `vertices`: the greatest is looked for only if
-        # an array is shorter than that)
-        needed = vertices if len(corner) else 0
         if positional:                           # (a copy of every position: only where they are read)
             p = _homogeneous(call.positions)
-            if len(p) < needed:
-                needed = int(corner.max()) + 1
+            needed = _rows_read(len(p), vertices, corner)
             if len(p) < needed:
                 raise ValueError(f"derive_outputs: recorded draw {k} has {len(p)} positions; its indices reach "
                                  f"{needed - 1}")
             row[I_POSITIONS] = positions.add(p)
-        normal = _attribute(call, "normal", 3, k, needed, corner)
-        uv = _attribute(call, "uv", 2, k, needed, corner)
+        normal = _attribute(call, "normal", 3, k, vertices, corner)
+        uv = _attribute(call, "uv", 2, k, vertices, corner)
         row[I_NORMALS], row[I_UVS] = normals.add(normal), uvs.add(uv)
         try:
             model_view = _uniform_matrix(call, "model_view")
