@@ -415,7 +415,7 @@ def _numpy_derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequen
     out: Dict[str, np.ndarray] = {}
     nan3 = np.full((h, w, 3), np.nan, np.float32)
     object_id = np.full((h, w), -1, np.int32)
-    triangle_id = np.full((h, w), -1, np.int64)
+    triangle_id = np.full((h, w), -1, np.int32)
     bary, position, normal, albedo = nan3.copy(), nan3.copy(), nan3.copy(), nan3.copy()
     uv = np.full((h, w, 2), np.nan, np.float32)
     linear = np.full((h, w), np.nan, np.float32)
@@ -814,7 +814,7 @@ def test_buffers_written_into_the_arrays_given_are_the_new_arrays_bits_with_noth
                                             f"is float32 [{H}, {W}], C-contiguous and writeable"),
     ("normal", np.zeros((H, W, 4), np.float32), f"out['normal'] is float32 [{H}, {W}, 4]; the normal buffer"),
     ("object_id", np.zeros((W, H), np.int32).T, "not C-contiguous"),
-    ("triangle_id", np.broadcast_to(np.int64(0), (H, W)), "read-only"),
+    ("triangle_id", np.broadcast_to(np.int32(0), (H, W)), "read-only"),
     ("color", [[0.0]], "out['color'] is a list, not an array"),
 ])
 def test_an_array_given_for_a_buffer_that_does_not_fit_is_refused_naming_it(name, bad, message):
@@ -834,10 +834,39 @@ def test_too_few_positions_for_the_indices_are_refused_where_positions_are_read(
             derive_outputs(fb, (name,))
 
 
-def test_indices_changed_after_drawing_to_reach_past_the_vertices_are_refused_naming_the_draw():
+@pytest.mark.parametrize("normals, shape", [(np.zeros((2, 3)), r"\(2, 3\)"), (np.zeros((3, 2)), r"\(3, 2\)")])
+def test_a_vertex_attribute_too_short_or_too_narrow_for_the_drawn_corners_is_refused_naming_the_draw(normals, shape):
+    fb = _one_triangle_with_normals(np.tile([0.0, 0.0, 1.0], (3, 1)))
+    fb.recorded_draws[0].call.attributes["normal"] = normals      # changed after drawing
+    with pytest.raises(ValueError, match=r"recorded draw 0's attribute 'normal' has shape " + shape +
+                       r"; the outputs read it as \[vertices, 3\] with at least 3 rows"):
+        derive_outputs(fb, ("normal",))
+    assert (derive_outputs(fb, ("triangle_id",))["triangle_id"] == 0).all()    # the ids do not read it
+
+
+def test_the_buffers_read_the_corners_as_drawn_when_the_indices_change_after_drawing():
+    # a triangle and a second vertex order: the barycentrics follow the corners, so reading the changed
+    # indices would show (the corners 0, 1, 2 of the first draw give the first corner's weight at (-1, -1))
+    clip = np.array([[-1, -1, 0.2, 1], [3, -1, 0.2, 1], [-1, 3, 0.2, 1.0], [0, 0, 0, 1.0]])
+    for indices in (np.array([[0, 1, 2]], np.int64), np.array([[0, 1, 2]], np.int32)):
+        fb = Framebuffer(16, 12, record=True)
+        sp.draw(fb, clip, indices=indices, varyings={"color": np.ones((4, 3))})
+        drawn = derive_outputs(fb, ("barycentrics", "triangle_id"))
+        indices[0] = (1, 2, 0)                   # changed in place after drawing (the int64 array was given as is)
+        again = derive_outputs(fb, ("barycentrics", "triangle_id"))
+        fb.recorded_draws[0].call.indices = np.array([[0, 1, 3]])     # and replaced: vertex 3 was not drawn
+        replaced = derive_outputs(fb, ("barycentrics", "triangle_id"))
+        for name in ("barycentrics", "triangle_id"):
+            assert drawn[name].tobytes() == again[name].tobytes() == replaced[name].tobytes(), (indices.dtype, name)
+        assert (drawn["triangle_id"] == 0).all()
+
+
+def test_a_draw_recorded_without_its_corners_whose_indices_reach_past_the_vertices_is_refused_naming_it():
+    # a RecordedDraw made by hand has no corners: the pass makes them from the draw's indices, checked
     fb = Framebuffer(16, 12, record=True)
     sp.draw(fb, np.array([[-1, -1, 0.2, 1], [3, -1, 0.2, 1], [-1, 3, 0.2, 1.0]]), indices=np.array([[0, 1, 2]]),
             varyings={"color": np.ones((3, 3))})
+    fb.recorded_draws[0].corners = None
     assert (derive_outputs(fb, ("triangle_id",))["triangle_id"] == 0).all()
     fb.recorded_draws[0].call.indices = np.array([[0, 1, 3]])     # changed after drawing: vertex 3 is not there
     with pytest.raises(ValueError, match=r"recorded draw 0 does not match its record: indices\[2\] = 3 is out of "

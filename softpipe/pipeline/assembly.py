@@ -138,6 +138,11 @@ class Primitives:
         None in Primitives made by hand).
     instances : int
         How many instances the draw had (1 without instancing).
+    source_corners : int64 [input_count / instances, 3] or None
+        The vertex indices of each input primitive of one instance, as the topology made them
+        (:func:`primitive_indices`; what ``primitive_id`` counts): kept so that what reads a
+        primitive id later (the buffers derived from a visibility record) reads the corners
+        drawn, not the draw's indices again. None in Primitives made by hand.
     """
 
     window: np.ndarray
@@ -155,6 +160,7 @@ class Primitives:
     faces: Optional["Primitives"] = None
     instance: Optional[np.ndarray] = None
     instances: int = 1
+    source_corners: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return len(self.window)
@@ -782,7 +788,7 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
         raise ValueError(f"depth_clamp must be True or False, got {depth_clamp!r}")
     clipping = (user, bool(depth_clamp))
     kind = primitive_kind(topology, polygon_mode)
-    corners = primitive_indices(topology, indices, vout.vertices_per_instance)
+    corners = source = primitive_indices(topology, indices, vout.vertices_per_instance)
     per_instance = len(corners)
     corners = _per_instance(corners, vout)
     whole_list = indices is None and topology == "triangles"
@@ -796,9 +802,11 @@ def assemble(vout: VertexOut, topology: str = "triangles", indices=None, *,
         prims.primitive_id = owner[prims.primitive_id]
         prims.dropped, prims.input_count, prims.culled_window = faces.dropped, faces.input_count, faces.culled_window
         prims.faces = _name_instances(faces, per_instance, vout.instances)
+        prims.source_corners = source
         return _name_instances(prims, per_instance, vout.instances)
     prims = _assemble(vout, corners, corners[:, 2], kind, viewport, cull, front_face, keep_culled, whole_list,
                       point_size, line_width, clipping)
+    prims.source_corners = source
     return _name_instances(prims, per_instance, vout.instances)
 
 

@@ -453,8 +453,11 @@ class DrawCall:
         if fb.record is None:
             return None
         instances = max(prims.instances, 1)
+        corners = prims.source_corners
+        if corners is not None and self.indices is not None and np.may_share_memory(corners, self.indices):
+            corners = corners.copy()             # (int64 indices come back as a view: the record keeps them as drawn)
         entry = fb.add_recorded_draw(self, vout.position, vout.vertices_per_instance, prims.input_count,
-                                     prims.input_count // instances, prims.kind)
+                                     prims.input_count // instances, prims.kind, corners)
         return (entry.base + _draw_wide_ids(prims)).astype(fb.record.dtype)
 
     def _note_non_finite(self, found: Optional[NonFinite]) -> None:

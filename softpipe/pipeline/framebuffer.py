@@ -90,6 +90,10 @@ class RecordedDraw:
         What its primitives were.
     tag : object
         Free for the caller (a scene names the object the draw belongs to).
+    corners : int64 [per_instance, 3] or None
+        The vertex indices of each primitive of one instance, as drawn (assembly's
+        :func:`~softpipe.pipeline.assembly.primitive_indices`, not the draw's indices read again:
+        the draw owns them); None where the draw did not give them.
     """
 
     base: int
@@ -100,6 +104,7 @@ class RecordedDraw:
     vertices_per_instance: int
     kind: str
     tag: Any = None
+    corners: Optional[np.ndarray] = None
 
 
 def split_record(record: np.ndarray, draws: Sequence[RecordedDraw]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -445,8 +450,9 @@ class Framebuffer:
         return a.mean(axis=0, dtype=np.float64).astype(np.float32)
 
     def add_recorded_draw(self, call: Any, clip: np.ndarray, vertices_per_instance: int, count: int,
-                          per_instance: int, kind: str) -> RecordedDraw:
-        """Note a draw about to write (the caller holds :attr:`lock`); its values start after the last draw's."""
+                          per_instance: int, kind: str, corners: Optional[np.ndarray] = None) -> RecordedDraw:
+        """Note a draw about to write (the caller holds :attr:`lock`); its values start after the last draw's.
+        ``corners`` as :class:`RecordedDraw` keeps them (the caller's to own: they are not copied)."""
         last = self._recorded_draws[-1] if self._recorded_draws else None
         base = 0 if last is None else last.base + max(last.count, 1)
         if base + int(count) > RECORD_MAX:
@@ -454,7 +460,8 @@ class Framebuffer:
                              f"{int(count):,} primitives (over its instances) after the {base:,} of the frame's "
                              "earlier draws do not fit; clear the framebuffer, or draw with a framebuffer "
                              "without record=True")
-        entry = RecordedDraw(base, int(count), int(per_instance), call, clip, int(vertices_per_instance), kind)
+        entry = RecordedDraw(base, int(count), int(per_instance), call, clip, int(vertices_per_instance), kind,
+                             corners=corners)
         self._recorded_draws.append(entry)
         return entry
 

@@ -269,11 +269,14 @@ def pack_draws(draws: Sequence[RecordedDraw], maps: Dict[int, np.ndarray], geome
             ndc_y.append(2.0 * (height - rows - 0.5 - vp.y) / vp.height - 1.0)
         row[I_VIEWPORT] = viewports[key]
         vertices = int(d.vertices_per_instance)
-        # the corners as assembly makes them: int64, each checked to lie in [0, vertices), in one compiled pass
-        try:
-            corner = np.asarray(primitive_indices(call.topology, call.indices, vertices), np.int64).reshape(-1, 3)
-        except (ValueError, TypeError) as e:
-            raise ValueError(f"derive_outputs: recorded draw {k} does not match its record: {e}") from e
+        # the corners as drawn (assembly made them, int64, each checked to lie in [0, vertices)); a draw recorded
+        # without them has them made again from its indices, checked the same way
+        corner = d.corners
+        if corner is None:
+            try:
+                corner = np.asarray(primitive_indices(call.topology, call.indices, vertices), np.int64).reshape(-1, 3)
+            except (ValueError, TypeError) as e:
+                raise ValueError(f"derive_outputs: recorded draw {k} does not match its record: {e}") from e
         instances = d.count // max(d.per_instance, 1)
         # what the pass indexes must exist: it does not check bounds per pixel
         if len(corner) < d.per_instance or len(d.clip) < vertices * instances:
@@ -355,7 +358,7 @@ def _fill_background(a, b, w_depth, w_linear, w_position, w_normal, w_object, w_
             out_object[p] = np.int32(-1)
     if w_triangle:
         for p in range(a, b):
-            out_triangle[p] = np.int64(-1)
+            out_triangle[p] = np.int32(-1)
     if w_position:
         for p in range(a, b):
             out_position[p, 0] = out_position[p, 1] = out_position[p, 2] = nan
@@ -414,7 +417,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
     out_position = np.empty((width if w_position else 0, 3), np.float32)
     out_normal = np.empty((width if w_normal else 0, 3), np.float32)
     out_object = np.empty(width if w_object else 0, np.int32)
-    out_triangle = np.empty(width if w_triangle else 0, np.int64)
+    out_triangle = np.empty(width if w_triangle else 0, np.int32)
     out_bary = np.empty((width if w_bary else 0, 3), np.float32)
     out_uv = np.empty((width if w_uv else 0, 2), np.float32)
     out_albedo = np.empty((width if w_albedo else 0, 3), np.float32)
@@ -514,7 +517,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                             triangle = maps[map_at + primitive]
                         elif bad[j] < 0:
                             bad[j] = column
-                out_triangle[cu] = triangle
+                out_triangle[cu] = np.int32(triangle)  # (< 2³¹: docs/outputs.md)
             if not geometric:
                 continue
             if w_albedo:
@@ -656,7 +659,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
 
 @numba.njit(cache=True, nogil=True)
 def _touch(a) -> float:
-    """Read one value of every 64-byte line of the float64 array ``a`` (C order), in order."""
+    """Read one value of every 64-byte line of the array ``a`` of 8-byte values (C order), in order."""
     flat = a.reshape(a.size)
     total = 0.0
     for i in range(0, flat.size, 8):
@@ -706,15 +709,16 @@ def check_out_array(out: Mapping[str, np.ndarray], name: str, shape: tuple, dtyp
     """``out[name]``, checked to be a writeable C-contiguous array of ``shape`` and ``dtype`` (the buffer
     it stands in for); a ValueError naming it and what it should be otherwise."""
     a = out[name]
+    if isinstance(a, np.ndarray) and a.shape == tuple(shape) and a.dtype == dtype and a.flags.c_contiguous and \
+            a.flags.writeable:
+        return a                                 # (before the messages: a frame's arrays are checked every frame)
     want = f"{np.dtype(dtype)} {list(shape)}, C-contiguous and writeable"
     if not isinstance(a, np.ndarray):
         raise ValueError(f"derive_outputs: out[{name!r}] is a {type(a).__name__}, not an array; the {name} "
                          f"buffer is {want}")
-    if a.shape != tuple(shape) or a.dtype != dtype or not a.flags.c_contiguous or not a.flags.writeable:
-        what = f"{a.dtype} {list(a.shape)}" + ("" if a.flags.c_contiguous else ", not C-contiguous") + \
-            ("" if a.flags.writeable else ", read-only")
-        raise ValueError(f"derive_outputs: out[{name!r}] is {what}; the {name} buffer of this frame is {want}")
-    return a
+    what = f"{a.dtype} {list(a.shape)}" + ("" if a.flags.c_contiguous else ", not C-contiguous") + \
+        ("" if a.flags.writeable else ", read-only")
+    raise ValueError(f"derive_outputs: out[{name!r}] is {what}; the {name} buffer of this frame is {want}")
 
 
 def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.ndarray],
@@ -751,7 +755,7 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
 
     buffers = {"depth": buffer("depth", (h, w), np.float32), "linear_depth": buffer("linear_depth", (h, w), np.float32),
            "position": buffer("position", (h, w, 3), np.float32), "normal": buffer("normal", (h, w, 3), np.float32),
-           "object_id": buffer("object_id", (h, w), np.int32), "triangle_id": buffer("triangle_id", (h, w), np.int64),
+           "object_id": buffer("object_id", (h, w), np.int32), "triangle_id": buffer("triangle_id", (h, w), np.int32),
            "barycentrics": buffer("barycentrics", (h, w, 3), np.float32), "uv": buffer("uv", (h, w, 2), np.float32),
            "albedo": buffer("albedo", (h, w, 3), np.float32)}
     texture_uv = np.empty((h, w, 2)) if textured else np.zeros((0, 0, 2))
@@ -766,7 +770,7 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
         return a.reshape((a.shape[0] * a.shape[1],) + a.shape[2:])
 
     samples = record.shape[0]
-    _warm(table.clip, table.normals, table.positions, table.uvs)
+    _warm(table.corners, table.clip, table.normals, table.positions, table.uvs)
     in_bands(_derive_rows, h, w, record.reshape(samples, h * w), fb.samples_depth.reshape(samples, h * w),
              table.ints, table.floats, table.corners, table.maps, table.clip, table.positions, table.normals,
              table.uvs, table.ndc_x, table.ndc_y, want, *(flat(buffers[n]) for n in BUFFER_NAMES), flat(texture_uv),
