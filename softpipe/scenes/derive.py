@@ -438,29 +438,40 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                 texture_draw[p] = -1
         # the row's covered pixels first, in a loop of nothing else (a record value < 0: no surface, the
         # fill's values), with each one's sample: the one of least depth, the first of equals (np.argmin:
-        # a NaN first); a frame of no draws has none
+        # a NaN first); a frame of no draws has none. The row is read in blocks of 16 pixels: a block whose every
+        # record value is −1 (the background, most of a frame) is passed over after one vectorized test (the OR
+        # of the values' complements is 0), the others pixel by pixel (the row's listing took 0.15 ms less in a bunny frame at 1024²: benchmarks/README.md,
+        # "Outputs, round 7").
         m = 0
-        if draws == 0:
-            pass
-        elif samples == 1:
-            for p in range(j * width, (j + 1) * width):
-                if record[0, p] >= 0:
-                    covered[m] = p
-                    m += 1
-        else:
-            for p in range(j * width, (j + 1) * width):
-                pick, least = 0, depth[0, p]
-                if not math.isnan(least):
-                    for s in range(1, samples):
-                        z = depth[s, p]
-                        if math.isnan(z):
-                            pick = s
-                            break
-                        if z < least:
-                            pick, least = s, z
-                if record[pick, p] >= 0:
-                    covered[m], picks[m] = p, pick
-                    m += 1
+        block = row_start
+        while draws > 0 and block < row_start + width:
+            block_end = min(block + 16, row_start + width)
+            anything = np.int32(0)
+            for s in range(samples):
+                for p in range(block, block_end):
+                    anything |= ~record[s, np.uint64(p)]
+            if anything == 0:
+                pass
+            elif samples == 1:
+                for p in range(block, block_end):
+                    if record[0, np.uint64(p)] >= 0:
+                        covered[m] = p
+                        m += 1
+            else:
+                for p in range(block, block_end):
+                    pick, least = 0, depth[0, p]
+                    if not math.isnan(least):
+                        for s in range(1, samples):
+                            z = depth[s, p]
+                            if math.isnan(z):
+                                pick = s
+                                break
+                            if z < least:
+                                pick, least = s, z
+                    if record[pick, p] >= 0:
+                        covered[m], picks[m] = p, pick
+                        m += 1
+            block = block_end
         # 1. each covered pixel's record value taken apart: its ids and depth written, and a pixel of a
         # surface listed with its draw and corners for the steps after (a short loop of integers)
         n = 0
