@@ -1,7 +1,7 @@
 """Streaming stores: writing a large buffer past the processor's caches.
 
 A buffer written once per frame and read later by someone else (the outputs of
-:mod:`softpipe.scenes.derive`: 28 MB at 1024² for depth, normals and the two ids)
+:mod:`softpipe.scenes.derive`: 24 MB at 1024² for depth, normals and the two ids)
 is the worst case for ordinary stores: each cache line is first read from memory,
 to be owned, then written back dirty when it is evicted, so every byte crosses the
 memory bus twice and pushes out what the cache held. A *streaming* (non-temporal)

@@ -16,15 +16,16 @@ with ``record=True`` and the names of the buffers asked for. Three steps:
    written by the band of its row, from its own record value alone, so the buffers do not
    depend on the thread count. A row is made in arrays of one row, which stay in the
    cache: the background's values written over it (:func:`_fill_background`, one short
-   loop per buffer), then the row's covered pixels listed (record value ≥ 0), and only
-   those computed: the sample of least depth (the first of equals), the record value
-   taken apart (draw, instance, primitive) and the ids, in one loop that also lists the
+   loop per buffer), then the row's covered pixels listed (record value ≥ 0; read in
+   blocks of 16, a block of background passed over after one test), and only those
+   computed: the sample of least depth (the first of equals), the record value taken
+   apart (draw, instance, primitive) and the ids, in one loop that also lists the
    pixels of a surface; then, each in a loop of its own over that list, their corners,
    the perspective-correct barycentrics at the pixel centre from the source clip corners,
    position and eye depth, normal, and uv (short loops whose pixels do not wait for each
    other, where one loop doing it all made each pixel wait on the last). Then the row
    is copied into each buffer asked for by streaming stores
-   (:mod:`softpipe.core.streaming`): the buffers, 28 MB at 1024² for depth, normal and
+   (:mod:`softpipe.core.streaming`): the buffers, 24 MB at 1024² for depth, normal and
    the ids, are written once in whole lines and never read, which made the pass 0.7×
    its time. (A frame is mostly background: the bunny at 1024² covers 22 % of its
    pixels.) A caller deriving frame after frame passes the last frame's arrays
