@@ -556,6 +556,8 @@ RENDERS = {
     "objects, two materials, a scaled model": lambda: sp.render(_objects(), outputs=OUTPUTS),
     "multisampling": lambda: sp.render(_objects("rgss4"), outputs=OUTPUTS),
     "teapot, 4 samples": lambda: sp.render("teapot", width=W, height=H, samples="rgss4", outputs=OUTPUTS),
+    # rows of 16-pixel blocks and a part block (the pass lists a row's covered pixels a block at a time)
+    "teapot, 4 samples, 45 wide": lambda: sp.render("teapot", width=45, height=29, samples="rgss4", outputs=OUTPUTS),
     "lines and points": lambda: sp.render(_lines_and_points(), outputs=OUTPUTS),
     "textured": lambda: sp.render("spot", width=W, height=H, outputs=OUTPUTS),
     "empty frame": lambda: sp.render(_empty(), outputs=OUTPUTS),
@@ -845,8 +847,8 @@ def test_a_vertex_attribute_too_short_or_too_narrow_for_the_drawn_corners_is_ref
 
 
 def test_the_buffers_read_the_corners_as_drawn_when_the_indices_change_after_drawing():
-    # a triangle and a second vertex order: the barycentrics follow the corners, so reading the changed
-    # indices would show (the corners 0, 1, 2 of the first draw give the first corner's weight at (-1, -1))
+    # the barycentrics follow the corners' order: a pass that read the indices again would give the permuted
+    # indices' barycentrics (it did, before the draw kept its corners), or refuse the replaced ones
     clip = np.array([[-1, -1, 0.2, 1], [3, -1, 0.2, 1], [-1, 3, 0.2, 1.0], [0, 0, 0, 1.0]])
     for indices in (np.array([[0, 1, 2]], np.int64), np.array([[0, 1, 2]], np.int32)):
         fb = Framebuffer(16, 12, record=True)

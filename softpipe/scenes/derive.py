@@ -441,8 +441,8 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
         # fill's values), with each one's sample: the one of least depth, the first of equals (np.argmin:
         # a NaN first); a frame of no draws has none. The row is read in blocks of 16 pixels: a block whose every
         # record value is −1 (the background, most of a frame) is passed over after one vectorized test (the OR
-        # of the values' complements is 0), the others pixel by pixel (the row's listing took 0.15 ms less in a bunny frame at 1024²: benchmarks/README.md,
-        # "Outputs, round 7").
+        # of the values' complements is 0), the others pixel by pixel (the kernel took 0.16 ms less in a bunny
+        # frame at 1024²: benchmarks/README.md, "Outputs, round 7").
         m = 0
         block = row_start
         while draws > 0 and block < row_start + width:
