@@ -227,6 +227,53 @@ def test_the_visibility_record_is_the_reference_paths_and_put_back_when_shading_
         assert same_bytes(ref, fb), shader.__name__
 
 
+@pytest.mark.parametrize("pattern,shading", CASES, ids=["1x", "4x-center"])
+def test_a_fast_draws_record_values_wait_until_the_record_is_read_or_written_again(pattern, shading):
+    """A fast-path draw's record values are stored when the record is next read (fb.record) or written
+    (the next draw), not before (Framebuffer.defer_visible); whenever it is read it is the reference path's."""
+    ref, fast = framebuffer(pattern, record=True), framebuffer(pattern, record=True)
+    after = []
+    for seed in (1, 2, 3):
+        clip, rgb = scene(seed)
+        DrawCall(ref, clip, varyings={"color": rgb}, path="reference", sample_shading=shading).run()
+        after.append(ref.record.copy())
+        call = DrawCall(fast, clip, varyings={"color": rgb}, path="fast", sample_shading=shading)
+        call.run()
+        assert call.path_taken == "fast", call.path_reason
+        stored, _, deferred = fast.record_parts()
+        assert deferred is not None                              # this draw's values wait
+        # what is stored is the record before this draw: the one drawn before, stored when this one came
+        before = after[-2] if len(after) > 1 else framebuffer(pattern, record=True).record
+        assert stored.tobytes() == before.tobytes(), seed
+    assert same_bytes(ref, fast)                                 # read: stored now
+    assert fast.record_parts()[2] is None and (fast.record != after[1]).any()
+
+
+def test_a_clear_forgets_a_waiting_draw_and_sets_a_record_written_by_hand_to_minus_one():
+    fb = sp.Framebuffer(W, H, record=True)
+    clip, rgb = scene(1)
+    sp.draw(fb, clip, varyings={"color": rgb}, path="fast")
+    assert fb.record_parts()[2] is not None
+    fb.clear()
+    stored, blank, deferred = fb.record_parts()
+    assert deferred is None and blank and (stored == -1).all()
+    # an array handed out may be written after the clear: the next clear sets it again, whatever was drawn
+    record = fb.record
+    record[0, 5, 7] = 42
+    fb.clear()
+    assert (fb.record == -1).all()
+
+
+def test_a_framebuffer_pickled_with_a_waiting_draw_carries_its_record():
+    import pickle
+    fb = sp.Framebuffer(W, H, record=True)
+    clip, rgb = scene(2)
+    sp.draw(fb, clip, varyings={"color": rgb}, path="fast")
+    assert fb.record_parts()[2] is not None
+    copy = pickle.loads(pickle.dumps(fb))
+    assert copy.record.tobytes() == fb.record.tobytes() and (copy.record >= 0).sum() > 1000
+
+
 @pytest.mark.parametrize("seed", [6, 7])
 def test_random_thresholds_same_bytes_or_same_error(seed):
     """Random cuts and alphas for every shader: same bytes, or the same error and the framebuffer unchanged."""

@@ -450,7 +450,7 @@ class DrawCall:
         primitives store there (the draw's first value + the draw-wide input primitive, in the record's
         dtype: the framebuffer refused a draw whose values would not fit); else None."""
         fb = self.framebuffer
-        if fb.record is None:
+        if not fb.has_record:
             return None
         instances = max(prims.instances, 1)
         corners = prims.source_corners
@@ -458,7 +458,7 @@ class DrawCall:
             corners = corners.copy()             # (int64 indices come back as a view: the record keeps them as drawn)
         entry = fb.add_recorded_draw(self, vout.position, vout.vertices_per_instance, prims.input_count,
                                      prims.input_count // instances, prims.kind, corners)
-        return (entry.base + _draw_wide_ids(prims)).astype(fb.record.dtype)
+        return (entry.base + _draw_wide_ids(prims)).astype(np.int32)      # (the record's dtype)
 
     def _note_non_finite(self, found: Optional[NonFinite]) -> None:
         """Add a batch's non-finite samples to the draw's (the first one kept)."""

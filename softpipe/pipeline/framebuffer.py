@@ -31,7 +31,7 @@ from softpipe.core.parallel import in_bands
 from softpipe.core.runtime import check_memory
 from softpipe.pipeline.sampling import CENTER, SamplePattern
 
-__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record", "RECORD_MAX",
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record", "store_visible", "RECORD_MAX",
            "ATTACHMENT_FORMATS", "DEFAULT_ATTACHMENTS"]
 
 #: Largest width or height, in pixels.
@@ -105,6 +105,24 @@ class RecordedDraw:
     kind: str
     tag: Any = None
     corners: Optional[np.ndarray] = None
+
+
+@numba.njit(cache=True, nogil=True)
+def store_visible(lo, hi, vis, touched, tile_w, tile_h, ids, record):
+    """record[s, row, i] = ids[vis[s, row, i]] where vis names a primitive (≥ 0), for the image rows lo:hi,
+    in the touched tiles (tile row 0 at the bottom): a fast-path draw's record write
+    (:meth:`Framebuffer.defer_visible`)."""
+    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
+    for row in range(lo, hi):
+        tile_y = (height - 1 - row) // tile_h
+        for tile_x in range(touched.shape[1]):
+            if not touched[tile_y, tile_x]:
+                continue
+            for s in range(samples):
+                for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
+                    v = vis[s, row, i]
+                    if v >= 0:
+                        record[s, row, i] = ids[v]
 
 
 def split_record(record: np.ndarray, draws: Sequence[RecordedDraw]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -295,6 +313,11 @@ class Framebuffer:
         object.__setattr__(self, "_record", np.empty((s, self._height, self._width), dtype=np.int32)
                            if record else None)
         object.__setattr__(self, "_recorded_draws", [])
+        # the record's lazy parts (:meth:`defer_visible`): the last fast-path draw's visible samples, not yet
+        # stored; whether the array is known to hold −1 everywhere; whether it was ever handed out
+        object.__setattr__(self, "_pending", None)
+        object.__setattr__(self, "_record_clean", False)
+        object.__setattr__(self, "_record_shared", False)
         object.__setattr__(self, "_formats", formats)
         object.__setattr__(self, "_extra", {name: np.empty((s, self._height, self._width)
                                                            + ((4,) if _STORAGE[f][0] == 4 else ()),
@@ -328,6 +351,9 @@ class Framebuffer:
     _samples_stencil: np.ndarray
     _record: Optional[np.ndarray]
     _recorded_draws: List[RecordedDraw]
+    _pending: Optional[Tuple[np.ndarray, np.ndarray, int, int, np.ndarray]]
+    _record_clean: bool
+    _record_shared: bool
     _lock: threading.RLock
     _writes: int
     _views: dict
@@ -400,8 +426,55 @@ class Framebuffer:
     @property
     def record(self) -> Optional[np.ndarray]:
         """int32 [S, H, W] or None: the visibility record (``Framebuffer(..., record=True)``), −1 where no
-        draw wrote the depth since the last clear; :func:`split_record` takes its values apart."""
-        return self._record
+        draw wrote the depth since the last clear; :func:`split_record` takes its values apart.
+
+        The array itself, complete: the last fast-path draw's samples are stored first if they were
+        not yet (:meth:`defer_visible`)."""
+        with self._lock:
+            self._store_pending()
+            if self._record is not None:
+                object.__setattr__(self, "_record_shared", True)   # it may be written from outside from now on
+                object.__setattr__(self, "_record_clean", False)
+            return self._record
+
+    @property
+    def has_record(self) -> bool:
+        """Whether the framebuffer keeps a visibility record (``record=True``), without reading it."""
+        return self._record is not None
+
+    def record_parts(self) -> Tuple[Optional[np.ndarray], bool,
+                                    Optional[Tuple[np.ndarray, np.ndarray, int, int, np.ndarray]]]:
+        """The record as it is stored, whether it is known to hold −1 everywhere (nothing stored since a
+        clear, and never handed out), and the samples of the last fast-path draw not yet stored in it:
+        ``(record, blank, None)``, or ``(record, blank, (vis, touched, tile_w, tile_h, ids))`` as
+        :meth:`defer_visible` took them. For a reader that takes that draw's samples itself rather than
+        have them stored first (:mod:`softpipe.scenes.derive`): where ``touched[tile]`` and ``vis ≥ 0``
+        the record value is ``ids[vis]``, elsewhere ``record``'s (−1 if ``blank``)."""
+        return self._record, bool(self._record_clean), self._pending
+
+    def defer_visible(self, vis: np.ndarray, touched: np.ndarray, tile_w: int, tile_h: int,
+                      ids: np.ndarray) -> None:
+        """A fast-path draw's record write, made when the record is next read or written.
+
+        At every sample where ``vis`` (int32 [S, H, W], a row of the draw's primitives or −1; set only in
+        the tiles ``touched`` [tiles_y, tiles_x] of ``tile_w`` × ``tile_h`` pixels, tile row 0 at the
+        bottom) names a primitive, the record's value is ``ids[vis]`` (int32). Stored by
+        :func:`store_visible` when the next draw is recorded (:meth:`add_recorded_draw`), when
+        :attr:`record` hands the array out, or never: a clear forgets them. A frame of one draw read only by the derived buffers
+        (:meth:`record_parts`) never stores them."""
+        with self._lock:
+            self._store_pending()
+            object.__setattr__(self, "_pending", (vis, touched, int(tile_w), int(tile_h), ids))
+
+    def _store_pending(self) -> None:
+        """Store the deferred draw's samples in the record (:meth:`defer_visible`)."""
+        pending = self._pending
+        if pending is None:
+            return
+        vis, touched, tile_w, tile_h, ids = pending
+        object.__setattr__(self, "_pending", None)
+        object.__setattr__(self, "_record_clean", False)
+        in_bands(store_visible, vis.shape[1], vis, touched, tile_w, tile_h, ids, self._record, grain=tile_h)
 
     @property
     def recorded_draws(self) -> List[RecordedDraw]:
@@ -453,6 +526,7 @@ class Framebuffer:
                           per_instance: int, kind: str, corners: Optional[np.ndarray] = None) -> RecordedDraw:
         """Note a draw about to write (the caller holds :attr:`lock`); its values start after the last draw's.
         ``corners`` as :class:`RecordedDraw` keeps them (the caller's to own: they are not copied)."""
+        self._store_pending()                    # (the last draw's samples, before this draw's visibility pass)
         last = self._recorded_draws[-1] if self._recorded_draws else None
         base = 0 if last is None else last.base + max(last.count, 1)
         if base + int(count) > RECORD_MAX:
@@ -520,6 +594,8 @@ class Framebuffer:
     def __getstate__(self) -> dict:
         """For pickling: the size, pattern and arrays (not the lock, the kept views or the recorded draws,
         which hold the draws' shaders)."""
+        with self._lock:
+            self._store_pending()
         return {k: v for k, v in self.__dict__.items() if k not in ("_lock", "_views", "_recorded_draws")}
 
     def __setstate__(self, state: dict) -> None:
@@ -531,6 +607,9 @@ class Framebuffer:
             object.__setattr__(self, "_samples_stencil", np.zeros(self._samples_depth.shape, np.uint8))
         self.__dict__.setdefault("_srgb", False)       # pickled before framebuffers had srgb
         self.__dict__.setdefault("_record", None)      # pickled before framebuffers kept a record
+        self.__dict__.setdefault("_pending", None)
+        self.__dict__.setdefault("_record_clean", False)
+        self.__dict__.setdefault("_record_shared", False)
         self.__dict__.setdefault("_formats", tuple(DEFAULT_ATTACHMENTS.items()))   # before attachments
         self.__dict__.setdefault("_extra", {})
         object.__setattr__(self, "_recorded_draws", [])
@@ -571,9 +650,13 @@ class Framebuffer:
                      self.samples_depth.reshape(-1), np.float32(depth), self.samples_stencil.reshape(-1),
                      np.uint8(stencil), grain=65536)
             if self._record is not None:
-                # −1 is every bit set: filled as bytes, numpy hands it to memset, which writes a buffer this
-                # large without reading it first (twice as fast as an int64 fill: 0.065 ms at 1024² against 0.13)
-                self._record.view(np.uint8).fill(255)
+                object.__setattr__(self, "_pending", None)          # a deferred draw's samples: forgotten
+                if self._record_shared or not self._record_clean:
+                    # −1 is every bit set: filled as bytes, numpy hands it to memset, which writes a buffer this
+                    # large without reading it first (twice as fast as an int64 fill: 0.065 ms at 1024² against
+                    # 0.13). Not when nothing was stored since the last fill and the array was never handed out.
+                    self._record.view(np.uint8).fill(255)
+                    object.__setattr__(self, "_record_clean", True)
                 self._recorded_draws.clear()
             for name, value in extra.items():
                 self._attachment_array(name)[...] = value

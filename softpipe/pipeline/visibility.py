@@ -350,35 +350,17 @@ def visibility_pass(prims: Primitives, setup: TriangleSetup, fb, state: MergeSta
 
 def record_visible(fb, visibility: Visibility, record_ids: np.ndarray, state: MergeState) -> None:
     """The fast path's record write: at every sample where ``visibility.vis`` (int32 [S, H, W], the row
-    of the Primitives written last there, or −1) names a primitive, store its ``record_ids`` entry in
-    the framebuffer's visibility record, as the merger does where it writes the depth (so only with
-    the depth test on and depth writes on). Nothing without a record."""
-    if fb.record is None or state.depth_test is None or not state.depth_write:
+    of the Primitives written last there, or −1) names a primitive, the framebuffer's visibility record
+    holds its ``record_ids`` entry, as the merger stores it where it writes the depth (so only with the
+    depth test on and depth writes on). Nothing without a record.
+
+    The framebuffer stores them when the record is next read or written
+    (:meth:`~softpipe.pipeline.framebuffer.Framebuffer.defer_visible`): a frame of one draw whose record
+    is read only by the derived buffers never stores them, which read ``vis`` itself (the store took
+    ~0.3–0.45 ms of a 13 ms bunny frame at 1024²: benchmarks/README.md, "Outputs, round 7")."""
+    if not fb.has_record or state.depth_test is None or not state.depth_write:
         return
-    # one compiled pass over the image rows, in bands on both threads, through the tiles the pass touched
-    # only (the others hold no visible sample): numpy's masks read and wrote the record several times
-    # (3 ms at 1024², beside a frame of 34); the pass over every sample on one thread took 0.5 ms of a
-    # 12.3 ms bunny frame (benchmarks/README.md, "Outputs, round 5")
-    vis = visibility.vis
-    in_bands(_store_visible, vis.shape[1], vis, visibility.touched, TILE_W, TILE_H,
-             np.ascontiguousarray(record_ids, np.int32), fb.record, grain=TILE_H)
-
-
-@numba.njit(cache=True, nogil=True)
-def _store_visible(lo, hi, vis, touched, tile_w, tile_h, ids, record):
-    """record[s, row, i] = ids[vis[s, row, i]] where vis names a primitive (≥ 0), for the image rows
-    lo:hi, in the touched tiles (tile row 0 at the bottom)."""
-    samples, height, width = vis.shape[0], vis.shape[1], vis.shape[2]
-    for row in range(lo, hi):
-        tile_y = (height - 1 - row) // tile_h
-        for tile_x in range(touched.shape[1]):
-            if not touched[tile_y, tile_x]:
-                continue
-            for s in range(samples):
-                for i in range(tile_x * tile_w, min(tile_x * tile_w + tile_w, width)):
-                    v = vis[s, row, i]
-                    if v >= 0:
-                        record[s, row, i] = ids[v]
+    fb.defer_visible(visibility.vis, visibility.touched, TILE_W, TILE_H, np.ascontiguousarray(record_ids, np.int32))
 
 
 # ------------------------------------------------------------ shading what is visible

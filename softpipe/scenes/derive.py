@@ -380,18 +380,23 @@ def _fill_background(a, b, w_depth, w_linear, w_position, w_normal, w_object, w_
 # error_model="numpy": a division by zero gives IEEE's inf or NaN, as the numpy derivation's did (a zero
 # normal's length), not a ZeroDivisionError
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip, positions, normals, uvs,
-                 ndc_x, ndc_y, want, whole_depth, whole_linear, whole_position, whole_normal, whole_object,
-                 whole_triangle, whole_bary, whole_uv, whole_albedo, texture_uv, texture_draw, present, bad):
+def _derive_rows(lo, hi, width, record, blank, depth, vis, touched, tile_w, tile_h, pending_ids, ints, floats, corners,
+                 maps, clip, positions, normals, uvs, ndc_x, ndc_y, want, whole_depth, whole_linear, whole_position,
+                 whole_normal, whole_object, whole_triangle, whole_bary, whole_uv, whole_albedo, texture_uv,
+                 texture_draw, present, bad):
     """Rows lo:hi of the buffers. The pixel arrays are flat (pixel p = row·width + column): record and
-    depth [S, H·W], the buffers [H·W] or [H·W, c]; a buffer not asked for is empty and not written.
+    depth [S, H·W], the buffers [H·W] or [H·W, c]; a buffer not asked for is empty and not written. With
+    ``vis`` not empty, the last fast-path draw's samples are not yet in ``record`` (``Framebuffer.record_parts``):
+    a sample's value is ``pending_ids[vis]`` where its tile of ``tile_w`` × ``tile_h`` pixels is ``touched`` and
+    ``vis`` ≥ 0 (int32 [S, H·W]), ``record``'s elsewhere, or −1 without reading it if ``blank`` (it holds −1
+    everywhere: a frame of one fast draw reads only the tiles that draw touched).
 
     Each row is made in arrays of one row (``out_*``, indexed by column, in the cache): first written
     as background (:func:`_fill_background`); then its covered pixels (a record value ≥ 0) are listed
     in a loop of nothing else, and only they are computed, overwriting the fill where they have a value
     (a line's normal stays the fill's NaN). Then the row is copied into each buffer by streaming stores
     (:mod:`softpipe.core.streaming`: each buffer is written once, in whole lines, and never read)."""
-    samples = record.shape[0]
+    samples = depth.shape[0]
     draws = ints.shape[0]
     # the flags read once into scalars: a flag in an array would be loaded again after every store to a
     # buffer (numba cannot tell that the buffers do not overlap it)
@@ -406,6 +411,9 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
     triangle_topology = surface = textured = False
     kd0 = kd1 = kd2 = np.float32(0.0)
     covered, picks = np.empty(width, np.int64), np.empty(width, np.int64)    # a row's covered pixels, samples
+    values = np.empty(width, np.int64)                                       # and their record values
+    pending = vis.shape[0] > 0
+    height = depth.shape[1] // width if width > 0 else 0
     # a row's pixels of a surface, listed by step 1 for the steps after it: column, draw, the first clip row of
     # its instance, its primitive's corners (first the primitive's row of `corners`), barycentrics
     at, drawn, first = np.empty(width, np.int64), np.empty(width, np.int64), np.empty(width, np.int64)
@@ -443,20 +451,33 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
         # record value is −1 (the background, most of a frame) is passed over after one vectorized test (the OR
         # of the values' complements is 0), the others pixel by pixel (the kernel took 0.16 ms less in a bunny
         # frame at 1024²: benchmarks/README.md, "Outputs, round 7").
+        # (a block lies in one tile: the caller checked that tile_w is a multiple of 16)
         m = 0
         block = row_start
+        tile_y = (height - 1 - j) // tile_h              # (tile row 0 at the bottom, as the visibility pass's)
         while draws > 0 and block < row_start + width:
             block_end = min(block + 16, row_start + width)
             anything = np.int32(0)
-            for s in range(samples):
-                for p in range(block, block_end):
-                    anything |= ~record[s, np.uint64(p)]
+            if not blank:
+                for s in range(samples):
+                    for p in range(block, block_end):
+                        anything |= ~record[s, np.uint64(p)]
+            deferred = False
+            if pending:
+                deferred = touched[tile_y, (block - row_start) // tile_w]
+            if deferred:
+                for s in range(samples):
+                    for p in range(block, block_end):
+                        anything |= ~vis[s, np.uint64(p)]
             if anything == 0:
                 pass
             elif samples == 1:
                 for p in range(block, block_end):
-                    if record[0, np.uint64(p)] >= 0:
-                        covered[m] = p
+                    value = np.int32(-1) if blank else record[0, np.uint64(p)]
+                    if deferred and vis[0, np.uint64(p)] >= 0:
+                        value = pending_ids[vis[0, np.uint64(p)]]
+                    if value >= 0:
+                        covered[m], values[m] = p, value
                         m += 1
             else:
                 for p in range(block, block_end):
@@ -469,8 +490,11 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
                                 break
                             if z < least:
                                 pick, least = s, z
-                    if record[pick, p] >= 0:
-                        covered[m], picks[m] = p, pick
+                    value = np.int32(-1) if blank else record[pick, p]
+                    if deferred and vis[pick, p] >= 0:
+                        value = pending_ids[vis[pick, p]]
+                    if value >= 0:
+                        covered[m], picks[m], values[m] = p, pick, value
                         m += 1
             block = block_end
         # 1. each covered pixel's record value taken apart: its ids and depth written, and a pixel of a
@@ -482,7 +506,7 @@ def _derive_rows(lo, hi, width, record, depth, ints, floats, corners, maps, clip
             column = p - row_start
             cu = np.uint64(column)
             pick = picks[c] if samples > 1 else 0
-            value = record[pick, u]
+            value = values[c]
             # the record value taken apart: the last draw whose range starts at or below it
             k = 0
             if draws > 1:
@@ -715,6 +739,8 @@ def _sample_textures(table: DrawTable, texture_uv: np.ndarray, texture_draw: np.
 
 
 _NONE1, _NONE2, _NONE3 = np.zeros(0, np.float32), np.zeros((0, 0), np.float32), np.zeros((0, 0, 0), np.float32)
+# no deferred draw (Framebuffer.record_parts): an empty vis, one untouched tile, no ids
+_NO_VIS, _NO_TOUCHED, _NO_IDS = np.zeros((0, 0), np.int32), np.zeros((1, 1), np.bool_), np.zeros(0, np.int32)
 
 
 def check_out_array(out: Mapping[str, np.ndarray], name: str, shape: tuple, dtype) -> np.ndarray:
@@ -774,17 +800,24 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
     texture_draw = np.empty((h, w), np.int64) if textured else np.zeros((0, 0), np.int64)
     present = np.zeros(len(draws), np.int8)
     bad = np.empty(h, np.int64)
-    record = fb.record
+    record, blank, deferred = fb.record_parts()
+    if deferred is not None and deferred[2] % 16:
+        record, blank, deferred = fb.record, False, None   # (tiles the blocks of 16 would straddle: stored first)
     assert record is not None                    # the caller checked
+    samples = record.shape[0]
+    if deferred is None:
+        vis, touched, tile_w, tile_h, pending_ids = _NO_VIS, _NO_TOUCHED, 16, 1, _NO_IDS
+    else:
+        vis, touched, tile_w, tile_h, pending_ids = deferred
+        vis = vis.reshape(samples, h * w)
 
     def flat(a: np.ndarray) -> np.ndarray:
         """A buffer with its pixels in one axis (a view: the buffers are made C-contiguous above)."""
         return a.reshape((a.shape[0] * a.shape[1],) + a.shape[2:])
 
-    samples = record.shape[0]
     _warm(table.corners, table.clip, table.normals, table.positions, table.uvs)
-    in_bands(_derive_rows, h, w, record.reshape(samples, h * w), fb.samples_depth.reshape(samples, h * w),
-             table.ints, table.floats, table.corners, table.maps, table.clip, table.positions, table.normals,
+    in_bands(_derive_rows, h, w, record.reshape(samples, h * w), blank, fb.samples_depth.reshape(samples, h * w),
+             vis, touched, tile_w, tile_h, pending_ids, table.ints, table.floats, table.corners, table.maps, table.clip, table.positions, table.normals,
              table.uvs, table.ndc_x, table.ndc_y, want, *(flat(buffers[n]) for n in BUFFER_NAMES), flat(texture_uv),
              flat(texture_draw), present, bad,
              grain=max(1, 16384 // w))
@@ -793,8 +826,10 @@ def derive_buffers(fb: Framebuffer, names: Sequence[str], maps: Dict[int, np.nda
         j = int(broken[0])
         i = int(bad[j])
         end = int(table.ints[-1, I_BASE] + table.ints[-1, I_COUNT]) if len(draws) else 0
+        stored = fb.record                       # (with the last draw's samples in it)
+        assert stored is not None
         raise ValueError(f"derive_outputs: the visibility record at pixel ({i}, {j}) holds "
-                         f"{record[:, j, i].tolist()}, which no recorded draw of this frame made (its "
+                         f"{stored[:, j, i].tolist()}, which no recorded draw of this frame made (its "
                          f"{len(draws)} draws took the values 0 to {end - 1}); was fb.record changed after drawing?")
     for k, e in enumerate(table.failed):
         if e is not None and present[k]:

@@ -160,7 +160,7 @@ def derive_outputs(fb: Framebuffer, names: Sequence[str], objects: Sequence = ()
     """
     names = check_outputs(names)
     out = dict(out or {})
-    if fb.record is None and any(n != "color" for n in names):
+    if not fb.has_record and any(n != "color" for n in names):
         raise ValueError("derive_outputs needs a framebuffer drawn with a visibility record: "
                          "Framebuffer(width, height, record=True)")
     maps = _triangle_maps(objects, fb.recorded_draws) if objects else {}
