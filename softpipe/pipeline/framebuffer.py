@@ -31,7 +31,7 @@ from softpipe.core.parallel import in_bands
 from softpipe.core.runtime import check_memory
 from softpipe.pipeline.sampling import CENTER, SamplePattern
 
-__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record", "store_visible", "RECORD_MAX",
+__all__ = ["Framebuffer", "MAX_DIMENSION", "MAX_TOTAL_SAMPLES", "image_format", "RecordedDraw", "split_record", "RECORD_MAX",
            "ATTACHMENT_FORMATS", "DEFAULT_ATTACHMENTS"]
 
 #: Largest width or height, in pixels.
@@ -108,7 +108,7 @@ class RecordedDraw:
 
 
 @numba.njit(cache=True, nogil=True)
-def store_visible(lo, hi, vis, touched, tile_w, tile_h, ids, record):
+def _store_visible(lo, hi, vis, touched, tile_w, tile_h, ids, record):
     """record[s, row, i] = ids[vis[s, row, i]] where vis names a primitive (≥ 0), for the image rows lo:hi,
     in the touched tiles (tile row 0 at the bottom): a fast-path draw's record write
     (:meth:`Framebuffer.defer_visible`)."""
@@ -458,9 +458,9 @@ class Framebuffer:
 
         At every sample where ``vis`` (int32 [S, H, W], a row of the draw's primitives or −1; set only in
         the tiles ``touched`` [tiles_y, tiles_x] of ``tile_w`` × ``tile_h`` pixels, tile row 0 at the
-        bottom) names a primitive, the record's value is ``ids[vis]`` (int32). Stored by
-        :func:`store_visible` when the next draw is recorded (:meth:`add_recorded_draw`), when
-        :attr:`record` hands the array out, or never: a clear forgets them. A frame of one draw read only by the derived buffers
+        bottom) names a primitive, the record's value is ``ids[vis]`` (int32). Stored when the next
+        draw is recorded (:meth:`add_recorded_draw`), when :attr:`record` hands the array out, or
+        never: a clear forgets them. A frame of one draw read only by the derived buffers
         (:meth:`record_parts`) never stores them."""
         with self._lock:
             self._store_pending()
@@ -474,7 +474,7 @@ class Framebuffer:
         vis, touched, tile_w, tile_h, ids = pending
         object.__setattr__(self, "_pending", None)
         object.__setattr__(self, "_record_clean", False)
-        in_bands(store_visible, vis.shape[1], vis, touched, tile_w, tile_h, ids, self._record, grain=tile_h)
+        in_bands(_store_visible, vis.shape[1], vis, touched, tile_w, tile_h, ids, self._record, grain=tile_h)
 
     @property
     def recorded_draws(self) -> List[RecordedDraw]:
