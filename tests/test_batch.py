@@ -265,6 +265,20 @@ def test_a_worker_killed_mid_run_loses_no_frame(client, tmp_path):
 
 
 @needs_dask
+def test_the_meshes_are_scattered_once_every_worker_of_the_cluster_has_joined(client, tmp_path, monkeypatch):
+    # a mesh broadcast while a worker is still joining lives on the other alone: a frame that kills that
+    # worker then loses it, with every frame left to draw
+    calls = []
+    wait, scatter = client.wait_for_workers, client.scatter
+    monkeypatch.setattr(client, "wait_for_workers", lambda n, timeout=None: (calls.append(("wait", n)),
+                                                                              wait(n, timeout=timeout))[1])
+    monkeypatch.setattr(client, "scatter", lambda *a, **k: (calls.append(("scatter", k.get("broadcast"))),
+                                                            scatter(*a, **k))[1])
+    result = batch(_job(), tmp_path / "out", client)
+    assert not result.failed and calls[0] == ("wait", 2) and calls[1:] and set(calls[1:]) == {("scatter", True)}
+
+
+@needs_dask
 def test_interrupted_on_the_cluster_then_resumed(client, tmp_path):
     job, out = _job(), tmp_path / "out"
 

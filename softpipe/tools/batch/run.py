@@ -67,6 +67,8 @@ CRASH_ONCE_ENV = "SOFTPIPE_BATCH_CRASH_ONCE"
 MAX_MANIFEST_LINE = 1 << 16
 #: Worker processes of a LocalCluster per core, at most (each draws on one core; more only wait for one).
 WORKERS_PER_CORE = 2
+#: How long a batch on a cluster whose size it knows waits for its workers before scattering the meshes.
+WORKERS_TIMEOUT_S = 30.0
 
 
 class ClusterError(RuntimeError):
@@ -685,7 +687,9 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
                 log(f"connected to {scheduler} ({len(client.scheduler_info()['workers'])} workers)")
         else:
             client = scheduler
+        _wait_for_the_clusters_workers(client)
         state.result.workers = max(len(client.scheduler_info().get("workers", {})), 1)
+        # every worker gets a copy of each mesh, so that a worker that dies takes none of them with it
         scattered = {name: client.scatter(mesh, broadcast=True, hash=False) for name, mesh in meshes.items()}
         run = uuid.uuid4().hex[:8]
         futures = {}
@@ -712,6 +716,21 @@ def _run_dask(todo, meshes, job, state, manifest, scheduler, workers, numba_thre
                 future.cancel()
             for f in scattered.values():
                 f.release()
+
+
+def _wait_for_the_clusters_workers(client, timeout: float = WORKERS_TIMEOUT_S) -> None:
+    """Wait (at most ``timeout`` seconds) until every worker of the client's own cluster has joined, when
+    the client knows its cluster (a LocalCluster's workers, as specified). A mesh is broadcast to the
+    workers there are: one scattered while a worker was still joining lived on the other alone, and a
+    frame that killed that worker lost it, with every frame still to draw (seen under load, in
+    tests/test_batch.py's killed worker). A scheduler's cluster of unknown size is taken as it is."""
+    spec = getattr(getattr(client, "cluster", None), "worker_spec", None)
+    if not spec:
+        return
+    try:
+        client.wait_for_workers(len(spec), timeout=timeout)
+    except (TimeoutError, OSError):      # (the workers there are will do; a lost one is reported per frame)
+        pass
 
 
 # ---------------------------------------------------------------------------- the contact sheet
